@@ -1,0 +1,31 @@
+#include <gtest/gtest.h>
+
+#include "appliance/ndi/crc16.hpp"
+
+namespace arnav::ndi {
+namespace {
+
+TEST(Crc16, CheckValue) { EXPECT_EQ(crc16("123456789"), 0xBB3D); }
+
+// Pairs seen in real Polaris traffic (../shared/docs/ndi-capi.md).
+TEST(Crc16, KnownCommandAndReplyPairs) {
+  EXPECT_EQ(crc16("INIT:"), 0xE3A5);
+  EXPECT_EQ(crc16("OKAY"), 0xA896);
+  EXPECT_EQ(crc16("RESET"), 0xBE6F);
+  EXPECT_EQ(crc16("VER:0"), 0x65EE);
+  EXPECT_EQ(crc16("TSTART:"), 0x5423);
+  EXPECT_EQ(crc16("TSTOP:"), 0x2C14);
+  EXPECT_EQ(crc16("COMM:50000"), 0x0048);
+  EXPECT_EQ(crc16("TX:0001"), 0x031A);
+  EXPECT_EQ(crc16("BX:0001"), 0xC26D);
+  EXPECT_EQ(crc16("PHSR:02"), 0xE17E);
+  EXPECT_EQ(crc16("WARNING"), 0x7423);
+  EXPECT_EQ(crc16("01"), 0xD4D5);
+}
+
+TEST(Crc16, IncrementalEqualsWhole) {
+  EXPECT_EQ(crc16("56789", crc16("1234")), crc16("123456789"));
+}
+
+}  // namespace
+}  // namespace arnav::ndi

@@ -1,0 +1,61 @@
+# Shared build settings: warnings, sanitizers, dependency targets, test helper.
+find_package(Eigen3 3.4 REQUIRED NO_MODULE)
+find_package(Threads REQUIRED)
+find_package(GTest REQUIRED)
+find_package(yaml-cpp REQUIRED)
+find_package(nlohmann_json REQUIRED)
+find_package(CLI11 REQUIRED)
+
+add_library(arnav_warnings INTERFACE)
+target_compile_options(arnav_warnings INTERFACE
+  -Wall -Wextra -Wpedantic -Wshadow -Wnon-virtual-dtor -Wcast-align
+  -Wunused -Woverloaded-virtual -Wnull-dereference -Wdouble-promotion -Wformat=2
+  -Wimplicit-fallthrough)
+
+if(ARNAV_SANITIZE)
+  add_compile_options(-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined)
+  add_link_options(-fsanitize=address,undefined)
+endif()
+
+if(ARNAV_FUZZ AND NOT CMAKE_CXX_COMPILER_ID MATCHES "Clang")
+  message(FATAL_ERROR "ARNAV_FUZZ=ON needs clang (libFuzzer): configure with CXX=clang++")
+endif()
+
+# arnav_add_test(NAME name SOURCES a.cpp b.cpp LIBS lib... [LABELS l...])
+# One gtest executable registered with ctest; tests live beside the code they test.
+function(arnav_add_test)
+  cmake_parse_arguments(T "" "NAME;TIMEOUT" "SOURCES;LIBS;LABELS" ${ARGN})
+  add_executable(${T_NAME} ${T_SOURCES})
+  target_link_libraries(${T_NAME} PRIVATE ${T_LIBS} GTest::gtest GTest::gtest_main arnav_warnings)
+  add_test(NAME ${T_NAME} COMMAND ${T_NAME})
+  if(NOT T_TIMEOUT)
+    set(T_TIMEOUT 300)
+  endif()
+  set_tests_properties(${T_NAME} PROPERTIES TIMEOUT ${T_TIMEOUT}
+    ENVIRONMENT "ARNAV_SOURCE_DIR=${PROJECT_SOURCE_DIR};ARNAV_SHARED_DIR=${PROJECT_SOURCE_DIR}/../shared;ARNAV_BINARY_DIR=${PROJECT_BINARY_DIR}")
+  if(T_LABELS)
+    set_tests_properties(${T_NAME} PROPERTIES LABELS "${T_LABELS}")
+  endif()
+endfunction()
+
+# arnav_add_fuzzer(NAME name SOURCES a.cpp LIBS ... [SEEDS dir])
+# libFuzzer target plus a short smoke run in ctest (label "fuzz").
+function(arnav_add_fuzzer)
+  cmake_parse_arguments(F "" "NAME;SEEDS" "SOURCES;LIBS" ${ARGN})
+  if(NOT ARNAV_FUZZ)
+    return()
+  endif()
+  add_executable(${F_NAME} ${F_SOURCES})
+  target_compile_options(${F_NAME} PRIVATE -fsanitize=fuzzer)
+  target_link_options(${F_NAME} PRIVATE -fsanitize=fuzzer)
+  target_link_libraries(${F_NAME} PRIVATE ${F_LIBS})
+  set(corpus ${CMAKE_CURRENT_BINARY_DIR}/${F_NAME}_corpus)
+  set(args -max_total_time=20 -rss_limit_mb=2048 ${corpus})
+  if(F_SEEDS)
+    list(APPEND args ${F_SEEDS})
+  endif()
+  # The corpus folder is made fresh in the build tree; seeds are read-only inputs.
+  add_test(NAME ${F_NAME}_smoke
+    COMMAND sh -c "mkdir -p '${corpus}' && exec \"$0\" \"$@\"" $<TARGET_FILE:${F_NAME}> ${args})
+  set_tests_properties(${F_NAME}_smoke PROPERTIES LABELS "fuzz" TIMEOUT 120)
+endfunction()

@@ -1,0 +1,93 @@
+#pragma once
+// One interface for the tissue models (mass-spring, co-rotational FEM, XPBD).
+// Frame: World (the scene frame). Units: mm, kg, s; forces in mN (kg*mm/s^2),
+// stresses in kPa (mN/mm^2), stiffness of attachments in mN/mm.
+#include <Eigen/Core>
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "host/scene/tet_mesh.hpp"
+
+namespace arnav::host {
+
+// Linear isotropic elastic material of one region, in model units.
+struct Material {
+  double youngs_modulus_kPa = 5.0;     // liver parenchyma ~ 2-10 kPa
+  double poisson_ratio = 0.45;
+  double density_kg_per_mm3 = 1.06e-6;  // 1060 kg/m^3
+  double damping_mass_per_s = 0.0;     // Rayleigh alpha (mass-proportional), 1/s
+  double damping_stiffness_s = 0.0;    // Rayleigh beta (stiffness-proportional), s
+};
+
+// What a tissue model is built from. Only what is declared is built: an empty vessel
+// tree means no beam machinery, no attachments means none are allocated.
+struct SimProblem {
+  TetMesh mesh;
+  std::vector<Material> region_materials;     // indexed by mesh.tet_region
+  std::vector<int> fixed_vertices;            // Dirichlet: held at rest position
+  Eigen::Vector3d gravity_World_mm_s2 = Eigen::Vector3d(0, 0, -9810.0);
+  std::optional<VesselTree> vessels;          // beams coupled to the volume when present
+  Material vessel_material{.youngs_modulus_kPa = 500.0, .poisson_ratio = 0.45};
+};
+
+// A material point: barycentric combination of mesh vertices (a vertex, or a point in a tet).
+struct MaterialPoint {
+  std::vector<int> vertices;
+  std::vector<double> weights;  // sum to 1
+};
+
+// Zero-rest-length spring from a material point to a target in World: a grasp pulled
+// by a tool, or a registration correspondence with its own weight (stiffness).
+struct AttachmentSpec {
+  MaterialPoint point;
+  Eigen::Vector3d target_World_mm = Eigen::Vector3d::Zero();
+  double stiffness_mN_per_mm = 1.0;
+};
+using AttachmentId = int;
+
+// Per-step report (after Ceres' Summary): what the solver did and how well.
+struct StepSummary {
+  int iterations = 0;             // solver / constraint iterations in this step
+  double initial_residual = 0.0;  // model-defined (relative residual for linear solves)
+  double final_residual = 0.0;
+  std::string termination;        // "converged", "max_iterations", "direct", ...
+  double wall_time_ms = 0.0;
+  double kinetic_energy = 0.0;    // mN*mm (= micro-joules)
+  double elastic_energy = 0.0;
+  bool healthy = true;            // false: NaN/Inf, energy blow-up, inverted beyond recovery
+  std::string warning;            // why not healthy, or a known limit hit (e.g. "inverted tets: 12")
+};
+
+// Per-element measure for display and checks.
+struct ElementMeasure {
+  double von_mises_stress_kPa = 0.0;
+  double max_principal_strain = 0.0;   // Green strain, largest eigenvalue
+  double volume_ratio = 1.0;           // det(F)
+};
+
+class TissueModel {
+ public:
+  virtual ~TissueModel() = default;
+  virtual std::string name() const = 0;
+
+  // Advances the state by dt_s seconds (quasi-static models ignore inertia).
+  virtual StepSummary step(double dt_s) = 0;
+
+  virtual AttachmentId add_attachment(const AttachmentSpec& spec) = 0;
+  virtual void set_attachment_target(AttachmentId id, const Eigen::Vector3d& target_World_mm) = 0;
+  virtual void set_attachment_stiffness(AttachmentId id, double stiffness_mN_per_mm) = 0;
+  virtual void remove_attachment(AttachmentId id) = 0;
+
+  // Fixed vertices are held at their current position from now on.
+  virtual void set_fixed_vertices(const std::vector<int>& vertices) = 0;
+
+  virtual const Eigen::Matrix3Xd& positions_World_mm() const = 0;
+  virtual const Eigen::Matrix3Xd& velocities_World_mm_s() const = 0;
+  virtual void set_state(const Eigen::Matrix3Xd& positions_World_mm, const Eigen::Matrix3Xd& velocities_World_mm_s) = 0;
+  virtual std::vector<ElementMeasure> element_measures() const = 0;
+};
+
+}  // namespace arnav::host

@@ -1,0 +1,20 @@
+#pragma once
+// LCM channel names. One channel per tool and per device so that subscribers can pick
+// with a regex (e.g. "ARNAV_POSE_.*"). Documented in docs/protocol.md.
+#include <string>
+#include <string_view>
+
+namespace arnav::channels {
+
+inline constexpr std::string_view kPosePrefix = "ARNAV_POSE_";      // + tool name
+inline constexpr std::string_view kHealthPrefix = "ARNAV_HEALTH_";  // + device ("ndi", "camera")
+inline constexpr std::string_view kEvents = "ARNAV_EVENT";
+inline constexpr std::string_view kFramePrefix = "ARNAV_FRAME_";    // + camera name
+inline constexpr std::string_view kPoseRegex = "ARNAV_POSE_.*";
+inline constexpr std::string_view kHealthRegex = "ARNAV_HEALTH_.*";
+
+inline std::string pose(std::string_view tool_name) { return std::string(kPosePrefix) + std::string(tool_name); }
+inline std::string health(std::string_view device) { return std::string(kHealthPrefix) + std::string(device); }
+inline std::string frame(std::string_view camera) { return std::string(kFramePrefix) + std::string(camera); }
+
+}  // namespace arnav::channels
