@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <mutex>
 #include <stdexcept>
 
@@ -187,7 +188,7 @@ RenderResult SyntheticRenderer::render(const std::vector<BoardInScene>& scene, c
         const double denom = n.dot(d);
         const double t = std::abs(denom) > 1e-12 ? n_dot_o / denom : -1.0;
         if (t <= 0.0) {
-          board_xy.at<cv::Vec2d>(j, i) = cv::Vec2d(NAN, NAN);
+          board_xy.at<cv::Vec2d>(j, i) = cv::Vec2d::all(std::numeric_limits<double>::quiet_NaN());
           continue;
         }
         const Eigen::Vector3d rel = t * d - o;
