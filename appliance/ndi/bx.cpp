@@ -71,9 +71,9 @@ ParseError parse_bx(std::span<const std::uint8_t> frame, TrackingReply& out) {
     if (status == kBxValid) {
       if (end - p < 32) return ParseError::LengthMismatch;
       r.state = HandleState::Valid;
-      for (int k = 0; k < 4; ++k) r.q_NdiTool_wxyz[k] = f32(p + 4 * k);
-      for (int k = 0; k < 3; ++k) r.p_NdiTool_mm[k] = f32(p + 16 + 4 * k);
-      r.rms_error_mm = f32(p + 28);
+      for (int k = 0; k < 4; ++k) r.q_NdiTool_wxyz[k] = static_cast<double>(f32(p + 4 * k));
+      for (int k = 0; k < 3; ++k) r.p_NdiTool_mm[k] = static_cast<double>(f32(p + 16 + 4 * k));
+      r.rms_error_mm = static_cast<double>(f32(p + 28));
       p += 32;
     } else if (status == kBxMissing) {
       r.state = HandleState::Missing;
