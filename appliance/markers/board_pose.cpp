@@ -46,14 +46,8 @@ double rotation_angle_between(const Eigen::Isometry3d& a, const Eigen::Isometry3
 
 BoardPoseEstimator::BoardPoseEstimator(TagBoard board, CameraModel camera, PoseSettings settings)
     : board_(std::move(board)), camera_(std::move(camera)), settings_(settings) {
-  validate(board_);
+  validate(board_);  // planar: the joint IPPE solve needs it
   validate(camera_);
-  for (const auto& tag : board_.tags) {
-    if (std::abs(tag.X_BoardTag.linear()(2, 2) - 1.0) > 1e-9 || std::abs(tag.X_BoardTag.translation().z()) > 1e-9) {
-      throw std::invalid_argument("board '" + board_.name + "': tag " + std::to_string(tag.id) +
-                                  " is not in the board's x-y plane (the joint solve needs a planar board)");
-    }
-  }
   if (!(settings_.ambiguity_ratio >= 1.0)) throw std::invalid_argument("pose: ambiguity_ratio must be >= 1");
   if (!(settings_.max_reprojection_px > 0.0)) throw std::invalid_argument("pose: max_reprojection_px must be > 0");
 }
