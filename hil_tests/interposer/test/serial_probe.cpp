@@ -36,11 +36,26 @@ bool step(const char* what, bool ok, const std::string& detail = "") {
 
 }  // namespace
 
+// Frees the port on every exit path (the sanitizer build checks for leaks).
+struct PortGuard {
+  sp_port* port = nullptr;
+  bool open = false;
+  ~PortGuard() {
+    if (open) sp_close(port);
+    if (port) sp_free_port(port);
+  }
+};
+
 int main(int argc, char** argv) {
   const char* path = argc > 1 ? argv[1] : "/dev/ttyS0";
-  sp_port* port = nullptr;
-  if (!step("get_port_by_name", sp_get_port_by_name(path, &port) == SP_OK)) return 1;
-  if (!step("open", sp_open(port, SP_MODE_READ_WRITE) == SP_OK, sp_last_error_message())) return 1;
+  PortGuard guard;
+  if (!step("get_port_by_name", sp_get_port_by_name(path, &guard.port) == SP_OK)) return 1;
+  sp_port* port = guard.port;
+  guard.open = sp_open(port, SP_MODE_READ_WRITE) == SP_OK;
+  char* why = guard.open ? nullptr : sp_last_error_message();
+  const bool opened = step("open", guard.open, why ? why : "");
+  if (why) sp_free_error_message(why);
+  if (!opened) return 1;
   sp_set_baudrate(port, 9600);
   sp_set_bits(port, 8);
   sp_set_parity(port, SP_PARITY_NONE);
@@ -63,7 +78,5 @@ int main(int argc, char** argv) {
   if (!step("end_break", sp_end_break(port) == SP_OK)) return 1;
   const std::string reset = read_reply(port, 5000);
   if (!step("RESET after break", reset == "RESETBE6F\r", reset)) return 1;
-  sp_close(port);
-  sp_free_port(port);
   return 0;
 }

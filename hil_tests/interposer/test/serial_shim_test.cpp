@@ -40,7 +40,7 @@ class SerialShim : public ::testing::Test {
 
 TEST_F(SerialShim, LibserialportNeedsTheShimOnAPty) {
   ChildProcess probe({ARNAV_SERIAL_PROBE_EXE, "/dev/ttyS0"}, {}, dir + "/probe.log");
-  EXPECT_EQ(probe.wait(60.0).value_or(-1), 1);
+  EXPECT_EQ(probe.wait(60.0).value_or(-1), 1) << probe.log_tail();
   EXPECT_NE(probe.log_tail().find("open: FAILED"), std::string::npos) << probe.log_tail();
 }
 
