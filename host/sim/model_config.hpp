@@ -1,0 +1,20 @@
+#pragma once
+// Which tissue model a scene asks for and how its solver is set. Filled from the scene
+// file (host/scene) and by benchmarks; read by make_tissue_model (host/sim).
+#include <string>
+
+namespace arnav::host {
+
+struct ModelConfig {
+  std::string kind = "xpbd";          // "mass_spring" | "xpbd" | "corotational_fem"
+  std::string integrator;             // mass_spring: "explicit" | "semi_implicit";
+                                      // corotational_fem: "implicit_euler" | "quasi_static"
+  std::string linear_solver;          // corotational_fem: "cholmod" | "eigen_ldlt" | "pcg"
+  int iterations = 10;                // XPBD iterations per substep; PCG max iterations
+  int substeps = 1;                   // substeps per step(dt)
+  double tolerance = 1e-6;            // relative residual for iterative solves
+  int refactor_every = 1;             // FEM: steps between numeric refactorisations
+  int threads = 1;                    // worker threads for the model's parallel loops
+};
+
+}  // namespace arnav::host
