@@ -45,8 +45,8 @@ double finite(double v, const std::string& what) {
 // Corners of an axis-aligned tag centred at (cx, cy) in detector order.
 std::array<Eigen::Vector3d, 4> square_corners(double cx, double cy, double s) {
   const double h = 0.5 * s;
-  return {Eigen::Vector3d(cx - h, cy + h, 0), Eigen::Vector3d(cx + h, cy + h, 0),
-          Eigen::Vector3d(cx + h, cy - h, 0), Eigen::Vector3d(cx - h, cy - h, 0)};
+  return {Eigen::Vector3d(cx - h, cy - h, 0), Eigen::Vector3d(cx + h, cy - h, 0),
+          Eigen::Vector3d(cx + h, cy + h, 0), Eigen::Vector3d(cx - h, cy + h, 0)};
 }
 
 }  // namespace
@@ -140,11 +140,11 @@ void validate_board_layout(const BoardLayout& b, const std::string& source) {
         std::abs(d02.dot(d13)) > 0.02 * b.tag_size_mm * b.tag_size_mm) {
       fail(tag + ": corners do not form a square");
     }
-    // Detector order: p0 -> p1 -> p2 turns so that the normal (p1-p0) x (p3-p0) points
-    // out of the sheet (-z) for a tag printed in the z = 0 plane.
+    // Detector order turns counter-clockwise seen from the front, so the normal
+    // (p1-p0) x (p3-p0) points out of the paper (+z) for a tag printed in z = 0.
     const Eigen::Vector3d n = (t.p_BoardCorner_mm[1] - t.p_BoardCorner_mm[0])
                                   .cross(t.p_BoardCorner_mm[3] - t.p_BoardCorner_mm[0]);
-    if (n.z() > 0.0 && std::abs(n.z()) > 0.5 * n.norm()) {
+    if (n.z() < 0.0 && std::abs(n.z()) > 0.5 * n.norm()) {
       fail(tag + ": corners are listed in mirrored order (expected p0 bottom-left, p1 "
            "bottom-right, p2 top-right, p3 top-left)");
     }
@@ -246,8 +246,8 @@ std::string format_board_layout(const BoardLayout& b) {
   validate_board_layout(b, "board '" + b.name + "'");
   std::ostringstream out;
   out << std::setprecision(12);
-  out << "# ARNav board layout (docs/calibration.md). Board frame: origin top-left of the\n"
-         "# printed board, x right, y down the sheet, z into the sheet; millimetres.\n";
+  out << "# ARNav board layout (docs/calibration.md). Board frame: origin bottom-left of the\n"
+         "# printed board, x right, y up the sheet, z out of the paper; millimetres.\n";
   if (b.type != BoardType::Chessboard) {
     out << "# Tag corners in AprilTag detector order: p0 bottom-left, p1 bottom-right,\n"
            "# p2 top-right, p3 top-left (tag upright); tag_size_mm = black border edge.\n";
@@ -318,7 +318,8 @@ BoardLayout make_apriltag_grid(const std::string& family, int cols, int rows, do
   for (int r = 0; r < rows; ++r) {
     for (int c = 0; c < cols; ++c) {
       const double cx = border + c * (tag_size_mm + spacing_mm) + 0.5 * tag_size_mm;
-      const double cy = border + r * (tag_size_mm + spacing_mm) + 0.5 * tag_size_mm;
+      // Row 0 is printed at the top; y points up the sheet.
+      const double cy = b.board_height_mm - border - r * (tag_size_mm + spacing_mm) - 0.5 * tag_size_mm;
       b.tags.push_back({first_id + r * cols + c, square_corners(cx, cy, tag_size_mm)});
     }
   }

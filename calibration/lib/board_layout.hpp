@@ -2,9 +2,9 @@
 // Calibration target layouts: what `arnav-calib board` prints and what the marker
 // detector (appliance/markers) and the calibration read. YAML, millimetres.
 //
-// Board frame: origin at the top-left corner of the printed board, x to the right and
-// y down the printed sheet, z into the sheet (right-handed; a camera facing the printed
-// board sees it with z pointing away, as OpenCV's chessboard object points).
+// Board frame: origin at the bottom-left corner of the printed board, x to the right,
+// y up the printed sheet, z out of the paper towards the viewer (right-handed; the same
+// axes as the Tag frame of appliance/markers).
 //
 //   arnav_board_version: 1
 //   name: grid_5x4_tag36h11_30mm
@@ -22,11 +22,11 @@
 //     inner_corners_cols: 9        # inner corners along x
 //     inner_corners_rows: 6        # inner corners along y
 //     square_size_mm: 25
-//     first_corner_mm: [x, y]      # inner corner (0,0) in Board, z = 0
+//     first_corner_mm: [x, y]      # bottom-left inner corner (0,0) in Board, z = 0
 //
 // Corner order is the AprilTag detector's (apriltag_detection_t::p): looking at the
 // printed tag upright, p0 bottom-left, p1 bottom-right, p2 top-right, p3 top-left,
-// i.e. tag-centred (-s/2,+s/2), (+s/2,+s/2), (+s/2,-s/2), (-s/2,-s/2) in x-right/y-down.
+// i.e. tag-centred (-s/2,-s/2), (+s/2,-s/2), (+s/2,+s/2), (-s/2,+s/2) in x-right/y-up.
 #include <array>
 #include <filesystem>
 #include <optional>
@@ -62,7 +62,8 @@ struct BoardLayout {
   std::optional<ChessboardSpec> chessboard;
 
   const BoardTag* find_tag(int id) const;
-  // Chessboard inner corners in OpenCV's findChessboardCorners order (row by row).
+  // Chessboard inner corners, row by row from first_corner_mm: (c, r) at
+  // first_corner + (c, r) * square (the object points for cv::calibrateCamera).
   std::vector<Eigen::Vector3d> chessboard_corners_mm() const;
 };
 
@@ -85,7 +86,8 @@ std::string format_board_layout(const BoardLayout& layout);
 void validate_board_layout(const BoardLayout& layout, const std::string& source);
 
 // Generators used by `arnav-calib board`.
-// Grid of cols x rows tags, ids first_id.. row by row; spacing between black borders.
+// Grid of cols x rows tags, ids first_id.. row by row from the top-left as printed;
+// spacing between black borders.
 BoardLayout make_apriltag_grid(const std::string& family, int cols, int rows, double tag_size_mm,
                                double spacing_mm, int first_id, double margin_mm);
 // Rigid marker board for the hybrid camera/NDI target: 2x2 tags around a free centre

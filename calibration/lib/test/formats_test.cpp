@@ -167,16 +167,18 @@ TEST(BoardLayout, GridGeometryAndRoundTrip) {
   ASSERT_EQ(b.tags.size(), 20u);
   // Margin 10 mm + one white cell (30/8 mm), then the first tag's black border.
   const double border = 10.0 + 30.0 / 8.0;
-  const BoardTag* t0 = b.find_tag(0);
+  const double H = b.board_height_mm;
+  const BoardTag* t0 = b.find_tag(0);  // printed top-left; y points up the sheet
   ASSERT_NE(t0, nullptr);
   EXPECT_NEAR(t0->p_BoardCorner_mm[3].x(), border, 1e-12);  // p3 top-left
-  EXPECT_NEAR(t0->p_BoardCorner_mm[3].y(), border, 1e-12);
-  EXPECT_NEAR(t0->p_BoardCorner_mm[0].y(), border + 30.0, 1e-12);  // p0 bottom-left
+  EXPECT_NEAR(t0->p_BoardCorner_mm[3].y(), H - border, 1e-12);
+  EXPECT_NEAR(t0->p_BoardCorner_mm[0].y(), H - border - 30.0, 1e-12);  // p0 bottom-left
   EXPECT_NEAR(t0->p_BoardCorner_mm[1].x(), border + 30.0, 1e-12);  // p1 bottom-right
+  EXPECT_NEAR(t0->p_BoardCorner_mm[1].y(), H - border - 30.0, 1e-12);
   const BoardTag* t6 = b.find_tag(6);  // second row, second column
   ASSERT_NE(t6, nullptr);
   EXPECT_NEAR(t6->p_BoardCorner_mm[3].x(), border + 40.0, 1e-12);
-  EXPECT_NEAR(t6->p_BoardCorner_mm[3].y(), border + 40.0, 1e-12);
+  EXPECT_NEAR(t6->p_BoardCorner_mm[3].y(), H - border - 40.0, 1e-12);
   EXPECT_NEAR(b.board_width_mm, 2 * border + 5 * 30 + 4 * 10, 1e-12);
 
   const fs::path p = temp_dir() / "grid.yaml";
@@ -199,7 +201,7 @@ TEST(BoardLayout, ChessboardAndMarkerBoard) {
   const auto pts = c.chessboard_corners_mm();
   ASSERT_EQ(pts.size(), 54u);
   EXPECT_NEAR(pts[0].x(), 40.0, 1e-12);
-  EXPECT_NEAR(pts[9].y(), 65.0, 1e-12);  // second row
+  EXPECT_NEAR(pts[9].y(), 65.0, 1e-12);  // second row, y up
   const fs::path p = temp_dir() / "chess.yaml";
   write_board_layout(p, c);
   const BoardLayout back = read_board_layout(p);
@@ -217,20 +219,20 @@ TEST(BoardLayout, RejectsBadLayoutsWithLine) {
   const std::string head =
       "arnav_board_version: 1\nname: b\ntype: apriltag_grid\nunits: mm\nboard_width_mm: 100\n"
       "board_height_mm: 100\ntag_family: tag36h11\ntag_size_mm: 20\ntags:\n";
-  const std::string tag0 = "  - id: 0\n    corners_mm: [[0,20,0],[20,20,0],[20,0,0],[0,0,0]]\n";
+  const std::string tag0 = "  - id: 0\n    corners_mm: [[0,0,0],[20,0,0],[20,20,0],[0,20,0]]\n";
   EXPECT_NO_THROW(parse_board_layout(head + tag0, "b.yaml"));
   // Duplicate id.
   std::string msg = error_of([&] { parse_board_layout(head + tag0 + tag0, "b.yaml"); });
   EXPECT_NE(msg.find("twice"), std::string::npos) << msg;
   // Wrong size, reported at the tag's line (line 10).
   msg = error_of([&] {
-    parse_board_layout(head + "  - id: 1\n    corners_mm: [[0,25,0],[25,25,0],[25,0,0],[0,0,0]]\n",
+    parse_board_layout(head + "  - id: 1\n    corners_mm: [[0,0,0],[25,0,0],[25,25,0],[0,25,0]]\n",
                        "b.yaml");
   });
   EXPECT_NE(msg.find("b.yaml:10"), std::string::npos) << msg;
   // Mirrored corner order.
   msg = error_of([&] {
-    parse_board_layout(head + "  - id: 1\n    corners_mm: [[0,0,0],[20,0,0],[20,20,0],[0,20,0]]\n",
+    parse_board_layout(head + "  - id: 1\n    corners_mm: [[0,20,0],[20,20,0],[20,0,0],[0,0,0]]\n",
                        "b.yaml");
   });
   EXPECT_NE(msg.find("mirrored"), std::string::npos) << msg;
@@ -245,7 +247,7 @@ TEST(BoardLayout, RejectsBadLayoutsWithLine) {
   });
   EXPECT_NE(msg.find("not supported"), std::string::npos) << msg;
   msg = error_of([&] {
-    parse_board_layout(head + "  - id: 600\n    corners_mm: [[0,20,0],[20,20,0],[20,0,0],[0,0,0]]\n",
+    parse_board_layout(head + "  - id: 600\n    corners_mm: [[0,0,0],[20,0,0],[20,20,0],[0,20,0]]\n",
                        "b.yaml");
   });
   EXPECT_NE(msg.find("outside"), std::string::npos) << msg;
