@@ -72,7 +72,7 @@ std::vector<TagDetection> TagDetector::detect(const cv::Mat& image) {
     TagDetection det;
     det.id = d->id;
     det.hamming = d->hamming;
-    det.decision_margin = d->decision_margin;
+    det.decision_margin = static_cast<double>(d->decision_margin);
     for (size_t k = 0; k < 4; ++k) det.corners_px[k] = cv::Point2d(d->p[k][0] - 0.5, d->p[k][1] - 0.5);
     out.push_back(det);
   }
