@@ -1,0 +1,89 @@
+#include "host/sim/fem/symmetric_pattern.hpp"
+
+#include <algorithm>
+#include <cstdint>
+
+namespace arnav::host {
+
+SymmetricPattern::SymmetricPattern(int num_vertices, const std::vector<std::vector<int>>& groups) {
+  // Vertex adjacency (lower: neighbours >= vertex), then expanded to 3x3 DOF blocks.
+  std::vector<std::vector<int>> lower(num_vertices);
+  for (int v = 0; v < num_vertices; ++v) lower[v].push_back(v);
+  for (const auto& g : groups)
+    for (int a : g)
+      for (int b : g)
+        if (a > b) lower[b].push_back(a);
+  std::vector<Eigen::Triplet<double>> entries;
+  for (int v = 0; v < num_vertices; ++v) {
+    auto& nb = lower[v];
+    std::sort(nb.begin(), nb.end());
+    nb.erase(std::unique(nb.begin(), nb.end()), nb.end());
+    for (int w : nb)
+      for (int c = 0; c < 3; ++c)
+        for (int r = 0; r < 3; ++r)
+          if (w > v || r >= c) entries.emplace_back(3 * w + r, 3 * v + c, 0.0);
+  }
+  matrix_.resize(3 * num_vertices, 3 * num_vertices);
+  matrix_.setFromTriplets(entries.begin(), entries.end());
+  matrix_.makeCompressed();
+  diagonal_.resize(3 * num_vertices);
+  for (int d = 0; d < 3 * num_vertices; ++d) diagonal_[d] = index(d, d);
+}
+
+int SymmetricPattern::index(int row, int col) const {
+  const int* inner = matrix_.innerIndexPtr();
+  const int begin = matrix_.outerIndexPtr()[col], end = matrix_.outerIndexPtr()[col + 1];
+  const int* it = std::lower_bound(inner + begin, inner + end, row);
+  return (it != inner + end && *it == row) ? static_cast<int>(it - inner) : -1;
+}
+
+bool SymmetricPattern::covers(const std::vector<int>& vertices) const {
+  for (int a : vertices)
+    for (int b : vertices)
+      if (a >= b && index(3 * a, 3 * b) < 0) return false;
+  return true;
+}
+
+std::vector<int> SymmetricPattern::block_map(const std::vector<int>& v) const {
+  const int n = static_cast<int>(v.size());
+  std::vector<int> map;
+  map.reserve(9 * n * (n + 1) / 2);
+  for (int a = 0; a < n; ++a)
+    for (int b = a; b < n; ++b)
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) {
+          const int row = 3 * v[a] + r, col = 3 * v[b] + c;
+          map.push_back(row >= col ? index(row, col) : (v[a] == v[b] ? -1 : index(col, row)));
+        }
+  return map;
+}
+
+std::vector<std::vector<int>> color_elements(int num_vertices, const std::vector<std::vector<int>>& elements) {
+  // Per vertex a bit set of the colours already touching it (grown in 64-colour words).
+  std::vector<std::vector<std::uint64_t>> used(num_vertices);
+  std::vector<std::vector<int>> colors;
+  for (int e = 0; e < static_cast<int>(elements.size()); ++e) {
+    int color = 0;
+    for (;; ++color) {
+      const std::size_t word = color / 64;
+      const std::uint64_t bit = std::uint64_t{1} << (color % 64);
+      bool free = true;
+      for (int v : elements[e])
+        if (word < used[v].size() && (used[v][word] & bit)) {
+          free = false;
+          break;
+        }
+      if (free) break;
+    }
+    const std::size_t word = color / 64;
+    for (int v : elements[e]) {
+      if (used[v].size() <= word) used[v].resize(word + 1, 0);
+      used[v][word] |= std::uint64_t{1} << (color % 64);
+    }
+    if (static_cast<int>(colors.size()) <= color) colors.resize(color + 1);
+    colors[color].push_back(e);
+  }
+  return colors;
+}
+
+}  // namespace arnav::host
