@@ -8,6 +8,8 @@
 #include <stdexcept>
 #include <string>
 
+#include <omp.h>
+
 #include "host/sim/fem/rotation_extraction.hpp"
 #include "host/sim/tet_geometry.hpp"
 
@@ -120,7 +122,7 @@ void CorotationalFem::build_pattern() {
   for (const Beam& b : beams_) beam_maps_.push_back(pattern_->block_map(b.v));
   for (auto& a : attachments_)
     if (a) a->map = pattern_->block_map(a->spec.point.vertices);
-  colors_ = color_elements(nv, elements);
+  partition_ = partition_elements(X_, elements, std::clamp(omp_get_max_threads(), 1, 16));
   A_ = pattern_->matrix();
   update_fixed_entries();
   solver_.pattern_changed();
@@ -156,56 +158,13 @@ void CorotationalFem::assemble(double dt_s, bool dynamic, double& elastic_energy
   }
   double energy = 0.0;
   int n_inverted = 0;
-  // Pass 2: forces and rotated stiffness, colour by colour (elements of a colour share no vertex).
-  for (const auto& color : colors_) {
-    const int n = static_cast<int>(color.size());
-#pragma omp parallel for schedule(static) reduction(+ : energy, n_inverted)
-    for (int i = 0; i < n; ++i) {
-      const int id = color[i];
-      if (id < num_tets) {
-        const Tet& e = tets_[id];
-        const Eigen::Matrix3d R = q_[id].toRotationMatrix();
-        const Eigen::Matrix3d& F = F_[id];
-        if (F.determinant() <= 0.0) ++n_inverted;
-        const Eigen::Matrix3d S = R.transpose() * F;
-        const Eigen::Matrix3d eps = 0.5 * (S + S.transpose()) - Eigen::Matrix3d::Identity();
-        const double tr = eps.trace();
-        const Eigen::Matrix3d sigma = e.lambda * tr * Eigen::Matrix3d::Identity() + 2.0 * e.mu * eps;
-        energy += e.volume * (e.mu * eps.squaredNorm() + 0.5 * e.lambda * tr * tr);
-        const Eigen::Matrix3d P = e.volume * R * sigma;
-        std::array<Eigen::Vector3d, 4> h;
-        for (int a = 0; a < 4; ++a) {
-          f_.segment<3>(3 * e.v[a]) -= P * e.g[a];
-          h[a] = R * e.g[a];
-        }
-        // R K_ab R^T = V (lambda h_a h_b^T + mu h_b h_a^T + mu (g_a . g_b) I), h = R g.
-        const double s = dynamic ? dt_s * e.beta + dt_s * dt_s : 1.0;
-        const double sv = s * e.volume;
-        const int* map = tet_map_.data() + 90 * static_cast<std::ptrdiff_t>(id);
-        for (int a = 0, pair = 0; a < 4; ++a)
-          for (int b = a; b < 4; ++b, ++pair) {
-            Eigen::Matrix3d B = sv * (e.lambda * h[a] * h[b].transpose() + e.mu * h[b] * h[a].transpose());
-            B.diagonal().array() += sv * e.mu * e.g[a].dot(e.g[b]);
-            scatter(values, map + 9 * pair, B);
-          }
-      } else {
-        const int bi = id - num_tets;
-        const Beam& bm = beams_[bi];
-        const Eigen::Matrix3d& R = R_beam_[bi];
-        const int nb = static_cast<int>(bm.v.size());
-        Eigen::VectorXd u(3 * nb);
-        for (int a = 0; a < nb; ++a) u.segment<3>(3 * a) = R.transpose() * x_.col(bm.v[a]) - bm.X.segment<3>(3 * a);
-        const Eigen::VectorXd fl = bm.K * u;
-        energy += 0.5 * u.dot(fl);
-        for (int a = 0; a < nb; ++a) f_.segment<3>(3 * bm.v[a]) -= R * fl.segment<3>(3 * a);
-        const double s = dynamic ? dt_s * bm.beta + dt_s * dt_s : 1.0;
-        const int* map = beam_maps_[bi].data();
-        for (int a = 0, pair = 0; a < nb; ++a)
-          for (int b = a; b < nb; ++b, ++pair)
-            scatter(values, map + 9 * pair, s * R * bm.K.block<3, 3>(3 * a, 3 * b) * R.transpose());
-      }
-    }
-  }
+  // Pass 2: forces and rotated stiffness; parts are vertex-disjoint (no write conflicts),
+  // the interface elements follow serially: one synchronisation per step.
+  const int parts = static_cast<int>(partition_.parts.size());
+#pragma omp parallel for schedule(static, 1) reduction(+ : energy, n_inverted)
+  for (int part = 0; part < parts; ++part)
+    for (int id : partition_.parts[part]) assemble_element(id, dt_s, dynamic, energy, n_inverted);
+  for (int id : partition_.shared) assemble_element(id, dt_s, dynamic, energy, n_inverted);
   // Attachments: zero-rest-length springs from material points to targets.
   const double s_att = dynamic ? dt_s * dt_s : 1.0;
   for (const auto& att : attachments_) {
@@ -228,6 +187,53 @@ void CorotationalFem::assemble(double dt_s, bool dynamic, double& elastic_energy
       for (int d = 0; d < 3; ++d) values[pattern_->diagonal()[3 * i + d]] += mass_damped_[i];
   elastic_energy = energy;
   inverted = n_inverted;
+}
+
+void CorotationalFem::assemble_element(int id, double dt_s, bool dynamic, double& energy, int& n_inverted) {
+  double* values = A_.valuePtr();
+  const int num_tets = static_cast<int>(tets_.size());
+  if (id < num_tets) {
+    const Tet& e = tets_[id];
+    const Eigen::Matrix3d R = q_[id].toRotationMatrix();
+    const Eigen::Matrix3d& F = F_[id];
+    if (F.determinant() <= 0.0) ++n_inverted;
+    const Eigen::Matrix3d S = R.transpose() * F;
+    const Eigen::Matrix3d eps = 0.5 * (S + S.transpose()) - Eigen::Matrix3d::Identity();
+    const double tr = eps.trace();
+    const Eigen::Matrix3d sigma = e.lambda * tr * Eigen::Matrix3d::Identity() + 2.0 * e.mu * eps;
+    energy += e.volume * (e.mu * eps.squaredNorm() + 0.5 * e.lambda * tr * tr);
+    const Eigen::Matrix3d P = e.volume * R * sigma;
+    std::array<Eigen::Vector3d, 4> h;
+    for (int a = 0; a < 4; ++a) {
+      f_.segment<3>(3 * e.v[a]) -= P * e.g[a];
+      h[a] = R * e.g[a];
+    }
+    // R K_ab R^T = V (lambda h_a h_b^T + mu h_b h_a^T + mu (g_a . g_b) I), h = R g.
+    const double s = dynamic ? dt_s * e.beta + dt_s * dt_s : 1.0;
+    const double sv = s * e.volume;
+    const int* map = tet_map_.data() + 90 * static_cast<std::ptrdiff_t>(id);
+    for (int a = 0, pair = 0; a < 4; ++a)
+      for (int b = a; b < 4; ++b, ++pair) {
+        Eigen::Matrix3d B = sv * (e.lambda * h[a] * h[b].transpose() + e.mu * h[b] * h[a].transpose());
+        B.diagonal().array() += sv * e.mu * e.g[a].dot(e.g[b]);
+        scatter(values, map + 9 * pair, B);
+      }
+  } else {
+    const int bi = id - num_tets;
+    const Beam& bm = beams_[bi];
+    const Eigen::Matrix3d& R = R_beam_[bi];
+    const int nb = static_cast<int>(bm.v.size());
+    Eigen::VectorXd u(3 * nb);
+    for (int a = 0; a < nb; ++a) u.segment<3>(3 * a) = R.transpose() * x_.col(bm.v[a]) - bm.X.segment<3>(3 * a);
+    const Eigen::VectorXd fl = bm.K * u;
+    energy += 0.5 * u.dot(fl);
+    for (int a = 0; a < nb; ++a) f_.segment<3>(3 * bm.v[a]) -= R * fl.segment<3>(3 * a);
+    const double s = dynamic ? dt_s * bm.beta + dt_s * dt_s : 1.0;
+    const int* map = beam_maps_[bi].data();
+    for (int a = 0, pair = 0; a < nb; ++a)
+      for (int b = a; b < nb; ++b, ++pair)
+        scatter(values, map + 9 * pair, s * R * bm.K.block<3, 3>(3 * a, 3 * b) * R.transpose());
+  }
 }
 
 StepSummary CorotationalFem::step(double dt_s) {
@@ -415,6 +421,8 @@ void CorotationalFem::set_state(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
   x_ = x;
   v_ = v;
   last_dx_.setZero(x_.size());
+  // The warm-start rotations belong to the old state: restart them in closed form.
+  for (std::size_t t = 0; t < tets_.size(); ++t) q_[t] = rotation_by_svd(edge_matrix(x_, tets_[t].v) * tets_[t].Dm_inv);
 }
 
 std::vector<ElementMeasure> CorotationalFem::element_measures() const {

@@ -60,7 +60,6 @@ class CorotationalFem final : public TissueModel {
   // Introspection for tests and benchmarks.
   int num_beam_elements() const { return static_cast<int>(beams_.size()); }
   const std::optional<VesselEmbedding>& vessel_embedding() const { return embedding_; }
-  int num_colors() const { return static_cast<int>(colors_.size()); }
   // Last assembled system matrix (lower triangle) and right-hand side.
   const SparseMatrixLower& system_matrix() const { return A_; }
 
@@ -86,6 +85,7 @@ class CorotationalFem final : public TissueModel {
   void build_pattern();
   void update_fixed_entries();
   void assemble(double dt_s, bool dynamic, double& elastic_energy, int& inverted);
+  void assemble_element(int id, double dt_s, bool dynamic, double& energy, int& inverted);
 
   std::string integrator_;
   FemOptions options_;
@@ -104,7 +104,7 @@ class CorotationalFem final : public TissueModel {
   std::unique_ptr<SymmetricPattern> pattern_;
   std::vector<int> tet_map_;                   // 90 nonzero indices per tet (10 blocks)
   std::vector<std::vector<int>> beam_maps_;
-  std::vector<std::vector<int>> colors_;  // element ids: tets [0, T), beams [T, T+B)
+  ElementPartition partition_;            // element ids: tets [0, T), beams [T, T+B)
   SparseMatrixLower A_;
   Eigen::VectorXd f_, rhs_, sol_, last_dx_;
   FemLinearSolver solver_;

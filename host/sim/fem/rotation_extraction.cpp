@@ -1,5 +1,6 @@
 #include "host/sim/fem/rotation_extraction.hpp"
 
+#include <Eigen/SVD>
 #include <cmath>
 
 namespace arnav::host {
@@ -22,6 +23,15 @@ Eigen::Quaterniond extract_rotation(const Eigen::Matrix3d& F, const Eigen::Quate
   }
   if (iterations) *iterations = it;
   return q;
+}
+
+Eigen::Quaterniond rotation_by_svd(const Eigen::Matrix3d& F) {
+  if (!F.allFinite()) return Eigen::Quaterniond::Identity();
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d U = svd.matrixU();
+  const Eigen::Matrix3d& V = svd.matrixV();
+  if ((U * V.transpose()).determinant() < 0.0) U.col(2) = -U.col(2);  // smallest singular value
+  return Eigen::Quaterniond(U * V.transpose());
 }
 
 }  // namespace arnav::host

@@ -21,4 +21,8 @@ struct RotationExtraction {
 Eigen::Quaterniond extract_rotation(const Eigen::Matrix3d& F, const Eigen::Quaterniond& q_warm,
                                     const RotationExtraction& options = {}, int* iterations = nullptr);
 
+// Closed-form start for a cold element (after set_state): R = U diag(1, 1, det(U V^T)) V^T
+// from the SVD of F, the rotation nearest to F (a proper rotation also when det F < 0).
+Eigen::Quaterniond rotation_by_svd(const Eigen::Matrix3d& F);
+
 }  // namespace arnav::host

@@ -1,7 +1,6 @@
 #include "host/sim/fem/symmetric_pattern.hpp"
 
 #include <algorithm>
-#include <cstdint>
 
 namespace arnav::host {
 
@@ -58,32 +57,36 @@ std::vector<int> SymmetricPattern::block_map(const std::vector<int>& v) const {
   return map;
 }
 
-std::vector<std::vector<int>> color_elements(int num_vertices, const std::vector<std::vector<int>>& elements) {
-  // Per vertex a bit set of the colours already touching it (grown in 64-colour words).
-  std::vector<std::vector<std::uint64_t>> used(num_vertices);
-  std::vector<std::vector<int>> colors;
-  for (int e = 0; e < static_cast<int>(elements.size()); ++e) {
-    int color = 0;
-    for (;; ++color) {
-      const std::size_t word = color / 64;
-      const std::uint64_t bit = std::uint64_t{1} << (color % 64);
-      bool free = true;
-      for (int v : elements[e])
-        if (word < used[v].size() && (used[v][word] & bit)) {
-          free = false;
-          break;
-        }
-      if (free) break;
-    }
-    const std::size_t word = color / 64;
-    for (int v : elements[e]) {
-      if (used[v].size() <= word) used[v].resize(word + 1, 0);
-      used[v][word] |= std::uint64_t{1} << (color % 64);
-    }
-    if (static_cast<int>(colors.size()) <= color) colors.resize(color + 1);
-    colors[color].push_back(e);
+ElementPartition partition_elements(const Eigen::Matrix3Xd& vertices, const std::vector<std::vector<int>>& elements,
+                                    int parts) {
+  ElementPartition out;
+  parts = std::max(1, parts);
+  out.parts.resize(parts);
+  const int ne = static_cast<int>(elements.size());
+  if (parts == 1) {
+    for (int e = 0; e < ne; ++e) out.parts[0].push_back(e);
+    return out;
   }
-  return colors;
+  Eigen::Index axis;
+  (vertices.rowwise().maxCoeff() - vertices.rowwise().minCoeff()).maxCoeff(&axis);
+  std::vector<std::pair<double, int>> key(ne);
+  for (int e = 0; e < ne; ++e) {
+    double c = 0;
+    for (int v : elements[e]) c += vertices(axis, v);
+    key[e] = {c / static_cast<double>(elements[e].size()), e};
+  }
+  std::sort(key.begin(), key.end());
+  std::vector<int> part_of(ne);
+  for (int k = 0; k < ne; ++k) part_of[key[k].second] = static_cast<int>(static_cast<long long>(k) * parts / ne);
+  // Vertex -> the single part touching it, or -2 when several do.
+  std::vector<int> owner(vertices.cols(), -1);
+  for (int e = 0; e < ne; ++e)
+    for (int v : elements[e]) owner[v] = (owner[v] == -1 || owner[v] == part_of[e]) ? part_of[e] : -2;
+  for (int e = 0; e < ne; ++e) {
+    const bool interior = std::all_of(elements[e].begin(), elements[e].end(), [&](int v) { return owner[v] >= 0; });
+    (interior ? out.parts[part_of[e]] : out.shared).push_back(e);
+  }
+  return out;
 }
 
 }  // namespace arnav::host

@@ -2,7 +2,7 @@
 // Sparsity pattern of the FEM system matrix (3 DOF per vertex, lower triangle incl. the
 // diagonal, compressed columns) and element -> nonzero index maps, so that the per-step
 // assembly is a scatter into a fixed value array (no search, no allocation), and an
-// element colouring so that the scatter runs in parallel without write conflicts.
+// element partition so that the scatter runs in parallel without write conflicts.
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 
@@ -36,8 +36,16 @@ class SymmetricPattern {
   std::vector<int> diagonal_;
 };
 
-// Greedy colouring: elements of one colour share no vertex. Returns the element indices
-// grouped by colour.
-std::vector<std::vector<int>> color_elements(int num_vertices, const std::vector<std::vector<int>>& elements);
+// Domain split for parallel assembly with a single synchronisation: elements are cut into
+// `parts` slabs along the longest axis (by centroid); elements whose vertices are touched
+// by one part only go to that part, the rest (the slab interfaces) to `shared`, which is
+// assembled after the parallel region. (A colouring needs a barrier per colour, which on
+// a loaded 2-core machine costs more than the assembly itself.)
+struct ElementPartition {
+  std::vector<std::vector<int>> parts;  // element ids per part, vertex-disjoint across parts
+  std::vector<int> shared;              // element ids touching more than one part
+};
+ElementPartition partition_elements(const Eigen::Matrix3Xd& vertices, const std::vector<std::vector<int>>& elements,
+                                    int parts);
 
 }  // namespace arnav::host

@@ -57,14 +57,27 @@ TEST(SymmetricPattern, BlockMapsTransposeIntoLowerTriangle) {
   // Diagonal block: upper entries skipped.
   EXPECT_EQ(map[0 + 1], -1);
   EXPECT_EQ(map[3 + 0], p.index(10, 9));
-  const std::vector<std::vector<int>> elements = {{0, 2, 3}, {1, 3}, {1, 2}, {0, 1}};
-  const auto colors = color_elements(4, elements);
-  EXPECT_EQ(colors.size(), 4u);  // every pair of these shares a vertex
-  for (const auto& color : colors)
-    for (std::size_t i = 0; i < color.size(); ++i)
-      for (std::size_t j = i + 1; j < color.size(); ++j)
-        for (int a : elements[color[i]])
-          for (int b : elements[color[j]]) EXPECT_NE(a, b);
+}
+
+TEST(SymmetricPattern, PartitionKeepsPartsVertexDisjoint) {
+  const TetMesh mesh = make_box_tet_mesh(12, 3, 3, Eigen::Vector3d(12, 3, 3));
+  std::vector<std::vector<int>> elements;
+  for (const auto& t : mesh.tets) elements.emplace_back(t.begin(), t.end());
+  const ElementPartition p = partition_elements(mesh.rest_positions_World_mm, elements, 2);
+  ASSERT_EQ(p.parts.size(), 2u);
+  std::vector<int> seen(mesh.num_vertices(), -1);
+  std::size_t total = p.shared.size();
+  for (int part = 0; part < 2; ++part) {
+    total += p.parts[part].size();
+    for (int e : p.parts[part])
+      for (int v : elements[e]) {
+        EXPECT_TRUE(seen[v] == -1 || seen[v] == part) << "vertex " << v << " in two parts";
+        seen[v] = part;
+      }
+  }
+  EXPECT_EQ(total, elements.size());
+  EXPECT_LT(p.shared.size(), elements.size() / 4);  // a thin slab at the cut
+  EXPECT_GT(p.parts[0].size(), elements.size() / 3);
 }
 
 // Force of the model at positions x (quasi-static assembly of f), via one step's summary:
