@@ -141,6 +141,7 @@ void CorotationalFem::assemble(double dt_s, bool dynamic, double& elastic_energy
   double* values = A_.valuePtr();
   std::fill(values, values + A_.nonZeros(), 0.0);
   f_.setZero(x_.size());
+  f_ext_.setZero(x_.size());
   const int num_tets = static_cast<int>(tets_.size());
   // Pass 1: deformation gradients and rotations (element-local, no conflicts).
 #pragma omp parallel for schedule(static)
@@ -176,7 +177,7 @@ void CorotationalFem::assemble(double dt_s, bool dynamic, double& elastic_energy
     const Eigen::Vector3d pull = k * (att->spec.target_World_mm - pos);
     const int nb = static_cast<int>(p.vertices.size());
     for (int a = 0, pair = 0; a < nb; ++a) {
-      f_.segment<3>(3 * p.vertices[a]) += p.weights[a] * pull;
+      f_ext_.segment<3>(3 * p.vertices[a]) += p.weights[a] * pull;
       for (int b = a; b < nb; ++b, ++pair)
         scatter(values, att->map.data() + 9 * pair,
                 (s_att * k * p.weights[a] * p.weights[b]) * Eigen::Matrix3d::Identity());
@@ -263,7 +264,8 @@ StepSummary CorotationalFem::step(double dt_s) {
   int inverted = 0;
   assemble(dt_s, dynamic, summary.elastic_energy, inverted);
   const int nv = static_cast<int>(X_.cols());
-  for (int i = 0; i < nv; ++i) f_.segment<3>(3 * i) += mass_[i] * gravity_;
+  for (int i = 0; i < nv; ++i) f_ext_.segment<3>(3 * i) += mass_[i] * gravity_;
+  f_ += f_ext_;
 
   const Eigen::VectorXd x_flat = flat(x_);
   if (dynamic) {
@@ -286,7 +288,15 @@ StepSummary CorotationalFem::step(double dt_s) {
         sol_[3 * i + d] = 0.0;
       }
 
-  const LinearSolveSummary ls = solver_.solve(A_, rhs_, sol_);
+  // Residual scale: the right-hand side without elastic forces (the load of this step).
+  double load_scale = 0.0;
+  for (int i = 0; i < nv; ++i)
+    if (!fixed_[i]) {
+      const Eigen::Vector3d l = dynamic ? Eigen::Vector3d(mass_[i] * v_.col(i) + dt_s * f_ext_.segment<3>(3 * i))
+                                        : Eigen::Vector3d(f_ext_.segment<3>(3 * i));
+      load_scale += l.squaredNorm();
+    }
+  const LinearSolveSummary ls = solver_.solve(A_, rhs_, sol_, std::sqrt(load_scale));
   summary.iterations = ls.iterations;
   summary.initial_residual = ls.initial_residual;
   summary.final_residual = ls.final_residual;

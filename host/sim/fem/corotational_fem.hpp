@@ -106,7 +106,7 @@ class CorotationalFem final : public TissueModel {
   std::vector<std::vector<int>> beam_maps_;
   ElementPartition partition_;            // element ids: tets [0, T), beams [T, T+B)
   SparseMatrixLower A_;
-  Eigen::VectorXd f_, rhs_, sol_, last_dx_;
+  Eigen::VectorXd f_, f_ext_, rhs_, sol_, last_dx_;
   FemLinearSolver solver_;
   int inverted_streak_ = 0;
   double last_dt_ = -1.0;

@@ -2,6 +2,7 @@
 
 #include <Eigen/CholmodSupport>
 #include <Eigen/SparseCholesky>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -78,21 +79,22 @@ void FemLinearSolver::apply_factor(const Eigen::VectorXd& r, Eigen::VectorXd& z)
   }
 }
 
-LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eigen::VectorXd& b, Eigen::VectorXd& x) {
+LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                                          double load_scale) {
   LinearSolveSummary s;
   const bool due = !have_factor_ || kind_ == Kind::PcgJacobi ||
                    (refactor_every_ > 0 && steps_since_factor_ + 1 >= refactor_every_);
   if (due && !factorize(A, s)) return s;
   if (!s.factorized) ++steps_since_factor_;
   const auto Asym = A.selfadjointView<Eigen::Lower>();
-  const double b_norm = b.norm();
+  const double b_norm = std::max(b.norm(), load_scale);
   if (b_norm == 0.0) {
     x.setZero();
     s.termination = "converged";
     return s;
   }
   if (kind_ == Kind::Cholmod || kind_ == Kind::EigenLdlt) {
-    s.initial_residual = 1.0;
+    s.initial_residual = b.norm() / b_norm;
     apply_factor(b, x);
     s.iterations = 1;
     s.final_residual = (b - Asym * x).norm() / b_norm;

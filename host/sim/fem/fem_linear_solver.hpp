@@ -19,8 +19,8 @@ namespace arnav::host {
 
 struct LinearSolveSummary {
   int iterations = 0;            // CG iterations (1 for a direct solve)
-  double initial_residual = 0;   // ||b - A x0|| / ||b||
-  double final_residual = 0;     // ||b - A x|| / ||b||
+  double initial_residual = 0;   // ||b - A x0|| / max(||b||, load_scale)
+  double final_residual = 0;     // ||b - A x|| / max(||b||, load_scale)
   std::string termination;       // "direct", "direct_lagged", "converged", "max_iterations", "factorization_failed"
   bool factorized = false;       // a numeric factorisation ran in this solve
   double factor_ms = 0;
@@ -42,8 +42,11 @@ class FemLinearSolver {
   void pattern_changed();
   void force_refactor();
 
-  // Solves A x = b; x holds the warm start on entry (iterative kinds).
-  LinearSolveSummary solve(const SparseMatrixLower& A, const Eigen::VectorXd& b, Eigen::VectorXd& x);
+  // Solves A x = b; x holds the warm start on entry (iterative kinds). Residuals are
+  // relative to max(||b||, load_scale): near equilibrium b vanishes, and a criterion
+  // relative to ||b|| alone would demand ever more digits of a vanishing update.
+  LinearSolveSummary solve(const SparseMatrixLower& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                           double load_scale = 0.0);
 
   Kind kind() const { return kind_; }
 
