@@ -296,7 +296,8 @@ StepSummary CorotationalFem::step(double dt_s) {
                                         : Eigen::Vector3d(f_ext_.segment<3>(3 * i));
       load_scale += l.squaredNorm();
     }
-  const LinearSolveSummary ls = solver_.solve(A_, rhs_, sol_, std::sqrt(load_scale));
+  last_solve_ = solver_.solve(A_, rhs_, sol_, std::sqrt(load_scale));
+  const LinearSolveSummary& ls = last_solve_;
   summary.iterations = ls.iterations;
   summary.initial_residual = ls.initial_residual;
   summary.final_residual = ls.final_residual;

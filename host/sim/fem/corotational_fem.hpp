@@ -60,8 +60,10 @@ class CorotationalFem final : public TissueModel {
   // Introspection for tests and benchmarks.
   int num_beam_elements() const { return static_cast<int>(beams_.size()); }
   const std::optional<VesselEmbedding>& vessel_embedding() const { return embedding_; }
-  // Last assembled system matrix (lower triangle) and right-hand side.
+  // Last assembled system matrix (lower triangle) and the last linear solve.
   const SparseMatrixLower& system_matrix() const { return A_; }
+  const LinearSolveSummary& last_linear_solve() const { return last_solve_; }
+  void set_estimate_condition(bool on) { solver_.set_estimate_condition(on); }
 
  private:
   struct Tet {
@@ -108,6 +110,7 @@ class CorotationalFem final : public TissueModel {
   SparseMatrixLower A_;
   Eigen::VectorXd f_, f_ext_, rhs_, sol_, last_dx_;
   FemLinearSolver solver_;
+  LinearSolveSummary last_solve_;
   int inverted_streak_ = 0;
   double last_dt_ = -1.0;
 };

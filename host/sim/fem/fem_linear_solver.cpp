@@ -1,7 +1,9 @@
 #include "host/sim/fem/fem_linear_solver.hpp"
 
 #include <Eigen/CholmodSupport>
+#include <Eigen/Eigenvalues>
 #include <Eigen/SparseCholesky>
+#include <vector>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -108,6 +110,7 @@ LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eige
   double rz = 0;
   double res = s.initial_residual;
   int it = 0;
+  std::vector<double> alphas, betas;  // CG coefficients: the Lanczos tridiagonal, for kappa
   while (res > tolerance_ && it < max_iterations_) {
     apply_factor(r, z);
     const double rz_new = r.dot(z);
@@ -115,6 +118,7 @@ LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eige
       p = z;
     } else {
       p = z + (rz_new / rz) * p;
+      betas.push_back(rz_new / rz);
     }
     rz = rz_new;
     q = Asym * p;
@@ -124,6 +128,7 @@ LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eige
       break;
     }
     const double alpha = rz / pq;
+    alphas.push_back(alpha);
     x += alpha * p;
     r -= alpha * q;
     res = r.norm() / b_norm;
@@ -131,6 +136,19 @@ LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eige
   }
   s.iterations = it;
   s.final_residual = res;
+  const int m = static_cast<int>(alphas.size());
+  if (estimate_condition_ && m >= 2) {
+    // T_jj = 1/a_j + b_(j-1)/a_(j-1), T_j,j+1 = sqrt(b_j)/a_j (CG <-> Lanczos); its extreme
+    // eigenvalues converge to those of the preconditioned matrix from inside.
+    Eigen::VectorXd diag(m), sub(m - 1);
+    for (int j = 0; j < m; ++j) diag[j] = 1.0 / alphas[j] + (j > 0 ? betas[j - 1] / alphas[j - 1] : 0.0);
+    for (int j = 0; j + 1 < m; ++j) sub[j] = std::sqrt(betas[j]) / alphas[j];
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig;
+    eig.computeFromTridiagonal(diag, sub, Eigen::EigenvaluesOnly);
+    if (eig.info() == Eigen::Success && eig.eigenvalues()[0] > 0.0) {
+      s.condition_estimate = eig.eigenvalues()[m - 1] / eig.eigenvalues()[0];
+    }
+  }
   s.termination = res <= tolerance_ ? "converged" : "max_iterations";
   return s;
 }

@@ -25,6 +25,8 @@ struct LinearSolveSummary {
   bool factorized = false;       // a numeric factorisation ran in this solve
   double factor_ms = 0;
   bool ok = true;                // false: factorisation failed (A not positive definite)
+  double condition_estimate = 0; // CG kinds with estimate_condition: Lanczos estimate of
+                                 // lambda_max/lambda_min of the preconditioned matrix (lower bound)
   std::string message;
 };
 
@@ -49,6 +51,8 @@ class FemLinearSolver {
                            double load_scale = 0.0);
 
   Kind kind() const { return kind_; }
+  // Costs an O(iterations^2) eigenvalue solve per CG solve: for studies, not for real time.
+  void set_estimate_condition(bool on) { estimate_condition_ = on; }
 
  private:
   bool factorize(const SparseMatrixLower& A, LinearSolveSummary& s);
@@ -58,6 +62,7 @@ class FemLinearSolver {
   int refactor_every_;
   int max_iterations_;
   double tolerance_;
+  bool estimate_condition_ = false;
   bool analyzed_ = false;
   bool have_factor_ = false;
   int steps_since_factor_ = 0;
