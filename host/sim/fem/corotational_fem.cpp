@@ -1,6 +1,5 @@
 #include "host/sim/fem/corotational_fem.hpp"
 
-#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <algorithm>
 #include <chrono>
@@ -8,8 +7,7 @@
 #include <stdexcept>
 #include <string>
 
-#include <omp.h>
-
+#include "host/sim/element_measure.hpp"
 #include "host/sim/fem/rotation_extraction.hpp"
 #include "host/sim/tet_geometry.hpp"
 
@@ -33,6 +31,8 @@ inline void scatter(double* values, const int* map, const Eigen::Matrix3d& B) {
 CorotationalFem::CorotationalFem(const SimProblem& problem, const ModelConfig& config, const FemOptions& options)
     : integrator_(config.integrator.empty() ? "implicit_euler" : config.integrator),
       options_(options),
+      threads_(config.threads),
+      substeps_(config.substeps),
       gravity_(problem.gravity_World_mm_s2),
       solver_(FemLinearSolver::parse(config.linear_solver.empty() ? "pcg" : config.linear_solver),
               config.refactor_every, config.iterations, config.tolerance) {
@@ -40,6 +40,8 @@ CorotationalFem::CorotationalFem(const SimProblem& problem, const ModelConfig& c
     throw std::invalid_argument("corotational_fem: unknown integrator '" + integrator_ +
                                 "' (use implicit_euler or quasi_static)");
   }
+  if (threads_ < 1) throw std::invalid_argument("corotational_fem: threads must be >= 1");
+  if (substeps_ < 1) throw std::invalid_argument("corotational_fem: substeps must be >= 1");
   const TetMesh& mesh = problem.mesh;
   if (mesh.num_tets() == 0) throw std::invalid_argument("corotational_fem: the mesh has no tetrahedra");
   if (!gravity_.allFinite()) throw std::invalid_argument("corotational_fem: gravity is not finite");
@@ -90,14 +92,9 @@ CorotationalFem::CorotationalFem(const SimProblem& problem, const ModelConfig& c
     }
     R_beam_.assign(beams_.size(), Eigen::Matrix3d::Identity());
   }
+  check_vertex_indices(problem.fixed_vertices, nv, "corotational_fem: fixed vertices");
   fixed_.assign(nv, 0);
-  for (int v : problem.fixed_vertices) {
-    if (v < 0 || v >= nv) {
-      throw std::invalid_argument("corotational_fem: fixed vertex " + std::to_string(v) + " is not in the mesh (" +
-                                  std::to_string(nv) + " vertices)");
-    }
-    fixed_[v] = 1;
-  }
+  for (int v : problem.fixed_vertices) fixed_[v] = 1;
   build_pattern();
 }
 
@@ -122,7 +119,7 @@ void CorotationalFem::build_pattern() {
   for (const Beam& b : beams_) beam_maps_.push_back(pattern_->block_map(b.v));
   for (auto& a : attachments_)
     if (a) a->map = pattern_->block_map(a->spec.point.vertices);
-  partition_ = partition_elements(X_, elements, std::clamp(omp_get_max_threads(), 1, 16));
+  partition_ = partition_elements(X_, elements, threads_);
   A_ = pattern_->matrix();
   update_fixed_entries();
   solver_.pattern_changed();
@@ -144,7 +141,7 @@ void CorotationalFem::assemble(double dt_s, bool dynamic, double& elastic_energy
   f_ext_.setZero(x_.size());
   const int num_tets = static_cast<int>(tets_.size());
   // Pass 1: deformation gradients and rotations (element-local, no conflicts).
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
   for (int t = 0; t < num_tets; ++t) {
     const Tet& e = tets_[t];
     Eigen::Matrix3d Ds;
@@ -162,7 +159,7 @@ void CorotationalFem::assemble(double dt_s, bool dynamic, double& elastic_energy
   // Pass 2: forces and rotated stiffness; parts are vertex-disjoint (no write conflicts),
   // the interface elements follow serially: one synchronisation per step.
   const int parts = static_cast<int>(partition_.parts.size());
-#pragma omp parallel for schedule(static, 1) reduction(+ : energy, n_inverted)
+#pragma omp parallel for schedule(static, 1) reduction(+ : energy, n_inverted) num_threads(threads_) if (threads_ > 1)
   for (int part = 0; part < parts; ++part)
     for (int id : partition_.parts[part]) assemble_element(id, dt_s, dynamic, energy, n_inverted);
   for (int id : partition_.shared) assemble_element(id, dt_s, dynamic, energy, n_inverted);
@@ -238,9 +235,25 @@ void CorotationalFem::assemble_element(int id, double dt_s, bool dynamic, double
 }
 
 StepSummary CorotationalFem::step(double dt_s) {
-  if (!(dt_s > 0.0) || !std::isfinite(dt_s)) {
-    throw std::invalid_argument("corotational_fem: step needs a finite dt > 0 s (got " + std::to_string(dt_s) + ")");
+  check_dt(dt_s);
+  if (substeps_ == 1) return substep(dt_s);
+  StepSummary total;
+  for (int k = 0; k < substeps_; ++k) {
+    const StepSummary s = substep(dt_s / substeps_);
+    total.iterations += s.iterations;
+    if (k == 0) total.initial_residual = s.initial_residual;
+    total.final_residual = s.final_residual;
+    total.termination = s.termination;
+    total.wall_time_ms += s.wall_time_ms;
+    total.kinetic_energy = s.kinetic_energy;
+    total.elastic_energy = s.elastic_energy;
+    if (!s.warning.empty()) report(total, "substep " + std::to_string(k) + ": " + s.warning, !s.healthy);
+    if (!s.healthy) break;
   }
+  return total;
+}
+
+StepSummary CorotationalFem::substep(double dt_s) {
   const auto t0 = std::chrono::steady_clock::now();
   StepSummary summary;
   auto finish = [&]() {
@@ -359,8 +372,7 @@ AttachmentId CorotationalFem::add_attachment(const AttachmentSpec& spec) {
   if (p.vertices.empty() || p.vertices.size() != p.weights.size()) {
     throw std::invalid_argument(who + " needs as many weights as vertices (and at least one)");
   }
-  for (int v : p.vertices)
-    if (v < 0 || v >= nv) throw std::invalid_argument(who + " refers to vertex " + std::to_string(v) + " not in the mesh");
+  check_vertex_indices(p.vertices, nv, who.c_str());
   for (double w : p.weights)
     if (!std::isfinite(w)) throw std::invalid_argument(who + " has a non-finite weight");
   if (!(spec.stiffness_mN_per_mm >= 0.0) || !std::isfinite(spec.stiffness_mN_per_mm) || !spec.target_World_mm.allFinite()) {
@@ -412,11 +424,9 @@ void CorotationalFem::remove_attachment(AttachmentId id) {
 
 void CorotationalFem::set_fixed_vertices(const std::vector<int>& vertices) {
   const int nv = static_cast<int>(X_.cols());
+  check_vertex_indices(vertices, nv, "corotational_fem: set_fixed_vertices");
   std::vector<char> fixed(nv, 0);
-  for (int v : vertices) {
-    if (v < 0 || v >= nv) throw std::invalid_argument("corotational_fem: fixed vertex " + std::to_string(v) + " is not in the mesh");
-    fixed[v] = 1;
-  }
+  for (int v : vertices) fixed[v] = 1;
   fixed_ = std::move(fixed);
   for (int i = 0; i < nv; ++i)
     if (fixed_[i]) v_.col(i).setZero();
@@ -425,10 +435,7 @@ void CorotationalFem::set_fixed_vertices(const std::vector<int>& vertices) {
 }
 
 void CorotationalFem::set_state(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v) {
-  if (x.cols() != X_.cols() || v.cols() != X_.cols()) {
-    throw std::invalid_argument("corotational_fem: set_state needs " + std::to_string(X_.cols()) + " positions and velocities");
-  }
-  if (!x.allFinite() || !v.allFinite()) throw std::invalid_argument("corotational_fem: set_state with non-finite values");
+  check_state_shape(x, v, static_cast<int>(X_.cols()));
   x_ = x;
   v_ = v;
   last_dx_.setZero(x_.size());
@@ -445,11 +452,7 @@ std::vector<ElementMeasure> CorotationalFem::element_measures() const {
     const Eigen::Matrix3d S = R.transpose() * F;
     const Eigen::Matrix3d eps = 0.5 * (S + S.transpose()) - Eigen::Matrix3d::Identity();
     const Eigen::Matrix3d sigma = e.lambda * eps.trace() * Eigen::Matrix3d::Identity() + 2.0 * e.mu * eps;
-    const Eigen::Matrix3d dev = sigma - sigma.trace() / 3.0 * Eigen::Matrix3d::Identity();
-    out[t].von_mises_stress_kPa = std::sqrt(1.5 * dev.squaredNorm());
-    const Eigen::Matrix3d green = 0.5 * (F.transpose() * F - Eigen::Matrix3d::Identity());
-    out[t].max_principal_strain = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(green, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff();
-    out[t].volume_ratio = F.determinant();
+    out[t] = element_measure_from(F, sigma);
   }
   return out;
 }

@@ -12,8 +12,10 @@
 //                   (M + dt C + dt^2 K) v+ = M v + dt f(x), C = alpha M + beta K (Rayleigh).
 //   quasi_static    one Newton-like step per call toward equilibrium: K dx = f(x); repeated
 //                   calls converge; velocities report dx/dt.
-// Linear solvers: fem_linear_solver.hpp. What the model cannot handle is reported in the
-// StepSummary (healthy=false + warning) and the state is left as it was before the step.
+// Linear solvers: fem_linear_solver.hpp. ModelConfig.threads workers assemble in parallel
+// (OpenMP); ModelConfig.substeps splits step(dt) into equal sub-steps.
+// What the model cannot handle is reported in the StepSummary (healthy=false + warning)
+// and the state is left as it was before the failing (sub-)step.
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
@@ -25,13 +27,14 @@
 #include "host/sim/fem/fem_linear_solver.hpp"
 #include "host/sim/fem/symmetric_pattern.hpp"
 #include "host/sim/model_config.hpp"
+#include "host/sim/step_health.hpp"
 #include "host/sim/tissue_model.hpp"
 
 namespace arnav::host {
 
 // Settings beyond ModelConfig (limits of what the model reports as unhealthy).
 struct FemOptions {
-  double max_speed_mm_s = 1.0e4;    // above this a step is rejected as unstable (10 m/s)
+  double max_speed_mm_s = kBlowUpSpeed_mm_s;  // above this a step is rejected as unstable
   int inverted_steps_limit = 30;    // inverted tets persisting this many steps -> unhealthy
   VesselBeamOptions beams;          // used only when the problem declares vessels
 };
@@ -43,7 +46,7 @@ class CorotationalFem final : public TissueModel {
   CorotationalFem(const SimProblem& problem, const ModelConfig& config, const FemOptions& options = {});
   ~CorotationalFem() override;
 
-  std::string name() const override { return "corotational_fem"; }
+  std::string name() const override { return "corotational_fem/" + integrator_; }
   StepSummary step(double dt_s) override;
 
   AttachmentId add_attachment(const AttachmentSpec& spec) override;
@@ -88,9 +91,12 @@ class CorotationalFem final : public TissueModel {
   void update_fixed_entries();
   void assemble(double dt_s, bool dynamic, double& elastic_energy, int& inverted);
   void assemble_element(int id, double dt_s, bool dynamic, double& energy, int& inverted);
+  StepSummary substep(double dt_s);
 
   std::string integrator_;
   FemOptions options_;
+  int threads_ = 1;
+  int substeps_ = 1;
   Eigen::Vector3d gravity_;
   Eigen::Matrix3Xd X_, x_, v_;
   Eigen::VectorXd mass_, mass_alpha_, mass_damped_;  // lumped m, alpha m, m + dt alpha m

@@ -40,6 +40,14 @@ TEST(FemSolvers, AllLinearSolversGiveTheSameImplicitEulerTrajectory) {
                              .iterations = 5000, .tolerance = 1e-12, .refactor_every = solver == "eigen_ldlt" ? 1 : 10};
     EXPECT_LT((run(problem, config, 20) - ref).cwiseAbs().maxCoeff(), 1e-6 * sag) << solver;
   }
+  // Two assembly threads (partitioned scatter) and two substeps of half the step.
+  ModelConfig two{.kind = "corotational_fem", .integrator = "implicit_euler", .linear_solver = "cholmod"};
+  two.threads = 2;
+  EXPECT_LT((run(problem, two, 20) - ref).cwiseAbs().maxCoeff(), 1e-9 * sag);
+  two.substeps = 2;
+  const double diff = (run(problem, two, 20) - ref).cwiseAbs().maxCoeff();
+  EXPECT_GT(diff, 1e-6 * sag);  // a different time discretisation...
+  EXPECT_LT(diff, 0.2 * sag);   // ...of the same motion
 }
 
 TEST(FemSolvers, LaggedFactorIsApproximateButPcgOnItConverges) {
