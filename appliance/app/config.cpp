@@ -83,6 +83,7 @@ AppConfig parse_config(const std::string& text, const std::string& source, const
   c.source = source;
   if (!root["port"]) r.fail(root, "port", "missing: give a serial port path (e.g. /dev/ttyUSB0) or 'sim'");
   c.port = r.get<std::string>(root["port"], "port", "a string");
+  c.port_line = root["port"].Mark().line + 1;
   if (c.port.empty()) r.fail(root["port"], "port", "empty");
   if (root["baud"]) {
     c.baud = r.get<int>(root["baud"], "baud", "an integer");

@@ -17,6 +17,7 @@ class ConfigError : public std::runtime_error {
 
 struct AppConfig {
   std::string port;           // serial port path, or "sim"
+  int port_line = 1;          // line of the port key (for errors found later)
   int baud = 115200;          // COMM target rate
   double rate_hz = 60.0;      // polling rate (the device frame rate)
   double device_rate_hz = 60.0;  // frame counter rate, for device_time_us

@@ -94,7 +94,7 @@ int main(int argc, char** argv) {
       } catch (const std::exception& e) {
         ports = std::string("  (cannot list ports: ") + e.what() + ")\n";
       }
-      std::cerr << "arnav-appliance: configuration error: " << cfg.source.string() << ": key 'port': no serial port '"
+      std::cerr << "arnav-appliance: configuration error: " << cfg.source.string() << ":" << cfg.port_line << ": key 'port': no serial port '"
                 << cfg.port << "'. Ports on this machine:\n"
                 << ports << "Set 'port' to one of them, or to 'sim' for the bench simulator.\n";
       return 2;

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <iostream>
@@ -78,6 +79,7 @@ SimProcess::SimProcess(const std::string& program, const std::vector<std::string
   out_fd_ = pipe_fds[0];
 
   std::string buffer;
+  bool exited = false;
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(ready_timeout_s);
   while (pty_path_.empty()) {
     const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
@@ -86,7 +88,10 @@ SimProcess::SimProcess(const std::string& program, const std::vector<std::string
     if (::poll(&p, 1, static_cast<int>(left.count())) <= 0) continue;
     char chunk[512];
     const ssize_t n = ::read(out_fd_, chunk, sizeof chunk);
-    if (n <= 0) break;  // the simulator exited
+    if (n <= 0) {  // the simulator exited
+      exited = true;
+      break;
+    }
     buffer.append(chunk, static_cast<std::size_t>(n));
     std::size_t nl;
     while ((nl = buffer.find('\n')) != std::string::npos) {
@@ -101,7 +106,10 @@ SimProcess::SimProcess(const std::string& program, const std::vector<std::string
   }
   if (pty_path_.empty()) {
     cleanup();
-    throw SimError("simulator '" + program + "' did not print 'READY <pty path>' within " + std::to_string(ready_timeout_s) + " s");
+    char secs[32];
+    std::snprintf(secs, sizeof secs, "%.0f", ready_timeout_s);
+    throw SimError("simulator '" + program + "' " + (exited ? "exited" : std::string("timed out after ") + secs + " s") +
+                   " without printing 'READY <pty path>'");
   }
   // Keep reading its stdout so it never blocks on a full pipe.
   drain_ = std::thread([fd = out_fd_] {

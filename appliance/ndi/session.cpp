@@ -342,6 +342,7 @@ bool Session::read_version() {
   }
   firmware_ = v.firmware;
   serial_ = v.serial_number;
+  version_lines_ = v.lines;
   use_bx_ = config_.use_bx;
   for (const auto& pattern : config_.tx_firmware) {
     if (r.body.find(pattern) != std::string::npos && use_bx_) {
@@ -491,6 +492,38 @@ PollResult Session::poll(TrackingReply& out, std::int64_t& receive_mono_us) {
   last_frame_ = fn;
   ++counters_.frames_total;
   return PollResult::NewFrame;
+}
+
+bool Session::probe(ProbeResult& out) {
+  out = ProbeResult{};
+  bool ok = false;
+  try {
+    if (!transport_) open_port();
+    ok = establish_contact() && negotiate_baud() && (!firmware_.empty() || read_version());
+    if (ok) {
+      out.baud = baud_;
+      out.firmware = firmware_;
+      out.serial_number = serial_;
+      out.version_lines = version_lines_;
+      CmdResult r = command("PHSR", "00", config_.setup_timeout);
+      std::vector<PhsrEntry> entries;
+      if (r.status == CmdResult::Ok && parse_phsr(r.body, entries) == ParseError::None) {
+        for (const auto& e : entries) {
+          ProbeResult::Handle h;
+          h.handle = e.handle;
+          h.status = e.status;
+          CmdResult info = command("PHINF", hex2(e.handle) + "0001", config_.setup_timeout);
+          h.has_info = info.status == CmdResult::Ok && parse_phinf_basic(info.body, h.info) == ParseError::None;
+          out.handles.push_back(h);
+        }
+      }
+    }
+  } catch (const std::exception& e) {
+    detail_ = e.what();
+    ok = false;
+  }
+  stop();
+  return ok;
 }
 
 void Session::stop() {

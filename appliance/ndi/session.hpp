@@ -80,6 +80,20 @@ struct LoadedTool {
 
 enum class PollResult : std::uint8_t { NewFrame, SameFrame, Failed };
 
+// What `arnav-ndi probe` reports.
+struct ProbeResult {
+  int baud = 9600;
+  std::string firmware, serial_number;
+  std::vector<std::string> version_lines;
+  struct Handle {
+    std::uint8_t handle = 0;
+    std::uint16_t status = 0;  // PHSR status bits
+    PortHandleInfo info;       // PHINF basic, when the device answered
+    bool has_info = false;
+  };
+  std::vector<Handle> handles;
+};
+
 class Session {
  public:
   using EventSink = std::function<void(const Event&)>;
@@ -98,6 +112,9 @@ class Session {
   PollResult poll(TrackingReply& out, std::int64_t& receive_mono_us);
   // TSTOP, COMM back to 9600, close the port. Best effort; never throws.
   void stop();
+  // Contact, COMM, VER:0, PHSR:00 and PHINF for each handle, without loading tools or
+  // tracking; then stop(). false (detail() says why) when the device cannot be reached.
+  bool probe(ProbeResult& out);
 
   LinkState state() const { return state_; }
   SessionCounters counters() const;
@@ -157,6 +174,7 @@ class Session {
   bool use_bx_ = true;
   int baud_ = 9600;
   std::string firmware_, serial_, port_name_, detail_;
+  std::vector<std::string> version_lines_;
   std::string bx_command_, tx_command_;
 
   SessionCounters counters_;
