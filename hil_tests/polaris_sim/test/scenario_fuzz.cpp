@@ -1,0 +1,25 @@
+// libFuzzer target: scenario files and fault command lines (the simulator's only text
+// inputs besides recordings, which replay_fuzz covers).
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+#include "hil_tests/polaris_sim/replay_device.hpp"
+#include "hil_tests/polaris_sim/scenario.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  const std::string text(reinterpret_cast<const char*>(data), size);
+  try {
+    arnav::hil::parse_scenario(text, "fuzz.yaml", "/nonexistent-fuzz-dir");
+  } catch (const arnav::hil::ScenarioError&) {
+  }
+  try {
+    arnav::hil::parse_fault(text);
+  } catch (const arnav::hil::ScenarioError&) {
+  }
+  try {
+    arnav::hil::parse_igstk_log(text, "fuzz.log");
+  } catch (const arnav::hil::ScenarioError&) {
+  }
+  return 0;
+}
