@@ -1,6 +1,8 @@
 #include "hil_tests/polaris_sim/replay_device.hpp"
 
 #include <fstream>
+
+#include "appliance/ndi/command.hpp"
 #include <iostream>
 
 namespace arnav::hil {
@@ -81,7 +83,7 @@ std::vector<PolarisModel::Reply> ReplayDevice::receive(std::span<const std::uint
       r.bytes = ex[found].reply;
       const std::string cmd(command.begin(), command.end());
       const std::string rep(r.bytes.begin(), r.bytes.end());
-      if ((cmd.rfind("COMM", 0) == 0) && cmd.size() > 5 && rep.rfind("OKAY", 0) == 0) r.baud_after = comm_code_to_baud(cmd[5]);
+      if ((cmd.rfind("COMM", 0) == 0) && cmd.size() > 5 && rep.rfind("OKAY", 0) == 0) r.baud_after = ndi::baud_from_code(cmd[5]).value_or(0);
       if (cmd.rfind("TSTART", 0) == 0 && !first_tstart_s_) first_tstart_s_ = now_s;
     }
     out.push_back(std::move(r));
