@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "appliance/ndi/crc16.hpp"
+#include "appliance/ndi/command.hpp"
 
 namespace arnav::hil {
 namespace {
@@ -27,7 +27,7 @@ constexpr std::size_t kRomSize = 1024;
 constexpr std::uint8_t kFirstHandle = 0x0A;
 constexpr int kMaxPassiveHandles = 12;
 
-bool is_hex(std::string_view s) {
+bool is_hex(std::string_view s) {  // whole field, any case
   return !s.empty() && s.find_first_not_of("0123456789ABCDEFabcdef") == std::string_view::npos;
 }
 
@@ -36,21 +36,6 @@ unsigned parse_hex(std::string_view s) { return static_cast<unsigned>(std::stoul
 PolarisModel::Reply reply(Bytes bytes) { return PolarisModel::Reply{std::move(bytes), {}, 0}; }
 
 }  // namespace
-
-int comm_code_to_baud(char code) {
-  switch (code) {
-    case '0': return 9600;
-    case '1': return 14400;
-    case '2': return 19200;
-    case '3': return 38400;
-    case '4': return 57600;
-    case '5': return 115200;
-    case '6': return 921600;
-    case '7': return 1228739;
-    case 'A': return 230400;
-    default: return 0;
-  }
-}
 
 PolarisModel::PolarisModel(Scenario scenario) : scenario_(std::move(scenario)) {}
 
@@ -110,18 +95,11 @@ int PolarisModel::identify_tool(const std::vector<std::uint8_t>& rom, std::uint1
 
 PolarisModel::Reply PolarisModel::execute(const std::string& raw, double now_s) {
   // "CMD:params" + CRC, or the space form "CMD params" without CRC.
-  std::string name, params;
-  if (const auto colon = raw.find(':'); colon != std::string::npos) {
-    if (raw.size() < colon + 5 || !is_hex(std::string_view(raw).substr(raw.size() - 4))) return reply(error_reply(kBadCrc));
-    const std::string body = raw.substr(0, raw.size() - 4);
-    if (ndi::crc16(body) != parse_hex(std::string_view(raw).substr(raw.size() - 4))) return reply(error_reply(kBadCrc));
-    name = body.substr(0, colon);
-    params = body.substr(colon + 1);
-  } else {
-    const auto space = raw.find(' ');
-    name = raw.substr(0, space);
-    if (space != std::string::npos) params = raw.substr(space + 1);
-  }
+  const auto decoded = ndi::decode_command(raw);
+  if (!decoded) return reply(error_reply(kInvalidCommand));
+  if (decoded->has_crc && !decoded->crc_ok) return reply(error_reply(kBadCrc));
+  const std::string name(decoded->name);
+  const std::string params(decoded->params);
 
   if (name == "INIT") {
     initialised_ = true;
@@ -130,10 +108,10 @@ PolarisModel::Reply PolarisModel::execute(const std::string& raw, double now_s) 
   if (name == "COMM") {
     if (params.size() != 5 || params[1] != '0' || params[2] != '0' || params[3] != '0' || (params[4] != '0' && params[4] != '1'))
       return reply(error_reply(params.size() == 5 ? kCommFailed : kBadParameterCount));
-    const int baud = comm_code_to_baud(params[0]);
-    if (baud == 0) return reply(error_reply(kCommFailed));
+    const auto baud = ndi::baud_from_code(params[0]);
+    if (!baud) return reply(error_reply(kCommFailed));
     Reply r = reply(okay_reply());
-    r.baud_after = baud;
+    r.baud_after = *baud;
     return r;
   }
   if (name == "VER") {
@@ -168,7 +146,8 @@ PolarisModel::Reply PolarisModel::execute(const std::string& raw, double now_s) 
                         (mode == 4 && p.enabled);
       if (!pick) continue;
       ++n;
-      const std::uint32_t status = (p.tool_index >= 0 ? kPortOccupied : 0) | (p.initialised ? kPortInitialised : 0) | (p.enabled ? kPortEnabled : 0);
+      const std::uint32_t status = (p.tool_index >= 0 ? ndi::kPortOccupied : 0) | (p.initialised ? ndi::kPortInitialised : 0) |
+                                    (p.enabled ? ndi::kPortEnabled : 0);
       s += hex_field(h, 2) + hex_field(status, 3);
     }
     return reply(text_reply(hex_field(static_cast<std::uint32_t>(n), 2) + s));
@@ -240,7 +219,8 @@ PolarisModel::Reply PolarisModel::execute(const std::string& raw, double now_s) 
     const unsigned option = parse_hex(opt);
     if ((option & ~0x0005u) != 0 || option == 0) return reply(error_reply(kOutOfRange));  // only basic + part number
     const SimTool* tool = p->tool_index >= 0 ? &scenario_.tools[static_cast<std::size_t>(p->tool_index)] : nullptr;
-    const std::uint32_t status = (tool ? kPortOccupied : 0) | (p->initialised ? kPortInitialised : 0) | (p->enabled ? kPortEnabled : 0);
+    const std::uint32_t status = (tool ? ndi::kPortOccupied : 0) | (p->initialised ? ndi::kPortInitialised : 0) |
+                                  (p->enabled ? ndi::kPortEnabled : 0);
     std::string s;
     if (option & 0x0001) {
       // type(8) manufacturer(12) revision(3) serial(8) status(2)
@@ -281,45 +261,46 @@ PolarisModel::Reply PolarisModel::reply_tracking(bool binary, const std::string&
     return reply(error_reply(kOutOfRange));  // the simulator models transform data only
   const std::uint32_t frame = frame_at(now_s);
   const double t_s = static_cast<double>(frame) / scenario_.frame_rate_hz;
-  std::vector<HandleReport> reports;
+  ndi::TrackingReply out;
   for (const auto& [h, p] : ports_) {
-    HandleReport r;
+    if (out.count == out.handles.size()) break;  // more handles than a frame can carry
+    ndi::HandleRecord& r = out.handles[out.count++];
     r.handle = h;
     r.frame_number = frame;
     if (!p.enabled) {
-      r.kind = HandleReport::Kind::kDisabled;
-      reports.push_back(r);
+      r.state = ndi::HandleState::Disabled;
       continue;
     }
-    r.port_status = kPortInitialised | kPortEnabled;
+    r.state = ndi::HandleState::Missing;
+    r.port_status = ndi::kPortInitialised | ndi::kPortEnabled;
     const SimTool* tool = p.tool_index >= 0 ? &scenario_.tools[static_cast<std::size_t>(p.tool_index)] : nullptr;
     TruthRow truth;
     truth.frame_number = frame;
     truth.handle = h;
     if (tool) {
-      r.port_status |= kPortOccupied;
+      r.port_status |= ndi::kPortOccupied;
       truth.tool = tool->name;
       truth.X_NdiTool = tool->motion.X_NdiTool(t_s);
       const auto hidden = missing_until_.find(tool->name);
       const auto outside = out_of_volume_until_.find(tool->name);
       const bool is_hidden = hidden != missing_until_.end() && now_s < hidden->second;
       const bool is_outside = outside != out_of_volume_until_.end() && now_s < outside->second;
-      if (is_outside) r.port_status |= kPortOutOfVolume;
+      if (is_outside) r.port_status |= ndi::kPortOutOfVolume;
       if (!is_hidden && (!is_outside || (option & kReplyOutOfVolume))) {
-        r.kind = HandleReport::Kind::kValid;
+        r.state = ndi::HandleState::Valid;
         Eigen::Quaterniond q(truth.X_NdiTool.rotation());
         if (q.w() < 0) q.coeffs() *= -1.0;
-        r.q_NdiTool = q;
-        r.p_NdiTool_mm = truth.X_NdiTool.translation();
+        r.q_NdiTool_wxyz = {q.w(), q.x(), q.y(), q.z()};
+        const Eigen::Vector3d p_mm = truth.X_NdiTool.translation();
+        r.p_NdiTool_mm = {p_mm.x(), p_mm.y(), p_mm.z()};
         r.rms_error_mm = tool->rms_error_mm;
         truth.valid = true;
       }
     }
     truth.port_status = r.port_status;
     if (on_truth) on_truth(truth);
-    reports.push_back(r);
   }
-  return reply(binary ? bx_reply(reports, 0) : tx_reply(reports, 0));
+  return reply(tracking_reply(out, binary));
 }
 
 }  // namespace arnav::hil

@@ -85,7 +85,4 @@ class PolarisModel {
   std::map<std::string, double> out_of_volume_until_;
 };
 
-// Polaris COMM baud code -> rate (0 for an unknown code).
-int comm_code_to_baud(char code);
-
 }  // namespace arnav::hil

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "appliance/ndi/transcript.hpp"
 #include "hil_tests/polaris_sim/sim_device.hpp"
 
 namespace arnav::hil {
@@ -23,12 +24,11 @@ struct Recording {
   std::vector<Exchange> exchanges;
 };
 
-// Reads the IGSTK serial log format (../shared/data/ndi_captures): lines
-// "<epoch> : (INFO) N. command[len] bytes" / "... receive[len] bytes", non-printable
-// bytes escaped as backslash-x-NN and a backslash doubled.
-// Throws ScenarioError naming the file and line on malformed input.
-Recording parse_igstk_log(const std::string& text, const std::string& source_name);
-// Loads a recording, choosing the reader by content.
+// Pairs the commands of a transcript (appliance/ndi/transcript.hpp) with the replies
+// that followed them; baud, break and note records carry no device bytes.
+Recording recording_from_transcript(const std::vector<ndi::TranscriptRecord>& records, const std::string& source_name);
+// Loads an `arnav-ndi record` transcript, or an IGSTK serial log (imported by the NDI
+// driver's reader). Throws ScenarioError naming the file (and line) on bad input.
 Recording load_replay(const std::filesystem::path& file);
 
 class ReplayDevice : public SimDevice {

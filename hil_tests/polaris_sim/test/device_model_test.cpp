@@ -3,6 +3,7 @@
 #include <cstring>
 
 #include "appliance/ndi/crc16.hpp"
+#include "appliance/ndi/reply.hpp"
 #include "hil_tests/polaris_sim/device_model.hpp"
 #include "hil_tests/polaris_sim/sim_device.hpp"
 
@@ -87,9 +88,11 @@ TEST_F(ModelTest, BringUpAndTracking) {
   EXPECT_TRUE(X.isApprox(truth[0].X_NdiTool));
   Eigen::Quaterniond q(X.rotation());
   if (q.w() < 0) q.coeffs() *= -1;
-  const std::string expect = "03" + p + signed_field(q.w(), 1e4, 5) + signed_field(q.x(), 1e4, 5) + signed_field(q.y(), 1e4, 5) +
-                             signed_field(q.z(), 1e4, 5) + signed_field(X.translation().x(), 100, 6) +
-                             signed_field(X.translation().y(), 100, 6) + signed_field(X.translation().z(), 100, 6);
+  ndi::HandleRecord rec;
+  rec.q_NdiTool_wxyz = {q.w(), q.x(), q.y(), q.z()};
+  rec.p_NdiTool_mm = {X.translation().x(), X.translation().y(), X.translation().z()};
+  rec.rms_error_mm = model.scenario().tools[0].rms_error_mm;
+  const std::string expect = "03" + p + ndi::format_transform(rec);
   EXPECT_EQ(tx.substr(0, expect.size()), expect);
   EXPECT_NE(tx.find(stranger + "MISSING00000030" + hex_field(frame, 8)), std::string::npos);
 

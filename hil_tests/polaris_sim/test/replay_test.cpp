@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <fstream>
 #include <set>
 
 #include "appliance/ndi/crc16.hpp"
@@ -57,19 +59,37 @@ TEST(Replay, ActsOutTheSession) {
   EXPECT_EQ(d.unmatched(), 1u);
 }
 
-TEST(Replay, MalformedLogsNameTheLine) {
-  const auto error_of = [](const std::string& text) {
-    try {
-      parse_igstk_log(text, "log.txt");
-    } catch (const ScenarioError& e) {
-      return std::string(e.what());
-    }
-    return std::string("no error");
-  };
-  EXPECT_NE(error_of("1 : (INFO) 1. command[3] INIT\n").find("log.txt:1: length says 3"), std::string::npos);
-  EXPECT_NE(error_of("\n1 : (INFO) 1. command[2] \\q1\n").find("log.txt:2: bad escape"), std::string::npos);
-  EXPECT_NE(error_of("1 : (INFO) 1. sent[2] ab\n").find("log.txt:1"), std::string::npos);
-  EXPECT_NE(error_of("hello\n").find("no 'command[len]'"), std::string::npos);
+TEST(Replay, TranscriptsPairCommandsWithReplies) {
+  const std::string dir = std::string(std::getenv("ARNAV_BINARY_DIR")) + "/replay_test";
+  std::filesystem::create_directories(dir);
+  {
+    std::ofstream out(dir + "/session.txt");
+    out << ndi::kTranscriptHeader << "\n"
+        << "0 reply RESETBE6F\\r\n"
+        << "10 cmd INIT:E3A5\\r\n"
+        << "20 reply OK\n"
+        << "21 reply AYA896\\r\n"
+        << "30 break 250\n"
+        << "40 cmd BEEP:1\\r\n";
+  }
+  ReplayDevice d(load_replay(dir + "/session.txt"));
+  EXPECT_EQ(say(d, "INIT:E3A5\r"), "OKAYA896\r");  // pieces joined
+  EXPECT_EQ(say(d, "BEEP:1\r"), "");               // recorded without a reply
+  {
+    std::ofstream out(dir + "/bad.txt");
+    out << ndi::kTranscriptHeader << "\n5 cmd INIT\\q\n";
+  }
+  try {
+    load_replay(dir + "/bad.txt");
+    ADD_FAILURE() << "a malformed transcript was accepted";
+  } catch (const ScenarioError& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.txt:2"), std::string::npos) << e.what();
+  }
+  {
+    std::ofstream out(dir + "/empty.txt");
+    out << ndi::kTranscriptHeader << "\n0 note nothing\n";
+  }
+  EXPECT_THROW(load_replay(dir + "/empty.txt"), ScenarioError);
 }
 
 }  // namespace

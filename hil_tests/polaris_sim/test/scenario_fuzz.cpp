@@ -1,10 +1,9 @@
-// libFuzzer target: scenario files and fault command lines (the simulator's only text
-// inputs besides recordings, which replay_fuzz covers).
+// libFuzzer target: scenario files and fault command lines, the simulator's own text
+// inputs (recordings are read by appliance/ndi's transcript reader, fuzzed there).
 #include <cstddef>
 #include <cstdint>
 #include <string>
 
-#include "hil_tests/polaris_sim/replay_device.hpp"
 #include "hil_tests/polaris_sim/scenario.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
@@ -15,10 +14,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
   try {
     arnav::hil::parse_fault(text);
-  } catch (const arnav::hil::ScenarioError&) {
-  }
-  try {
-    arnav::hil::parse_igstk_log(text, "fuzz.log");
   } catch (const arnav::hil::ScenarioError&) {
   }
   return 0;
