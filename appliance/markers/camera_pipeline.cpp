@@ -186,7 +186,7 @@ struct CameraPipeline::Impl {
     if (cfg.publish_frames.enabled && frame.sequence % cfg.publish_frames.every == 0) publish_image(frame);
     std::lock_guard lock(stats_mutex);
     ++stats.frames;
-    stats.last_latency_us = latency;
+    stats.last_latency_us = static_cast<double>(latency);
   }
 
   void publish_image(const capture::Frame& frame) {
