@@ -14,6 +14,7 @@ struct ModelConfig {
   int substeps = 1;                   // substeps per step(dt)
   double tolerance = 1e-6;            // relative residual for iterative solves
   int refactor_every = 1;             // FEM: steps between numeric refactorisations
+  int threads = 1;                    // worker threads for the model's parallel loops
 };
 
 }  // namespace arnav::host

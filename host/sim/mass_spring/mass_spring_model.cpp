@@ -1,0 +1,398 @@
+#include "host/sim/mass_spring/mass_spring_model.hpp"
+
+#include <omp.h>
+
+#include <Eigen/LU>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "host/sim/element_measure.hpp"
+#include "host/sim/step_health.hpp"
+
+namespace arnav::host {
+
+namespace {
+
+// Spring kernels write into one buffer per thread (no locks, no atomics); a vertex pass
+// sums the buffers. `fn(s)` returns the contribution at end 0; end 1 gets `sign1` times it.
+template <class Fn>
+void scatter(int threads, std::vector<Eigen::Matrix3Xd>& buffers, const std::vector<std::array<int, 2>>& ends,
+             double sign1, Fn fn) {
+  const int n = static_cast<int>(ends.size());
+#pragma omp parallel num_threads(threads) if (threads > 1)
+  {
+    Eigen::Matrix3Xd& buf = buffers[static_cast<std::size_t>(omp_get_thread_num())];
+    buf.setZero();
+#pragma omp for schedule(static)
+    for (int s = 0; s < n; ++s) {
+      const Eigen::Vector3d c = fn(s);
+      buf.col(ends[s][0]) += c;
+      buf.col(ends[s][1]) += sign1 * c;
+    }
+  }
+}
+
+// out.col(i) = sum of the thread buffers at i.
+void gather(int threads, const std::vector<Eigen::Matrix3Xd>& buffers, Eigen::Matrix3Xd& out) {
+  const int n = static_cast<int>(out.cols());
+#pragma omp parallel for num_threads(threads) if (threads > 1) schedule(static)
+  for (int i = 0; i < n; ++i) {
+    Eigen::Vector3d sum = buffers[0].col(i);
+    for (std::size_t t = 1; t < buffers.size(); ++t) sum += buffers[t].col(i);
+    out.col(i) = sum;
+  }
+}
+
+double dot(int threads, const Eigen::Matrix3Xd& a, const Eigen::Matrix3Xd& b) {
+  const int n = static_cast<int>(a.size());
+  const double* pa = a.data();
+  const double* pb = b.data();
+  double s = 0.0;
+#pragma omp parallel for num_threads(threads) if (threads > 1) reduction(+ : s) schedule(static)
+  for (int i = 0; i < n; ++i) s += pa[i] * pb[i];
+  return s;
+}
+
+}  // namespace
+
+MassSpringModel::MassSpringModel(const SimProblem& problem, Integrator integrator, const ModelConfig& config)
+    : integrator_(integrator), config_(config), threads_(config.threads) {
+  if (config.substeps < 1) throw std::invalid_argument("mass_spring: substeps must be >= 1");
+  if (config.iterations < 1) throw std::invalid_argument("mass_spring: iterations (CG) must be >= 1");
+  if (config.threads < 1) throw std::invalid_argument("mass_spring: threads must be >= 1");
+  if (!(config.tolerance >= 0.0)) throw std::invalid_argument("mass_spring: tolerance must be >= 0");
+  const TetMesh& mesh = problem.mesh;
+  const int n = mesh.num_vertices();
+  if (n == 0 || mesh.num_tets() == 0) throw std::invalid_argument("mass_spring: the mesh has no tetrahedra");
+  mass_ = lumped_masses_kg(mesh, problem.region_materials);
+  for (int i = 0; i < n; ++i) {
+    if (!(mass_[i] > 0.0)) {
+      throw std::invalid_argument("mass_spring: vertex " + std::to_string(i) + " belongs to no tet (zero mass)");
+    }
+  }
+  springs_ = build_spring_network(mesh, problem.region_materials);
+  gravity_ = problem.gravity_World_mm_s2;
+  x_ = mesh.rest_positions_World_mm;
+  v_ = Eigen::Matrix3Xd::Zero(3, n);
+
+  mass_damping_ = Eigen::VectorXd::Zero(n);
+  tets_ = mesh.tets;
+  Dm_inv_.resize(tets_.size());
+  tet_lame_.resize(tets_.size());
+  for (int t = 0; t < mesh.num_tets(); ++t) {
+    const int region = mesh.tet_region.empty() ? 0 : mesh.tet_region[t];
+    const Material& mat = problem.region_materials[region];
+    Dm_inv_[t] = edge_matrix(x_, tets_[t]).inverse();
+    tet_lame_[t] = lame_from(mat);
+    const double quarter = 0.25 * signed_volume_mm3(x_, tets_[t]) * mat.density_kg_per_mm3;
+    for (int v : tets_[t]) mass_damping_[v] += quarter * mat.damping_mass_per_s;
+  }
+
+  thread_buffers_.assign(static_cast<std::size_t>(threads_), Eigen::Matrix3Xd::Zero(3, n));
+  for (Eigen::Matrix3Xd* m : {&f_, &rhs_, &dv_, &r_, &z_, &p_, &q_, &diag_}) *m = Eigen::Matrix3Xd::Zero(3, n);
+  if (integrator_ == Integrator::kSemiImplicit) {
+    spring_dir_.resize(springs_.ends.size());
+    spring_s1_.resize(springs_.ends.size());
+    spring_s2_.resize(springs_.ends.size());
+  }
+  set_fixed_vertices(problem.fixed_vertices);
+}
+
+std::string MassSpringModel::name() const {
+  return integrator_ == Integrator::kExplicit ? "mass_spring/explicit" : "mass_spring/semi_implicit";
+}
+
+void MassSpringModel::set_fixed_vertices(const std::vector<int>& vertices) {
+  check_vertex_indices(vertices, static_cast<int>(x_.cols()), "set_fixed_vertices");
+  fixed_.assign(static_cast<std::size_t>(x_.cols()), 0);
+  for (int v : vertices) fixed_[static_cast<std::size_t>(v)] = 1;
+  inv_mass_ = mass_.cwiseInverse();
+  for (int v : vertices) {
+    inv_mass_[v] = 0.0;
+    v_.col(v).setZero();
+  }
+  update_omega_bound();
+}
+
+void MassSpringModel::update_omega_bound() {
+  // Gershgorin: every eigenvalue of M^-1 K lies below max_i (|K_ii| + sum_j |K_ij|) / m_i,
+  // and the spring tangent is bounded by k (the geometric part (1 - L/l) is below 1).
+  const int n = static_cast<int>(x_.cols());
+  Eigen::VectorXd row = Eigen::VectorXd::Zero(n), eta = Eigen::VectorXd::Zero(n);
+  for (int s = 0; s < springs_.size(); ++s) {
+    for (int end : springs_.ends[s]) {
+      row[end] += 2.0 * springs_.stiffness_mN_per_mm[s];
+      eta[end] += 2.0 * springs_.damping_mN_s_per_mm[s];
+    }
+  }
+  for (int id : attachments_.active()) {
+    const Attachment& a = attachments_[id];
+    for (int i = 0; i < a.count; ++i) row[a.vertices[i]] += a.stiffness_mN_per_mm * std::abs(a.weights[i]);
+  }
+  omega_max_ = 0.0;
+  for (int i = 0; i < n; ++i) {
+    if (!fixed_[static_cast<std::size_t>(i)]) omega_max_ = std::max(omega_max_, std::sqrt(row[i] / mass_[i]));
+  }
+  // Damping ratio of the fastest mode: stiffness-proportional (Voigt dashpots) plus
+  // mass-proportional; take the largest over vertices (damping shrinks the bound).
+  zeta_ = 0.0;
+  for (int i = 0; i < n && omega_max_ > 0.0; ++i) {
+    if (fixed_[static_cast<std::size_t>(i)]) continue;
+    const double beta = row[i] > 0.0 ? eta[i] / row[i] : 0.0;
+    const double alpha = mass_damping_[i] / mass_[i];
+    zeta_ = std::max(zeta_, 0.5 * beta * omega_max_ + 0.5 * alpha / omega_max_);
+  }
+}
+
+double MassSpringModel::explicit_stable_substep_s() const {
+  if (omega_max_ <= 0.0) return std::numeric_limits<double>::infinity();
+  return 2.0 / omega_max_ * (std::sqrt(1.0 + zeta_ * zeta_) - zeta_);
+}
+
+AttachmentId MassSpringModel::add_attachment(const AttachmentSpec& spec) {
+  const AttachmentId id = attachments_.add(spec, static_cast<int>(x_.cols()));
+  update_omega_bound();
+  return id;
+}
+void MassSpringModel::set_attachment_target(AttachmentId id, const Eigen::Vector3d& target_World_mm) {
+  attachments_.set_target(id, target_World_mm);
+}
+void MassSpringModel::set_attachment_stiffness(AttachmentId id, double stiffness_mN_per_mm) {
+  attachments_.set_stiffness(id, stiffness_mN_per_mm);
+  update_omega_bound();
+}
+void MassSpringModel::remove_attachment(AttachmentId id) {
+  attachments_.remove(id);
+  update_omega_bound();
+}
+
+void MassSpringModel::set_state(const Eigen::Matrix3Xd& positions_World_mm, const Eigen::Matrix3Xd& velocities_World_mm_s) {
+  check_state_shape(positions_World_mm, velocities_World_mm_s, static_cast<int>(x_.cols()));
+  x_ = positions_World_mm;
+  v_ = velocities_World_mm_s;
+  for (std::size_t i = 0; i < fixed_.size(); ++i)
+    if (fixed_[i]) v_.col(static_cast<Eigen::Index>(i)).setZero();
+  dv_.setZero();
+}
+
+void MassSpringModel::assemble(double h) {
+  const auto& ends = springs_.ends;
+  const double* X = x_.data();
+  const double* V = v_.data();
+  const double* L = springs_.rest_length_mm.data();
+  const double* K = springs_.stiffness_mN_per_mm.data();
+  const double* ETA = springs_.damping_mN_s_per_mm.data();
+  const bool implicit = h > 0.0;
+  scatter(threads_, thread_buffers_, ends, -1.0, [&](int s) -> Eigen::Vector3d {
+    const int i = ends[s][0], j = ends[s][1];
+    const Eigen::Vector3d d(X[3 * j] - X[3 * i], X[3 * j + 1] - X[3 * i + 1], X[3 * j + 2] - X[3 * i + 2]);
+    const Eigen::Vector3d dv(V[3 * j] - V[3 * i], V[3 * j + 1] - V[3 * i + 1], V[3 * j + 2] - V[3 * i + 2]);
+    const double l = d.norm();
+    if (!(l > 1e-12)) return Eigen::Vector3d::Zero();  // coincident ends: no direction
+    const Eigen::Vector3d n = d / l;
+    // Voigt element: elastic k (l - L) plus dashpot eta (v_j - v_i).n, both along n.
+    const double ndv = n.dot(dv);
+    Eigen::Vector3d f = (K[s] * (l - L[s]) + ETA[s] * ndv) * n;
+    if (!implicit) return f;
+    // Tangent K_e = k (n n^T + c (I - n n^T)), c = max(0, 1 - L/l) (compressive part dropped).
+    const double c = std::max(0.0, 1.0 - L[s] / l);
+    const double h2k = h * h * K[s];
+    spring_dir_[s] = n;
+    spring_s1_[s] = h * ETA[s] + h2k * (1.0 - c);
+    spring_s2_[s] = h2k * c;
+    // rhs at i: h f_i + h^2 (K v)_i, (K v)_i = -K_e (v_i - v_j) = K_e dv.
+    return h * f + h2k * ((1.0 - c) * ndv * n + c * dv);
+  });
+  Eigen::Matrix3Xd& out = implicit ? rhs_ : f_;
+  gather(threads_, thread_buffers_, out);
+  const int n = static_cast<int>(x_.cols());
+  const double scale = implicit ? h : 1.0;
+#pragma omp parallel for num_threads(threads_) if (threads_ > 1) schedule(static)
+  for (int i = 0; i < n; ++i) out.col(i) += scale * (mass_[i] * gravity_ - mass_damping_[i] * v_.col(i));
+  for (int id : attachments_.active()) {
+    const Attachment& a = attachments_[id];
+    const Eigen::Vector3d stretch = a.point(x_) - a.target_World_mm;
+    const Eigen::Vector3d vel = a.point(v_);
+    for (int k = 0; k < a.count; ++k) {
+      const double kw = a.stiffness_mN_per_mm * a.weights[k];
+      out.col(a.vertices[k]) -= scale * kw * stretch;
+      if (implicit) out.col(a.vertices[k]) -= h * h * kw * vel;
+    }
+  }
+}
+
+void MassSpringModel::explicit_substep(double h) {
+  assemble(0.0);
+  const int n = static_cast<int>(x_.cols());
+#pragma omp parallel for num_threads(threads_) if (threads_ > 1) schedule(static)
+  for (int i = 0; i < n; ++i) {
+    if (fixed_[static_cast<std::size_t>(i)]) continue;
+    v_.col(i) += h * inv_mass_[i] * f_.col(i);
+    x_.col(i) += h * v_.col(i);
+  }
+}
+
+void MassSpringModel::apply_system(const Eigen::Matrix3Xd& p, Eigen::Matrix3Xd& out) {
+  const auto& ends = springs_.ends;
+  scatter(threads_, thread_buffers_, ends, -1.0, [&](int s) -> Eigen::Vector3d {
+    const Eigen::Vector3d d = p.col(ends[s][0]) - p.col(ends[s][1]);
+    return spring_s1_[s] * spring_dir_[s].dot(d) * spring_dir_[s] + spring_s2_[s] * d;
+  });
+  gather(threads_, thread_buffers_, out);
+  const int n = static_cast<int>(x_.cols());
+  const double h = current_h_;
+#pragma omp parallel for num_threads(threads_) if (threads_ > 1) schedule(static)
+  for (int i = 0; i < n; ++i) out.col(i) += (mass_[i] + h * mass_damping_[i]) * p.col(i);
+  for (int id : attachments_.active()) {
+    const Attachment& a = attachments_[id];
+    const Eigen::Vector3d pp = a.point(p);
+    for (int k = 0; k < a.count; ++k) out.col(a.vertices[k]) += h * h * a.stiffness_mN_per_mm * a.weights[k] * pp;
+  }
+  for (int i = 0; i < n; ++i)
+    if (fixed_[static_cast<std::size_t>(i)]) out.col(i).setZero();
+}
+
+StepSummary MassSpringModel::semi_implicit_substep(double h) {
+  current_h_ = h;
+  assemble(h);
+  const int n = static_cast<int>(x_.cols());
+  // Jacobi preconditioner: diagonal of M + h C_mass + sum of spring blocks + attachments.
+  const auto& ends = springs_.ends;
+  scatter(threads_, thread_buffers_, ends, 1.0, [&](int s) -> Eigen::Vector3d {
+    return spring_s1_[s] * spring_dir_[s].cwiseAbs2() + Eigen::Vector3d::Constant(spring_s2_[s]);
+  });
+  gather(threads_, thread_buffers_, diag_);
+  for (int i = 0; i < n; ++i) diag_.col(i).array() += mass_[i] + h * mass_damping_[i];
+  for (int id : attachments_.active()) {
+    const Attachment& a = attachments_[id];
+    for (int k = 0; k < a.count; ++k)
+      diag_.col(a.vertices[k]).array() += h * h * a.stiffness_mN_per_mm * a.weights[k] * a.weights[k];
+  }
+  for (int i = 0; i < n; ++i) {
+    if (fixed_[static_cast<std::size_t>(i)]) {
+      rhs_.col(i).setZero();
+      dv_.col(i).setZero();
+    }
+  }
+  // PCG warm-started from the previous velocity change.
+  StepSummary s;
+  const double b_norm = std::sqrt(dot(threads_, rhs_, rhs_));
+  apply_system(dv_, q_);
+  r_ = rhs_ - q_;
+  double r_norm = std::sqrt(dot(threads_, r_, r_));
+  const double denom = b_norm > 0.0 ? b_norm : 1.0;
+  s.initial_residual = r_norm / denom;
+  s.termination = "max_iterations";
+  if (r_norm <= config_.tolerance * denom) {
+    s.termination = "converged";
+  } else {
+    z_ = r_.cwiseQuotient(diag_);
+    p_ = z_;
+    double rz = dot(threads_, r_, z_);
+    for (int it = 0; it < config_.iterations; ++it) {
+      apply_system(p_, q_);
+      const double pq = dot(threads_, p_, q_);
+      if (!(pq > 0.0)) {
+        s.termination = "breakdown";
+        break;
+      }
+      const double alpha = rz / pq;
+      dv_ += alpha * p_;
+      r_ -= alpha * q_;
+      ++s.iterations;
+      r_norm = std::sqrt(dot(threads_, r_, r_));
+      if (r_norm <= config_.tolerance * denom) {
+        s.termination = "converged";
+        break;
+      }
+      z_ = r_.cwiseQuotient(diag_);
+      const double rz_new = dot(threads_, r_, z_);
+      p_ = z_ + (rz_new / rz) * p_;
+      rz = rz_new;
+    }
+  }
+  s.final_residual = r_norm / denom;
+#pragma omp parallel for num_threads(threads_) if (threads_ > 1) schedule(static)
+  for (int i = 0; i < n; ++i) {
+    if (fixed_[static_cast<std::size_t>(i)]) continue;
+    v_.col(i) += dv_.col(i);
+    x_.col(i) += h * v_.col(i);
+  }
+  return s;
+}
+
+StepSummary MassSpringModel::step(double dt_s) {
+  check_dt(dt_s);
+  const auto start = std::chrono::steady_clock::now();
+  StepSummary summary;
+  const double h = dt_s / config_.substeps;
+  if (integrator_ == Integrator::kExplicit) {
+    const double h_max = explicit_stable_substep_s();
+    if (h > h_max) {
+      const int needed = static_cast<int>(std::ceil(dt_s / h_max));
+      report(summary,
+             "explicit mass-spring: substep " + std::to_string(h) + " s exceeds the stability bound " +
+                 std::to_string(h_max) + " s (2/omega_max); step not taken: use substeps >= " + std::to_string(needed) +
+                 " or integrator semi_implicit",
+             true);
+      summary.termination = "refused_unstable_dt";
+    } else {
+      for (int k = 0; k < config_.substeps; ++k) explicit_substep(h);
+      summary.iterations = config_.substeps;
+      summary.termination = "explicit";
+    }
+  } else {
+    for (int k = 0; k < config_.substeps; ++k) {
+      const StepSummary sub = semi_implicit_substep(h);
+      if (k == 0) summary.initial_residual = sub.initial_residual;
+      summary.final_residual = sub.final_residual;
+      summary.iterations += sub.iterations;
+      summary.termination = sub.termination;
+    }
+  }
+  check_state(x_, v_, summary);
+  const int inverted = count_inverted();
+  if (inverted > 0) {
+    report(summary, "inverted tets: " + std::to_string(inverted) + " (springs cannot restore orientation)", true);
+  }
+  summary.kinetic_energy = kinetic_energy(mass_, v_);
+  summary.elastic_energy = elastic_energy();
+  summary.wall_time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return summary;
+}
+
+int MassSpringModel::count_inverted() const {
+  const int nt = static_cast<int>(tets_.size());
+  int count = 0;
+#pragma omp parallel for num_threads(threads_) if (threads_ > 1) reduction(+ : count) schedule(static)
+  for (int t = 0; t < nt; ++t) {
+    if (!(edge_matrix(x_, tets_[t]).determinant() > 0.0)) ++count;
+  }
+  return count;
+}
+
+double MassSpringModel::elastic_energy() const {
+  const auto& ends = springs_.ends;
+  const int ns = springs_.size();
+  double e = 0.0;
+#pragma omp parallel for num_threads(threads_) if (threads_ > 1) reduction(+ : e) schedule(static)
+  for (int s = 0; s < ns; ++s) {
+    const double stretch = (x_.col(ends[s][1]) - x_.col(ends[s][0])).norm() - springs_.rest_length_mm[s];
+    e += 0.5 * springs_.stiffness_mN_per_mm[s] * stretch * stretch;
+  }
+  return e + attachments_.energy(x_);
+}
+
+std::vector<ElementMeasure> MassSpringModel::element_measures() const {
+  std::vector<ElementMeasure> out(tets_.size());
+  for (std::size_t t = 0; t < tets_.size(); ++t) {
+    const Eigen::Matrix3d F = deformation_gradient(x_, tets_[t], Dm_inv_[t]);
+    out[t] = element_measure_from(F, corotated_linear_stress_kPa(F, tet_lame_[t]));
+  }
+  return out;
+}
+
+}  // namespace arnav::host

@@ -1,0 +1,208 @@
+// Verification of the mass-spring model: rigid-motion invariance, energy conservation of
+// the undamped explicit integrator, dissipation by the Voigt dashpots, the explicit
+// stability bound, gravity sag against the analytic hanging bar, attachments, inversion.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+
+#include "host/scene/box_mesh.hpp"
+#include "host/sim/mass_spring/mass_spring_model.hpp"
+
+namespace arnav::host {
+namespace {
+
+using Integrator = MassSpringModel::Integrator;
+
+SimProblem box_problem(int nx, int ny, int nz, const Eigen::Vector3d& size_mm, const Material& m, bool gravity) {
+  SimProblem p;
+  p.mesh = make_box_tet_mesh(nx, ny, nz, size_mm);
+  p.region_materials = {m};
+  if (!gravity) p.gravity_World_mm_s2.setZero();
+  return p;
+}
+
+ModelConfig config(int iterations = 50, double tol = 1e-10) {
+  ModelConfig c;
+  c.kind = "mass_spring";
+  c.iterations = iterations;
+  c.tolerance = tol;
+  return c;
+}
+
+double total_energy(const StepSummary& s) { return s.kinetic_energy + s.elastic_energy; }
+
+TEST(MassSpring, RotatedRestStateGivesZeroForce) {
+  const SimProblem p = box_problem(4, 3, 2, {40, 30, 20}, Material{}, false);
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(2.1, Eigen::Vector3d(1, -2, 0.5).normalized()).toRotationMatrix();
+  const Eigen::Matrix3Xd x_rot = (R * p.mesh.rest_positions_World_mm).colwise() + Eigen::Vector3d(5, -7, 11);
+  for (Integrator integ : {Integrator::kExplicit, Integrator::kSemiImplicit}) {
+    MassSpringModel model(p, integ, config());
+    model.set_state(x_rot, Eigen::Matrix3Xd::Zero(3, x_rot.cols()));
+    for (int k = 0; k < 10; ++k) {
+      const StepSummary s = model.step(1e-4);
+      ASSERT_TRUE(s.healthy) << s.warning;
+    }
+    EXPECT_LT((model.positions_World_mm() - x_rot).cwiseAbs().maxCoeff(), 1e-9) << model.name();
+    EXPECT_LT(model.velocities_World_mm_s().cwiseAbs().maxCoeff(), 1e-7) << model.name();
+    for (const ElementMeasure& m : model.element_measures()) {
+      EXPECT_NEAR(m.von_mises_stress_kPa, 0.0, 1e-9);
+      EXPECT_NEAR(m.max_principal_strain, 0.0, 1e-12);
+      EXPECT_NEAR(m.volume_ratio, 1.0, 1e-12);
+    }
+  }
+}
+
+// Symplectic Euler conserves a modified energy: the true energy (velocities and positions
+// half a step apart) oscillates with an amplitude of order h omega but does not drift.
+// Stated bound: 5 % at h = 0.2 h_max, 2.5 % at h = 0.1 h_max (first order in h), and the
+// last quarter of the run deviates no more than the first (no drift).
+TEST(MassSpring, UndampedExplicitConservesEnergy) {
+  const SimProblem p = box_problem(4, 2, 2, {40, 20, 20}, Material{}, false);
+  double dev_at[2] = {0.0, 0.0};
+  const double fractions[2] = {0.2, 0.1};
+  for (int f = 0; f < 2; ++f) {
+    MassSpringModel model(p, Integrator::kExplicit, config());
+    Eigen::Matrix3Xd x = p.mesh.rest_positions_World_mm;
+    x.row(0) *= 1.05;  // 5 % stretch along x, then let it vibrate freely
+    model.set_state(x, Eigen::Matrix3Xd::Zero(3, x.cols()));
+    const double h = fractions[f] * model.explicit_stable_substep_s();
+    const double e0 = model.elastic_energy();
+    ASSERT_GT(e0, 0.0);
+    const int steps = static_cast<int>(4000 * 0.2 / fractions[f]);
+    double first_quarter = 0.0, last_quarter = 0.0;
+    for (int k = 0; k < steps; ++k) {
+      const StepSummary s = model.step(h);
+      ASSERT_TRUE(s.healthy) << s.warning;
+      const double dev = std::abs(total_energy(s) - e0) / e0;
+      if (k < steps / 4) first_quarter = std::max(first_quarter, dev);
+      if (k >= 3 * steps / 4) last_quarter = std::max(last_quarter, dev);
+      dev_at[f] = std::max(dev_at[f], dev);
+    }
+    EXPECT_LT(last_quarter, 1.2 * first_quarter) << "energy drifts at h = " << fractions[f] << " h_max";
+  }
+  RecordProperty("energy_deviation_0.2", std::to_string(dev_at[0]));
+  RecordProperty("energy_deviation_0.1", std::to_string(dev_at[1]));
+  EXPECT_LT(dev_at[0], 0.05);
+  EXPECT_LT(dev_at[1], 0.025);
+  EXPECT_LT(dev_at[1], 0.7 * dev_at[0]);
+}
+
+TEST(MassSpring, VoigtDampingDissipatesEnergy) {
+  Material m;
+  m.damping_stiffness_s = 0.01;
+  const SimProblem p = box_problem(4, 2, 2, {40, 20, 20}, m, false);
+  for (Integrator integ : {Integrator::kExplicit, Integrator::kSemiImplicit}) {
+    MassSpringModel model(p, integ, config());
+    Eigen::Matrix3Xd x = p.mesh.rest_positions_World_mm;
+    x.row(0) *= 1.05;
+    model.set_state(x, Eigen::Matrix3Xd::Zero(3, x.cols()));
+    const double h = integ == Integrator::kExplicit ? 0.5 * model.explicit_stable_substep_s() : 1e-3;
+    const double e0 = model.elastic_energy();
+    double previous = e0;
+    for (int k = 0; k < 2000; ++k) {
+      const StepSummary s = model.step(h);
+      ASSERT_TRUE(s.healthy) << s.warning;
+      EXPECT_LE(total_energy(s), previous * (1.0 + 1e-6) + 1e-12) << model.name() << " step " << k;
+      previous = total_energy(s);
+    }
+    EXPECT_LT(previous, 0.01 * e0) << model.name();
+  }
+}
+
+TEST(MassSpring, ExplicitDetectsDtBeyondStabilityBound) {
+  const SimProblem p = box_problem(4, 2, 2, {40, 20, 20}, Material{}, true);
+  MassSpringModel model(p, Integrator::kExplicit, config());
+  const double h_max = model.explicit_stable_substep_s();
+  // Scale check: the bound is of the order sqrt(m/k) of one vertex.
+  const double m = 1.06e-6 * 1000.0;  // one 10 mm cell
+  const double k = 5.0 * 10.0;        // E * L
+  EXPECT_GT(h_max, 0.05 * std::sqrt(m / k));
+  EXPECT_LT(h_max, 2.0 * std::sqrt(m / k));
+  const Eigen::Matrix3Xd before = model.positions_World_mm();
+  const StepSummary s = model.step(1.5 * h_max);
+  EXPECT_FALSE(s.healthy);
+  EXPECT_EQ(s.termination, "refused_unstable_dt");
+  EXPECT_NE(s.warning.find("stability bound"), std::string::npos) << s.warning;
+  EXPECT_EQ((model.positions_World_mm() - before).cwiseAbs().maxCoeff(), 0.0);
+  // A stiff attachment lowers the bound.
+  model.add_attachment({.point = {{0}, {1.0}}, .target_World_mm = Eigen::Vector3d::Zero(), .stiffness_mN_per_mm = 1e4});
+  EXPECT_LT(model.explicit_stable_substep_s(), h_max);
+}
+
+// A bar hanging from its top face under gravity: uniaxial stress rho g (L - z), end
+// displacement rho g L^2 / (2 E). The network's Young's modulus is only approximately E
+// (Van Gelder), so the stated tolerance is 25 %.
+TEST(MassSpring, HangingBarMatchesAnalyticSag) {
+  Material m;
+  m.youngs_modulus_kPa = 50.0;
+  m.damping_mass_per_s = 20.0;
+  const int n = 3, nz = 12;
+  const double L = 120.0;
+  SimProblem p = box_problem(n, n, nz, {30, 30, L}, m, true);
+  for (int j = 0; j <= n; ++j)
+    for (int i = 0; i <= n; ++i) p.fixed_vertices.push_back(box_vertex_index(n, n, i, j, nz));
+  MassSpringModel model(p, Integrator::kSemiImplicit, config(100, 1e-8));
+  StepSummary s;
+  for (int k = 0; k < 400; ++k) s = model.step(0.01);
+  ASSERT_TRUE(s.healthy) << s.warning;
+  EXPECT_LT(s.kinetic_energy, 1e-6 * s.elastic_energy);
+  const double expected = 1.06e-6 * 9810.0 * L * L / (2.0 * m.youngs_modulus_kPa);
+  double sag = 0.0;
+  for (int j = 0; j <= n; ++j)
+    for (int i = 0; i <= n; ++i) sag += -(model.positions_World_mm()(2, box_vertex_index(n, n, i, j, 0)));
+  sag /= (n + 1) * (n + 1);
+  RecordProperty("sag_mm", std::to_string(sag));
+  RecordProperty("analytic_mm", std::to_string(expected));
+  EXPECT_NEAR(sag, expected, 0.25 * expected) << "sag " << sag << " mm, analytic " << expected << " mm";
+}
+
+TEST(MassSpring, AttachmentPullsAndReleaseReturnsToRest) {
+  Material m;
+  m.damping_mass_per_s = 10.0;
+  SimProblem p = box_problem(4, 2, 2, {40, 20, 20}, m, false);
+  for (int k = 0; k <= 2; ++k)
+    for (int j = 0; j <= 2; ++j) p.fixed_vertices.push_back(box_vertex_index(4, 2, 0, j, k));
+  MassSpringModel model(p, Integrator::kSemiImplicit, config(100, 1e-8));
+  const int tip = box_vertex_index(4, 2, 4, 1, 1);
+  const Eigen::Vector3d rest_tip = p.mesh.rest_positions_World_mm.col(tip);
+  const AttachmentId id = model.add_attachment(
+      {.point = {{tip}, {1.0}}, .target_World_mm = rest_tip + Eigen::Vector3d(10, 0, 0), .stiffness_mN_per_mm = 50});
+  for (int k = 0; k < 300; ++k) ASSERT_TRUE(model.step(0.01).healthy);
+  const double pulled = model.positions_World_mm()(0, tip) - rest_tip.x();
+  EXPECT_GT(pulled, 1.0);
+  EXPECT_LT(pulled, 10.0);
+  model.remove_attachment(id);
+  for (int k = 0; k < 300; ++k) ASSERT_TRUE(model.step(0.01).healthy);
+  EXPECT_LT((model.positions_World_mm() - p.mesh.rest_positions_World_mm).cwiseAbs().maxCoeff(), 1e-3);
+}
+
+TEST(MassSpring, ReportsInvertedTets) {
+  const SimProblem p = box_problem(2, 2, 2, {20, 20, 20}, Material{}, false);
+  MassSpringModel model(p, Integrator::kSemiImplicit, config());
+  Eigen::Matrix3Xd x = p.mesh.rest_positions_World_mm;
+  x(2, box_vertex_index(2, 2, 1, 1, 1)) = 25.0;  // centre vertex pushed through the top
+  model.set_state(x, Eigen::Matrix3Xd::Zero(3, x.cols()));
+  const StepSummary s = model.step(0.01);
+  EXPECT_FALSE(s.healthy);
+  EXPECT_NE(s.warning.find("inverted tets"), std::string::npos) << s.warning;
+}
+
+TEST(MassSpring, BadInputIsRejectedWithAReason) {
+  const SimProblem p = box_problem(2, 1, 1, {20, 10, 10}, Material{}, true);
+  MassSpringModel model(p, Integrator::kSemiImplicit, config());
+  EXPECT_THROW(model.set_fixed_vertices({-1}), std::invalid_argument);
+  EXPECT_THROW(model.step(0.0), std::invalid_argument);
+  EXPECT_THROW(model.step(std::nan("")), std::invalid_argument);
+  EXPECT_THROW(model.set_state(Eigen::Matrix3Xd::Zero(3, 2), Eigen::Matrix3Xd::Zero(3, 2)), std::invalid_argument);
+  EXPECT_THROW(model.add_attachment({.point = {{999}, {1.0}}}), std::invalid_argument);
+  EXPECT_THROW(model.add_attachment({.point = {{0, 1}, {0.3, 0.3}}}), std::invalid_argument);
+  EXPECT_THROW(model.add_attachment({.point = {{0}, {1.0}}, .stiffness_mN_per_mm = -1.0}), std::invalid_argument);
+  EXPECT_THROW(model.remove_attachment(7), std::invalid_argument);
+  SimProblem bad = p;
+  bad.region_materials[0].poisson_ratio = 0.5;
+  EXPECT_THROW(MassSpringModel(bad, Integrator::kExplicit, config()), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace arnav::host

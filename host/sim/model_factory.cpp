@@ -1,0 +1,119 @@
+#include "host/sim/model_factory.hpp"
+
+#include <stdexcept>
+
+#ifdef ARNAV_SIM_HAVE_MASS_SPRING
+#include "host/sim/mass_spring/mass_spring_model.hpp"
+#endif
+#ifdef ARNAV_SIM_HAVE_XPBD
+#include "host/sim/xpbd/xpbd_model.hpp"
+#endif
+#ifdef ARNAV_SIM_HAVE_FEM
+#include "host/sim/fem/corotational_fem.hpp"
+#endif
+// Further models add their include, their variants and their branch in make_tissue_model
+// below, guarded by their ARNAV_SIM_HAVE_* definition.
+
+namespace arnav::host {
+
+namespace {
+void check_common(const ModelConfig& config) {
+  if (config.iterations < 1) throw std::invalid_argument("model config: iterations must be >= 1");
+  if (config.substeps < 1) throw std::invalid_argument("model config: substeps must be >= 1");
+  if (config.threads < 1) throw std::invalid_argument("model config: threads must be >= 1");
+}
+std::string join(const std::vector<std::string>& items) {
+  std::string out;
+  for (const auto& s : items) out += (out.empty() ? "" : ", ") + s;
+  return out;
+}
+}  // namespace
+
+std::vector<std::string> available_model_kinds() {
+  std::vector<std::string> kinds;
+#ifdef ARNAV_SIM_HAVE_MASS_SPRING
+  kinds.push_back("mass_spring");
+#endif
+#ifdef ARNAV_SIM_HAVE_XPBD
+  kinds.push_back("xpbd");
+#endif
+#ifdef ARNAV_SIM_HAVE_FEM
+  kinds.push_back("corotational_fem");
+#endif
+  return kinds;
+}
+
+std::vector<ModelVariant> model_variants() {
+  std::vector<ModelVariant> out;
+#ifdef ARNAV_SIM_HAVE_MASS_SPRING
+  {
+    ModelConfig c;
+    c.kind = "mass_spring";
+    c.integrator = "explicit";
+    c.substeps = 1;
+    out.push_back({"mass_spring/explicit", c});
+    c.integrator = "semi_implicit";
+    c.iterations = 20;
+    c.tolerance = 1e-4;
+    out.push_back({"mass_spring/semi_implicit", c});
+  }
+#endif
+#ifdef ARNAV_SIM_HAVE_XPBD
+  {
+    ModelConfig c;
+    c.kind = "xpbd";
+    c.iterations = 10;
+    c.substeps = 2;
+    c.tolerance = 0.0;
+    out.push_back({"xpbd", c});
+  }
+#endif
+#ifdef ARNAV_SIM_HAVE_FEM
+  {
+    // Real-time setting (docs/sim-fem.md): PCG on the current co-rotated matrix with a
+    // lagged CHOLMOD factor as preconditioner. quasi_static is not listed: it needs the
+    // scene to support the body (fixed vertices or attachments) and reports unhealthy
+    // without; scenes ask for it by name.
+    ModelConfig c;
+    c.kind = "corotational_fem";
+    c.integrator = "implicit_euler";
+    c.linear_solver = "pcg";
+    c.iterations = 20;
+    c.tolerance = 1e-4;
+    c.refactor_every = 30;
+    out.push_back({"corotational_fem/implicit_euler", c});
+  }
+#endif
+  return out;
+}
+
+std::unique_ptr<TissueModel> make_tissue_model(const SimProblem& problem, const ModelConfig& config) {
+  check_common(config);
+#ifdef ARNAV_SIM_HAVE_MASS_SPRING
+  if (config.kind == "mass_spring") {
+    if (config.integrator == "explicit") {
+      return std::make_unique<MassSpringModel>(problem, MassSpringModel::Integrator::kExplicit, config);
+    }
+    if (config.integrator == "semi_implicit" || config.integrator.empty()) {
+      return std::make_unique<MassSpringModel>(problem, MassSpringModel::Integrator::kSemiImplicit, config);
+    }
+    throw std::invalid_argument("model config: mass_spring integrator '" + config.integrator +
+                                "' is unknown: use explicit or semi_implicit");
+  }
+#endif
+#ifdef ARNAV_SIM_HAVE_XPBD
+  if (config.kind == "xpbd") {
+    if (!config.integrator.empty() && config.integrator != "xpbd") {
+      throw std::invalid_argument("model config: xpbd has no integrator '" + config.integrator + "' (leave it empty)");
+    }
+    return std::make_unique<XpbdModel>(problem, config);
+  }
+#endif
+#ifdef ARNAV_SIM_HAVE_FEM
+  if (config.kind == "corotational_fem") return make_corotational_fem(problem, config);
+#endif
+  throw std::invalid_argument("model config: unknown tissue model kind '" + config.kind +
+                              "': this build offers " + join(available_model_kinds()));
+}
+
+}  // namespace arnav::host

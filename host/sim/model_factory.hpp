@@ -1,0 +1,30 @@
+#pragma once
+// Builds the tissue model a scene asks for (ModelConfig::kind) behind the one interface.
+// Only what the problem declares is built: attachments are allocated when added, beam
+// machinery only with vessels (in the models that support them).
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "host/sim/model_config.hpp"
+#include "host/sim/tissue_model.hpp"
+
+namespace arnav::host {
+
+// Throws std::invalid_argument naming the bad field (unknown kind or integrator,
+// non-positive iterations/substeps/threads) or the bad mesh element.
+std::unique_ptr<TissueModel> make_tissue_model(const SimProblem& problem, const ModelConfig& config);
+
+// One buildable model with its defaults: every kind and integrator compiled in. The
+// stability matrix and benchmarks iterate over this list, so a new model joins them by
+// being added here.
+struct ModelVariant {
+  std::string label;   // "<kind>/<integrator>" or "<kind>"
+  ModelConfig config;  // kind and integrator set; solver defaults for real-time use
+};
+std::vector<ModelVariant> model_variants();
+
+// Kinds compiled into this build, e.g. {"mass_spring", "xpbd"}.
+std::vector<std::string> available_model_kinds();
+
+}  // namespace arnav::host

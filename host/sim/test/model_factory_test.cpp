@@ -1,0 +1,63 @@
+#include <gtest/gtest.h>
+
+#include "host/scene/box_mesh.hpp"
+#include "host/sim/model_factory.hpp"
+
+namespace arnav::host {
+namespace {
+
+SimProblem small_problem() {
+  SimProblem p;
+  p.mesh = make_box_tet_mesh(2, 2, 2, {20, 20, 20});
+  p.region_materials = {Material{}};
+  return p;
+}
+
+TEST(ModelFactory, EveryVariantBuildsAndSteps) {
+  const auto variants = model_variants();
+  ASSERT_FALSE(variants.empty());
+  for (const ModelVariant& v : variants) {
+    auto model = make_tissue_model(small_problem(), v.config);
+    ASSERT_NE(model, nullptr);
+    EXPECT_EQ(model->name(), v.label);
+    ModelConfig c = v.config;
+    c.substeps = std::max(c.substeps, 20);  // small enough for the explicit bound
+    model = make_tissue_model(small_problem(), c);
+    const StepSummary s = model->step(1e-3);
+    EXPECT_TRUE(s.healthy) << v.label << ": " << s.warning;
+    EXPECT_EQ(model->positions_World_mm().cols(), 27);
+    EXPECT_EQ(model->element_measures().size(), 48u);
+  }
+  for (const std::string& kind : available_model_kinds()) {
+    bool found = false;
+    for (const ModelVariant& v : variants) found = found || v.config.kind == kind;
+    EXPECT_TRUE(found) << kind << " has no variant";
+  }
+}
+
+TEST(ModelFactory, RejectsUnknownKindAndBadSettingsByName) {
+  ModelConfig c;
+  c.kind = "finite_volume";
+  try {
+    make_tissue_model(small_problem(), c);
+    FAIL() << "unknown kind accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("finite_volume"), std::string::npos) << e.what();
+  }
+  c.kind = "mass_spring";
+  c.integrator = "leapfrog";
+  EXPECT_THROW(make_tissue_model(small_problem(), c), std::invalid_argument);
+  c.integrator = "explicit";
+  c.substeps = 0;
+  EXPECT_THROW(make_tissue_model(small_problem(), c), std::invalid_argument);
+  c.substeps = 1;
+  c.threads = 0;
+  EXPECT_THROW(make_tissue_model(small_problem(), c), std::invalid_argument);
+  c.threads = 1;
+  SimProblem no_material = small_problem();
+  no_material.region_materials.clear();
+  EXPECT_THROW(make_tissue_model(no_material, c), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace arnav::host
