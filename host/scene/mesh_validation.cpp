@@ -122,7 +122,41 @@ SurfaceCheck validate_closed_surface(TriMesh& s, const std::string& source, cons
     throw_load_error(source, 0, "the surface encloses no volume", "give a closed organ surface");
   out.volume_mm3 = volume;
   out.removed_unused_vertices = compact_vertices(s.positions_World_mm, s.tris);
+  std::vector<int> component;
+  out.components = surface_components(s, component);
   return out;
+}
+
+int surface_components(const TriMesh& s, std::vector<int>& component_of_triangle) {
+  std::vector<int> parent(s.positions_World_mm.cols());
+  for (std::size_t i = 0; i < parent.size(); ++i) parent[i] = static_cast<int>(i);
+  auto find = [&](int v) {
+    while (parent[v] != v) v = parent[v] = parent[parent[v]];
+    return v;
+  };
+  for (const auto& t : s.tris) {
+    parent[find(t[0])] = find(t[1]);
+    parent[find(t[1])] = find(t[2]);
+  }
+  std::unordered_map<int, int> size;
+  for (const auto& t : s.tris) ++size[find(t[0])];
+  std::vector<std::pair<int, int>> order(size.begin(), size.end());  // (root, triangles)
+  std::sort(order.begin(), order.end(), [](const auto& a, const auto& b) { return a.second != b.second ? a.second > b.second : a.first < b.first; });
+  std::unordered_map<int, int> id;
+  for (std::size_t i = 0; i < order.size(); ++i) id[order[i].first] = static_cast<int>(i);
+  component_of_triangle.resize(s.tris.size());
+  for (std::size_t t = 0; t < s.tris.size(); ++t) component_of_triangle[t] = id[find(s.tris[t][0])];
+  return static_cast<int>(order.size());
+}
+
+int keep_largest_component(TriMesh& s) {
+  std::vector<int> component;
+  if (surface_components(s, component) <= 1) return 0;
+  std::vector<std::array<int, 3>> kept;
+  for (std::size_t t = 0; t < s.tris.size(); ++t)
+    if (component[t] == 0) kept.push_back(s.tris[t]);
+  s.tris = std::move(kept);
+  return compact_vertices(s.positions_World_mm, s.tris);
 }
 
 TetMeshCheck validate_tet_mesh(TetMesh& m, const std::string& source, const ElementLines& lines) {

@@ -16,12 +16,21 @@ struct SurfaceCheck {
   int removed_unused_vertices = 0;  // vertices no triangle uses (dropped, indices compacted)
   bool flipped = false;             // the surface was consistently oriented inward; flipped
   double volume_mm3 = 0.0;          // enclosed volume after orientation
+  int components = 1;               // connected components (each closed)
 };
 
 // A closed 2-manifold: finite coordinates, indices in range, no degenerate (zero-area) or
 // repeated triangles, every edge used by exactly two triangles in opposite directions.
 // Unused vertices are removed; an inward-oriented surface is flipped to outward.
 SurfaceCheck validate_closed_surface(TriMesh& surface, const std::string& source, const ElementLines& tri_lines = {});
+
+// Connected component (over shared vertices) of each triangle, numbered from 0 in order of
+// decreasing size; returns the number of components.
+int surface_components(const TriMesh& surface, std::vector<int>& component_of_triangle);
+
+// Keeps only the largest connected component (e.g. drops segmentation bubbles inside an
+// organ) and compacts vertices. Returns the number of vertices removed.
+int keep_largest_component(TriMesh& surface);
 
 struct TetMeshCheck {
   int removed_unused_vertices = 0;

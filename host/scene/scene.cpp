@@ -61,6 +61,17 @@ Scene load_scene(const std::string& path) {
   SurfaceCheck organ_check;
   scene.organ_surface = load_surface(organ_path, &organ_check);
   transform(scene.organ_surface.positions_World_mm, spec.organ);
+  if (organ_check.components > 1) {
+    if (!spec.keep_largest_component) {
+      at(spec.organ.line, organ_path + " has " + std::to_string(organ_check.components) +
+                              " separate closed components (an organ is one; small ones are usually segmentation bubbles)",
+         "remove the extra components, or set organ.keep_largest_component: true to drop all but the largest");
+    }
+    const int before = static_cast<int>(scene.organ_surface.positions_World_mm.cols());
+    const int removed = keep_largest_component(scene.organ_surface);
+    scene.notes.push_back(organ_path + ": kept the largest of " + std::to_string(organ_check.components) + " components (" +
+                          std::to_string(before - removed) + " vertices; dropped " + std::to_string(removed) + ")");
+  }
   if (organ_check.flipped) scene.notes.push_back(organ_path + ": surface was oriented inward; flipped to outward");
   if (organ_check.removed_unused_vertices > 0)
     scene.notes.push_back(organ_path + ": dropped " + std::to_string(organ_check.removed_unused_vertices) + " unused vertices");

@@ -193,7 +193,8 @@ SceneSpec parse_scene_spec(const std::string& yaml_text, const std::string& sour
   s.source = source;
 
   const YAML::Node organ = r.require(root, "organ", "the scene");
-  r.keys(organ, {"surface", "embed_tolerance_mm"}, "organ");
+  r.keys(organ, {"surface", "embed_tolerance_mm", "keep_largest_component"}, "organ");
+  if (organ["keep_largest_component"]) s.keep_largest_component = r.boolean(organ["keep_largest_component"], "organ.keep_largest_component");
   s.organ = r.file(r.require(organ, "surface", "organ"), "organ.surface");
   s.embed_tolerance_mm = r.positive(organ, "embed_tolerance_mm", 1.0, "organ");
 
@@ -341,7 +342,7 @@ SceneSpec parse_scene_spec(const std::string& yaml_text, const std::string& sour
   if (root["frames"]) s.frames = static_cast<int>(r.integer(root["frames"], "frames", 1, 1000000));
 
   const YAML::Node model = r.require(root, "model", "the scene");
-  r.keys(model, {"kind", "integrator", "linear_solver", "iterations", "substeps", "tolerance", "refactor_every"}, "model");
+  r.keys(model, {"kind", "integrator", "linear_solver", "iterations", "substeps", "tolerance", "refactor_every", "threads"}, "model");
   s.model_line = model.Mark().line + 1;
   s.model.kind = r.string(r.require(model, "kind", "model"), "model.kind");
   if (s.model.kind != "mass_spring" && s.model.kind != "xpbd" && s.model.kind != "corotational_fem")
@@ -354,6 +355,7 @@ SceneSpec parse_scene_spec(const std::string& yaml_text, const std::string& sour
     s.model.tolerance = r.number(model["tolerance"], "model.tolerance");
     if (!(s.model.tolerance > 0 && s.model.tolerance < 1)) r.fail(model["tolerance"], "model.tolerance must be in (0, 1)", "e.g. 1e-6");
   }
+  if (model["threads"]) s.model.threads = static_cast<int>(r.integer(model["threads"], "model.threads", 1, 256));
   if (model["refactor_every"]) s.model.refactor_every = static_cast<int>(r.integer(model["refactor_every"], "model.refactor_every", 1, 100000));
   return s;
 }

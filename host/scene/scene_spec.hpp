@@ -76,6 +76,7 @@ struct SceneSpec {
   std::string source;
   FileSpec organ;
   double embed_tolerance_mm = 1.0;   // display surface may lie this far outside the volume
+  bool keep_largest_component = false;  // drop extra closed components of the organ surface
   VolumeSpec volume;
   std::vector<TumourSpec> tumours;
   std::optional<VesselSpec> vessels;

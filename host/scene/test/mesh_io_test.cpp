@@ -100,6 +100,10 @@ TEST(SurfaceLoaders, RealSofaLiverSurfaces) {
   EXPECT_EQ(vtk.tris.size(), 10000u);
   EXPECT_TRUE(check.flipped);                      // stored with inward normals
   EXPECT_NEAR(check.volume_mm3, 1.477e6, 0.01e6);  // ~1.5 l: a real adult liver in mm
+  EXPECT_EQ(check.components, 4);                  // the liver and 3 tiny bubbles (4 vertices each)
+  TriMesh largest = vtk;
+  EXPECT_EQ(keep_largest_component(largest), 12);
+  EXPECT_EQ(largest.positions_World_mm.cols(), 4996);
   const TriMesh smooth = load_surface(shared_meshes() + "liver-smooth.obj");
   EXPECT_EQ(smooth.positions_World_mm.cols(), 2194);
   const TriMesh coarse = load_surface(shared_meshes() + "liver.obj", &check);
