@@ -1,0 +1,87 @@
+#include "calibration/lib/pose_file.hpp"
+
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <iomanip>
+#include <sstream>
+
+#include <Eigen/SVD>
+
+#include "calibration/lib/calib_error.hpp"
+
+namespace arnav::calib {
+
+std::vector<PoseSample> parse_pose_list(const std::string& text, const std::string& source) {
+  std::vector<PoseSample> poses;
+  std::istringstream in(text);
+  std::string line;
+  int line_no = 0;
+  while (std::getline(in, line)) {
+    ++line_no;
+    for (char& c : line) {
+      if (c == ',' || c == '\t' || c == '\r') c = ' ';
+    }
+    const auto first = line.find_first_not_of(' ');
+    if (first == std::string::npos || line[first] == '#') continue;
+    const std::string at = source + ":" + std::to_string(line_no) + ": ";
+    std::vector<double> values;
+    std::istringstream fields(line);
+    std::string field;
+    while (fields >> field) {
+      char* end = nullptr;
+      errno = 0;
+      const double v = std::strtod(field.c_str(), &end);
+      if (end == field.c_str() || *end != '\0' || errno == ERANGE || !std::isfinite(v)) {
+        throw CalibError(at + "'" + field.substr(0, 40) + "' is not a finite number");
+      }
+      values.push_back(v);
+    }
+    if (values.size() != 16) {
+      throw CalibError(at + "expected 16 numbers (row-major 4x4 pose, mm), found " +
+                       std::to_string(values.size()));
+    }
+    Eigen::Matrix4d M;
+    for (int i = 0; i < 16; ++i) M(i / 4, i % 4) = values[static_cast<std::size_t>(i)];
+    if ((M.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-9) {
+      throw CalibError(at + "last row must be 0 0 0 1 (is the matrix transposed?)");
+    }
+    const Eigen::Matrix3d R = M.topLeftCorner<3, 3>();
+    const double orth_err = (R.transpose() * R - Eigen::Matrix3d::Identity()).norm();
+    if (orth_err > 1e-3 || R.determinant() < 0.0) {
+      throw CalibError(at + "rotation part is not a rotation (|R^T R - I| = " +
+                       std::to_string(orth_err) + ")");
+    }
+    Eigen::JacobiSVD<Eigen::Matrix3d> svd(R, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    PoseSample s;
+    s.X_ParentChild.setIdentity();
+    s.X_ParentChild.linear() = svd.matrixU() * svd.matrixV().transpose();
+    s.X_ParentChild.translation() = M.topRightCorner<3, 1>();
+    s.line = line_no;
+    poses.push_back(s);
+  }
+  return poses;
+}
+
+std::vector<PoseSample> read_pose_list(const std::filesystem::path& path) {
+  return parse_pose_list(read_text_file(path, "the pose file"), path.string());
+}
+
+void write_pose_list(const std::filesystem::path& path, const std::vector<Eigen::Isometry3d>& poses,
+                     const std::string& header_comment) {
+  std::ofstream out(path, std::ios::binary);
+  if (!out) throw CalibError(path.string() + ": cannot write the pose file");
+  out << std::setprecision(17);
+  std::istringstream header(header_comment);
+  std::string line;
+  while (std::getline(header, line)) out << "# " << line << "\n";
+  for (const auto& X : poses) {
+    const Eigen::Matrix4d M = X.matrix();
+    for (int i = 0; i < 16; ++i) out << (i ? " " : "") << M(i / 4, i % 4);
+    out << "\n";
+  }
+  if (!out) throw CalibError(path.string() + ": write failed");
+}
+
+}  // namespace arnav::calib

@@ -1,0 +1,88 @@
+#pragma once
+// The command interpreter of the simulated Polaris: parses Combined API commands (with or
+// without CRC), keeps the device state (baud rate, port handles, loaded ROMs, tracking)
+// and encodes the replies a Polaris would send. Pure logic, no I/O: the Simulator moves
+// bytes between it and the pseudo-terminal and injects faults. Device time comes from the
+// frame counter (frame_number / frame_rate_hz), so ground truth is exact per frame.
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "hil_tests/polaris_sim/reply_encoder.hpp"
+#include "hil_tests/polaris_sim/scenario.hpp"
+
+namespace arnav::hil {
+
+// One tool pose as the device knew it when it answered (before wire quantisation).
+struct TruthRow {
+  std::uint32_t frame_number = 0;
+  std::uint8_t handle = 0;
+  std::string tool;
+  bool valid = false;  // false: reported missing / out of volume
+  std::uint32_t port_status = 0;
+  Eigen::Isometry3d X_NdiTool = Eigen::Isometry3d::Identity();
+};
+
+class PolarisModel {
+ public:
+  struct Reply {
+    Bytes bytes;
+    std::string command;      // the command line it answers (without CRC/CR), for logs
+    int baud_after = 0;       // non-zero: switch to this rate once the reply is sent
+  };
+
+  explicit PolarisModel(Scenario scenario);
+
+  // Bytes from the host (already past the baud check). Returns the replies, in order.
+  std::vector<Reply> receive(std::span<const std::uint8_t> bytes, double now_s);
+  // Power-on/break reset: 9600 baud, handles and tracking gone, frame counter restarts.
+  // Returns the RESET message the device sends (at 9600).
+  Bytes reset(double now_s);
+
+  int baud() const { return baud_; }
+  void set_baud(int baud) { baud_ = baud; }
+  bool tracking() const { return tracking_; }
+  std::optional<double> first_tstart_s() const { return first_tstart_s_; }
+  std::uint32_t frame_at(double now_s) const;
+  const Scenario& scenario() const { return scenario_; }
+
+  // Visibility faults: tool hidden / out of volume until the given device time.
+  void hide_tool_until(const std::string& tool, double until_s) { missing_until_[tool] = until_s; }
+  void push_out_of_volume_until(const std::string& tool, double until_s) { out_of_volume_until_[tool] = until_s; }
+  bool knows_tool(const std::string& tool) const;
+
+  // Called for every tool reported in a TX/BX reply.
+  std::function<void(const TruthRow&)> on_truth;
+
+  // Ports handed out, for tests and logs.
+  struct Port {
+    bool initialised = false;
+    bool enabled = false;
+    std::vector<std::uint8_t> rom;  // 1024 bytes written by PVWR
+    std::uint16_t rom_bytes_written = 0;
+    int tool_index = -1;            // scenario tool identified at PINIT, -1 none
+  };
+  const std::map<std::uint8_t, Port>& ports() const { return ports_; }
+
+ private:
+  Reply execute(const std::string& line, double now_s);
+  Reply reply_tracking(bool binary, const std::string& params, double now_s);
+  int identify_tool(const std::vector<std::uint8_t>& rom, std::uint16_t bytes_written) const;
+
+  Scenario scenario_;
+  std::string input_;
+  int baud_ = 9600;
+  bool initialised_ = false;
+  bool tracking_ = false;
+  double boot_s_ = 0.0;
+  std::optional<double> first_tstart_s_;
+  std::map<std::uint8_t, Port> ports_;
+  std::map<std::string, double> missing_until_;
+  std::map<std::string, double> out_of_volume_until_;
+};
+
+}  // namespace arnav::hil

@@ -1,0 +1,160 @@
+// arnav-polaris-sim: a simulated NDI Polaris on a pseudo-terminal (docs/hil.md).
+//   arnav-polaris-sim --pty-link PATH [--scenario FILE] [--tool NAME=ROM]... [options]
+// prints "READY <slave path>" once the port exists and serves until SIGTERM/SIGINT.
+//   arnav-polaris-sim inject --control SOCKET "cable_pull 2"
+// sends a fault command to a running simulator and prints its answer.
+#include <poll.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <csignal>
+#include <cstring>
+#include <iostream>
+
+#include <CLI/CLI.hpp>
+
+#include "hil_tests/polaris_sim/device_model.hpp"
+#include "hil_tests/polaris_sim/replay_device.hpp"
+#include "hil_tests/polaris_sim/simulator.hpp"
+
+namespace {
+
+std::atomic<bool> g_stop{false};
+void on_signal(int) { g_stop.store(true); }
+
+int send_control(const std::string& socket_path, const std::string& command) {
+  const int fd = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  sockaddr_un me{}, sim{};
+  me.sun_family = sim.sun_family = AF_UNIX;
+  // Autobind an abstract address so the simulator can answer.
+  if (fd < 0 || ::bind(fd, reinterpret_cast<sockaddr*>(&me), sizeof(sa_family_t)) != 0) {
+    std::cerr << "arnav-polaris-sim inject: cannot create a socket: " << std::strerror(errno) << "\n";
+    return 1;
+  }
+  if (socket_path.size() >= sizeof sim.sun_path) {
+    std::cerr << "arnav-polaris-sim inject: socket path too long\n";
+    return 2;
+  }
+  std::strncpy(sim.sun_path, socket_path.c_str(), sizeof sim.sun_path - 1);
+  if (::sendto(fd, command.data(), command.size(), 0, reinterpret_cast<sockaddr*>(&sim), sizeof sim) < 0) {
+    std::cerr << "arnav-polaris-sim inject: no simulator at " << socket_path << " (" << std::strerror(errno)
+              << "): start it with --control " << socket_path << "\n";
+    return 1;
+  }
+  pollfd p{fd, POLLIN, 0};
+  if (::poll(&p, 1, 3000) <= 0) {
+    std::cerr << "arnav-polaris-sim inject: no answer from " << socket_path << " within 3 s\n";
+    return 1;
+  }
+  char buf[512];
+  const ssize_t n = ::recv(fd, buf, sizeof buf - 1, 0);
+  ::close(fd);
+  const std::string answer(buf, n > 0 ? static_cast<std::size_t>(n) : 0);
+  std::cout << answer << std::endl;
+  return answer == "OK" ? 0 : 1;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace arnav::hil;
+  CLI::App app{"Simulated NDI Polaris (Combined API) on a pseudo-terminal, with scripted tool motion, "
+               "ground truth and fault injection. Fault commands: cable_pull S, reset, drop_bytes [N], garble [N], "
+               "bad_crc [N], partial, chunked S, garbage [N], missing TOOL S, out_of_volume TOOL S, slow S [N], "
+               "no_reply [N], error HEX [N], baud_mismatch [BAUD]. See docs/hil.md."};
+  app.require_subcommand(0, 1);
+  SimulatorOptions opt;
+  std::string scenario_file, replay_file;
+  std::vector<std::string> tool_specs, fault_specs;
+  double rate_hz = 0.0;
+  app.add_option("--pty-link", opt.pty_link, "symlink to create for the pty slave (agreed contract)");
+  app.add_option("--scenario", scenario_file, "YAML scenario: tools, motion, frame rate, timed faults")->check(CLI::ExistingFile);
+  app.add_option("--tool", tool_specs, "add a tool NAME=ROM_PATH with a default motion (repeatable)");
+  app.add_option("--rate", rate_hz, "frame rate in Hz (1-400; default 60 or the scenario's)")->check(CLI::Range(1.0, kMaxFrameRateHz));
+  app.add_option("--fault", fault_specs, "timed fault 'AT_S:COMMAND', AT_S after the first TSTART, e.g. '6:cable_pull 2' (repeatable)");
+  app.add_option("--replay", replay_file, "act out a recorded session instead of the model (arnav-ndi record transcript or IGSTK log)")
+      ->check(CLI::ExistingFile);
+  app.add_option("--bind-over", opt.bind_over, "also bind-mount the slave over this tty node (root, private mount namespace; HIL bench)");
+  app.add_option("--break-socket", opt.break_socket, "unix datagram socket on which the test interposer reports serial breaks");
+  app.add_option("--control", opt.control_socket, "unix datagram socket accepting fault commands");
+  app.add_option("--truth", opt.truth_csv, "write ground truth (per frame and handle) to this CSV file");
+  app.add_option("--events", opt.events_jsonl, "write faults and link events to this JSON-lines file");
+  app.add_option("--reset-delay", opt.reset_delay_s, "seconds from break release to RESET (default 0.3)")->check(CLI::Range(0.0, 10.0));
+  app.add_flag("--wire-timing", opt.wire_timing, "pace output at the device baud rate (10 bits a byte)");
+  app.add_option("--seed", opt.seed, "seed of the random fault positions");
+
+  auto* inject = app.add_subcommand("inject", "send a fault command to a running simulator");
+  std::string inject_socket, inject_command;
+  inject->add_option("--control", inject_socket, "the simulator's control socket")->required();
+  inject->add_option("command", inject_command, "fault command, e.g. \"cable_pull 2\"")->required();
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+  if (*inject) return send_control(inject_socket, inject_command);
+  if (opt.pty_link.empty()) {
+    std::cerr << "arnav-polaris-sim: --pty-link PATH is required (see --help)\n";
+    return 2;
+  }
+
+  std::unique_ptr<PolarisModel> model;
+  std::unique_ptr<SimDevice> device;
+  std::vector<TimedFault> timeline;
+  try {
+    if (!replay_file.empty()) {
+      if (!scenario_file.empty() || !tool_specs.empty())
+        throw ScenarioError("--replay acts out a recording: it cannot be combined with --scenario or --tool");
+      device = std::make_unique<ReplayDevice>(load_replay(replay_file));
+    } else {
+      Scenario scenario = scenario_file.empty() ? Scenario{} : load_scenario(scenario_file);
+      for (const auto& spec : tool_specs) add_tool_spec(scenario, spec);
+      if (rate_hz > 0) scenario.frame_rate_hz = rate_hz;
+      timeline = scenario.faults;
+      model = std::make_unique<PolarisModel>(std::move(scenario));
+      device = std::make_unique<ModelDevice>(*model);
+    }
+    for (const auto& spec : fault_specs) {
+      const auto colon = spec.find(':');
+      if (colon == std::string::npos) throw ScenarioError("--fault '" + spec + "': expected AT_S:COMMAND, e.g. '6:reset'");
+      TimedFault tf;
+      try {
+        tf.at_s = std::stod(spec.substr(0, colon));
+      } catch (const std::exception&) {
+        throw ScenarioError("--fault '" + spec + "': AT_S must be a number of seconds");
+      }
+      tf.fault = parse_fault(spec.substr(colon + 1), "--fault '" + spec + "'");
+      timeline.push_back(tf);
+    }
+    for (const auto& tf : timeline) {
+      if ((tf.fault.kind == FaultCommand::Kind::kMissing || tf.fault.kind == FaultCommand::Kind::kOutOfVolume) && model &&
+          !model->knows_tool(tf.fault.tool))
+        throw ScenarioError("fault '" + tf.fault.text + "' names tool '" + tf.fault.tool + "', which the scenario does not have");
+    }
+  } catch (const ScenarioError& e) {
+    std::cerr << "arnav-polaris-sim: " << e.what() << "\n";
+    return 2;
+  }
+
+  std::signal(SIGTERM, on_signal);
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGPIPE, SIG_IGN);
+  try {
+    Simulator sim(*device, timeline, opt);
+    if (model) model->on_truth = [&sim](const TruthRow& row) { sim.record_truth(row); };
+    const std::string slave = sim.start();
+    std::cout << "READY " << slave << std::endl;
+    sim.run(g_stop);
+    const auto& s = sim.stats();
+    std::cerr << "arnav-polaris-sim: stopped: " << s.commands << " commands, " << s.replies << " replies, " << s.bytes_in
+              << " bytes in, " << s.bytes_out << " bytes out, " << s.noise_bytes_in << " noise bytes in, " << s.noise_bytes_out
+              << " noise bytes out, " << s.breaks << " breaks, " << s.faults << " faults\n";
+  } catch (const std::exception& e) {
+    std::cerr << "arnav-polaris-sim: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

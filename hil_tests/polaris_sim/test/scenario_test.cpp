@@ -1,0 +1,81 @@
+#include <gtest/gtest.h>
+
+#include "hil_tests/polaris_sim/scenario.hpp"
+
+namespace arnav::hil {
+namespace {
+
+std::string shared() { return std::string(std::getenv("ARNAV_SHARED_DIR")); }
+
+TEST(Scenario, ParsesToolsMotionAndFaults) {
+  const std::string yaml = R"(
+frame_rate_hz: 400
+first_frame: 7
+tools:
+  - name: pointer
+    rom: data/ndi_roms/8700340.rom
+    serial: 3A2B1C00
+    motion: {center_mm: [10, 20, -1500], amplitude_mm: [0, 0, 0], rotation_amplitude_rad: 0}
+  - name: reference
+faults:
+  - {at_s: 2.5, do: "cable_pull 1.5"}
+  - {at_s: 4, do: "missing reference 0.5"}
+)";
+  const Scenario s = parse_scenario(yaml, "test.yaml", shared());
+  EXPECT_EQ(s.frame_rate_hz, 400.0);
+  EXPECT_EQ(s.first_frame, 7u);
+  ASSERT_EQ(s.tools.size(), 2u);
+  EXPECT_EQ(s.tools[0].rom.size(), 752u);
+  EXPECT_EQ(s.tools[0].serial, "3A2B1C00");
+  EXPECT_TRUE(s.tools[1].rom.empty());
+  const Eigen::Isometry3d X = s.tools[0].motion.X_NdiTool(3.0);
+  EXPECT_TRUE(X.translation().isApprox(Eigen::Vector3d(10, 20, -1500)));
+  ASSERT_EQ(s.faults.size(), 2u);
+  EXPECT_EQ(s.faults[0].fault.kind, FaultCommand::Kind::kCablePull);
+  EXPECT_EQ(s.faults[0].fault.duration_s, 1.5);
+  EXPECT_EQ(s.faults[1].fault.tool, "reference");
+}
+
+TEST(Scenario, ErrorsNameTheInput) {
+  const auto error_of = [](const std::string& yaml) {
+    try {
+      parse_scenario(yaml, "bad.yaml", "/nonexistent");
+    } catch (const ScenarioError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(error_of("frame_rate_hz: 1000").find("bad.yaml: frame_rate_hz"), std::string::npos);
+  EXPECT_NE(error_of("tools: [{name: a, colour: red}]").find("unknown key 'colour'"), std::string::npos);
+  EXPECT_NE(error_of("tools: [{name: a, rom: x.rom}]").find("/nonexistent/x.rom"), std::string::npos);
+  EXPECT_NE(error_of("tools: [{name: a}, {name: a}]").find("duplicate"), std::string::npos);
+  EXPECT_NE(error_of("faults: [{at_s: 1, do: explode}]").find("unknown fault 'explode'"), std::string::npos);
+  EXPECT_NE(error_of("frame_rate_hz: [1").find("bad.yaml: line"), std::string::npos);
+  EXPECT_NE(error_of("tools: [{name: a, motion: {center_mm: [1, 2]}}]").find("3 numbers"), std::string::npos);
+}
+
+TEST(Scenario, FaultCommands) {
+  EXPECT_EQ(parse_fault("reset").kind, FaultCommand::Kind::kReset);
+  EXPECT_EQ(parse_fault("garble 3").count, 3);
+  EXPECT_EQ(parse_fault("error 0c 2").code, 0x0C);
+  EXPECT_EQ(parse_fault("slow 0.5 4").delay_s, 0.5);
+  EXPECT_EQ(parse_fault("baud_mismatch 57600").baud, 57600);
+  EXPECT_THROW(parse_fault("cable_pull"), ScenarioError);
+  EXPECT_THROW(parse_fault("cable_pull -1"), ScenarioError);
+  EXPECT_THROW(parse_fault("garble 1.5"), ScenarioError);
+  EXPECT_THROW(parse_fault("error 123"), ScenarioError);
+  EXPECT_THROW(parse_fault("baud_mismatch 12345"), ScenarioError);
+  EXPECT_THROW(parse_fault("reset now"), ScenarioError);
+  EXPECT_THROW(parse_fault(""), ScenarioError);
+}
+
+TEST(Scenario, RomFilesAreChecked) {
+  EXPECT_EQ(read_rom(shared() + "/data/ndi_roms/8700248.rom").size(), 752u);
+  EXPECT_THROW(read_rom(shared() + "/data/ndi_captures/polaris_classic_stream.txt"), ScenarioError);
+  Scenario s;
+  EXPECT_THROW(add_tool_spec(s, "pointer"), ScenarioError);
+  EXPECT_THROW(add_tool_spec(s, "pointer=/nonexistent.rom"), ScenarioError);
+}
+
+}  // namespace
+}  // namespace arnav::hil
