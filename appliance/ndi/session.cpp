@@ -99,7 +99,15 @@ Session::CmdResult Session::command(std::string_view name, std::string_view para
   CmdResult r;
   Frame frame;
   const std::string bytes = encode_command(name, params);
-  switch (transact(bytes, timeout, false, frame)) {
+  // A reply damaged on the wire is asked for again, except where repeating the command
+  // changes the device state (COMM switches rate, PHRQ allocates a handle).
+  const int attempts = (name == "COMM" || name == "PHRQ") ? 1 : 3;
+  Outcome outcome = Outcome::Timeout;
+  for (int attempt = 0; attempt < attempts; ++attempt) {
+    outcome = transact(bytes, timeout, false, frame);
+    if (outcome != Outcome::Corrupt) break;
+  }
+  switch (outcome) {
     case Outcome::Timeout:
       if (count_timeout) ++counters_.timeouts;
       r.status = CmdResult::Timeout;
