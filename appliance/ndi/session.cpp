@@ -442,7 +442,7 @@ PollResult Session::poll(TrackingReply& out, std::int64_t& receive_mono_us) {
   if (outcome == Outcome::Reply) {
     receive_mono_us = last_read_mono_us_;
     if (frame.kind == Frame::Kind::Binary) {
-      parse = parse_bx(frame.bytes, out);
+      parse = parse_bx(frame.bytes, out, BxCrc::AlreadyChecked);  // the reader checked both CRCs
     } else {
       AsciiReply a;
       parse = parse_ascii_reply(frame.text(), a);
