@@ -374,7 +374,8 @@ void Session::free_stale_handles() {
     for (const auto& e : entries) to_free.push_back(e.handle);
   std::sort(to_free.begin(), to_free.end());
   to_free.erase(std::unique(to_free.begin(), to_free.end()), to_free.end());
-  for (std::uint8_t h : to_free) command("PHF", hex2(h), config_.setup_timeout);  // errors: already gone
+  // Errors are expected (a reset already freed them) and are not counted.
+  for (std::uint8_t h : to_free) command("PHF", hex2(h), config_.setup_timeout, false);
   previous_handles_.clear();
 }
 
