@@ -96,10 +96,20 @@ Session::Outcome Session::transact(std::string_view command_bytes, std::chrono::
 
 Session::CmdResult Session::command(std::string_view name, std::string_view params, std::chrono::milliseconds timeout,
                                     bool count_timeout) {
+  // count_timeout = false while probing, where silence and errors are expected.
   CmdResult r;
   Frame frame;
   const std::string bytes = encode_command(name, params);
-  switch (transact(bytes, timeout, false, frame)) {
+  // A reply damaged on the wire is asked for again, except where repeating the command
+  // changes the device state (COMM switches rate, PHRQ allocates a handle).
+  const int attempts = (name == "COMM" || name == "PHRQ") ? 1 : 3;
+  Outcome outcome = Outcome::Timeout;
+  for (int attempt = 0; attempt < attempts; ++attempt) {
+    transport_->drain_input();  // a late reply to an earlier command must not answer this one
+    outcome = transact(bytes, timeout, false, frame);
+    if (outcome != Outcome::Corrupt) break;
+  }
+  switch (outcome) {
     case Outcome::Timeout:
       if (count_timeout) ++counters_.timeouts;
       r.status = CmdResult::Timeout;
@@ -115,7 +125,7 @@ Session::CmdResult Session::command(std::string_view name, std::string_view para
   r.body = std::string(a.body);
   switch (a.kind) {
     case AsciiKind::Error:
-      ++counters_.error_replies;
+      if (count_timeout) ++counters_.error_replies;  // not while probing: errors are expected there
       r.status = CmdResult::Error;
       r.error_code = a.error_code;
       break;
@@ -252,11 +262,12 @@ bool Session::probe_init(int baud) {
   transport_->drain_input();
   reader_.clear();
   CmdResult r = command("INIT", "", config_.probe_timeout, false);
-  if (r.status == CmdResult::Error && r.error_code == 0x0C) {
-    // A unit left tracking by a crashed host refuses INIT: stop tracking first.
-    command("TSTOP", "", config_.probe_timeout, false);
-    r = command("INIT", "", config_.probe_timeout, false);
-  }
+  if (r.status != CmdResult::Ok && r.status != CmdResult::Error) return false;
+  // Something answered at this rate. The unit was not reset, so it may still be tracking
+  // for a crashed host (then INIT answers ERROR0C, or OKAY on some firmware): stop
+  // tracking and initialise again; this INIT must succeed.
+  command("TSTOP", "", config_.setup_timeout, false);
+  r = command("INIT", "", config_.setup_timeout, false);
   return r.status == CmdResult::Ok;
 }
 
@@ -434,7 +445,7 @@ PollResult Session::poll(TrackingReply& out, std::int64_t& receive_mono_us) {
   if (outcome == Outcome::Reply) {
     receive_mono_us = last_read_mono_us_;
     if (frame.kind == Frame::Kind::Binary) {
-      parse = parse_bx(frame.bytes, out);
+      parse = parse_bx(frame.bytes, out, BxCrc::AlreadyChecked);  // the reader checked both CRCs
     } else {
       AsciiReply a;
       parse = parse_ascii_reply(frame.text(), a);
