@@ -56,8 +56,10 @@ int main(int argc, char** argv) {
   CLI::App cli{"arnav-appliance: NDI Polaris -> LCM (poses, health, events). Configuration format: docs/appliance.md"};
   std::string config_path;
   bool check_only = false;
+  bool print_health = false;
   cli.add_option("config", config_path, "YAML configuration file")->required();
   cli.add_flag("--check", check_only, "validate the configuration and exit (0 when valid)");
+  cli.add_flag("--print-health", print_health, "also print each health message on stderr");
   try {
     cli.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -124,7 +126,10 @@ int main(int argc, char** argv) {
     }
     port_label = sim->pty_path();
     std::cerr << "arnav-appliance: simulator ready on " << port_label << "\n";
-    factory = [path = sim->pty_path()] { return std::unique_ptr<ndi::Transport>(new ndi::PosixTransport(path)); };
+    // Reopen through the link: after a simulated cable pull the simulator makes a new pty.
+    std::error_code ec;
+    const std::string path = std::filesystem::exists(sim->link_path(), ec) ? sim->link_path() : sim->pty_path();
+    factory = [path] { return std::unique_ptr<ndi::Transport>(new ndi::PosixTransport(path)); };
   }
 
   app::Publisher publisher(lcm, cfg.tools, cfg.device_rate_hz);
@@ -135,6 +140,7 @@ int main(int argc, char** argv) {
   std::unique_ptr<ndi::Session> session;
   try {
     session = std::make_unique<ndi::Session>(cfg.session_config(), factory, on_event);
+    session->set_cancel_flag(&g_stop);  // a signal during bring-up ends it at once
   } catch (const std::exception& e) {  // ROM or rate problems (already checked by the config)
     std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
     return 2;
@@ -177,7 +183,19 @@ int main(int argc, char** argv) {
     now = monotonic_us();
     if (now >= next_health) {
       const double rate = static_cast<double>(frames_in_window) * 1e6 / static_cast<double>(std::max<std::int64_t>(1, now - window_start));
-      publisher.publish_health(*session, port_label, rate);
+      const device_health_t h = publisher.publish_health(*session, port_label, rate);
+      if (print_health) {
+        std::fprintf(stderr,
+                     "arnav-appliance: health %s %d baud %.1f Hz frames %lld crc %lld timeouts %lld resyncs %lld "
+                     "garbage %lld errors %lld resets %lld reconnects %lld dropped %lld latency p50 %.1f p99 %.1f max %.1f us\n",
+                     std::string(ndi::to_string(session->state())).c_str(), h.baud, static_cast<double>(h.frame_rate_hz),
+                     static_cast<long long>(h.frames_total), static_cast<long long>(h.crc_errors),
+                     static_cast<long long>(h.timeouts), static_cast<long long>(h.resyncs),
+                     static_cast<long long>(h.garbage_bytes), static_cast<long long>(h.error_replies),
+                     static_cast<long long>(h.resets), static_cast<long long>(h.reconnects),
+                     static_cast<long long>(h.dropped_frames), static_cast<double>(h.latency_p50_us),
+                     static_cast<double>(h.latency_p99_us), static_cast<double>(h.latency_max_us));
+      }
       frames_in_window = 0;
       window_start = now;
       next_health = now + health_period_us;
