@@ -168,6 +168,7 @@ int main(int argc, char** argv) {
   std::unique_ptr<ndi::Session> session;
   try {
     session = std::make_unique<ndi::Session>(cfg.session_config(), factory, on_event);
+    session->set_cancel_flag(&g_stop);  // a signal during bring-up ends it at once
   } catch (const std::exception& e) {  // ROM or rate problems (already checked by the config)
     std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
     return 2;

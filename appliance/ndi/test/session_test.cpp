@@ -300,6 +300,31 @@ TEST(Session, ConfiguredTxFirmwarePollsWithTx) {
   EXPECT_EQ(h.dev->commands.back(), "TX");
 }
 
+TEST(Session, CancelFlagEndsBringUpAtOnceButStopStillTalks) {
+  SessionConfig c = fast_config();
+  c.reset_wait = 5000ms;  // would take seconds without the flag
+  c.setup_timeout = 5000ms;
+  Harness h(c);
+  h.dev->break_resets = false;
+  h.dev->device_baud = -1;  // nothing answers
+  volatile std::sig_atomic_t flag = 1;
+  h.session->set_cancel_flag(&flag);
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_FALSE(h.session->start());
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, 2s);
+
+  // Cancelled after tracking started: stop() still sends TSTOP and COMM.
+  Harness g;
+  ASSERT_TRUE(g.session->start());
+  volatile std::sig_atomic_t stop_now = 1;
+  g.session->set_cancel_flag(&stop_now);
+  TrackingReply t;
+  EXPECT_EQ(g.poll(t), PollResult::Failed);
+  g.session->stop();
+  EXPECT_FALSE(g.dev->tracking);
+  EXPECT_EQ(g.dev->device_baud, 9600);
+}
+
 TEST(Session, RecordingTransportWritesAReadableTranscript) {
   auto dev = std::make_shared<FakeDevice>();
   std::stringstream transcript;
