@@ -16,6 +16,7 @@
 #include "appliance/app/config.hpp"
 #include "appliance/app/publisher.hpp"
 #include "appliance/app/sim_process.hpp"
+#include "appliance/markers/camera_runtime.hpp"
 #include "appliance/ndi/posix_transport.hpp"
 #include "appliance/ndi/serial_transport.hpp"
 #include "protocol/clock.hpp"
@@ -74,6 +75,32 @@ int main(int argc, char** argv) {
     std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
     return 2;
   }
+  // Camera path (docs/camera.md): runs on its own thread when the config has `camera:`.
+  std::unique_ptr<camera::CameraRuntime> cam;
+  try {
+    cam = camera::CameraRuntime::load(config_path);
+  } catch (const camera::CameraConfigError& e) {
+    std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
+    return 2;
+  }
+  if (!cfg.ndi_enabled) {
+    if (check_only) {
+      std::cout << "configuration OK: " << cam->summary() << ", no NDI\n";
+      return 0;
+    }
+    install_signals();
+    try {
+      cam->start(cfg.lcm_url);
+    } catch (const camera::CameraConfigError& e) {
+      std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
+      return 2;
+    }
+    std::cerr << "arnav-appliance: " << cam->summary() << "\n";
+    while (!g_stop && !cam->finished()) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    cam->stop();
+    std::cerr << "arnav-appliance: stopping (" << (g_stop ? "signal" : "camera source ended") << ")\n";
+    return 0;
+  }
 
   // Where the device is: a simulator on a pty, a libserialport port, or a tty device
   // libserialport does not list (a pty given by path).
@@ -103,7 +130,8 @@ int main(int argc, char** argv) {
     }
   }
   if (check_only) {
-    std::cout << "configuration OK: " << cfg.tools.size() << " tool(s), port " << cfg.port << "\n";
+    std::cout << "configuration OK: " << cfg.tools.size() << " tool(s), port " << cfg.port
+              << (cam ? "; " + cam->summary() : std::string()) << "\n";
     return 0;
   }
 
@@ -145,6 +173,26 @@ int main(int argc, char** argv) {
     std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
     return 2;
   }
+
+  if (cam) {
+    try {
+      cam->start(cfg.lcm_url);
+    } catch (const camera::CameraConfigError& e) {
+      std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
+      return 2;
+    }
+    std::cerr << "arnav-appliance: " << cam->summary() << "\n";
+  }
+  // Reference tool poses for the camera path's frame Ref (appliance/frames).
+  auto feed_reference = [&](const ndi::TrackingReply& r, std::int64_t receive_us) {
+    if (!cam || cam->frames()->reference() != frames::Reference::Ref) return;
+    for (const auto& t : session->tools()) {
+      if (t.config.name != cam->frames()->reference_tool()) continue;
+      const ndi::HandleRecord* rec = r.find(t.handle);
+      if (rec && rec->state == ndi::HandleState::Valid) cam->frames()->update_reference(ndi::X_NdiTool(*rec), receive_us);
+      else cam->frames()->reference_missing(receive_us);
+    }
+  };
 
   const auto period_us = static_cast<std::int64_t>(1e6 / cfg.rate_hz);
   const auto health_period_us = static_cast<std::int64_t>(1e6 / cfg.health_rate_hz);
@@ -194,6 +242,7 @@ int main(int argc, char** argv) {
       switch (session->poll(reply, receive_us)) {
         case ndi::PollResult::NewFrame:
           publisher.publish_frame(*session, reply, receive_us);
+          feed_reference(reply, receive_us);
           ++frames_in_window;
           // Next frame is due one device period after this one was read; poll a little
           // early and re-poll quickly if the device has no new frame yet.
@@ -207,6 +256,7 @@ int main(int argc, char** argv) {
   }
 
   std::cerr << "arnav-appliance: stopping (signal)\n";
+  if (cam) cam->stop();
   session->stop();
   publisher.publish_health(*session, port_label, 0.0);
   session.reset();
