@@ -276,6 +276,8 @@ StepSummary CorotationalFem::substep(double dt_s) {
   }
   int inverted = 0;
   assemble(dt_s, dynamic, summary.elastic_energy, inverted);
+  const auto t_assembled = std::chrono::steady_clock::now();
+  timing_.assemble_ms = std::chrono::duration<double, std::milli>(t_assembled - t0).count();
   const int nv = static_cast<int>(X_.cols());
   for (int i = 0; i < nv; ++i) f_ext_.segment<3>(3 * i) += mass_[i] * gravity_;
   f_ += f_ext_;
@@ -309,7 +311,9 @@ StepSummary CorotationalFem::substep(double dt_s) {
                                         : Eigen::Vector3d(f_ext_.segment<3>(3 * i));
       load_scale += l.squaredNorm();
     }
+  const auto t_solve = std::chrono::steady_clock::now();
   last_solve_ = solver_.solve(A_, rhs_, sol_, std::sqrt(load_scale));
+  timing_.solve_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_solve).count();
   const LinearSolveSummary& ls = last_solve_;
   summary.iterations = ls.iterations;
   summary.initial_residual = ls.initial_residual;

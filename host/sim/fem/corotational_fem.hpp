@@ -66,6 +66,12 @@ class CorotationalFem final : public TissueModel {
   // Last assembled system matrix (lower triangle) and the last linear solve.
   const SparseMatrixLower& system_matrix() const { return A_; }
   const LinearSolveSummary& last_linear_solve() const { return last_solve_; }
+  // Where the last (sub-)step's time went, ms: rotations + forces + scatter, linear solve
+  // (including any factorisation).
+  struct Timing {
+    double assemble_ms = 0, solve_ms = 0;
+  };
+  const Timing& last_timing() const { return timing_; }
   void set_estimate_condition(bool on) { solver_.set_estimate_condition(on); }
 
  private:
@@ -117,6 +123,7 @@ class CorotationalFem final : public TissueModel {
   Eigen::VectorXd f_, f_ext_, rhs_, sol_, last_dx_;
   FemLinearSolver solver_;
   LinearSolveSummary last_solve_;
+  Timing timing_;
   int inverted_streak_ = 0;
   double last_dt_ = -1.0;
 };
