@@ -134,7 +134,7 @@ void CorotationalFem::update_fixed_entries() {
     }
 }
 
-void CorotationalFem::assemble(double dt_s, bool dynamic, double& elastic_energy, int& inverted) {
+CorotationalFem::AssemblyStats CorotationalFem::assemble(double dt_s, bool dynamic) {
   double* values = A_.valuePtr();
   std::fill(values, values + A_.nonZeros(), 0.0);
   f_.setZero(x_.size());
@@ -154,15 +154,16 @@ void CorotationalFem::assemble(double dt_s, bool dynamic, double& elastic_energy
     const Eigen::Matrix3d F = 0.5 * (F_[beams_[b].tets[0]] + F_[beams_[b].tets[1]]);
     R_beam_[b] = extract_rotation(F, q_[beams_[b].tets[0]], kStepRotation).toRotationMatrix();
   }
-  double energy = 0.0;
+  double energy = 0.0, max_strain = 0.0;
   int n_inverted = 0;
   // Pass 2: forces and rotated stiffness; parts are vertex-disjoint (no write conflicts),
   // the interface elements follow serially: one synchronisation per step.
   const int parts = static_cast<int>(partition_.parts.size());
-#pragma omp parallel for schedule(static, 1) reduction(+ : energy, n_inverted) num_threads(threads_) if (threads_ > 1)
+#pragma omp parallel for schedule(static, 1) reduction(+ : energy, n_inverted) reduction(max : max_strain) \
+    num_threads(threads_) if (threads_ > 1)
   for (int part = 0; part < parts; ++part)
-    for (int id : partition_.parts[part]) assemble_element(id, dt_s, dynamic, energy, n_inverted);
-  for (int id : partition_.shared) assemble_element(id, dt_s, dynamic, energy, n_inverted);
+    for (int id : partition_.parts[part]) assemble_element(id, dt_s, dynamic, energy, n_inverted, max_strain);
+  for (int id : partition_.shared) assemble_element(id, dt_s, dynamic, energy, n_inverted, max_strain);
   // Attachments: zero-rest-length springs from material points to targets.
   const double s_att = dynamic ? dt_s * dt_s : 1.0;
   for (const auto& att : attachments_) {
@@ -183,11 +184,11 @@ void CorotationalFem::assemble(double dt_s, bool dynamic, double& elastic_energy
   if (dynamic)
     for (int i = 0; i < static_cast<int>(X_.cols()); ++i)
       for (int d = 0; d < 3; ++d) values[pattern_->diagonal()[3 * i + d]] += mass_damped_[i];
-  elastic_energy = energy;
-  inverted = n_inverted;
+  return {energy, n_inverted, max_strain};
 }
 
-void CorotationalFem::assemble_element(int id, double dt_s, bool dynamic, double& energy, int& n_inverted) {
+void CorotationalFem::assemble_element(int id, double dt_s, bool dynamic, double& energy, int& n_inverted,
+                                       double& max_strain) {
   double* values = A_.valuePtr();
   const int num_tets = static_cast<int>(tets_.size());
   if (id < num_tets) {
@@ -198,6 +199,7 @@ void CorotationalFem::assemble_element(int id, double dt_s, bool dynamic, double
     const Eigen::Matrix3d S = R.transpose() * F;
     const Eigen::Matrix3d eps = 0.5 * (S + S.transpose()) - Eigen::Matrix3d::Identity();
     const double tr = eps.trace();
+    max_strain = std::max(max_strain, eps.cwiseAbs().maxCoeff());
     const Eigen::Matrix3d sigma = e.lambda * tr * Eigen::Matrix3d::Identity() + 2.0 * e.mu * eps;
     energy += e.volume * (e.mu * eps.squaredNorm() + 0.5 * e.lambda * tr * tr);
     const Eigen::Matrix3d P = e.volume * R * sigma;
@@ -274,8 +276,9 @@ StepSummary CorotationalFem::substep(double dt_s) {
     if (dynamic) solver_.force_refactor();
     last_dt_ = dt_s;
   }
-  int inverted = 0;
-  assemble(dt_s, dynamic, summary.elastic_energy, inverted);
+  const AssemblyStats stats = assemble(dt_s, dynamic);
+  summary.elastic_energy = stats.energy;
+  const int inverted = stats.inverted;
   const auto t_assembled = std::chrono::steady_clock::now();
   timing_.assemble_ms = std::chrono::duration<double, std::milli>(t_assembled - t0).count();
   const int nv = static_cast<int>(X_.cols());
@@ -361,6 +364,10 @@ StepSummary CorotationalFem::substep(double dt_s) {
     }
   } else {
     inverted_streak_ = 0;
+  }
+  if (stats.max_strain > options_.strain_warning) {
+    warnings.push_back("strain " + std::to_string(stats.max_strain) + " beyond the linear range (" +
+                       std::to_string(options_.strain_warning) + "): stresses are approximate");
   }
   for (std::size_t k = 0; k < warnings.size(); ++k) summary.warning += (k ? "; " : "") + warnings[k];
   double ke = 0.0;

@@ -36,6 +36,8 @@ namespace arnav::host {
 struct FemOptions {
   double max_speed_mm_s = kBlowUpSpeed_mm_s;  // above this a step is rejected as unstable
   int inverted_steps_limit = 30;    // inverted tets persisting this many steps -> unhealthy
+  double strain_warning = 0.3;      // co-rotated strain beyond which linear elasticity is
+                                    // reported as out of range (warning, still healthy)
   VesselBeamOptions beams;          // used only when the problem declares vessels
 };
 
@@ -95,8 +97,13 @@ class CorotationalFem final : public TissueModel {
 
   void build_pattern();
   void update_fixed_entries();
-  void assemble(double dt_s, bool dynamic, double& elastic_energy, int& inverted);
-  void assemble_element(int id, double dt_s, bool dynamic, double& energy, int& inverted);
+  struct AssemblyStats {
+    double energy = 0;
+    int inverted = 0;
+    double max_strain = 0;  // largest |co-rotated strain component| of any tet
+  };
+  AssemblyStats assemble(double dt_s, bool dynamic);
+  void assemble_element(int id, double dt_s, bool dynamic, double& energy, int& inverted, double& max_strain);
   StepSummary substep(double dt_s);
 
   std::string integrator_;

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <ctime>
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <numbers>
@@ -44,14 +45,15 @@ std::vector<int> where(const TetMesh& mesh, auto pred) {
 
 // ---------------------------------------------------------------- realtime
 // A liver-sized block (160 x 120 x 80 mm, 5 kPa, nu 0.45) resting on its bottom face
-// (held), settled under gravity; a grasper attached near the far top edge lifts
-// and pulls it 15 mm over 1 s, then holds. "Tumour": vertices in a 15 mm sphere inside.
+// (held), settled under gravity; a grasper holding the top surface near the far end
+// (vertices within 12 mm of the grasp point, 50 mN/mm each) lifts and pulls it 30 mm over
+// 1 s, then holds. "Tumour": vertices in a 12 mm sphere 25 mm below the grasp.
 struct Scenario {
   SimProblem problem;
   Eigen::Matrix3Xd x0;  // gravity equilibrium
-  int grasp_vertex = 0;
+  std::vector<int> grasp;
   std::vector<int> tumour;
-  Eigen::Vector3d pull_mm{0, 8, 12.7};  // |pull| = 15 mm
+  Eigen::Vector3d pull_mm{10, 0, 28.3};  // |pull| = 30 mm
 };
 
 Scenario make_scenario(int nx, int ny, int nz, int threads) {
@@ -63,12 +65,10 @@ Scenario make_scenario(int nx, int ny, int nz, int threads) {
   sc.problem.region_materials = {liver};
   sc.problem.fixed_vertices = where(sc.problem.mesh, [](const Eigen::Vector3d& p) { return p.z() == 0.0; });
   const TetMesh& mesh = sc.problem.mesh;
-  double best = 1e300;
-  for (int i = 0; i < mesh.num_vertices(); ++i) {
-    const double d = (mesh.rest_positions_World_mm.col(i) - Eigen::Vector3d(150, 60, 80)).norm();
-    if (d < best) best = d, sc.grasp_vertex = i;
-  }
-  sc.tumour = where(mesh, [](const Eigen::Vector3d& p) { return (p - Eigen::Vector3d(110, 60, 45)).norm() < 15.0; });
+  const Eigen::Vector3d grasp_at(135, 60, 80);
+  sc.grasp = where(mesh, [&](const Eigen::Vector3d& p) { return (p - grasp_at).norm() < 12.0; });
+  sc.tumour = where(mesh, [&](const Eigen::Vector3d& p) { return (p - (grasp_at - Eigen::Vector3d(0, 0, 25))).norm() < 12.0; });
+  if (sc.grasp.empty() || sc.tumour.empty()) throw std::runtime_error("mesh too coarse for the grasp/tumour regions");
   // Gravity equilibrium (exact solves until the update is below 1e-9 mm).
   ModelConfig qs{.kind = "corotational_fem", .integrator = "quasi_static", .linear_solver = "cholmod"};
   qs.threads = threads;
@@ -86,7 +86,7 @@ Scenario make_scenario(int nx, int ny, int nz, int threads) {
 struct RunResult {
   std::vector<Eigen::Vector3d> centroid;
   Eigen::Matrix3Xd final_x;
-  std::vector<double> step_ms, assemble_ms, solve_ms;
+  std::vector<double> step_ms, step_cpu_ms, assemble_ms, solve_ms;
   std::vector<double> iterations, residual;
   int unhealthy = 0;
   std::string last_warning;
@@ -96,15 +96,19 @@ RunResult run(const Scenario& sc, const ModelConfig& config, int frames) {
   const double dt = 1.0 / 60.0;
   CorotationalFem model(sc.problem, config);
   model.set_state(sc.x0, Eigen::Matrix3Xd::Zero(3, sc.x0.cols()));
-  const Eigen::Vector3d start = sc.x0.col(sc.grasp_vertex);
-  const AttachmentId tool =
-      model.add_attachment({.point = {{sc.grasp_vertex}, {1.0}}, .target_World_mm = start, .stiffness_mN_per_mm = 20.0});
+  std::vector<AttachmentId> tool;
+  for (int v : sc.grasp)
+    tool.push_back(model.add_attachment({.point = {{v}, {1.0}}, .target_World_mm = sc.x0.col(v), .stiffness_mN_per_mm = 50.0}));
   RunResult r;
   for (int f = 0; f < frames; ++f) {
     const double t = std::min(1.0, (f + 1) * dt);
     const double s = 0.5 - 0.5 * std::cos(std::numbers::pi * t);  // smooth 0 -> 1 over 1 s
-    model.set_attachment_target(tool, start + s * sc.pull_mm);
+    for (std::size_t k = 0; k < tool.size(); ++k) model.set_attachment_target(tool[k], sc.x0.col(sc.grasp[k]) + s * sc.pull_mm);
+    // CPU time next to wall time: on a shared machine the wall time includes waiting for a
+    // core; with one thread the CPU time is what the step costs on an idle core.
+    const std::clock_t c0 = std::clock();
     const StepSummary sum = model.step(dt);
+    r.step_cpu_ms.push_back(1000.0 * static_cast<double>(std::clock() - c0) / CLOCKS_PER_SEC);
     if (!sum.healthy) ++r.unhealthy, r.last_warning = sum.warning;
     r.step_ms.push_back(sum.wall_time_ms);
     r.assemble_ms.push_back(model.last_timing().assemble_ms);
@@ -137,11 +141,11 @@ int realtime(int nx, int ny, int nz, int frames, int threads, bool csv, bool wit
       {"direct_every_step", cfg("cholmod", 1, 1, 1e-6)},
       {"direct_refactor_5", cfg("cholmod", 5, 1, 1e-6)},
       {"direct_refactor_20", cfg("cholmod", 20, 1, 1e-6)},
-      {"pcg_factor_r30_i5", cfg("pcg", 30, 5, 1e-4)},
-      {"pcg_factor_r30_i10", cfg("pcg", 30, 10, 1e-4)},
-      {"pcg_factor_r30_i20_tol1e-6", cfg("pcg", 30, 20, 1e-6)},
-      {"pcg_factor_r0_i10", cfg("pcg", 0, 10, 1e-4)},
-      {"pcg_factor_r10_i10", cfg("pcg", 10, 10, 1e-4)},
+      {"pcg_factor_r30_i1", cfg("pcg", 30, 1, 1e-4)},
+      {"pcg_factor_r30_i3", cfg("pcg", 30, 3, 1e-4)},
+      {"pcg_factor_r30_i10_tol1e-6", cfg("pcg", 30, 10, 1e-6)},
+      {"pcg_factor_r0_i3", cfg("pcg", 0, 3, 1e-4)},
+      {"pcg_jacobi_i10", cfg("pcg_jacobi", 1, 10, 1e-4)},
       {"pcg_jacobi_i25", cfg("pcg_jacobi", 1, 25, 1e-4)},
       {"pcg_jacobi_i100", cfg("pcg_jacobi", 1, 100, 1e-4)},
       {"pcg_jacobi_i400_tol1e-6", cfg("pcg_jacobi", 1, 400, 1e-6)},
@@ -170,6 +174,8 @@ int realtime(int nx, int ny, int nz, int frames, int threads, bool csv, bool wit
                     {"max_iterations", v.c.iterations},
                     {"tolerance", v.c.tolerance},
                     {"median_step_ms", median(r.step_ms)},
+                    {"median_step_cpu_ms", median(r.step_cpu_ms)},
+                    {"p90_step_cpu_ms", percentile(r.step_cpu_ms, 0.9)},
                     {"p90_step_ms", percentile(r.step_ms, 0.9)},
                     {"max_step_ms", *std::max_element(r.step_ms.begin(), r.step_ms.end())},
                     {"median_assemble_ms", median(r.assemble_ms)},
@@ -184,10 +190,11 @@ int realtime(int nx, int ny, int nz, int frames, int threads, bool csv, bool wit
   }
   out["results"] = rows;
   if (csv) {
-    std::cout << "label,median_step_ms,p90_step_ms,median_assemble_ms,median_solve_ms,median_iterations,"
+    std::cout << "label,median_step_ms,median_step_cpu_ms,p90_step_ms,median_assemble_ms,median_solve_ms,median_iterations,"
                  "max_tumour_centroid_error_mm,final_max_vertex_error_mm,unhealthy_steps\n";
     for (const auto& r : rows) {
-      std::cout << r["label"].get<std::string>() << ',' << r["median_step_ms"] << ',' << r["p90_step_ms"] << ','
+      std::cout << r["label"].get<std::string>() << ',' << r["median_step_ms"] << ',' << r["median_step_cpu_ms"] << ','
+                << r["p90_step_ms"] << ','
                 << r["median_assemble_ms"] << ',' << r["median_solve_ms"] << ',' << r["median_iterations"] << ','
                 << r["max_tumour_centroid_error_mm"] << ',' << r["final_max_vertex_error_mm"] << ','
                 << r["unhealthy_steps"] << '\n';
