@@ -3,6 +3,7 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <chrono>
+#include <ctime>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -15,9 +16,11 @@ namespace arnav::host {
 namespace {
 
 // Warm-started per step: 1-2 updates; the cap only matters after set_state or a violent step.
-constexpr RotationExtraction kStepRotation{.max_iterations = 12, .tolerance_rad = 1e-8};
+constexpr RotationExtraction kStepRotation{.max_iterations = 12, .tolerance_rad = 1e-9};
 
 Eigen::Map<Eigen::VectorXd> flat(Eigen::Matrix3Xd& m) { return {m.data(), m.size()}; }
+
+double process_cpu_ms() { return 1000.0 * static_cast<double>(std::clock()) / CLOCKS_PER_SEC; }
 
 // Adds the 3x3 block B into the pattern through its 9 map entries (-1: skipped).
 inline void scatter(double* values, const int* map, const Eigen::Matrix3d& B) {
@@ -75,6 +78,7 @@ CorotationalFem::CorotationalFem(const SimProblem& problem, const ModelConfig& c
   mass_alpha_ = mass_alpha;
   q_.assign(tets_.size(), Eigen::Quaterniond::Identity());
   F_.assign(tets_.size(), Eigen::Matrix3d::Identity());
+  R_.assign(tets_.size(), Eigen::Matrix3d::Identity());
 
   // Beams only when the scene declares vessels.
   if (problem.vessels && !problem.vessels->segments.empty()) {
@@ -148,6 +152,7 @@ CorotationalFem::AssemblyStats CorotationalFem::assemble(double dt_s, bool dynam
     for (int k = 0; k < 3; ++k) Ds.col(k) = x_.col(e.v[k + 1]) - x_.col(e.v[0]);
     F_[t] = Ds * e.Dm_inv;
     q_[t] = extract_rotation(F_[t], q_[t], kStepRotation);
+    R_[t] = q_[t].toRotationMatrix();
   }
   for (std::size_t b = 0; b < beams_.size(); ++b) {
     // A beam co-rotates with the mean deformation of the two tets that hold its ends.
@@ -193,7 +198,7 @@ void CorotationalFem::assemble_element(int id, double dt_s, bool dynamic, double
   const int num_tets = static_cast<int>(tets_.size());
   if (id < num_tets) {
     const Tet& e = tets_[id];
-    const Eigen::Matrix3d R = q_[id].toRotationMatrix();
+    const Eigen::Matrix3d& R = R_[id];
     const Eigen::Matrix3d& F = F_[id];
     if (F.determinant() <= 0.0) ++n_inverted;
     const Eigen::Matrix3d S = R.transpose() * F;
@@ -257,6 +262,7 @@ StepSummary CorotationalFem::step(double dt_s) {
 
 StepSummary CorotationalFem::substep(double dt_s) {
   const auto t0 = std::chrono::steady_clock::now();
+  const double cpu0 = process_cpu_ms();
   StepSummary summary;
   auto finish = [&]() {
     summary.wall_time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
@@ -281,6 +287,7 @@ StepSummary CorotationalFem::substep(double dt_s) {
   const int inverted = stats.inverted;
   const auto t_assembled = std::chrono::steady_clock::now();
   timing_.assemble_ms = std::chrono::duration<double, std::milli>(t_assembled - t0).count();
+  timing_.assemble_cpu_ms = process_cpu_ms() - cpu0;
   const int nv = static_cast<int>(X_.cols());
   for (int i = 0; i < nv; ++i) f_ext_.segment<3>(3 * i) += mass_[i] * gravity_;
   f_ += f_ext_;
@@ -315,8 +322,10 @@ StepSummary CorotationalFem::substep(double dt_s) {
       load_scale += l.squaredNorm();
     }
   const auto t_solve = std::chrono::steady_clock::now();
+  const double cpu_solve = process_cpu_ms();
   last_solve_ = solver_.solve(A_, rhs_, sol_, std::sqrt(load_scale));
   timing_.solve_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_solve).count();
+  timing_.solve_cpu_ms = process_cpu_ms() - cpu_solve;
   const LinearSolveSummary& ls = last_solve_;
   summary.iterations = ls.iterations;
   summary.initial_residual = ls.initial_residual;

@@ -69,9 +69,11 @@ class CorotationalFem final : public TissueModel {
   const SparseMatrixLower& system_matrix() const { return A_; }
   const LinearSolveSummary& last_linear_solve() const { return last_solve_; }
   // Where the last (sub-)step's time went, ms: rotations + forces + scatter, linear solve
-  // (including any factorisation).
+  // (including any factorisation); wall time and process CPU time (all threads). On a
+  // shared machine the CPU time is what the work costs when it gets a core.
   struct Timing {
     double assemble_ms = 0, solve_ms = 0;
+    double assemble_cpu_ms = 0, solve_cpu_ms = 0;
   };
   const Timing& last_timing() const { return timing_; }
   void set_estimate_condition(bool on) { solver_.set_estimate_condition(on); }
@@ -118,6 +120,7 @@ class CorotationalFem final : public TissueModel {
   std::optional<VesselEmbedding> embedding_;
   std::vector<Eigen::Quaterniond> q_;      // per-tet rotation (warm start)
   std::vector<Eigen::Matrix3d> F_;         // per-tet deformation gradient of this step
+  std::vector<Eigen::Matrix3d> R_;         // per-tet rotation of this step
   std::vector<Eigen::Matrix3d> R_beam_;
   std::vector<std::optional<Attachment>> attachments_;
   std::vector<char> fixed_;               // per vertex
