@@ -107,7 +107,7 @@ void write_pareto_png(const std::string& path, const DeformBenchResult& result) 
   }
   int ref_tets = 0;
   for (const auto& r : result.references) ref_tets = std::max(ref_tets, r.tets);
-  text(img, "filled: fine mesh, hollow: coarse; line: Pareto front; error against quasi-static FEM (CHOLMOD) on " +
+  text(img, "filled: fine mesh, hollow: coarse; line: Pareto front; error against the FEM static equilibrium (CHOLMOD) on " +
                 std::to_string(ref_tets) + " tets", {lx, ly}, 0.4);
   if (!cv::imwrite(path, img)) throw std::runtime_error(path + ": cannot write the PNG");
 }
