@@ -22,6 +22,7 @@ constexpr double kBenchDamping_per_s = 20.0;
 const Eigen::Vector3d kPull_mm(25.0, 0.0, 0.0);   // tool displacement of the grasped point
 constexpr double kGraspStiffness_mN_per_mm = 200.0;  // whole grasp
 constexpr double kGraspRadius_mm = 10.0;
+constexpr double kPullRamp_s = 0.25;  // 25 mm in 0.25 s: 100 mm/s tool speed
 // The reference stops when no vertex moves more than this in one iteration (0.1 um).
 constexpr double kReferenceUpdate_mm = 1e-4;
 constexpr double kRelaxStep_s = 0.05;
@@ -239,6 +240,7 @@ DeformBenchResult run_deform_bench(const DeformBenchOptions& o) {
         row.vessels_modelled = scenario == "vessel_stiffened" && setting.config.kind == "corotational_fem";
         row.reference_tumour_displacement_mm = ref_tumour_disp;
         row.reference_max_surface_displacement_mm = ref_surface_disp;
+        row.reference_tets = ref.info.tets;
         Setup setup = make_setup(mesh.scene, scenario);
         std::unique_ptr<TissueModel> model;
         try {
@@ -249,9 +251,18 @@ DeformBenchResult run_deform_bench(const DeformBenchOptions& o) {
           result.rows.push_back(row);
           continue;
         }
-        for (const auto& a : setup.grasp) model->add_attachment(a);
+        // The tool moves the grasp at a finite speed: the pull ramps over kPullRamp_s.
+        std::vector<AttachmentId> jaws;
+        for (const auto& a : setup.grasp) {
+          AttachmentSpec start = a;
+          start.target_World_mm = a.target_World_mm - kPull_mm;
+          jaws.push_back(model->add_attachment(start));
+        }
         std::vector<double> wall, cpu;
         for (int f = 0; f < frames; ++f) {
+          const double ramp = std::min(1.0, (f + 1) * kFrame_s / kPullRamp_s);
+          for (std::size_t j = 0; j < jaws.size(); ++j)
+            model->set_attachment_target(jaws[j], setup.grasp[j].target_World_mm - (1.0 - ramp) * kPull_mm);
           const auto t0 = std::chrono::steady_clock::now();
           const double c0 = cpu_ms();
           const StepSummary st = model->step(kFrame_s);
@@ -286,16 +297,64 @@ void write_deform_csv(const std::string& path, const DeformBenchResult& r) {
   std::ofstream out(path);
   if (!out) throw std::runtime_error(path + ": cannot write");
   out << "scenario,model,setting,mesh,vertices,tets,frames,median_frame_ms,p90_frame_ms,median_frame_cpu_ms,rate_hz_cpu,tumour_centroid_error_mm,"
-         "max_surface_error_mm,reference_tumour_displacement_mm,reference_max_surface_displacement_mm,healthy,vessels_modelled,note\n";
+         "max_surface_error_mm,reference_tumour_displacement_mm,reference_max_surface_displacement_mm,reference_tets,healthy,vessels_modelled,note\n";
   for (const auto& row : r.rows) {
     std::string note = row.note;
     std::replace(note.begin(), note.end(), ',', ';');
     out << row.scenario << ',' << row.config.kind << ',' << row.label << ',' << row.mesh << ',' << row.vertices << ',' << row.tets << ','
         << row.frames_run << ',' << row.median_frame_ms << ',' << row.p90_frame_ms << ',' << row.median_frame_cpu_ms << ','
         << (row.median_frame_cpu_ms > 0 ? 1000.0 / row.median_frame_cpu_ms : 0.0) << ',' << row.tumour_error_mm << ',' << row.max_surface_error_mm
-        << ',' << row.reference_tumour_displacement_mm << ',' << row.reference_max_surface_displacement_mm << ',' << (row.healthy ? 1 : 0)
+        << ',' << row.reference_tumour_displacement_mm << ',' << row.reference_max_surface_displacement_mm << ',' << row.reference_tets
+        << ',' << (row.healthy ? 1 : 0)
         << ',' << (row.vessels_modelled ? 1 : 0) << ',' << note << '\n';
   }
+}
+
+DeformBenchResult read_deform_csv(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(path + ": cannot open");
+  std::string line;
+  std::getline(in, line);  // header
+  DeformBenchResult r;
+  int line_no = 1;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (line.empty()) continue;
+    std::vector<std::string> f;
+    std::size_t start = 0;
+    for (int k = 0; k < 19; ++k) {  // the note (last) holds no commas (written as ;)
+      const std::size_t comma = line.find(',', start);
+      f.push_back(line.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
+      if (comma == std::string::npos) break;
+      start = comma + 1;
+    }
+    if (f.size() < 19) throw std::runtime_error(path + ":" + std::to_string(line_no) + ": expected 19 columns");
+    DeformBenchRow row;
+    try {
+      row.scenario = f[0];
+      row.config.kind = f[1];
+      row.label = f[2];
+      row.mesh = f[3];
+      row.vertices = std::stoi(f[4]);
+      row.tets = std::stoi(f[5]);
+      row.frames_run = std::stoi(f[6]);
+      row.median_frame_ms = std::stod(f[7]);
+      row.p90_frame_ms = std::stod(f[8]);
+      row.median_frame_cpu_ms = std::stod(f[9]);
+      row.tumour_error_mm = std::stod(f[11]);
+      row.max_surface_error_mm = std::stod(f[12]);
+      row.reference_tumour_displacement_mm = std::stod(f[13]);
+      row.reference_max_surface_displacement_mm = std::stod(f[14]);
+      row.reference_tets = std::stoi(f[15]);
+      row.healthy = f[16] == "1";
+      row.vessels_modelled = f[17] == "1";
+      row.note = f[18];
+    } catch (const std::exception&) {
+      throw std::runtime_error(path + ":" + std::to_string(line_no) + ": malformed number");
+    }
+    r.rows.push_back(row);
+  }
+  return r;
 }
 
 }  // namespace arnav::host

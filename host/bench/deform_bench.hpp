@@ -27,6 +27,7 @@ struct DeformBenchRow {
   double median_frame_cpu_ms = 0;                // process CPU time per frame (all threads)
   double tumour_error_mm = 0, max_surface_error_mm = 0;
   double reference_tumour_displacement_mm = 0, reference_max_surface_displacement_mm = 0;
+  int reference_tets = 0;
   bool healthy = true, vessels_modelled = false;
   std::string note;
 };
@@ -48,5 +49,7 @@ struct DeformBenchResult {
 DeformBenchResult run_deform_bench(const DeformBenchOptions& options);
 
 void write_deform_csv(const std::string& path, const DeformBenchResult& result);
+// Reads a CSV written by write_deform_csv (for re-plotting); throws naming the line.
+DeformBenchResult read_deform_csv(const std::string& path);
 
 }  // namespace arnav::host
