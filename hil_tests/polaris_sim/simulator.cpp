@@ -159,7 +159,7 @@ std::string Simulator::inject(const FaultCommand& f) {
 void Simulator::send_reset(double now) {
   const Bytes msg = device_.reset(now);
   // The message goes out at 9600 whatever rate the host uses: noise if it is elsewhere.
-  output_.push_back(Pending{now, msg, 0});
+  output_.push_back(Pending{now, msg, 0, true});
 }
 
 void Simulator::queue_reply(PolarisModel::Reply reply, double now) {
@@ -210,13 +210,13 @@ void Simulator::queue_reply(PolarisModel::Reply reply, double now) {
       const std::size_t n = std::min(size(rng_), b.size() - at);
       const bool last = at + n == b.size();
       output_.push_back(Pending{due, Bytes(b.begin() + static_cast<std::ptrdiff_t>(at), b.begin() + static_cast<std::ptrdiff_t>(at + n)),
-                                last ? reply.baud_after : 0});
+                                last ? reply.baud_after : 0, last});
       at += n;
       due += gap(rng_);
     }
     return;
   }
-  output_.push_back(Pending{due, std::move(b), reply.baud_after});
+  output_.push_back(Pending{due, std::move(b), reply.baud_after, true});
 }
 
 void Simulator::on_host_bytes(double now) {
@@ -256,7 +256,7 @@ void Simulator::flush_output(double now) {
       return;
     }
     if (p.baud_after != 0) device_.set_baud(p.baud_after);  // COMM: switch after the OKAY
-    ++stats_.replies;
+    if (p.last_piece) ++stats_.replies;
     output_.pop_front();
   }
 }

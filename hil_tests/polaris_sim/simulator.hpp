@@ -56,6 +56,7 @@ class Simulator {
     double due_s;
     Bytes bytes;
     int baud_after;
+    bool last_piece = true;  // a reply sent in chunks counts once
   };
   double now_s() const;
   void event(const std::string& kind, const std::string& detail);
