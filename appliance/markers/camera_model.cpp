@@ -47,9 +47,9 @@ void validate(const CameraModel& camera) {
     throw std::invalid_argument("camera model: focal lengths fx, fy must be > 0");
   }
   const size_t n = camera.distortion.size();
-  if (!(n == 0 || n == 4 || n == 5 || n == 8)) {
+  if (!(n == 0 || n == 4 || n == 5 || n == 8 || n == 12 || n == 14)) {
     throw std::invalid_argument("camera model: " + std::to_string(n) +
-                                " distortion coefficients (expected 0, 4, 5 or 8: k1 k2 p1 p2 [k3 [k4 k5 k6]])");
+                                " distortion coefficients (expected 0, 4, 5, 8, 12 or 14 in OpenCV order)");
   }
   for (double d : camera.distortion) {
     if (!std::isfinite(d)) throw std::invalid_argument("camera model: a distortion coefficient is not finite");

@@ -1,5 +1,6 @@
 #include "appliance/markers/tag_board.hpp"
 
+#include <cmath>
 #include <set>
 #include <stdexcept>
 
@@ -34,6 +35,11 @@ Eigen::AlignedBox2d paper_outline(const TagBoard& board, double margin_mm) {
   return Eigen::AlignedBox2d(box.min() - Eigen::Vector2d::Constant(margin_mm), box.max() + Eigen::Vector2d::Constant(margin_mm));
 }
 
+int front_side(const TagBoard& board) {
+  if (board.tags.empty()) return 1;
+  return board.tags.front().X_BoardTag.linear()(2, 2) > 0 ? 1 : -1;
+}
+
 void validate(const TagBoard& board) {
   if (board.tags.empty()) throw std::invalid_argument("board '" + board.name + "' has no tags");
   std::set<int> ids;
@@ -41,6 +47,15 @@ void validate(const TagBoard& board) {
     if (!(tag.size_mm > 0.0)) {
       throw std::invalid_argument("board '" + board.name + "': tag " + std::to_string(tag.id) + " has size " +
                                   std::to_string(tag.size_mm) + " mm (must be > 0)");
+    }
+    const Eigen::Matrix3d R = tag.X_BoardTag.linear();
+    if (std::abs(std::abs(R(2, 2)) - 1.0) > 1e-9 || std::abs(tag.X_BoardTag.translation().z()) > 1e-9) {
+      throw std::invalid_argument("board '" + board.name + "': tag " + std::to_string(tag.id) +
+                                  " is not in the board's x-y plane (only planar boards are supported)");
+    }
+    if ((R(2, 2) > 0) != (board.tags.front().X_BoardTag.linear()(2, 2) > 0)) {
+      throw std::invalid_argument("board '" + board.name + "': tag " + std::to_string(tag.id) +
+                                  " faces the other side of the board than tag " + std::to_string(board.tags.front().id));
     }
     if (!ids.insert(tag.id).second) {
       throw std::invalid_argument("board '" + board.name + "': tag id " + std::to_string(tag.id) + " appears twice");

@@ -37,7 +37,11 @@ std::array<Eigen::Vector3d, 4> tag_corners_in_board(const BoardTag& tag);
 TagBoard single_tag_board(std::string name, std::string family, int id, double size_mm);
 // Paper outline: paper_mm if set, else the tags' bounding box grown by margin_mm.
 Eigen::AlignedBox2d paper_outline(const TagBoard& board, double margin_mm);
-// Throws std::invalid_argument naming the board when tags repeat an id or have a size <= 0.
+// Throws std::invalid_argument naming the board when tags repeat an id, have a size <= 0,
+// leave the board's x-y plane, or do not all face the same side.
 void validate(const TagBoard& board);
+// +1 when the printed tags face the board's +z (a y-up board), -1 when they face -z (a
+// board frame with y down the sheet and z into it, as arnav-calib's layouts use).
+int front_side(const TagBoard& board);
 
 }  // namespace arnav::markers

@@ -32,7 +32,7 @@ namespace {
 
 // One tag prepared for lookups in board-plane coordinates.
 struct TagLookup {
-  double cos_a = 1, sin_a = 0, tx = 0, ty = 0;  // board -> tag in-plane transform
+  double r00 = 1, r10 = 0, r01 = 0, r11 = 1, tx = 0, ty = 0;  // board -> tag in-plane transform
   double cell_mm = 1;
   int total = 0;
   cv::Mat cells;
@@ -86,20 +86,20 @@ RenderResult SyntheticRenderer::render(const std::vector<BoardInScene>& scene, c
     const Eigen::Matrix3d R = item.X_CamBoard.linear();
     const Eigen::Vector3d o = item.X_CamBoard.translation();
     const Eigen::Vector3d ex = R.col(0), ey = R.col(1), n = R.col(2);
-    const bool facing = n.dot(-o) > 0.0;
+    markers::validate(board);  // planar, tags on one side
+    // The printed side is the tags' front (board +z or -z, see markers::front_side).
+    const bool facing = markers::front_side(board) * n.dot(-o) > 0.0;
 
     std::vector<TagLookup> tags;
     double min_cell_mm = 1e300;
     for (const auto& tag : board.tags) {
       const Eigen::Matrix3d Rt = tag.X_BoardTag.linear();
-      if (std::abs(Rt(2, 2) - 1.0) > 1e-9 || std::abs(tag.X_BoardTag.translation().z()) > 1e-9) {
-        throw std::invalid_argument("synthetic renderer: board '" + board.name + "' tag " + std::to_string(tag.id) +
-                                    " is not in the board's x-y plane (only planar boards are rendered)");
-      }
       auto [cells, border] = bitmaps_->get(board.family, tag.id);
       TagLookup t;
-      t.cos_a = Rt(0, 0);
-      t.sin_a = Rt(1, 0);
+      t.r00 = Rt(0, 0);
+      t.r10 = Rt(1, 0);
+      t.r01 = Rt(0, 1);
+      t.r11 = Rt(1, 1);
       t.tx = tag.X_BoardTag.translation().x();
       t.ty = tag.X_BoardTag.translation().y();
       t.cell_mm = tag.size_mm / border;
@@ -128,8 +128,8 @@ RenderResult SyntheticRenderer::render(const std::vector<BoardInScene>& scene, c
         for (size_t k = 0; k < tags.size(); ++k) {
           const TagLookup& t = tags[k];
           const double dx = bx - t.tx, dy = by - t.ty;
-          const double lx = t.cos_a * dx + t.sin_a * dy;
-          const double ly = -t.sin_a * dx + t.cos_a * dy;
+          const double lx = t.r00 * dx + t.r10 * dy;
+          const double ly = t.r01 * dx + t.r11 * dy;
           // Tag frame y is up, bitmap rows go down.
           const double cu = lx / t.cell_mm + 0.5 * t.total;
           const double cv_ = -ly / t.cell_mm + 0.5 * t.total;

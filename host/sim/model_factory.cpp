@@ -8,8 +8,11 @@
 #ifdef ARNAV_SIM_HAVE_XPBD
 #include "host/sim/xpbd/xpbd_model.hpp"
 #endif
-// Further models (co-rotational FEM in host/sim/fem) add their include, their variants and
-// their branch in make_tissue_model below, guarded by their ARNAV_SIM_HAVE_* definition.
+#ifdef ARNAV_SIM_HAVE_FEM
+#include "host/sim/fem/corotational_fem.hpp"
+#endif
+// Further models add their include, their variants and their branch in make_tissue_model
+// below, guarded by their ARNAV_SIM_HAVE_* definition.
 
 namespace arnav::host {
 
@@ -33,6 +36,9 @@ std::vector<std::string> available_model_kinds() {
 #endif
 #ifdef ARNAV_SIM_HAVE_XPBD
   kinds.push_back("xpbd");
+#endif
+#ifdef ARNAV_SIM_HAVE_FEM
+  kinds.push_back("corotational_fem");
 #endif
   return kinds;
 }
@@ -62,6 +68,22 @@ std::vector<ModelVariant> model_variants() {
     out.push_back({"xpbd", c});
   }
 #endif
+#ifdef ARNAV_SIM_HAVE_FEM
+  {
+    // Real-time setting (docs/sim-fem.md): PCG on the current co-rotated matrix with a
+    // lagged CHOLMOD factor as preconditioner. quasi_static is not listed: it needs the
+    // scene to support the body (fixed vertices or attachments) and reports unhealthy
+    // without; scenes ask for it by name.
+    ModelConfig c;
+    c.kind = "corotational_fem";
+    c.integrator = "implicit_euler";
+    c.linear_solver = "pcg";
+    c.iterations = 20;
+    c.tolerance = 1e-4;
+    c.refactor_every = 30;
+    out.push_back({"corotational_fem/implicit_euler", c});
+  }
+#endif
   return out;
 }
 
@@ -86,6 +108,9 @@ std::unique_ptr<TissueModel> make_tissue_model(const SimProblem& problem, const 
     }
     return std::make_unique<XpbdModel>(problem, config);
   }
+#endif
+#ifdef ARNAV_SIM_HAVE_FEM
+  if (config.kind == "corotational_fem") return make_corotational_fem(problem, config);
 #endif
   throw std::invalid_argument("model config: unknown tissue model kind '" + config.kind +
                               "': this build offers " + join(available_model_kinds()));

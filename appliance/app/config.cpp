@@ -1,0 +1,164 @@
+#include "appliance/app/config.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <cctype>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "appliance/ndi/command.hpp"
+#include "appliance/ndi/rom.hpp"
+
+namespace arnav::app {
+namespace {
+
+class Reader {
+ public:
+  explicit Reader(std::string source) : source_(std::move(source)) {}
+
+  [[noreturn]] void fail(const YAML::Node& node, const std::string& key, const std::string& what) const {
+    const int line = node.IsDefined() && node.Mark().line >= 0 ? node.Mark().line + 1 : 1;
+    throw ConfigError(source_ + ":" + std::to_string(line) + ": key '" + key + "': " + what);
+  }
+
+  template <typename T>
+  T get(const YAML::Node& node, const std::string& key, const char* type_name) const {
+    if (!node.IsScalar()) fail(node, key, std::string("expected ") + type_name);
+    try {
+      return node.as<T>();
+    } catch (const YAML::Exception&) {
+      fail(node, key, std::string("expected ") + type_name + ", got '" + node.Scalar() + "'");
+    }
+  }
+
+  std::vector<std::string> strings(const YAML::Node& node, const std::string& key) const {
+    if (!node.IsSequence()) fail(node, key, "expected a list of strings");
+    std::vector<std::string> out;
+    for (std::size_t i = 0; i < node.size(); ++i)
+      out.push_back(get<std::string>(node[i], key + "[" + std::to_string(i) + "]", "a string"));
+    return out;
+  }
+
+ private:
+  std::string source_;
+};
+
+const std::set<std::string> kKeys = {"port", "baud", "rate_hz", "device_rate_hz", "lcm_url", "reply_mode",
+                                     "tx_firmware", "bx_failures_before_tx", "tracking_timeout_ms",
+                                     "setup_timeout_ms", "health_rate_hz", "tools", "sim_command", "sim_args"};
+
+}  // namespace
+
+ndi::SessionConfig AppConfig::session_config() const {
+  ndi::SessionConfig c;
+  c.tools = tools;
+  c.target_baud = baud;
+  c.use_bx = use_bx;
+  c.tx_firmware = tx_firmware;
+  c.bx_failures_before_tx = bx_failures_before_tx;
+  c.tracking_timeout = std::chrono::milliseconds(tracking_timeout_ms);
+  c.setup_timeout = std::chrono::milliseconds(setup_timeout_ms);
+  return c;
+}
+
+AppConfig parse_config(const std::string& text, const std::string& source, const std::filesystem::path& base_dir) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+  } catch (const YAML::ParserException& e) {
+    throw ConfigError(source + ":" + std::to_string(e.mark.line + 1) + ": YAML syntax error: " + e.msg);
+  }
+  Reader r(source);
+  if (!root.IsMap()) throw ConfigError(source + ":1: the configuration must be a YAML mapping (key: value lines)");
+  for (const auto& kv : root) {
+    const std::string key = kv.first.Scalar();
+    if (!kKeys.count(key)) {
+      std::string known;
+      for (const auto& k : kKeys) known += (known.empty() ? "" : ", ") + k;
+      r.fail(kv.first, key, "unknown key (known keys: " + known + ")");
+    }
+  }
+  AppConfig c;
+  c.source = source;
+  if (!root["port"]) r.fail(root, "port", "missing: give a serial port path (e.g. /dev/ttyUSB0) or 'sim'");
+  c.port = r.get<std::string>(root["port"], "port", "a string");
+  c.port_line = root["port"].Mark().line + 1;
+  if (c.port.empty()) r.fail(root["port"], "port", "empty");
+  if (root["baud"]) {
+    c.baud = r.get<int>(root["baud"], "baud", "an integer");
+    if (!ndi::baud_code(c.baud))
+      r.fail(root["baud"], "baud",
+             std::to_string(c.baud) + " is not an NDI rate (9600, 14400, 19200, 38400, 57600, 115200, 230400, 921600, 1228739)");
+  }
+  auto positive = [&](const char* key, double& value) {
+    if (!root[key]) return;
+    value = r.get<double>(root[key], key, "a number");
+    if (!(value > 0.0) || value > 10000.0) r.fail(root[key], key, "must be > 0 and <= 10000");
+  };
+  positive("rate_hz", c.rate_hz);
+  c.device_rate_hz = c.rate_hz;
+  positive("device_rate_hz", c.device_rate_hz);
+  positive("health_rate_hz", c.health_rate_hz);
+  if (root["lcm_url"]) c.lcm_url = r.get<std::string>(root["lcm_url"], "lcm_url", "a string");
+  if (root["reply_mode"]) {
+    const auto mode = r.get<std::string>(root["reply_mode"], "reply_mode", "a string");
+    if (mode != "bx" && mode != "tx") r.fail(root["reply_mode"], "reply_mode", "must be 'bx' or 'tx', got '" + mode + "'");
+    c.use_bx = mode == "bx";
+  }
+  if (root["tx_firmware"]) c.tx_firmware = r.strings(root["tx_firmware"], "tx_firmware");
+  auto int_in = [&](const char* key, int& value, int lo, int hi) {
+    if (!root[key]) return;
+    value = r.get<int>(root[key], key, "an integer");
+    if (value < lo || value > hi)
+      r.fail(root[key], key, "must be between " + std::to_string(lo) + " and " + std::to_string(hi));
+  };
+  int_in("bx_failures_before_tx", c.bx_failures_before_tx, 1, 1000);
+  int_in("tracking_timeout_ms", c.tracking_timeout_ms, 5, 10000);
+  int_in("setup_timeout_ms", c.setup_timeout_ms, 50, 60000);
+  if (root["sim_command"]) c.sim_command = r.get<std::string>(root["sim_command"], "sim_command", "a string");
+  if (root["sim_args"]) c.sim_args = r.strings(root["sim_args"], "sim_args");
+
+  const YAML::Node tools = root["tools"];
+  if (!tools) r.fail(root, "tools", "missing: list the tools, each with 'name' and 'rom'");
+  if (!tools.IsSequence() || tools.size() == 0) r.fail(tools, "tools", "expected a non-empty list of {name, rom}");
+  std::set<std::string> names;
+  for (std::size_t i = 0; i < tools.size(); ++i) {
+    const std::string k = "tools[" + std::to_string(i) + "]";
+    const YAML::Node t = tools[i];
+    if (!t.IsMap()) r.fail(t, k, "expected a mapping with 'name' and 'rom'");
+    for (const auto& kv : t)
+      if (kv.first.Scalar() != "name" && kv.first.Scalar() != "rom")
+        r.fail(kv.first, k + "." + kv.first.Scalar(), "unknown key (a tool has 'name' and 'rom')");
+    if (!t["name"]) r.fail(t, k + ".name", "missing");
+    if (!t["rom"]) r.fail(t, k + ".rom", "missing");
+    ndi::ToolConfig tool;
+    tool.name = r.get<std::string>(t["name"], k + ".name", "a string");
+    for (char ch : tool.name)
+      if (!(std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '-'))
+        r.fail(t["name"], k + ".name", "'" + tool.name + "' may only hold letters, digits, '_' and '-' (it names an LCM channel)");
+    if (tool.name.empty()) r.fail(t["name"], k + ".name", "empty");
+    if (!names.insert(tool.name).second) r.fail(t["name"], k + ".name", "duplicate tool name '" + tool.name + "'");
+    std::filesystem::path rom = r.get<std::string>(t["rom"], k + ".rom", "a path");
+    if (rom.is_relative()) rom = base_dir / rom;
+    tool.rom_path = rom;
+    try {
+      (void)ndi::load_rom(rom);  // refuse a bad file now, before any serial traffic
+    } catch (const ndi::RomError& e) {
+      r.fail(t["rom"], k + ".rom", e.what());
+    }
+    c.tools.push_back(std::move(tool));
+  }
+  if (c.tools.size() > 12) r.fail(tools, "tools", "at most 12 tools");
+  return c;
+}
+
+AppConfig load_config(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) throw ConfigError(path.string() + ": cannot read the configuration file");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return parse_config(ss.str(), path.string(), path.parent_path());
+}
+
+}  // namespace arnav::app

@@ -1,0 +1,43 @@
+#pragma once
+// arnav-appliance configuration (YAML, documented in docs/appliance.md). Every problem is
+// reported as "<file>:<line>: key '<key>': <what is wrong>" and the program exits 2.
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "appliance/ndi/session.hpp"
+
+namespace arnav::app {
+
+class ConfigError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct AppConfig {
+  std::string port;           // serial port path, or "sim"
+  int port_line = 1;          // line of the port key (for errors found later)
+  int baud = 115200;          // COMM target rate
+  double rate_hz = 60.0;      // polling rate (the device frame rate)
+  double device_rate_hz = 60.0;  // frame counter rate, for device_time_us
+  std::string lcm_url = "udpm://239.255.76.67:7667?ttl=0";
+  bool use_bx = true;         // reply_mode: bx | tx
+  std::vector<std::string> tx_firmware;
+  int bx_failures_before_tx = 5;
+  int tracking_timeout_ms = 150;
+  int setup_timeout_ms = 5000;
+  double health_rate_hz = 1.0;
+  std::vector<ndi::ToolConfig> tools;
+  std::string sim_command;    // port: sim -> program to run (default: arnav-polaris-sim)
+  std::vector<std::string> sim_args;
+  std::filesystem::path source;  // the file read
+
+  ndi::SessionConfig session_config() const;
+};
+
+// Parses text; relative ROM paths are resolved against base_dir. Throws ConfigError.
+AppConfig parse_config(const std::string& text, const std::string& source, const std::filesystem::path& base_dir);
+AppConfig load_config(const std::filesystem::path& path);
+
+}  // namespace arnav::app

@@ -1,0 +1,193 @@
+// arnav-appliance: brings up the NDI Polaris named in the configuration and publishes
+// tool poses (device rate), health (1 Hz) and events over LCM. SIGINT/SIGTERM: stop
+// tracking, put the device back to 9600 baud, exit 0. Configuration errors: exit 2.
+#include <CLI/CLI.hpp>
+#include <lcm/lcm-cpp.hpp>
+
+#include <csignal>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <thread>
+
+#include <sys/stat.h>
+
+#include "appliance/app/config.hpp"
+#include "appliance/app/publisher.hpp"
+#include "appliance/app/sim_process.hpp"
+#include "appliance/ndi/posix_transport.hpp"
+#include "appliance/ndi/serial_transport.hpp"
+#include "protocol/clock.hpp"
+
+namespace {
+
+volatile std::sig_atomic_t g_stop = 0;
+void on_signal(int) { g_stop = 1; }
+
+void install_signals() {
+  struct sigaction sa {};
+  sa.sa_handler = on_signal;
+  sigemptyset(&sa.sa_mask);
+  sa.sa_flags = 0;  // no SA_RESTART: blocking reads return early
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  std::signal(SIGPIPE, SIG_IGN);
+}
+
+bool is_char_device(const std::string& path) {
+  struct stat st {};
+  return ::stat(path.c_str(), &st) == 0 && S_ISCHR(st.st_mode);
+}
+
+const char* severity_name(arnav::ndi::Severity s) {
+  switch (s) {
+    case arnav::ndi::Severity::Info: return "info";
+    case arnav::ndi::Severity::Warning: return "WARNING";
+    case arnav::ndi::Severity::Error: return "ERROR";
+  }
+  return "?";
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace arnav;
+  CLI::App cli{"arnav-appliance: NDI Polaris -> LCM (poses, health, events). Configuration format: docs/appliance.md"};
+  std::string config_path;
+  bool check_only = false;
+  cli.add_option("config", config_path, "YAML configuration file")->required();
+  cli.add_flag("--check", check_only, "validate the configuration and exit (0 when valid)");
+  try {
+    cli.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int rc = cli.exit(e);
+    return rc == 0 ? 0 : 2;
+  }
+
+  app::AppConfig cfg;
+  try {
+    cfg = app::load_config(config_path);
+  } catch (const app::ConfigError& e) {
+    std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
+    return 2;
+  }
+
+  // Where the device is: a simulator on a pty, a libserialport port, or a tty device
+  // libserialport does not list (a pty given by path).
+  ndi::TransportFactory factory;
+  std::string port_label = cfg.port;
+  if (cfg.port != "sim") {
+    bool serial = false;
+    try {
+      serial = ndi::port_exists(cfg.port);
+    } catch (...) {
+    }
+    if (serial) {
+      factory = [port = cfg.port] { return std::unique_ptr<ndi::Transport>(new ndi::SerialTransport(port)); };
+    } else if (is_char_device(cfg.port)) {
+      factory = [port = cfg.port] { return std::unique_ptr<ndi::Transport>(new ndi::PosixTransport(port)); };
+    } else {
+      std::string ports;
+      try {
+        ports = ndi::describe_ports(ndi::list_ports());
+      } catch (const std::exception& e) {
+        ports = std::string("  (cannot list ports: ") + e.what() + ")\n";
+      }
+      std::cerr << "arnav-appliance: configuration error: " << cfg.source.string() << ":" << cfg.port_line << ": key 'port': no serial port '"
+                << cfg.port << "'. Ports on this machine:\n"
+                << ports << "Set 'port' to one of them, or to 'sim' for the bench simulator.\n";
+      return 2;
+    }
+  }
+  if (check_only) {
+    std::cout << "configuration OK: " << cfg.tools.size() << " tool(s), port " << cfg.port << "\n";
+    return 0;
+  }
+
+  lcm::LCM lcm(cfg.lcm_url);
+  if (!lcm.good()) {
+    std::cerr << "arnav-appliance: configuration error: " << cfg.source.string() << ": key 'lcm_url': cannot open LCM at '"
+              << cfg.lcm_url << "'\n";
+    return 2;
+  }
+  install_signals();
+
+  std::unique_ptr<app::SimProcess> sim;
+  if (cfg.port == "sim") {
+    try {
+      const std::string program = app::find_simulator(cfg.sim_command, std::filesystem::path("/proc/self/exe"));
+      sim = std::make_unique<app::SimProcess>(program, cfg.sim_args);
+    } catch (const app::SimError& e) {
+      std::cerr << "arnav-appliance: " << e.what() << "\n";
+      return 2;
+    }
+    port_label = sim->pty_path();
+    std::cerr << "arnav-appliance: simulator ready on " << port_label << "\n";
+    factory = [path = sim->pty_path()] { return std::unique_ptr<ndi::Transport>(new ndi::PosixTransport(path)); };
+  }
+
+  app::Publisher publisher(lcm, cfg.tools, cfg.device_rate_hz);
+  auto on_event = [&](const ndi::Event& e) {
+    std::cerr << "arnav-appliance: [ndi] " << severity_name(e.severity) << " " << e.code << ": " << e.text << "\n";
+    publisher.publish_event(e);
+  };
+  std::unique_ptr<ndi::Session> session;
+  try {
+    session = std::make_unique<ndi::Session>(cfg.session_config(), factory, on_event);
+  } catch (const std::exception& e) {  // ROM or rate problems (already checked by the config)
+    std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
+    return 2;
+  }
+
+  const auto period_us = static_cast<std::int64_t>(1e6 / cfg.rate_hz);
+  const auto health_period_us = static_cast<std::int64_t>(1e6 / cfg.health_rate_hz);
+  std::int64_t next_health = monotonic_us() + health_period_us;
+  std::int64_t window_start = monotonic_us();
+  std::int64_t frames_in_window = 0;
+  std::int64_t next_start_attempt = 0;
+  std::int64_t next_poll = 0;
+  ndi::TrackingReply reply;
+
+  while (!g_stop) {
+    std::int64_t now = monotonic_us();
+    if (session->state() != ndi::LinkState::Tracking) {
+      if (now >= next_start_attempt) {
+        if (!session->start()) next_start_attempt = monotonic_us() + 1'000'000;  // retry each second
+        next_poll = monotonic_us();
+      } else {
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      }
+    } else {
+      if (now < next_poll) std::this_thread::sleep_for(std::chrono::microseconds(next_poll - now));
+      if (g_stop) break;
+      std::int64_t receive_us = 0;
+      switch (session->poll(reply, receive_us)) {
+        case ndi::PollResult::NewFrame:
+          publisher.publish_frame(*session, reply, receive_us);
+          ++frames_in_window;
+          // Next frame is due one device period after this one was read; poll a little
+          // early and re-poll quickly if the device has no new frame yet.
+          next_poll = receive_us + period_us * 9 / 10;
+          break;
+        case ndi::PollResult::SameFrame: next_poll = monotonic_us() + std::min<std::int64_t>(1000, period_us / 10); break;
+        case ndi::PollResult::Failed: next_poll = monotonic_us(); break;
+      }
+    }
+    now = monotonic_us();
+    if (now >= next_health) {
+      const double rate = static_cast<double>(frames_in_window) * 1e6 / static_cast<double>(std::max<std::int64_t>(1, now - window_start));
+      publisher.publish_health(*session, port_label, rate);
+      frames_in_window = 0;
+      window_start = now;
+      next_health = now + health_period_us;
+    }
+  }
+
+  std::cerr << "arnav-appliance: stopping (signal)\n";
+  session->stop();
+  publisher.publish_health(*session, port_label, 0.0);
+  session.reset();
+  sim.reset();
+  return 0;
+}

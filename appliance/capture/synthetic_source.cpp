@@ -1,0 +1,130 @@
+#include "appliance/capture/synthetic_source.hpp"
+
+#include <opencv2/imgcodecs.hpp>
+
+#include <cmath>
+#include <cstdio>
+
+#include "appliance/capture/opencv_sources.hpp"
+#include "protocol/clock.hpp"
+
+namespace arnav::capture {
+
+SyntheticSource::SyntheticSource(SyntheticSettings settings) : settings_(std::move(settings)) {
+  if (!(settings_.fps > 0.0 && settings_.fps <= 1000.0)) throw CaptureError("synthetic camera: fps must be in (0, 1000]");
+  if (settings_.boards.empty()) throw CaptureError("synthetic camera: no board to render (add camera.synthetic.boards)");
+  try {
+    markers::validate(settings_.camera);
+    for (const auto& b : settings_.boards) {
+      markers::validate(b.board);
+      camera_sim::validate(b.trajectory);
+    }
+  } catch (const std::invalid_argument& e) {
+    throw CaptureError(std::string("synthetic camera: ") + e.what());
+  }
+  for (const auto& b : settings_.boards) {
+    centres_.push_back(markers::paper_outline(b.board, 0.0).center());
+  }
+}
+
+SyntheticSource::~SyntheticSource() = default;
+
+bool SyntheticSource::in_outage(std::int64_t now_us) const {
+  if (settings_.outage_at_s < 0 || start_us_ < 0) return false;
+  const double t = 1e-6 * static_cast<double>(now_us - start_us_);
+  return t >= settings_.outage_at_s && t < settings_.outage_at_s + settings_.outage_duration_s;
+}
+
+void SyntheticSource::open() {
+  if (in_outage(monotonic_us())) throw CaptureError("synthetic camera: device absent (scheduled outage)");
+  if (!renderer_) {
+    try {
+      renderer_ = std::make_unique<camera_sim::SyntheticRenderer>(settings_.camera);
+    } catch (const std::invalid_argument& e) {
+      throw CaptureError(std::string("synthetic camera: ") + e.what());
+    }
+  }
+  if (!settings_.frames_dir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(settings_.frames_dir, ec);
+    if (ec) throw CaptureError("synthetic camera: cannot create frames folder " + settings_.frames_dir.string() + ": " + ec.message());
+  }
+  if (!truth_ && !settings_.ground_truth_csv.empty()) {
+    try {
+      truth_ = std::make_unique<camera_sim::GroundTruthWriter>(settings_.ground_truth_csv);
+    } catch (const camera_sim::GroundTruthError& e) {
+      throw CaptureError(std::string("synthetic camera: ") + e.what());
+    }
+  }
+  if (start_us_ < 0) start_us_ = monotonic_us();
+  open_ = true;
+}
+
+void SyntheticSource::close() { open_ = false; }
+
+Eigen::Isometry3d SyntheticSource::X_CamBoard(size_t board_index, std::int64_t sequence) const {
+  const double t = static_cast<double>(sequence) / settings_.fps;
+  const auto& b = settings_.boards.at(board_index);
+  return b.trajectory.X_CamBoard(t, centres_.at(board_index), markers::front_side(b.board));
+}
+
+ReadResult SyntheticSource::read(Frame& frame) {
+  if (!open_) return {ReadStatus::Lost, "synthetic camera: not open"};
+  if (settings_.frame_count > 0 && next_ >= settings_.frame_count) {
+    return {ReadStatus::EndOfStream, "synthetic camera: " + std::to_string(settings_.frame_count) + " frames rendered"};
+  }
+  const double period_us = 1e6 / settings_.fps;
+  if (settings_.realtime) {
+    // A late consumer does not get old frames: the camera has moved on.
+    const std::int64_t now = monotonic_us();
+    const auto due = static_cast<std::int64_t>(std::floor(static_cast<double>(now - start_us_) / period_us));
+    if (due > next_) next_ = due;
+    sleep_until_mono_us(start_us_ + static_cast<std::int64_t>(static_cast<double>(next_) * period_us));
+    if (in_outage(monotonic_us())) {
+      open_ = false;
+      return {ReadStatus::Lost, "synthetic camera: device stopped delivering (scheduled outage)"};
+    }
+  }
+  const std::int64_t seq = next_++;
+  std::vector<camera_sim::BoardInScene> scene;
+  for (size_t b = 0; b < settings_.boards.size(); ++b) scene.push_back({&settings_.boards[b].board, X_CamBoard(b, seq)});
+  camera_sim::RenderOptions opt = settings_.render;
+  opt.noise_seed = settings_.render.noise_seed + static_cast<std::uint64_t>(seq);
+  camera_sim::RenderResult r = renderer_->render(scene, opt);
+  frame.image = r.image;
+  frame.sequence = seq;
+  frame.capture_time_mono_us = settings_.realtime
+                                   ? start_us_ + static_cast<std::int64_t>(static_cast<double>(seq) * period_us)
+                                   : monotonic_us();
+  frame.origin.clear();
+
+  std::string file;
+  if (!settings_.frames_dir.empty()) {
+    char name[64];
+    std::snprintf(name, sizeof name, "frame_%06lld.png", static_cast<long long>(seq));
+    file = name;
+    if (!cv::imwrite((settings_.frames_dir / file).string(), frame.image)) {
+      return {ReadStatus::Lost, "synthetic camera: cannot write " + (settings_.frames_dir / file).string()};
+    }
+    frame.origin = (settings_.frames_dir / file).string();
+  }
+  if (truth_) {
+    for (size_t b = 0; b < settings_.boards.size(); ++b) {
+      int visible = 0;
+      for (const auto& t : r.tags) {
+        if (t.board == settings_.boards[b].board.name && t.in_image && t.facing && t.occluded_fraction < 0.1) ++visible;
+      }
+      truth_->write({seq, static_cast<double>(seq) / settings_.fps, settings_.boards[b].board.name, scene[b].X_CamBoard,
+                     visible, file});
+    }
+  }
+  return {};
+}
+
+std::string SyntheticSource::describe() const {
+  return "synthetic " + std::to_string(settings_.camera.width) + "x" + std::to_string(settings_.camera.height) + "@" +
+         std::to_string(static_cast<int>(std::lround(settings_.fps))) + " (" + std::to_string(settings_.boards.size()) +
+         " board(s))";
+}
+
+}  // namespace arnav::capture

@@ -1,0 +1,70 @@
+#pragma once
+// The synthetic camera of the bench as a capture source (config `camera: {source:
+// synthetic}`): boards move along scripted trajectories and are rendered through the
+// calibrated (or a generated) camera model by hil_tests/camera_sim. Frame k shows the
+// scene at t = k / fps. Ground truth (X_CamBoard per frame and board) is written to a CSV
+// beside the frames, and the frames themselves optionally as PNG files.
+//
+// Real-time mode paces frames on the monotonic clock like a camera; a consumer that
+// falls more than one frame behind loses frames (sequence numbers jump), as with a
+// driver's overwritten buffers. A scheduled outage makes the camera "unplugged" for a
+// while (read reports Lost, open fails) to exercise reconnection.
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "appliance/capture/frame_source.hpp"
+#include "appliance/markers/camera_model.hpp"
+#include "appliance/markers/tag_board.hpp"
+#include "hil_tests/camera_sim/ground_truth.hpp"
+#include "hil_tests/camera_sim/synthetic_renderer.hpp"
+#include "hil_tests/camera_sim/trajectory.hpp"
+
+namespace arnav::capture {
+
+struct SyntheticBoard {
+  markers::TagBoard board;
+  camera_sim::Trajectory trajectory;
+};
+
+struct SyntheticSettings {
+  markers::CameraModel camera;
+  std::vector<SyntheticBoard> boards;
+  camera_sim::RenderOptions render;
+  double fps = 30.0;
+  bool realtime = true;
+  std::int64_t frame_count = 0;               // 0: endless
+  std::filesystem::path ground_truth_csv;     // empty: not written
+  std::filesystem::path frames_dir;           // empty: frames not written
+  double outage_at_s = -1.0;                  // < 0: no outage
+  double outage_duration_s = 0.0;
+};
+
+class SyntheticSource : public FrameSource {
+ public:
+  explicit SyntheticSource(SyntheticSettings settings);
+  ~SyntheticSource() override;
+  void open() override;
+  void close() override;
+  ReadResult read(Frame& frame) override;
+  std::string describe() const override;
+  double nominal_fps() const override { return settings_.fps; }
+
+  // Ground truth of frame `sequence` (available without rendering).
+  Eigen::Isometry3d X_CamBoard(size_t board_index, std::int64_t sequence) const;
+  const SyntheticSettings& settings() const { return settings_; }
+
+ private:
+  bool in_outage(std::int64_t now_us) const;
+
+  SyntheticSettings settings_;
+  std::unique_ptr<camera_sim::SyntheticRenderer> renderer_;
+  std::unique_ptr<camera_sim::GroundTruthWriter> truth_;
+  std::vector<Eigen::Vector2d> centres_;
+  std::int64_t start_us_ = -1;   // time of frame 0 (kept across reopen: the scene goes on)
+  std::int64_t next_ = 0;        // next frame index
+  bool open_ = false;
+};
+
+}  // namespace arnav::capture

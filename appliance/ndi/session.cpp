@@ -1,0 +1,551 @@
+#include "appliance/ndi/session.hpp"
+
+#include <algorithm>
+#include <thread>
+
+#include "appliance/ndi/bx.hpp"
+#include "appliance/ndi/command.hpp"
+#include "appliance/ndi/error_codes.hpp"
+#include "protocol/clock.hpp"
+
+namespace arnav::ndi {
+namespace {
+
+// Rates the device knows, fastest first (COMM codes 0-7 and A).
+constexpr std::array<int, 9> kDeviceBauds = {1228739, 921600, 230400, 115200, 57600, 38400, 19200, 14400, 9600};
+
+std::string error_text(std::uint8_t code) {
+  const auto info = error_code_info(code);
+  return "ERROR" + hex2(code) + " " + std::string(info.symbol) + " (" + std::string(info.description) + ")";
+}
+
+}  // namespace
+
+std::string_view to_string(LinkState s) {
+  switch (s) {
+    case LinkState::Down: return "down";
+    case LinkState::Connecting: return "connecting";
+    case LinkState::Initialising: return "initialising";
+    case LinkState::Tracking: return "tracking";
+    case LinkState::Recovering: return "recovering";
+  }
+  return "?";
+}
+
+Session::Session(SessionConfig config, TransportFactory open_port, EventSink on_event)
+    : config_(std::move(config)), open_port_(std::move(open_port)), on_event_(std::move(on_event)) {
+  // Every ROM is read and checked before any serial traffic.
+  for (const auto& t : config_.tools) tools_.push_back(LoadedTool{t, load_rom(t.rom_path), 0, {}});
+  if (!baud_code(config_.target_baud))
+    throw PortError("baud " + std::to_string(config_.target_baud) + " is not a rate the NDI COMM command supports");
+  use_bx_ = config_.use_bx;
+  bx_command_ = encode_command("BX", "0801");  // transforms + tools outside the volume
+  tx_command_ = encode_command("TX", "0801");
+}
+
+Session::~Session() = default;
+
+SessionCounters Session::counters() const {
+  SessionCounters c = counters_;
+  c.crc_errors = reader_.counters().crc_errors;
+  c.resyncs = reader_.counters().resyncs;
+  c.garbage_bytes = reader_.counters().garbage_bytes;
+  return c;
+}
+
+int Session::tool_index(std::uint8_t handle) const {
+  for (std::size_t i = 0; i < tools_.size(); ++i)
+    if (tools_[i].handle == handle) return static_cast<int>(i);
+  return -1;
+}
+
+void Session::emit(Severity s, std::string_view code, std::string text) {
+  if (s != Severity::Info) detail_ = std::string(code) + ": " + text;
+  if (on_event_) on_event_(Event{s, code, std::move(text)});
+}
+
+void Session::set_baud(int baud) {
+  transport_->set_baud(baud);
+  baud_ = baud;
+}
+
+// ---- one exchange ---------------------------------------------------------------------
+
+Session::Outcome Session::transact(std::string_view command_bytes, std::chrono::milliseconds timeout,
+                                   bool expect_binary, Frame& frame) {
+  // A reply that arrived after its command timed out must not answer this command.
+  if (reader_.buffered() > 0) reader_.clear();
+  reader_.set_expect_binary(expect_binary);
+  if (!command_bytes.empty())
+    transport_->write(std::span(reinterpret_cast<const std::uint8_t*>(command_bytes.data()), command_bytes.size()));
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  for (;;) {
+    if (reader_.next(frame)) return frame.crc_ok ? Outcome::Reply : Outcome::Corrupt;
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) {
+      reader_.clear();
+      return Outcome::Timeout;
+    }
+    const std::size_t n = transport_->read(read_buf_, left);
+    if (n > 0) {
+      last_read_mono_us_ = monotonic_us();
+      reader_.feed(std::span(read_buf_.data(), n));
+    }
+  }
+}
+
+Session::CmdResult Session::command(std::string_view name, std::string_view params, std::chrono::milliseconds timeout,
+                                    bool count_timeout) {
+  CmdResult r;
+  Frame frame;
+  const std::string bytes = encode_command(name, params);
+  switch (transact(bytes, timeout, false, frame)) {
+    case Outcome::Timeout:
+      if (count_timeout) ++counters_.timeouts;
+      r.status = CmdResult::Timeout;
+      return r;
+    case Outcome::Corrupt: r.status = CmdResult::Corrupt; return r;
+    case Outcome::Reply: break;
+  }
+  AsciiReply a;
+  if (parse_ascii_reply(frame.text(), a) != ParseError::None) {
+    r.status = CmdResult::Corrupt;
+    return r;
+  }
+  r.body = std::string(a.body);
+  switch (a.kind) {
+    case AsciiKind::Error:
+      ++counters_.error_replies;
+      r.status = CmdResult::Error;
+      r.error_code = a.error_code;
+      break;
+    case AsciiKind::Reset:
+      ++counters_.resets;
+      r.status = CmdResult::Reset;
+      break;
+    default: r.status = CmdResult::Ok; break;
+  }
+  return r;
+}
+
+bool Session::expect_ok(std::string_view name, std::string_view params, std::chrono::milliseconds timeout, CmdResult* out) {
+  CmdResult r = command(name, params, timeout);
+  if (out) *out = r;
+  if (r.status == CmdResult::Ok) return true;
+  std::string what = std::string(name) + ":" + std::string(params).substr(0, 12) + " on " + port_name_ + ": ";
+  switch (r.status) {
+    case CmdResult::Error: what += error_text(r.error_code); break;
+    case CmdResult::Timeout: what += "no reply within " + std::to_string(timeout.count()) + " ms"; break;
+    case CmdResult::Corrupt: what += "corrupt reply (CRC)"; break;
+    case CmdResult::Reset: what += "device reset"; break;
+    default: break;
+  }
+  fail_bring_up(what);
+  return false;
+}
+
+// ---- bring-up -------------------------------------------------------------------------
+
+void Session::open_port() {
+  transport_ = open_port_();
+  port_name_ = transport_->name();
+  if (ever_opened_) ++counters_.reconnects;
+  ever_opened_ = true;
+  baud_ = 9600;
+  reader_.clear();
+  emit(Severity::Info, "NDI_PORT_OPENED", "opened " + port_name_);
+}
+
+void Session::close_port() { transport_.reset(); }
+
+void Session::fail_bring_up(const std::string& why) { detail_ = why; }
+
+bool Session::start() {
+  if (state_ == LinkState::Tracking) return true;
+  const bool recovering = state_ == LinkState::Recovering;
+  if (!recovering) state_ = LinkState::Connecting;
+  try {
+    if (!transport_) {
+      try {
+        open_port();
+      } catch (const PortError& e) {
+        emit(Severity::Error, "NDI_PORT_OPEN_FAILED", e.what());
+        if (!recovering) state_ = LinkState::Down;
+        return false;
+      }
+    }
+    if (!bring_up()) {
+      emit(Severity::Error, "NDI_BRINGUP_FAILED", detail_);
+      if (!recovering) state_ = LinkState::Down;
+      return false;
+    }
+  } catch (const PortLost& e) {
+    close_port();
+    emit(Severity::Error, "NDI_PORT_LOST", e.what());
+    if (!recovering) state_ = LinkState::Down;
+    return false;
+  } catch (const PortError& e) {
+    emit(Severity::Error, "NDI_BRINGUP_FAILED", e.what());
+    close_port();
+    if (!recovering) state_ = LinkState::Down;
+    return false;
+  }
+  state_ = LinkState::Tracking;
+  consecutive_bad_ = consecutive_timeouts_ = 0;
+  have_last_frame_ = false;
+  std::string names;
+  for (const auto& t : tools_) names += (names.empty() ? "" : ", ") + t.config.name + "=" + hex2(t.handle);
+  emit(Severity::Info, "NDI_TRACKING_STARTED",
+       "tracking on " + port_name_ + " at " + std::to_string(baud_) + " baud with " + (use_bx_ ? "BX" : "TX") +
+           "; tools " + names);
+  if (recovering) {
+    emit(Severity::Info, "NDI_RECOVERED",
+         "recovered after " + std::to_string((monotonic_us() - recovery_started_us_) / 1000) + " ms");
+  }
+  detail_.clear();
+  return true;
+}
+
+bool Session::bring_up() {
+  if (!establish_contact()) return false;
+  if (state_ != LinkState::Recovering) state_ = LinkState::Initialising;
+  if (!negotiate_baud()) return false;
+  if (firmware_.empty() && !read_version()) return false;
+  free_stale_handles();
+  for (auto& tool : tools_)
+    if (!load_tool(tool)) return false;
+  for (auto& tool : tools_)
+    if (!expect_ok("PINIT", hex2(tool.handle), config_.setup_timeout)) return false;
+  for (auto& tool : tools_) {
+    CmdResult info;
+    if (!expect_ok("PHINF", hex2(tool.handle) + "0001", config_.setup_timeout, &info)) return false;
+    if (parse_phinf_basic(info.body, tool.info) != ParseError::None)
+      emit(Severity::Warning, "NDI_BAD_REPLY", "PHINF reply for tool " + tool.config.name + " did not parse");
+    if (!expect_ok("PENA", hex2(tool.handle) + "D", config_.setup_timeout)) return false;
+    emit(Severity::Info, "NDI_TOOL_LOADED",
+         "tool " + tool.config.name + " (" + tool.config.rom_path.string() + ") on handle " + hex2(tool.handle) +
+             ", manufacturer " + tool.info.manufacturer + ", serial " + tool.info.serial_number);
+  }
+  previous_handles_.clear();
+  for (const auto& t : tools_) previous_handles_.push_back(t.handle);
+  return expect_ok("TSTART", "", config_.setup_timeout);
+}
+
+bool Session::wait_for_reset() {
+  Frame frame;
+  const auto deadline = std::chrono::steady_clock::now() + config_.reset_wait;
+  while (std::chrono::steady_clock::now() < deadline) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    if (transact({}, left, false, frame) != Outcome::Reply) continue;
+    AsciiReply a;
+    if (parse_ascii_reply(frame.text(), a) == ParseError::None && a.kind == AsciiKind::Reset) {
+      ++counters_.resets;
+      return true;
+    }
+  }
+  return false;
+}
+
+bool Session::probe_init(int baud) {
+  if (!transport_->supports_baud(baud)) return false;
+  set_baud(baud);
+  transport_->drain_input();
+  reader_.clear();
+  CmdResult r = command("INIT", "", config_.probe_timeout, false);
+  if (r.status == CmdResult::Error && r.error_code == 0x0C) {
+    // A unit left tracking by a crashed host refuses INIT: stop tracking first.
+    command("TSTOP", "", config_.probe_timeout, false);
+    r = command("INIT", "", config_.probe_timeout, false);
+  }
+  return r.status == CmdResult::Ok;
+}
+
+bool Session::establish_contact() {
+  firmware_.clear();
+  set_baud(9600);
+  transport_->drain_input();
+  reader_.clear();
+  transport_->send_break(config_.break_duration);
+  if (wait_for_reset()) return init_device();
+  emit(Severity::Warning, "NDI_NO_RESET_REPLY",
+       "no RESET from " + port_name_ + " after a serial break; probing with INIT at each baud rate");
+  // 9600 first (fresh unit), then the rate we were using, then the rest fastest first.
+  std::vector<int> order = {9600, config_.target_baud};
+  for (int b : kDeviceBauds) order.push_back(b);
+  std::set<int> tried;
+  for (int b : order) {
+    if (!tried.insert(b).second) continue;
+    if (probe_init(b)) {
+      emit(Severity::Info, "NDI_CONTACT", "device answered INIT at " + std::to_string(b) + " baud on " + port_name_);
+      return true;
+    }
+  }
+  fail_bring_up("no reply from the device on " + port_name_ + " at any baud rate (is it powered and connected?)");
+  return false;
+}
+
+bool Session::init_device() {
+  // ERROR0C right after power-on means the unit is still booting: retry for a while.
+  for (int attempt = 0; attempt < 10; ++attempt) {
+    CmdResult r = command("INIT", "", config_.setup_timeout);
+    if (r.status == CmdResult::Ok) return true;
+    if (!(r.status == CmdResult::Error && r.error_code == 0x0C)) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  }
+  return expect_ok("INIT", "", config_.setup_timeout);
+}
+
+bool Session::negotiate_baud() {
+  std::vector<int> candidates;
+  for (int b : kDeviceBauds)
+    if (b <= config_.target_baud && transport_->supports_baud(b) && !failed_bauds_.count(b)) candidates.push_back(b);
+  for (int rate : candidates) {
+    if (rate == baud_) return read_version();
+    const int from = baud_;
+    CmdResult r = command("COMM", *comm_params(rate), config_.setup_timeout);
+    if (r.status == CmdResult::Ok) {
+      std::this_thread::sleep_for(config_.comm_settle);
+      set_baud(rate);
+      transport_->drain_input();
+      if (read_version()) return true;
+      // Switched but the link does not work at this rate: back to a known state.
+      failed_bauds_.insert(rate);
+      emit(Severity::Warning, "NDI_BAUD_FALLBACK",
+           "no valid reply at " + std::to_string(rate) + " baud on " + port_name_ + "; trying a lower rate");
+      if (!establish_contact()) return false;
+      continue;
+    }
+    failed_bauds_.insert(rate);
+    emit(Severity::Warning, "NDI_BAUD_FALLBACK",
+         "COMM to " + std::to_string(rate) + " baud refused on " + port_name_ + " (" +
+             (r.status == CmdResult::Error ? error_text(r.error_code) : std::string("no valid reply")) +
+             "); trying a lower rate");
+    if (r.status != CmdResult::Error) {
+      // The device may or may not have switched: find it again.
+      if (!establish_contact()) return false;
+    } else {
+      (void)from;
+    }
+  }
+  if (baud_ == 9600 || candidates.empty()) return read_version();
+  fail_bring_up("no working baud rate on " + port_name_);
+  return false;
+}
+
+bool Session::read_version() {
+  CmdResult r;
+  if (!expect_ok("VER", "0", config_.setup_timeout, &r)) return false;
+  VersionInfo v;
+  if (parse_ver(r.body, v) != ParseError::None) {
+    fail_bring_up("VER:0 reply did not parse on " + port_name_);
+    return false;
+  }
+  firmware_ = v.firmware;
+  serial_ = v.serial_number;
+  version_lines_ = v.lines;
+  use_bx_ = config_.use_bx;
+  for (const auto& pattern : config_.tx_firmware) {
+    if (r.body.find(pattern) != std::string::npos && use_bx_) {
+      use_bx_ = false;
+      emit(Severity::Warning, "NDI_TX_FALLBACK", "firmware matches '" + pattern + "' (BX unreliable): polling with TX");
+    }
+  }
+  emit(Severity::Info, "NDI_LINK_UP",
+       port_name_ + " at " + std::to_string(baud_) + " baud; firmware '" + firmware_ + "', S/N " + serial_);
+  return true;
+}
+
+void Session::free_stale_handles() {
+  std::vector<std::uint8_t> to_free = previous_handles_;
+  CmdResult r = command("PHSR", "01", config_.setup_timeout);
+  std::vector<PhsrEntry> entries;
+  if (r.status == CmdResult::Ok && parse_phsr(r.body, entries) == ParseError::None)
+    for (const auto& e : entries) to_free.push_back(e.handle);
+  std::sort(to_free.begin(), to_free.end());
+  to_free.erase(std::unique(to_free.begin(), to_free.end()), to_free.end());
+  for (std::uint8_t h : to_free) command("PHF", hex2(h), config_.setup_timeout);  // errors: already gone
+  previous_handles_.clear();
+}
+
+bool Session::load_tool(LoadedTool& tool) {
+  CmdResult r;
+  if (!expect_ok("PHRQ", "*********1****", config_.setup_timeout, &r)) return false;
+  if (parse_phrq(r.body, tool.handle) != ParseError::None) {
+    fail_bring_up("PHRQ reply '" + r.body + "' is not a port handle");
+    return false;
+  }
+  previous_handles_.push_back(tool.handle);
+  const auto& bytes = tool.rom.bytes;
+  for (std::size_t chunk = 0; chunk < tool.rom.chunk_count(); ++chunk) {
+    const std::size_t offset = chunk * 64;
+    std::span<const std::uint8_t> data;
+    if (offset < bytes.size()) data = std::span(bytes).subspan(offset, std::min<std::size_t>(64, bytes.size() - offset));
+    const std::string params = pvwr_params(tool.handle, static_cast<std::uint16_t>(offset), data);
+    bool ok = false;
+    for (int attempt = 0; attempt <= config_.pvwr_retries && !ok; ++attempt) {
+      r = command("PVWR", params, config_.setup_timeout);
+      ok = r.status == CmdResult::Ok;
+      if (r.status == CmdResult::Reset) break;
+    }
+    if (!ok) {
+      fail_bring_up("loading " + tool.config.rom_path.string() + " for tool " + tool.config.name + ": PVWR at " +
+                    std::to_string(offset) + " failed (" +
+                    (r.status == CmdResult::Error ? error_text(r.error_code) : std::string("no valid reply")) + ")");
+      return false;
+    }
+  }
+  return true;
+}
+
+// ---- tracking ---------------------------------------------------------------------------
+
+void Session::begin_recovery(std::string_view code, const std::string& why) {
+  emit(Severity::Warning, code, why);
+  if (state_ != LinkState::Recovering) recovery_started_us_ = monotonic_us();
+  state_ = LinkState::Recovering;
+  emit(Severity::Warning, "NDI_RECOVERING", "re-initialising " + port_name_ + " after: " + why);
+}
+
+PollResult Session::poll(TrackingReply& out, std::int64_t& receive_mono_us) {
+  out.count = 0;
+  if (state_ != LinkState::Tracking || !transport_) return PollResult::Failed;
+  Frame frame;
+  Outcome outcome;
+  try {
+    outcome = transact(use_bx_ ? bx_command_ : tx_command_, config_.tracking_timeout, use_bx_, frame);
+  } catch (const PortLost& e) {
+    close_port();
+    begin_recovery("NDI_PORT_LOST", e.what());
+    return PollResult::Failed;
+  }
+  ParseError parse = ParseError::None;
+  if (outcome == Outcome::Timeout) {
+    ++counters_.timeouts;
+    ++consecutive_timeouts_;
+    if (consecutive_timeouts_ >= config_.timeouts_before_recovery) {
+      begin_recovery("NDI_TIMEOUT", std::to_string(consecutive_timeouts_) + " consecutive " + (use_bx_ ? "BX" : "TX") +
+                                        " replies missing on " + port_name_);
+    } else {
+      emit(Severity::Warning, "NDI_TIMEOUT", std::string(use_bx_ ? "BX" : "TX") + " reply missing on " + port_name_);
+    }
+    return PollResult::Failed;
+  }
+  consecutive_timeouts_ = 0;
+  if (outcome == Outcome::Reply) {
+    receive_mono_us = last_read_mono_us_;
+    if (frame.kind == Frame::Kind::Binary) {
+      parse = parse_bx(frame.bytes, out);
+    } else {
+      AsciiReply a;
+      parse = parse_ascii_reply(frame.text(), a);
+      if (parse == ParseError::None && a.kind == AsciiKind::Reset) {
+        ++counters_.resets;
+        begin_recovery("NDI_DEVICE_RESET", "the device reset itself (RESET received while tracking on " + port_name_ + ")");
+        return PollResult::Failed;
+      }
+      if (parse == ParseError::None && a.kind == AsciiKind::Error) {
+        ++counters_.error_replies;
+        emit(Severity::Warning, "NDI_ERROR_REPLY", std::string(use_bx_ ? "BX" : "TX") + ": " + error_text(a.error_code));
+        parse = ParseError::WrongKind;
+      } else if (parse == ParseError::None) {
+        parse = use_bx_ ? ParseError::WrongKind : parse_tx(a.body, out);
+      }
+      if (parse != ParseError::None && a.kind != AsciiKind::Error) ++counters_.bad_replies;
+    }
+    if (parse != ParseError::None && frame.kind == Frame::Kind::Binary) ++counters_.bad_replies;
+  }
+  if (outcome == Outcome::Corrupt || parse != ParseError::None) {
+    out.count = 0;  // never a pose from a corrupt or unparsable reply
+    ++consecutive_bad_;
+    if (outcome == Outcome::Corrupt)
+      emit(Severity::Warning, "NDI_CRC_ERROR", std::string(use_bx_ ? "BX" : "TX") + " reply failed its CRC on " + port_name_);
+    else if (parse != ParseError::WrongKind)
+      emit(Severity::Warning, "NDI_BAD_REPLY",
+           std::string(use_bx_ ? "BX" : "TX") + " reply did not parse: " + std::string(to_string(parse)));
+    if (use_bx_ && consecutive_bad_ >= config_.bx_failures_before_tx) {
+      use_bx_ = false;
+      consecutive_bad_ = 0;
+      emit(Severity::Warning, "NDI_TX_FALLBACK",
+           std::to_string(config_.bx_failures_before_tx) + " consecutive bad BX replies on " + port_name_ +
+               ": polling with TX from now on");
+    } else if (consecutive_bad_ >= config_.bad_replies_before_recovery) {
+      begin_recovery("NDI_LINK_UNRELIABLE", std::to_string(consecutive_bad_) + " consecutive bad replies on " + port_name_);
+    }
+    return PollResult::Failed;
+  }
+  consecutive_bad_ = 0;
+
+  const std::uint32_t fn = out.frame_number();
+  if (out.system_status != last_system_status_) {
+    if (out.system_status != 0) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "%04X", out.system_status);
+      emit(Severity::Warning, "NDI_SYSTEM_STATUS", std::string("system status 0x") + buf + " on " + port_name_);
+    }
+    last_system_status_ = out.system_status;
+  }
+  if (have_last_frame_ && fn == last_frame_) return PollResult::SameFrame;
+  if (have_last_frame_ && fn > last_frame_ + 1) {
+    counters_.dropped_frames += fn - last_frame_ - 1;
+  }
+  have_last_frame_ = true;
+  last_frame_ = fn;
+  ++counters_.frames_total;
+  return PollResult::NewFrame;
+}
+
+bool Session::probe(ProbeResult& out) {
+  out = ProbeResult{};
+  bool ok = false;
+  try {
+    if (!transport_) open_port();
+    ok = establish_contact() && negotiate_baud() && (!firmware_.empty() || read_version());
+    if (ok) {
+      out.baud = baud_;
+      out.firmware = firmware_;
+      out.serial_number = serial_;
+      out.version_lines = version_lines_;
+      CmdResult r = command("PHSR", "00", config_.setup_timeout);
+      std::vector<PhsrEntry> entries;
+      if (r.status == CmdResult::Ok && parse_phsr(r.body, entries) == ParseError::None) {
+        for (const auto& e : entries) {
+          ProbeResult::Handle h;
+          h.handle = e.handle;
+          h.status = e.status;
+          CmdResult info = command("PHINF", hex2(e.handle) + "0001", config_.setup_timeout);
+          h.has_info = info.status == CmdResult::Ok && parse_phinf_basic(info.body, h.info) == ParseError::None;
+          out.handles.push_back(h);
+        }
+      }
+    }
+  } catch (const std::exception& e) {
+    detail_ = e.what();
+    ok = false;
+  }
+  stop();
+  return ok;
+}
+
+void Session::stop() {
+  if (!transport_) {
+    state_ = LinkState::Down;
+    return;
+  }
+  try {
+    command("TSTOP", "", config_.setup_timeout);
+    if (baud_ != 9600) {
+      CmdResult r = command("COMM", "00000", config_.setup_timeout);
+      if (r.status == CmdResult::Ok) {
+        std::this_thread::sleep_for(config_.comm_settle);
+        set_baud(9600);
+      }
+    }
+    emit(Severity::Info, "NDI_TRACKING_STOPPED", "tracking stopped on " + port_name_ + ", device back at 9600 baud");
+  } catch (const std::exception& e) {
+    emit(Severity::Warning, "NDI_STOP_FAILED", std::string("could not stop cleanly: ") + e.what());
+  }
+  close_port();
+  state_ = LinkState::Down;
+}
+
+}  // namespace arnav::ndi

@@ -1,0 +1,65 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "hil_tests/camera_sim/ground_truth.hpp"
+#include "hil_tests/camera_sim/trajectory.hpp"
+
+namespace arnav::camera_sim {
+namespace {
+
+const std::string kHead =
+    "# arnav camera ground truth 1\nsequence,time_s,board,x_mm,y_mm,z_mm,qw,qx,qy,qz,tags_visible,frame_file\n";
+
+TEST(GroundTruth, WriteThenReadRoundTrips) {
+  const auto path = std::filesystem::temp_directory_path() / ("arnav_gt_" + std::to_string(::getpid()) + ".csv");
+  Trajectory tr;
+  {
+    GroundTruthWriter w(path);
+    for (int k = 0; k < 5; ++k) w.write({k, k / 30.0, "board", tr.X_CamBoard(k / 30.0, {50, 40}), 4, ""});
+  }
+  const auto rows = read_ground_truth(path);
+  ASSERT_EQ(rows.size(), 5u);
+  for (int k = 0; k < 5; ++k) {
+    EXPECT_EQ(rows[static_cast<size_t>(k)].sequence, k);
+    EXPECT_TRUE(rows[static_cast<size_t>(k)].X_CamBoard.isApprox(tr.X_CamBoard(k / 30.0, {50, 40}), 1e-6));
+  }
+  std::filesystem::remove(path);
+}
+
+TEST(GroundTruth, BadRowsNameTheLine) {
+  auto expect_error = [](const std::string& text, const std::string& needle) {
+    try {
+      parse_ground_truth(text, "gt.csv");
+      ADD_FAILURE() << "accepted: " << text;
+    } catch (const GroundTruthError& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  };
+  expect_error("sequence,time_s\n", "gt.csv:1:");
+  expect_error(kHead + "0,0,b,1,2,3,1,0,0,0,4\n", "gt.csv:3: 11 columns");
+  expect_error(kHead + "0,0,b,1,2,x,1,0,0,0,4,\n", "gt.csv:3: column z_mm");
+  expect_error(kHead + "0,0,b,1,2,3,1,1,0,0,4,\n", "quaternion norm");
+  expect_error(kHead + "0,0,,1,2,3,1,0,0,0,4,\n", "board is empty");
+  expect_error("", "header or column line missing");
+  EXPECT_EQ(parse_ground_truth(kHead, "gt.csv").size(), 0u);
+}
+
+TEST(Trajectory, FacesTheCameraAndStaysInFront) {
+  Trajectory tr;
+  for (double t = 0; t < tr.period_s; t += 0.1) {
+    const Eigen::Isometry3d X = tr.X_CamBoard(t, {60, 40});
+    const Eigen::Vector3d centre = X * Eigen::Vector3d(60, 40, 0);
+    EXPECT_GT(centre.z(), tr.distance_mm - tr.amplitude_mm.z() - 1e-9);
+    // Board normal towards the camera, within the tilt.
+    const double cos_angle = X.linear().col(2).dot(-centre.normalized());
+    EXPECT_GT(cos_angle, std::cos((tr.tilt_deg * std::sqrt(2.0) + 20.0) * std::numbers::pi / 180.0));
+  }
+  Trajectory bad;
+  bad.amplitude_mm.z() = 600;
+  EXPECT_THROW(validate(bad), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace arnav::camera_sim

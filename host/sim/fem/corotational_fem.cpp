@@ -1,0 +1,464 @@
+#include "host/sim/fem/corotational_fem.hpp"
+
+#include <Eigen/LU>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "host/sim/element_measure.hpp"
+#include "host/sim/fem/rotation_extraction.hpp"
+#include "host/sim/tet_geometry.hpp"
+
+namespace arnav::host {
+namespace {
+
+// Warm-started per step: 1-2 updates; the cap only matters after set_state or a violent step.
+constexpr RotationExtraction kStepRotation{.max_iterations = 12, .tolerance_rad = 1e-8};
+
+Eigen::Map<Eigen::VectorXd> flat(Eigen::Matrix3Xd& m) { return {m.data(), m.size()}; }
+
+// Adds the 3x3 block B into the pattern through its 9 map entries (-1: skipped).
+inline void scatter(double* values, const int* map, const Eigen::Matrix3d& B) {
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c)
+      if (map[3 * r + c] >= 0) values[map[3 * r + c]] += B(r, c);
+}
+
+}  // namespace
+
+CorotationalFem::CorotationalFem(const SimProblem& problem, const ModelConfig& config, const FemOptions& options)
+    : integrator_(config.integrator.empty() ? "implicit_euler" : config.integrator),
+      options_(options),
+      threads_(config.threads),
+      substeps_(config.substeps),
+      gravity_(problem.gravity_World_mm_s2),
+      solver_(FemLinearSolver::parse(config.linear_solver.empty() ? "pcg" : config.linear_solver),
+              config.refactor_every, config.iterations, config.tolerance) {
+  if (integrator_ != "implicit_euler" && integrator_ != "quasi_static") {
+    throw std::invalid_argument("corotational_fem: unknown integrator '" + integrator_ +
+                                "' (use implicit_euler or quasi_static)");
+  }
+  if (threads_ < 1) throw std::invalid_argument("corotational_fem: threads must be >= 1");
+  if (substeps_ < 1) throw std::invalid_argument("corotational_fem: substeps must be >= 1");
+  const TetMesh& mesh = problem.mesh;
+  if (mesh.num_tets() == 0) throw std::invalid_argument("corotational_fem: the mesh has no tetrahedra");
+  if (!gravity_.allFinite()) throw std::invalid_argument("corotational_fem: gravity is not finite");
+  X_ = mesh.rest_positions_World_mm;
+  x_ = X_;
+  v_ = Eigen::Matrix3Xd::Zero(3, X_.cols());
+  mass_ = lumped_masses_kg(mesh, problem.region_materials);  // validates volumes and regions
+  const int nv = mesh.num_vertices();
+  for (int i = 0; i < nv; ++i)
+    if (!(mass_[i] > 0.0)) {
+      throw std::invalid_argument("corotational_fem: vertex " + std::to_string(i) +
+                                  " belongs to no tetrahedron (zero mass): remove unused vertices from the mesh");
+    }
+  mass_damped_ = mass_;
+  tets_.resize(mesh.tets.size());
+  Eigen::VectorXd mass_alpha = Eigen::VectorXd::Zero(nv);
+  for (int t = 0; t < mesh.num_tets(); ++t) {
+    Tet& e = tets_[t];
+    e.v = mesh.tets[t];
+    const Material& m = problem.region_materials[mesh.tet_region.empty() ? 0 : mesh.tet_region[t]];
+    const Lame lame = lame_from(m);
+    e.mu = lame.mu_kPa;
+    e.lambda = lame.lambda_kPa;
+    e.beta = m.damping_stiffness_s;
+    e.volume = signed_volume_mm3(X_, e.v);
+    e.Dm_inv = edge_matrix(X_, e.v).inverse();
+    for (int k = 0; k < 3; ++k) e.g[k + 1] = e.Dm_inv.row(k).transpose();
+    e.g[0] = -(e.g[1] + e.g[2] + e.g[3]);
+    for (int v : e.v) mass_alpha[v] += 0.25 * e.volume * m.density_kg_per_mm3 * m.damping_mass_per_s;
+  }
+  mass_alpha_ = mass_alpha;
+  q_.assign(tets_.size(), Eigen::Quaterniond::Identity());
+  F_.assign(tets_.size(), Eigen::Matrix3d::Identity());
+
+  // Beams only when the scene declares vessels.
+  if (problem.vessels && !problem.vessels->segments.empty()) {
+    lame_from(problem.vessel_material);  // validates E and nu
+    embedding_ = embed_vessels(mesh, *problem.vessels, problem.vessel_material, options_.beams);
+    for (const EmbeddedBeam& b : embedding_->beams) {
+      Beam beam;
+      beam.v = b.vertices;
+      beam.K = b.K_rest;
+      beam.X.resize(3 * b.vertices.size());
+      for (std::size_t k = 0; k < b.vertices.size(); ++k) beam.X.segment<3>(3 * k) = X_.col(b.vertices[k]);
+      beam.tets = b.tets;
+      beam.beta = problem.vessel_material.damping_stiffness_s;
+      beams_.push_back(std::move(beam));
+    }
+    R_beam_.assign(beams_.size(), Eigen::Matrix3d::Identity());
+  }
+  check_vertex_indices(problem.fixed_vertices, nv, "corotational_fem: fixed vertices");
+  fixed_.assign(nv, 0);
+  for (int v : problem.fixed_vertices) fixed_[v] = 1;
+  build_pattern();
+}
+
+CorotationalFem::~CorotationalFem() = default;
+
+void CorotationalFem::build_pattern() {
+  const int nv = static_cast<int>(X_.cols());
+  std::vector<std::vector<int>> elements;
+  elements.reserve(tets_.size() + beams_.size());
+  for (const Tet& t : tets_) elements.emplace_back(t.v.begin(), t.v.end());
+  for (const Beam& b : beams_) elements.push_back(b.v);
+  std::vector<std::vector<int>> groups = elements;
+  for (const auto& a : attachments_)
+    if (a) groups.push_back(a->spec.point.vertices);
+  pattern_ = std::make_unique<SymmetricPattern>(nv, groups);
+  tet_map_.resize(90 * tets_.size());
+  for (std::size_t t = 0; t < tets_.size(); ++t) {
+    const std::vector<int> m = pattern_->block_map(elements[t]);
+    std::copy(m.begin(), m.end(), tet_map_.begin() + 90 * static_cast<std::ptrdiff_t>(t));
+  }
+  beam_maps_.clear();
+  for (const Beam& b : beams_) beam_maps_.push_back(pattern_->block_map(b.v));
+  for (auto& a : attachments_)
+    if (a) a->map = pattern_->block_map(a->spec.point.vertices);
+  partition_ = partition_elements(X_, elements, threads_);
+  A_ = pattern_->matrix();
+  update_fixed_entries();
+  solver_.pattern_changed();
+}
+
+void CorotationalFem::update_fixed_entries() {
+  fixed_entries_.clear();
+  for (int c = 0; c < A_.outerSize(); ++c)
+    for (int k = A_.outerIndexPtr()[c]; k < A_.outerIndexPtr()[c + 1]; ++k) {
+      const int r = A_.innerIndexPtr()[k];
+      if (r != c && (fixed_[r / 3] || fixed_[c / 3])) fixed_entries_.push_back(k);
+    }
+}
+
+void CorotationalFem::assemble(double dt_s, bool dynamic, double& elastic_energy, int& inverted) {
+  double* values = A_.valuePtr();
+  std::fill(values, values + A_.nonZeros(), 0.0);
+  f_.setZero(x_.size());
+  f_ext_.setZero(x_.size());
+  const int num_tets = static_cast<int>(tets_.size());
+  // Pass 1: deformation gradients and rotations (element-local, no conflicts).
+#pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
+  for (int t = 0; t < num_tets; ++t) {
+    const Tet& e = tets_[t];
+    Eigen::Matrix3d Ds;
+    for (int k = 0; k < 3; ++k) Ds.col(k) = x_.col(e.v[k + 1]) - x_.col(e.v[0]);
+    F_[t] = Ds * e.Dm_inv;
+    q_[t] = extract_rotation(F_[t], q_[t], kStepRotation);
+  }
+  for (std::size_t b = 0; b < beams_.size(); ++b) {
+    // A beam co-rotates with the mean deformation of the two tets that hold its ends.
+    const Eigen::Matrix3d F = 0.5 * (F_[beams_[b].tets[0]] + F_[beams_[b].tets[1]]);
+    R_beam_[b] = extract_rotation(F, q_[beams_[b].tets[0]], kStepRotation).toRotationMatrix();
+  }
+  double energy = 0.0;
+  int n_inverted = 0;
+  // Pass 2: forces and rotated stiffness; parts are vertex-disjoint (no write conflicts),
+  // the interface elements follow serially: one synchronisation per step.
+  const int parts = static_cast<int>(partition_.parts.size());
+#pragma omp parallel for schedule(static, 1) reduction(+ : energy, n_inverted) num_threads(threads_) if (threads_ > 1)
+  for (int part = 0; part < parts; ++part)
+    for (int id : partition_.parts[part]) assemble_element(id, dt_s, dynamic, energy, n_inverted);
+  for (int id : partition_.shared) assemble_element(id, dt_s, dynamic, energy, n_inverted);
+  // Attachments: zero-rest-length springs from material points to targets.
+  const double s_att = dynamic ? dt_s * dt_s : 1.0;
+  for (const auto& att : attachments_) {
+    if (!att) continue;
+    const MaterialPoint& p = att->spec.point;
+    const double k = att->spec.stiffness_mN_per_mm;
+    Eigen::Vector3d pos = Eigen::Vector3d::Zero();
+    for (std::size_t a = 0; a < p.vertices.size(); ++a) pos += p.weights[a] * x_.col(p.vertices[a]);
+    const Eigen::Vector3d pull = k * (att->spec.target_World_mm - pos);
+    const int nb = static_cast<int>(p.vertices.size());
+    for (int a = 0, pair = 0; a < nb; ++a) {
+      f_ext_.segment<3>(3 * p.vertices[a]) += p.weights[a] * pull;
+      for (int b = a; b < nb; ++b, ++pair)
+        scatter(values, att->map.data() + 9 * pair,
+                (s_att * k * p.weights[a] * p.weights[b]) * Eigen::Matrix3d::Identity());
+    }
+  }
+  if (dynamic)
+    for (int i = 0; i < static_cast<int>(X_.cols()); ++i)
+      for (int d = 0; d < 3; ++d) values[pattern_->diagonal()[3 * i + d]] += mass_damped_[i];
+  elastic_energy = energy;
+  inverted = n_inverted;
+}
+
+void CorotationalFem::assemble_element(int id, double dt_s, bool dynamic, double& energy, int& n_inverted) {
+  double* values = A_.valuePtr();
+  const int num_tets = static_cast<int>(tets_.size());
+  if (id < num_tets) {
+    const Tet& e = tets_[id];
+    const Eigen::Matrix3d R = q_[id].toRotationMatrix();
+    const Eigen::Matrix3d& F = F_[id];
+    if (F.determinant() <= 0.0) ++n_inverted;
+    const Eigen::Matrix3d S = R.transpose() * F;
+    const Eigen::Matrix3d eps = 0.5 * (S + S.transpose()) - Eigen::Matrix3d::Identity();
+    const double tr = eps.trace();
+    const Eigen::Matrix3d sigma = e.lambda * tr * Eigen::Matrix3d::Identity() + 2.0 * e.mu * eps;
+    energy += e.volume * (e.mu * eps.squaredNorm() + 0.5 * e.lambda * tr * tr);
+    const Eigen::Matrix3d P = e.volume * R * sigma;
+    std::array<Eigen::Vector3d, 4> h;
+    for (int a = 0; a < 4; ++a) {
+      f_.segment<3>(3 * e.v[a]) -= P * e.g[a];
+      h[a] = R * e.g[a];
+    }
+    // R K_ab R^T = V (lambda h_a h_b^T + mu h_b h_a^T + mu (g_a . g_b) I), h = R g.
+    const double s = dynamic ? dt_s * e.beta + dt_s * dt_s : 1.0;
+    const double sv = s * e.volume;
+    const int* map = tet_map_.data() + 90 * static_cast<std::ptrdiff_t>(id);
+    for (int a = 0, pair = 0; a < 4; ++a)
+      for (int b = a; b < 4; ++b, ++pair) {
+        Eigen::Matrix3d B = sv * (e.lambda * h[a] * h[b].transpose() + e.mu * h[b] * h[a].transpose());
+        B.diagonal().array() += sv * e.mu * e.g[a].dot(e.g[b]);
+        scatter(values, map + 9 * pair, B);
+      }
+  } else {
+    const int bi = id - num_tets;
+    const Beam& bm = beams_[bi];
+    const Eigen::Matrix3d& R = R_beam_[bi];
+    const int nb = static_cast<int>(bm.v.size());
+    Eigen::VectorXd u(3 * nb);
+    for (int a = 0; a < nb; ++a) u.segment<3>(3 * a) = R.transpose() * x_.col(bm.v[a]) - bm.X.segment<3>(3 * a);
+    const Eigen::VectorXd fl = bm.K * u;
+    energy += 0.5 * u.dot(fl);
+    for (int a = 0; a < nb; ++a) f_.segment<3>(3 * bm.v[a]) -= R * fl.segment<3>(3 * a);
+    const double s = dynamic ? dt_s * bm.beta + dt_s * dt_s : 1.0;
+    const int* map = beam_maps_[bi].data();
+    for (int a = 0, pair = 0; a < nb; ++a)
+      for (int b = a; b < nb; ++b, ++pair)
+        scatter(values, map + 9 * pair, s * R * bm.K.block<3, 3>(3 * a, 3 * b) * R.transpose());
+  }
+}
+
+StepSummary CorotationalFem::step(double dt_s) {
+  check_dt(dt_s);
+  if (substeps_ == 1) return substep(dt_s);
+  StepSummary total;
+  for (int k = 0; k < substeps_; ++k) {
+    const StepSummary s = substep(dt_s / substeps_);
+    total.iterations += s.iterations;
+    if (k == 0) total.initial_residual = s.initial_residual;
+    total.final_residual = s.final_residual;
+    total.termination = s.termination;
+    total.wall_time_ms += s.wall_time_ms;
+    total.kinetic_energy = s.kinetic_energy;
+    total.elastic_energy = s.elastic_energy;
+    if (!s.warning.empty()) report(total, "substep " + std::to_string(k) + ": " + s.warning, !s.healthy);
+    if (!s.healthy) break;
+  }
+  return total;
+}
+
+StepSummary CorotationalFem::substep(double dt_s) {
+  const auto t0 = std::chrono::steady_clock::now();
+  StepSummary summary;
+  auto finish = [&]() {
+    summary.wall_time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    return summary;
+  };
+  const bool dynamic = integrator_ == "implicit_euler";
+  const bool any_attachment = std::any_of(attachments_.begin(), attachments_.end(), [](const auto& a) { return a.has_value(); });
+  if (!dynamic && !any_attachment && std::none_of(fixed_.begin(), fixed_.end(), [](char f) { return f != 0; })) {
+    summary.healthy = false;
+    summary.termination = "not_run";
+    summary.warning = "quasi_static needs fixed vertices or attachments: rigid motions make K singular";
+    return finish();
+  }
+  if (dt_s != last_dt_) {
+    // The system matrix depends on dt (implicit Euler): a lagged factor from another dt is stale.
+    mass_damped_ = mass_ + dt_s * mass_alpha_;
+    if (dynamic) solver_.force_refactor();
+    last_dt_ = dt_s;
+  }
+  int inverted = 0;
+  assemble(dt_s, dynamic, summary.elastic_energy, inverted);
+  const int nv = static_cast<int>(X_.cols());
+  for (int i = 0; i < nv; ++i) f_ext_.segment<3>(3 * i) += mass_[i] * gravity_;
+  f_ += f_ext_;
+
+  const Eigen::VectorXd x_flat = flat(x_);
+  if (dynamic) {
+    rhs_.resize(f_.size());
+    for (int i = 0; i < nv; ++i) rhs_.segment<3>(3 * i) = mass_[i] * v_.col(i) + dt_s * f_.segment<3>(3 * i);
+    sol_ = flat(v_);  // warm start: the velocity changes little per step
+  } else {
+    rhs_ = f_;
+    if (last_dx_.size() != rhs_.size()) last_dx_.setZero(rhs_.size());
+    sol_ = last_dx_;  // warm start: equilibrium moves as in the last step
+  }
+  // Dirichlet: fixed DOFs become identity rows with zero right-hand side (v = 0, dx = 0).
+  double* values = A_.valuePtr();
+  for (int k : fixed_entries_) values[k] = 0.0;
+  for (int i = 0; i < nv; ++i)
+    if (fixed_[i])
+      for (int d = 0; d < 3; ++d) {
+        values[pattern_->diagonal()[3 * i + d]] = 1.0;
+        rhs_[3 * i + d] = 0.0;
+        sol_[3 * i + d] = 0.0;
+      }
+
+  // Residual scale: the right-hand side without elastic forces (the load of this step).
+  double load_scale = 0.0;
+  for (int i = 0; i < nv; ++i)
+    if (!fixed_[i]) {
+      const Eigen::Vector3d l = dynamic ? Eigen::Vector3d(mass_[i] * v_.col(i) + dt_s * f_ext_.segment<3>(3 * i))
+                                        : Eigen::Vector3d(f_ext_.segment<3>(3 * i));
+      load_scale += l.squaredNorm();
+    }
+  last_solve_ = solver_.solve(A_, rhs_, sol_, std::sqrt(load_scale));
+  const LinearSolveSummary& ls = last_solve_;
+  summary.iterations = ls.iterations;
+  summary.initial_residual = ls.initial_residual;
+  summary.final_residual = ls.final_residual;
+  summary.termination = ls.termination;
+  std::vector<std::string> warnings;
+  if (!ls.ok) {
+    summary.healthy = false;
+    summary.warning = "linear solve failed: " + ls.message + "; state kept";
+    return finish();
+  }
+  if (!sol_.allFinite()) {
+    summary.healthy = false;
+    summary.warning = "non-finite solution (NaN/Inf); state kept";
+    return finish();
+  }
+  // Velocities the step would produce; reject the step when they are not physical.
+  const Eigen::VectorXd v_new = dynamic ? Eigen::VectorXd(sol_) : Eigen::VectorXd(sol_ / dt_s);
+  double max_speed = 0.0;
+  for (int i = 0; i < nv; ++i) max_speed = std::max(max_speed, v_new.segment<3>(3 * i).norm());
+  if (dynamic && max_speed > options_.max_speed_mm_s) {
+    summary.healthy = false;
+    summary.warning = "unstable: vertex speed " + std::to_string(max_speed) + " mm/s exceeds " +
+                      std::to_string(options_.max_speed_mm_s) + " mm/s; state kept";
+    return finish();
+  }
+  if (dynamic) {
+    flat(v_) = v_new;
+    flat(x_) = x_flat + dt_s * v_new;
+  } else {
+    flat(x_) = x_flat + sol_;
+    flat(v_) = v_new;
+    last_dx_ = sol_;
+  }
+  if (ls.termination == "max_iterations") {
+    warnings.push_back("linear solve stopped at " + std::to_string(ls.iterations) + " iterations, residual " +
+                       std::to_string(ls.final_residual));
+  }
+  if (inverted > 0) {
+    ++inverted_streak_;
+    warnings.push_back("inverted tets: " + std::to_string(inverted));
+    if (inverted_streak_ >= options_.inverted_steps_limit) {
+      summary.healthy = false;
+      warnings.push_back("inverted for " + std::to_string(inverted_streak_) + " steps: not recovering");
+    }
+  } else {
+    inverted_streak_ = 0;
+  }
+  for (std::size_t k = 0; k < warnings.size(); ++k) summary.warning += (k ? "; " : "") + warnings[k];
+  double ke = 0.0;
+  for (int i = 0; i < nv; ++i) ke += 0.5 * mass_[i] * v_.col(i).squaredNorm();
+  summary.kinetic_energy = ke;
+  return finish();
+}
+
+AttachmentId CorotationalFem::add_attachment(const AttachmentSpec& spec) {
+  const auto& p = spec.point;
+  const int nv = static_cast<int>(X_.cols());
+  const std::string who = "corotational_fem: attachment " + std::to_string(attachments_.size());
+  if (p.vertices.empty() || p.vertices.size() != p.weights.size()) {
+    throw std::invalid_argument(who + " needs as many weights as vertices (and at least one)");
+  }
+  check_vertex_indices(p.vertices, nv, who.c_str());
+  for (double w : p.weights)
+    if (!std::isfinite(w)) throw std::invalid_argument(who + " has a non-finite weight");
+  if (!(spec.stiffness_mN_per_mm >= 0.0) || !std::isfinite(spec.stiffness_mN_per_mm) || !spec.target_World_mm.allFinite()) {
+    throw std::invalid_argument(who + " needs a finite stiffness >= 0 mN/mm and a finite target");
+  }
+  std::vector<int> sorted = p.vertices;
+  std::sort(sorted.begin(), sorted.end());
+  if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) {
+    throw std::invalid_argument(who + " lists a vertex twice");
+  }
+  attachments_.push_back(Attachment{spec, {}});
+  if (pattern_->covers(p.vertices)) {
+    attachments_.back()->map = pattern_->block_map(p.vertices);
+  } else {
+    build_pattern();  // new couplings: symbolic analysis again (rare: attachments span one tet)
+  }
+  solver_.force_refactor();
+  return static_cast<AttachmentId>(attachments_.size() - 1);
+}
+
+namespace {
+template <class V>
+auto& checked(V& attachments, AttachmentId id) {
+  if (id < 0 || id >= static_cast<int>(attachments.size()) || !attachments[id]) {
+    throw std::invalid_argument("corotational_fem: no attachment with id " + std::to_string(id));
+  }
+  return *attachments[id];
+}
+}  // namespace
+
+void CorotationalFem::set_attachment_target(AttachmentId id, const Eigen::Vector3d& target_World_mm) {
+  if (!target_World_mm.allFinite()) throw std::invalid_argument("corotational_fem: non-finite attachment target");
+  checked(attachments_, id).spec.target_World_mm = target_World_mm;
+}
+
+void CorotationalFem::set_attachment_stiffness(AttachmentId id, double stiffness_mN_per_mm) {
+  if (!(stiffness_mN_per_mm >= 0.0) || !std::isfinite(stiffness_mN_per_mm)) {
+    throw std::invalid_argument("corotational_fem: attachment stiffness must be finite and >= 0 mN/mm");
+  }
+  checked(attachments_, id).spec.stiffness_mN_per_mm = stiffness_mN_per_mm;
+  solver_.force_refactor();
+}
+
+void CorotationalFem::remove_attachment(AttachmentId id) {
+  checked(attachments_, id);
+  attachments_[id].reset();
+  solver_.force_refactor();  // the pattern keeps its entries (zeros): no new analysis
+}
+
+void CorotationalFem::set_fixed_vertices(const std::vector<int>& vertices) {
+  const int nv = static_cast<int>(X_.cols());
+  check_vertex_indices(vertices, nv, "corotational_fem: set_fixed_vertices");
+  std::vector<char> fixed(nv, 0);
+  for (int v : vertices) fixed[v] = 1;
+  fixed_ = std::move(fixed);
+  for (int i = 0; i < nv; ++i)
+    if (fixed_[i]) v_.col(i).setZero();
+  update_fixed_entries();
+  solver_.force_refactor();
+}
+
+void CorotationalFem::set_state(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v) {
+  check_state_shape(x, v, static_cast<int>(X_.cols()));
+  x_ = x;
+  v_ = v;
+  last_dx_.setZero(x_.size());
+  // The warm-start rotations belong to the old state: restart them in closed form.
+  for (std::size_t t = 0; t < tets_.size(); ++t) q_[t] = rotation_by_svd(edge_matrix(x_, tets_[t].v) * tets_[t].Dm_inv);
+}
+
+std::vector<ElementMeasure> CorotationalFem::element_measures() const {
+  std::vector<ElementMeasure> out(tets_.size());
+  for (std::size_t t = 0; t < tets_.size(); ++t) {
+    const Tet& e = tets_[t];
+    const Eigen::Matrix3d F = edge_matrix(x_, e.v) * e.Dm_inv;
+    const Eigen::Matrix3d R = extract_rotation(F, q_[t]).toRotationMatrix();
+    const Eigen::Matrix3d S = R.transpose() * F;
+    const Eigen::Matrix3d eps = 0.5 * (S + S.transpose()) - Eigen::Matrix3d::Identity();
+    const Eigen::Matrix3d sigma = e.lambda * eps.trace() * Eigen::Matrix3d::Identity() + 2.0 * e.mu * eps;
+    out[t] = element_measure_from(F, sigma);
+  }
+  return out;
+}
+
+std::unique_ptr<TissueModel> make_corotational_fem(const SimProblem& problem, const ModelConfig& config) {
+  return std::make_unique<CorotationalFem>(problem, config);
+}
+
+}  // namespace arnav::host

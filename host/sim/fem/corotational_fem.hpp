@@ -1,0 +1,127 @@
+#pragma once
+// Co-rotational linear FEM on P1 tetrahedra (paper 001), optionally stiffened by vessel
+// beams embedded in the tets (host/sim/beams, K = Kp + J^T Kb J). Frame World; units mm,
+// kg, s, mN, kPa.
+//
+// Per element the rotation R of F = Ds Dm^-1 is extracted (rotation_extraction.hpp,
+// valid for inverted elements); the elastic force is f = -V R sigma(R^T F - I) g with the
+// linear stress sigma, and the stiffness R K R^T is scattered into a fixed pattern
+// (stiffness warping: dR/dx is neglected, as in SOFA and paper 001).
+// Integrators (ModelConfig.integrator):
+//   implicit_euler  one linearised backward-Euler solve per step for the new velocity:
+//                   (M + dt C + dt^2 K) v+ = M v + dt f(x), C = alpha M + beta K (Rayleigh).
+//   quasi_static    one Newton-like step per call toward equilibrium: K dx = f(x); repeated
+//                   calls converge; velocities report dx/dt.
+// Linear solvers: fem_linear_solver.hpp. ModelConfig.threads workers assemble in parallel
+// (OpenMP); ModelConfig.substeps splits step(dt) into equal sub-steps.
+// What the model cannot handle is reported in the StepSummary (healthy=false + warning)
+// and the state is left as it was before the failing (sub-)step.
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "host/sim/beams/beam_embedding.hpp"
+#include "host/sim/fem/fem_linear_solver.hpp"
+#include "host/sim/fem/symmetric_pattern.hpp"
+#include "host/sim/model_config.hpp"
+#include "host/sim/step_health.hpp"
+#include "host/sim/tissue_model.hpp"
+
+namespace arnav::host {
+
+// Settings beyond ModelConfig (limits of what the model reports as unhealthy).
+struct FemOptions {
+  double max_speed_mm_s = kBlowUpSpeed_mm_s;  // above this a step is rejected as unstable
+  int inverted_steps_limit = 30;    // inverted tets persisting this many steps -> unhealthy
+  VesselBeamOptions beams;          // used only when the problem declares vessels
+};
+
+class CorotationalFem final : public TissueModel {
+ public:
+  // Throws std::invalid_argument for an unknown integrator/solver, a degenerate or
+  // inverted rest tet, a material out of range, or a vessel outside the mesh.
+  CorotationalFem(const SimProblem& problem, const ModelConfig& config, const FemOptions& options = {});
+  ~CorotationalFem() override;
+
+  std::string name() const override { return "corotational_fem/" + integrator_; }
+  StepSummary step(double dt_s) override;
+
+  AttachmentId add_attachment(const AttachmentSpec& spec) override;
+  void set_attachment_target(AttachmentId id, const Eigen::Vector3d& target_World_mm) override;
+  void set_attachment_stiffness(AttachmentId id, double stiffness_mN_per_mm) override;
+  void remove_attachment(AttachmentId id) override;
+  void set_fixed_vertices(const std::vector<int>& vertices) override;
+
+  const Eigen::Matrix3Xd& positions_World_mm() const override { return x_; }
+  const Eigen::Matrix3Xd& velocities_World_mm_s() const override { return v_; }
+  void set_state(const Eigen::Matrix3Xd& positions_World_mm, const Eigen::Matrix3Xd& velocities_World_mm_s) override;
+  std::vector<ElementMeasure> element_measures() const override;
+
+  // Introspection for tests and benchmarks.
+  int num_beam_elements() const { return static_cast<int>(beams_.size()); }
+  const std::optional<VesselEmbedding>& vessel_embedding() const { return embedding_; }
+  // Last assembled system matrix (lower triangle) and the last linear solve.
+  const SparseMatrixLower& system_matrix() const { return A_; }
+  const LinearSolveSummary& last_linear_solve() const { return last_solve_; }
+  void set_estimate_condition(bool on) { solver_.set_estimate_condition(on); }
+
+ private:
+  struct Tet {
+    std::array<int, 4> v;
+    Eigen::Matrix3d Dm_inv;
+    std::array<Eigen::Vector3d, 4> g;  // shape function gradients (rest)
+    double volume, mu, lambda, beta;
+  };
+  struct Beam {
+    std::vector<int> v;
+    Eigen::MatrixXd K;       // rest stiffness J^T Kb J
+    Eigen::VectorXd X;       // rest positions of its vertices
+    std::array<int, 2> tets;
+    double beta;
+  };
+  struct Attachment {
+    AttachmentSpec spec;
+    std::vector<int> map;  // block map into the pattern
+  };
+
+  void build_pattern();
+  void update_fixed_entries();
+  void assemble(double dt_s, bool dynamic, double& elastic_energy, int& inverted);
+  void assemble_element(int id, double dt_s, bool dynamic, double& energy, int& inverted);
+  StepSummary substep(double dt_s);
+
+  std::string integrator_;
+  FemOptions options_;
+  int threads_ = 1;
+  int substeps_ = 1;
+  Eigen::Vector3d gravity_;
+  Eigen::Matrix3Xd X_, x_, v_;
+  Eigen::VectorXd mass_, mass_alpha_, mass_damped_;  // lumped m, alpha m, m + dt alpha m
+  std::vector<Tet> tets_;
+  std::vector<Beam> beams_;
+  std::optional<VesselEmbedding> embedding_;
+  std::vector<Eigen::Quaterniond> q_;      // per-tet rotation (warm start)
+  std::vector<Eigen::Matrix3d> F_;         // per-tet deformation gradient of this step
+  std::vector<Eigen::Matrix3d> R_beam_;
+  std::vector<std::optional<Attachment>> attachments_;
+  std::vector<char> fixed_;               // per vertex
+  std::vector<int> fixed_entries_;        // nonzeros in rows/cols of fixed DOFs (off-diagonal)
+  std::unique_ptr<SymmetricPattern> pattern_;
+  std::vector<int> tet_map_;                   // 90 nonzero indices per tet (10 blocks)
+  std::vector<std::vector<int>> beam_maps_;
+  ElementPartition partition_;            // element ids: tets [0, T), beams [T, T+B)
+  SparseMatrixLower A_;
+  Eigen::VectorXd f_, f_ext_, rhs_, sol_, last_dx_;
+  FemLinearSolver solver_;
+  LinearSolveSummary last_solve_;
+  int inverted_streak_ = 0;
+  double last_dt_ = -1.0;
+};
+
+// Factory entry (used by host/sim/model_factory when arnav_sim_fem is built).
+std::unique_ptr<TissueModel> make_corotational_fem(const SimProblem& problem, const ModelConfig& config);
+
+}  // namespace arnav::host

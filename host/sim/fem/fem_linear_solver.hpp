@@ -1,0 +1,73 @@
+#pragma once
+// Linear solves of the FEM step: A x = b with A symmetric positive definite, stored as
+// its lower triangle (symmetric_pattern.hpp). Four strategies, picked by the scene:
+//   Cholmod      CHOLMOD supernodal Cholesky; refactor_every = 1 is exact every step,
+//                N > 1 reuses a lagged factor as an approximate direct solve.
+//   EigenLdlt    Eigen SimplicialLDLT (no SuiteSparse), same factor policy.
+//   PcgFactor    preconditioned CG on the current matrix with the lagged CHOLMOD factor
+//                as preconditioner (refreshed every refactor_every steps; 0 = never after
+//                the first), warm started from the caller's x.
+//   PcgJacobi    CG with the diagonal as preconditioner, warm started.
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+#include <memory>
+#include <string>
+
+#include "host/sim/fem/symmetric_pattern.hpp"
+
+namespace arnav::host {
+
+struct LinearSolveSummary {
+  int iterations = 0;            // CG iterations (1 for a direct solve)
+  double initial_residual = 0;   // ||b - A x0|| / max(||b||, load_scale)
+  double final_residual = 0;     // ||b - A x|| / max(||b||, load_scale)
+  std::string termination;       // "direct", "direct_lagged", "converged", "max_iterations", "factorization_failed"
+  bool factorized = false;       // a numeric factorisation ran in this solve
+  double factor_ms = 0;
+  bool ok = true;                // false: factorisation failed (A not positive definite)
+  double condition_estimate = 0; // CG kinds with estimate_condition: Lanczos estimate of
+                                 // lambda_max/lambda_min of the preconditioned matrix (lower bound)
+  std::string message;
+};
+
+class FemLinearSolver {
+ public:
+  enum class Kind { Cholmod, EigenLdlt, PcgFactor, PcgJacobi };
+  // Parses "cholmod" | "eigen_ldlt" | "pcg" | "pcg_jacobi"; throws std::invalid_argument otherwise.
+  static Kind parse(const std::string& name);
+
+  FemLinearSolver(Kind kind, int refactor_every, int max_iterations, double tolerance);
+  ~FemLinearSolver();
+
+  // The pattern changed (symbolic analysis again) or values changed in a way the lagged
+  // factor must not survive (fixed set, time step).
+  void pattern_changed();
+  void force_refactor();
+
+  // Solves A x = b; x holds the warm start on entry (iterative kinds). Residuals are
+  // relative to max(||b||, load_scale): near equilibrium b vanishes, and a criterion
+  // relative to ||b|| alone would demand ever more digits of a vanishing update.
+  LinearSolveSummary solve(const SparseMatrixLower& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                           double load_scale = 0.0);
+
+  Kind kind() const { return kind_; }
+  // Costs an O(iterations^2) eigenvalue solve per CG solve: for studies, not for real time.
+  void set_estimate_condition(bool on) { estimate_condition_ = on; }
+
+ private:
+  bool factorize(const SparseMatrixLower& A, LinearSolveSummary& s);
+  void apply_factor(const Eigen::VectorXd& r, Eigen::VectorXd& z) const;
+
+  Kind kind_;
+  int refactor_every_;
+  int max_iterations_;
+  double tolerance_;
+  bool estimate_condition_ = false;
+  bool analyzed_ = false;
+  bool have_factor_ = false;
+  int steps_since_factor_ = 0;
+  struct Factors;
+  std::unique_ptr<Factors> f_;
+};
+
+}  // namespace arnav::host

@@ -1,0 +1,200 @@
+// Solver options agree, factor reuse and warm start behave, and what the model cannot
+// handle is reported (healthy=false + warning, state kept) instead of exploding.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+
+#include "host/sim/fem/test/fem_test_util.hpp"
+
+namespace arnav::host {
+namespace {
+
+using fem_test::box_problem;
+using fem_test::vertices_where;
+
+SimProblem hanging_block() {
+  // 40 x 20 x 20 mm block of soft tissue clamped on its x = 0 face, sagging under gravity.
+  SimProblem p = box_problem(8, 4, 4, Eigen::Vector3d(40, 20, 20), 5.0, 0.45);
+  p.gravity_World_mm_s2 = Eigen::Vector3d(0, 0, -9810.0);
+  p.fixed_vertices = vertices_where(p.mesh, [](const Eigen::Vector3d& q) { return q.x() == 0.0; });
+  return p;
+}
+
+Eigen::Matrix3Xd run(const SimProblem& problem, const ModelConfig& config, int steps, std::vector<StepSummary>* log = nullptr) {
+  CorotationalFem model(problem, config);
+  for (int k = 0; k < steps; ++k) {
+    const StepSummary s = model.step(1.0 / 60.0);
+    EXPECT_TRUE(s.healthy) << config.linear_solver << ": " << s.warning;
+    if (log) log->push_back(s);
+  }
+  return model.positions_World_mm();
+}
+
+TEST(FemSolvers, AllLinearSolversGiveTheSameImplicitEulerTrajectory) {
+  const SimProblem problem = hanging_block();
+  const Eigen::Matrix3Xd ref = run(problem, {.kind = "corotational_fem", .integrator = "implicit_euler", .linear_solver = "cholmod"}, 20);
+  const double sag = (ref - problem.mesh.rest_positions_World_mm).cwiseAbs().maxCoeff();
+  EXPECT_GT(sag, 1.0);  // it does move (large deformation: soft tissue, 40 mm lever)
+  for (const std::string solver : {"eigen_ldlt", "pcg", "pcg_jacobi"}) {
+    const ModelConfig config{.kind = "corotational_fem", .integrator = "implicit_euler", .linear_solver = solver,
+                             .iterations = 5000, .tolerance = 1e-12, .refactor_every = solver == "eigen_ldlt" ? 1 : 10};
+    EXPECT_LT((run(problem, config, 20) - ref).cwiseAbs().maxCoeff(), 1e-6 * sag) << solver;
+  }
+  // Two assembly threads (partitioned scatter) and two substeps of half the step.
+  ModelConfig two{.kind = "corotational_fem", .integrator = "implicit_euler", .linear_solver = "cholmod"};
+  two.threads = 2;
+  EXPECT_LT((run(problem, two, 20) - ref).cwiseAbs().maxCoeff(), 1e-9 * sag);
+  two.substeps = 2;
+  const double diff = (run(problem, two, 20) - ref).cwiseAbs().maxCoeff();
+  EXPECT_GT(diff, 1e-6 * sag);  // a different time discretisation...
+  EXPECT_LT(diff, 0.2 * sag);   // ...of the same motion
+}
+
+TEST(FemSolvers, LaggedFactorIsApproximateButPcgOnItConverges) {
+  const SimProblem problem = hanging_block();
+  std::vector<StepSummary> pcg_log, jacobi_log;
+  {
+    // A lagged factor used as a direct solve: only the refactorised steps are exact.
+    CorotationalFem model(problem, {.kind = "corotational_fem", .integrator = "implicit_euler", .linear_solver = "cholmod",
+                                    .refactor_every = 4});
+    std::vector<StepSummary> log;
+    for (int k = 0; k < 5; ++k) log.push_back(model.step(1.0 / 60.0));
+    EXPECT_EQ(log[0].termination, "direct");
+    EXPECT_EQ(log[1].termination, "direct_lagged");
+    EXPECT_EQ(log[4].termination, "direct");  // refactorised every 4 steps
+    EXPECT_LT(log[0].final_residual, 1e-10);
+    EXPECT_GT(log[2].final_residual, 1e-3);  // the lagged factor is not the current matrix
+  }
+  run(problem, {.kind = "corotational_fem", .integrator = "implicit_euler", .linear_solver = "pcg", .iterations = 200,
+                .tolerance = 1e-8, .refactor_every = 8}, 16, &pcg_log);
+  run(problem, {.kind = "corotational_fem", .integrator = "implicit_euler", .linear_solver = "pcg_jacobi", .iterations = 2000,
+                .tolerance = 1e-8}, 16, &jacobi_log);
+  int pcg_total = 0, jacobi_total = 0;
+  for (std::size_t k = 0; k < pcg_log.size(); ++k) {
+    EXPECT_EQ(pcg_log[k].termination, "converged") << k;
+    EXPECT_LE(pcg_log[k].final_residual, 1e-8);
+    pcg_total += pcg_log[k].iterations;
+    jacobi_total += jacobi_log[k].iterations;
+  }
+  EXPECT_LT(3 * pcg_total, jacobi_total);  // the lagged factor is a much better preconditioner
+}
+
+TEST(FemSolvers, WarmStartMakesPcgNearlyFreeAtRest) {
+  SimProblem problem = hanging_block();
+  problem.region_materials[0].damping_mass_per_s = 20.0;  // settle quickly
+  CorotationalFem model(problem, {.kind = "corotational_fem", .integrator = "implicit_euler", .linear_solver = "pcg_jacobi",
+                                  .iterations = 2000, .tolerance = 1e-6});
+  StepSummary first = model.step(1.0 / 60.0), last;
+  for (int k = 0; k < 400; ++k) last = model.step(1.0 / 60.0);
+  EXPECT_LT(last.initial_residual, 1e-4 * first.initial_residual);
+  EXPECT_LT(last.iterations, first.iterations / 3) << first.iterations;
+}
+
+TEST(FemStability, InvertedElementsAreReportedAndRecover) {
+  SimProblem problem = box_problem(2, 2, 2, Eigen::Vector3d(10, 10, 10), 5.0, 0.45);
+  problem.fixed_vertices = vertices_where(problem.mesh, [](const Eigen::Vector3d& q) { return q.z() == 0.0; });
+  CorotationalFem model(problem, {.kind = "corotational_fem", .integrator = "implicit_euler", .linear_solver = "cholmod"});
+  // Push the top centre vertex down through the middle layer: its tets invert.
+  Eigen::Matrix3Xd x = problem.mesh.rest_positions_World_mm;
+  const int top = box_vertex_index(2, 2, 1, 1, 2);
+  for (int i = 0; i < x.cols(); ++i)
+    if (i == top) x(2, i) = 2.0;  // (a loop: GCC 12 flags a constant-index write as null dereference)
+  model.set_state(x, Eigen::Matrix3Xd::Zero(3, x.cols()));
+  const StepSummary s0 = model.step(1.0 / 60.0);
+  EXPECT_TRUE(s0.healthy);
+  EXPECT_NE(s0.warning.find("inverted tets"), std::string::npos) << s0.warning;
+  StepSummary s;
+  for (int k = 0; k < 120; ++k) s = model.step(1.0 / 60.0);
+  EXPECT_TRUE(s.healthy) << s.warning;
+  EXPECT_EQ(s.warning.find("inverted"), std::string::npos) << s.warning;
+  for (const ElementMeasure& m : model.element_measures()) EXPECT_GT(m.volume_ratio, 0.0);
+  EXPECT_NEAR(model.positions_World_mm()(2, top), 10.0, 1.0);  // back up near its rest place
+}
+
+TEST(FemStability, InversionHeldByConstraintsBecomesUnhealthy) {
+  SimProblem problem = box_problem(1, 1, 1, Eigen::Vector3d(10, 10, 10), 5.0, 0.45);
+  FemOptions options;
+  options.inverted_steps_limit = 10;
+  CorotationalFem model(problem, {.kind = "corotational_fem", .integrator = "implicit_euler", .linear_solver = "cholmod"},
+                        options);
+  Eigen::Matrix3Xd x = problem.mesh.rest_positions_World_mm;
+  x.row(2) *= -0.2;  // mirror the whole cube through z = 0: every tet inverted
+  model.set_state(x, Eigen::Matrix3Xd::Zero(3, x.cols()));
+  std::vector<int> all(x.cols());
+  for (int i = 0; i < x.cols(); ++i) all[i] = i;
+  model.set_fixed_vertices(all);
+  StepSummary s;
+  for (int k = 0; k < 10; ++k) s = model.step(0.01);
+  EXPECT_FALSE(s.healthy);
+  EXPECT_NE(s.warning.find("not recovering"), std::string::npos) << s.warning;
+}
+
+TEST(FemStability, UnsupportedQuasiStaticAndSingularSystemsAreReported) {
+  SimProblem problem = box_problem(2, 2, 2, Eigen::Vector3d(10, 10, 10), 5.0, 0.45);
+  problem.gravity_World_mm_s2 = Eigen::Vector3d(0, 0, -9810);
+  CorotationalFem model(problem, fem_test::quasi_static_cholmod());
+  const StepSummary s = model.step(0.01);
+  EXPECT_FALSE(s.healthy);
+  EXPECT_NE(s.warning.find("fixed vertices or attachments"), std::string::npos);
+  // One point attachment leaves rotations about it free: the factorisation fails, the state is kept.
+  model.add_attachment({.point = {{0}, {1.0}}, .target_World_mm = Eigen::Vector3d::Zero(), .stiffness_mN_per_mm = 1.0});
+  const StepSummary s2 = model.step(0.01);
+  EXPECT_FALSE(s2.healthy);
+  EXPECT_EQ(s2.termination, "factorization_failed");
+  EXPECT_EQ(model.positions_World_mm(), problem.mesh.rest_positions_World_mm);
+}
+
+TEST(FemStability, UnphysicalVelocityIsRejectedAndStateKept) {
+  const SimProblem problem = hanging_block();
+  CorotationalFem model(problem, {.kind = "corotational_fem", .integrator = "implicit_euler", .linear_solver = "cholmod"});
+  Eigen::Matrix3Xd v = Eigen::Matrix3Xd::Zero(3, problem.mesh.num_vertices());
+  v(0, problem.mesh.num_vertices() - 1) = 1e7;  // 10 km/s
+  model.set_state(problem.mesh.rest_positions_World_mm, v);
+  const StepSummary s = model.step(1.0 / 60.0);
+  EXPECT_FALSE(s.healthy);
+  EXPECT_NE(s.warning.find("unstable"), std::string::npos) << s.warning;
+  EXPECT_EQ(model.positions_World_mm(), problem.mesh.rest_positions_World_mm);
+}
+
+TEST(FemInput, BadConfigurationAndInputsAreNamed) {
+  const SimProblem problem = hanging_block();
+  auto message = [&](auto f) {
+    try {
+      f();
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no exception");
+  };
+  EXPECT_NE(message([&] { CorotationalFem(problem, {.kind = "corotational_fem", .integrator = "rk4", .linear_solver = ""}); }).find("'rk4'"), std::string::npos);
+  EXPECT_NE(message([&] { CorotationalFem(problem, {.kind = "corotational_fem", .integrator = "", .linear_solver = "mumps"}); }).find("'mumps'"), std::string::npos);
+  SimProblem bad = problem;
+  bad.fixed_vertices.push_back(100000);
+  EXPECT_NE(message([&] { CorotationalFem(bad, {}); }).find("100000"), std::string::npos);
+  CorotationalFem model(problem, {});
+  EXPECT_NE(message([&] { model.step(0.0); }).find("dt"), std::string::npos);
+  EXPECT_NE(message([&] { model.add_attachment({.point = {{-1}, {1.0}}}); }).find("vertex -1"), std::string::npos);
+  EXPECT_NE(message([&] { model.set_attachment_target(7, Eigen::Vector3d::Zero()); }).find("id 7"), std::string::npos);
+}
+
+TEST(FemModel, OnlyDeclaredMachineryIsBuiltAndAttachmentsPull) {
+  const SimProblem problem = hanging_block();
+  CorotationalFem model(problem, {.kind = "corotational_fem", .integrator = "quasi_static", .linear_solver = "cholmod"});
+  EXPECT_EQ(model.num_beam_elements(), 0);
+  EXPECT_FALSE(model.vessel_embedding().has_value());
+  // An attachment coupling two vertices that share no tet extends the pattern.
+  const int a = box_vertex_index(8, 4, 8, 0, 0), b = box_vertex_index(8, 4, 8, 4, 4);
+  const Eigen::Index nnz = model.system_matrix().nonZeros();
+  const Eigen::Vector3d mid = 0.5 * (problem.mesh.rest_positions_World_mm.col(a) + problem.mesh.rest_positions_World_mm.col(b));
+  const AttachmentId id = model.add_attachment({.point = {{a, b}, {0.5, 0.5}}, .target_World_mm = mid + Eigen::Vector3d(0, 0, 30),
+                                                .stiffness_mN_per_mm = 100.0});
+  ASSERT_GT(fem_test::solve_to_equilibrium(model, 40, 1e-8), 0);
+  EXPECT_GT(model.system_matrix().nonZeros(), nnz);
+  const Eigen::Vector3d p = 0.5 * (model.positions_World_mm().col(a) + model.positions_World_mm().col(b));
+  EXPECT_GT(p.z() - mid.z(), 5.0);  // lifted against gravity toward the target
+  model.remove_attachment(id);
+  EXPECT_NE(model.step(1.0).termination, "");
+}
+
+}  // namespace
+}  // namespace arnav::host
