@@ -27,12 +27,12 @@ std::string HilRun::start(const HilRunOptions& o) {
   if (!fs::exists("/sys/class/tty/ttyS0") || !fs::exists("/dev/ttyS0"))
     return "no /dev/ttyS0 with a sysfs entry on this machine: nothing to bind the pty over";
   dir_ = make_temp_dir("arnav-hil");
-  const std::string roms = std::string(std::getenv("ARNAV_SHARED_DIR")) + "/data/ndi_roms/";
+  const std::string roms = env_or("ARNAV_SHARED_DIR", ARNAV_DEFAULT_SHARED_DIR) + "/data/ndi_roms/";
 
   // Simulator: the scenario's tools (same ROMs as the appliance loads), ground truth.
   std::vector<std::string> sim_argv = {polaris_sim_exe(), "--pty-link", dir_ + "/polaris", "--bind-over", "/dev/ttyS0",
                                        "--break-socket", dir_ + "/break.sock", "--control", dir_ + "/control.sock",
-                                       "--truth", dir_ + "/truth.csv", "--events", dir_ + "/sim_events.jsonl",
+                                       "--truth", dir_ + "/truth.csv", "--events", dir_ + "/sim_events.jsonl", "--trace", dir_ + "/trace.txt",
                                        "--rate", std::to_string(o.rate_hz)};
   for (const auto& [name, rom] : o.tools) {
     sim_argv.push_back("--tool");
