@@ -46,7 +46,7 @@ class Reader {
 
 const std::set<std::string> kKeys = {"port", "baud", "rate_hz", "device_rate_hz", "lcm_url", "reply_mode",
                                      "tx_firmware", "bx_failures_before_tx", "tracking_timeout_ms",
-                                     "setup_timeout_ms", "health_rate_hz", "tools", "sim_command", "sim_args"};
+                                     "setup_timeout_ms", "reset_wait_ms", "health_rate_hz", "tools", "sim_command", "sim_args"};
 
 }  // namespace
 
@@ -59,6 +59,7 @@ ndi::SessionConfig AppConfig::session_config() const {
   c.bx_failures_before_tx = bx_failures_before_tx;
   c.tracking_timeout = std::chrono::milliseconds(tracking_timeout_ms);
   c.setup_timeout = std::chrono::milliseconds(setup_timeout_ms);
+  c.reset_wait = std::chrono::milliseconds(reset_wait_ms);
   return c;
 }
 
@@ -116,6 +117,7 @@ AppConfig parse_config(const std::string& text, const std::string& source, const
   int_in("bx_failures_before_tx", c.bx_failures_before_tx, 1, 1000);
   int_in("tracking_timeout_ms", c.tracking_timeout_ms, 5, 10000);
   int_in("setup_timeout_ms", c.setup_timeout_ms, 50, 60000);
+  int_in("reset_wait_ms", c.reset_wait_ms, 0, 60000);
   if (root["sim_command"]) c.sim_command = r.get<std::string>(root["sim_command"], "sim_command", "a string");
   if (root["sim_args"]) c.sim_args = r.strings(root["sim_args"], "sim_args");
 

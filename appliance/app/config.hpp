@@ -27,6 +27,7 @@ struct AppConfig {
   int bx_failures_before_tx = 5;
   int tracking_timeout_ms = 150;
   int setup_timeout_ms = 5000;
+  int reset_wait_ms = 3000;   // wait for RESET after a break
   double health_rate_hz = 1.0;
   std::vector<ndi::ToolConfig> tools;
   std::string sim_command;    // port: sim -> program to run (default: arnav-polaris-sim)

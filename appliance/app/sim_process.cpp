@@ -67,6 +67,9 @@ SimProcess::SimProcess(const std::string& program, const std::vector<std::string
   if (pid_ < 0) throw SimError("fork failed");
   if (pid_ == 0) {
     ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+    // Own process group: a Ctrl-C meant for the appliance must not kill the device
+    // before the appliance has stopped tracking; the appliance ends it afterwards.
+    ::setpgid(0, 0);
     ::dup2(pipe_fds[1], STDOUT_FILENO);
     std::vector<char*> argv;
     for (auto& s : argv_s) argv.push_back(s.data());

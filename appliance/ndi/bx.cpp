@@ -43,13 +43,20 @@ ParseError check_bx_header(std::span<const std::uint8_t> header, std::uint16_t& 
   return ParseError::None;
 }
 
-ParseError parse_bx(std::span<const std::uint8_t> frame, TrackingReply& out) {
+ParseError parse_bx(std::span<const std::uint8_t> frame, TrackingReply& out, BxCrc crc) {
   out.count = 0;
   std::uint16_t length = 0;
-  if (auto e = check_bx_header(frame, length); e != ParseError::None) return e;
+  if (crc == BxCrc::Check) {
+    if (auto e = check_bx_header(frame, length); e != ParseError::None) return e;
+  } else {
+    if (frame.size() < kBxHeaderBytes) return ParseError::TooShort;
+    if (frame[0] != kBxStart0 || frame[1] != kBxStart1) return ParseError::BadHeader;
+    length = u16(frame.data() + 2);
+    if (length > kBxMaxBody || length < 3) return ParseError::BadHeader;
+  }
   if (frame.size() != kBxHeaderBytes + length + 2u) return ParseError::LengthMismatch;
   const std::uint8_t* body = frame.data() + kBxHeaderBytes;
-  if (crc16(std::span(body, length)) != u16(body + length)) return ParseError::BadCrc;
+  if (crc == BxCrc::Check && crc16(std::span(body, length)) != u16(body + length)) return ParseError::BadCrc;
 
   const std::uint8_t* p = body;
   const std::uint8_t* end = body + length;  // system status is the last 2 body bytes

@@ -27,8 +27,14 @@ inline constexpr std::uint8_t kBxDisabled = 0x04;
 // Checks start bytes and header CRC of the first 6 bytes; sets body_length.
 ParseError check_bx_header(std::span<const std::uint8_t> header, std::uint16_t& body_length);
 
-// Parses one whole frame (header + body + body CRC). Allocation-free.
-ParseError parse_bx(std::span<const std::uint8_t> frame, TrackingReply& out);
+enum class BxCrc : std::uint8_t {
+  Check,           // verify header and body CRC
+  AlreadyChecked,  // the FrameReader verified both (Frame::crc_ok): skip the second pass
+};
+
+// Parses one whole frame (header + body + body CRC). Allocation-free. With
+// AlreadyChecked the start bytes and lengths are still validated, only the CRCs are not.
+ParseError parse_bx(std::span<const std::uint8_t> frame, TrackingReply& out, BxCrc crc = BxCrc::Check);
 
 // Appends the frame for reply to out (simulator, tests, benchmark).
 void encode_bx(const TrackingReply& reply, std::vector<std::uint8_t>& out);

@@ -99,7 +99,15 @@ Session::CmdResult Session::command(std::string_view name, std::string_view para
   CmdResult r;
   Frame frame;
   const std::string bytes = encode_command(name, params);
-  switch (transact(bytes, timeout, false, frame)) {
+  // A reply damaged on the wire is asked for again, except where repeating the command
+  // changes the device state (COMM switches rate, PHRQ allocates a handle).
+  const int attempts = (name == "COMM" || name == "PHRQ") ? 1 : 3;
+  Outcome outcome = Outcome::Timeout;
+  for (int attempt = 0; attempt < attempts; ++attempt) {
+    outcome = transact(bytes, timeout, false, frame);
+    if (outcome != Outcome::Corrupt) break;
+  }
+  switch (outcome) {
     case Outcome::Timeout:
       if (count_timeout) ++counters_.timeouts;
       r.status = CmdResult::Timeout;
@@ -434,7 +442,7 @@ PollResult Session::poll(TrackingReply& out, std::int64_t& receive_mono_us) {
   if (outcome == Outcome::Reply) {
     receive_mono_us = last_read_mono_us_;
     if (frame.kind == Frame::Kind::Binary) {
-      parse = parse_bx(frame.bytes, out);
+      parse = parse_bx(frame.bytes, out, BxCrc::AlreadyChecked);  // the reader checked both CRCs
     } else {
       AsciiReply a;
       parse = parse_ascii_reply(frame.text(), a);

@@ -1,0 +1,28 @@
+#pragma once
+// Text mesh formats (parsers only; validation is separate, see mesh_validation.hpp):
+//   surfaces: Wavefront OBJ (v / f, polygons fanned, negative indices), OFF;
+//   volumes:  TetGen .node/.ele, Gmsh .msh version 1 ($NOD/$ELM) and version 2 ASCII.
+// Coordinates are taken as mm. Each parser throws LoadError naming source and line.
+#include <string>
+#include <string_view>
+
+#include "host/scene/mesh_validation.hpp"
+#include "host/scene/tet_mesh.hpp"
+
+namespace arnav::host {
+
+TriMesh parse_obj(std::string_view content, const std::string& source, ElementLines* lines = nullptr);
+TriMesh parse_off(std::string_view content, const std::string& source, ElementLines* lines = nullptr);
+
+// TetGen: the node and element files are separate. Indices may start at 0 or 1 (the first
+// node's number decides, as in TetGen). A region attribute per element (tetgen -A) becomes
+// tet_region, named "region_<attribute>".
+TetMesh parse_tetgen(std::string_view node_content, const std::string& node_source, std::string_view ele_content,
+                     const std::string& ele_source, ElementLines* lines = nullptr);
+
+// Gmsh ASCII versions 1 and 2. Linear tetrahedra (type 4) are kept; points, lines and
+// triangles are skipped; other volume elements are errors. Distinct physical tags become
+// regions (names from $PhysicalNames when present).
+TetMesh parse_gmsh(std::string_view content, const std::string& source, ElementLines* lines = nullptr);
+
+}  // namespace arnav::host

@@ -1,0 +1,270 @@
+// Scene files: the bundled liver scenes build as documented; every schema error names the
+// file and line; only what a scene declares is built.
+#include <gtest/gtest.h>
+
+#include <functional>
+
+#include "host/scene/box_mesh.hpp"
+#include "host/scene/load_error.hpp"
+#include "host/scene/mesh_io.hpp"
+#include "host/scene/scene.hpp"
+#include "host/scene/scene_spec.hpp"
+#include "host/scene/surface_shapes.hpp"
+#include "host/scene/test/test_paths.hpp"
+
+namespace arnav::host {
+namespace {
+
+using test::scratch;
+using test::write_file;
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const LoadError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+// A 40 x 20 x 20 mm box block: volume as legacy VTK, surface as OBJ.
+std::string make_box_files(const std::string& dir) {
+  const TetMesh box = make_box_tet_mesh(8, 4, 4, Eigen::Vector3d(40, 20, 20));
+  write_vtk_volume(dir + "/block.vtk", box, box.rest_positions_World_mm);
+  write_obj(dir + "/block.obj", box.rest_positions_World_mm, box.surface_tris);
+  return dir;
+}
+
+const std::string kBase =
+    "organ:\n"
+    "  surface: block.obj\n"
+    "volume:\n"
+    "  file: block.vtk\n"
+    "materials:\n"
+    "  default: {youngs_modulus_kPa: 5, poisson_ratio: 0.45, density_kg_per_mm3: 1.06e-6}\n"
+    "model:\n"
+    "  kind: xpbd\n";
+
+TEST(SceneFile, MinimalSceneBuildsOnlyWhatItDeclares) {
+  const std::string dir = make_box_files(scratch("minimal"));
+  const Scene s = load_scene(write_file(dir, "min.scene.yaml", kBase));
+  EXPECT_EQ(s.problem.mesh.num_tets(), 6 * 8 * 4 * 4);
+  EXPECT_FALSE(s.problem.vessels.has_value());
+  EXPECT_FALSE(s.vessels.has_value());
+  EXPECT_TRUE(s.tumours.empty());
+  EXPECT_TRUE(s.problem.fixed_vertices.empty());
+  EXPECT_EQ(s.problem.region_materials.size(), 1u);
+  EXPECT_DOUBLE_EQ(s.time_step_s, 1.0 / 60.0);
+  EXPECT_EQ(s.model.kind, "xpbd");
+  EXPECT_EQ(s.problem.gravity_World_mm_s2, Eigen::Vector3d(0, 0, -9810));
+  // The display surface is the volume's boundary: embedded exactly.
+  EXPECT_EQ(s.organ_embedding.max_outside_mm, 0.0);
+}
+
+TEST(SceneFile, RegionsMaterialsFixedSetsTumourAndVessels) {
+  const std::string dir = make_box_files(scratch("full"));
+  const std::string text =
+      "organ: {surface: block.obj}\n"
+      "volume: {file: block.vtk}\n"
+      "structures:\n"
+      "  tumours:\n"
+      "    - name: lesion\n"
+      "      ellipsoid: {center_mm: [30, 10, 10], radii_mm: [5, 5, 5], subdivisions: 2}\n"
+      "  vessels:\n"
+      "    nodes_mm: [[2, 10, 10], [20, 10, 10], [35, 15, 12]]\n"
+      "    radius_mm: [2, 1.5, 1]\n"
+      "    segments: [[0, 1], [1, 2]]\n"
+      "    mechanics: beams\n"
+      "regions:\n"
+      "  - name: left\n"
+      "    box_mm: {min: [0, 0, 0], max: [10, 20, 20]}\n"
+      "  - name: lesion\n"
+      "    inside: lesion\n"
+      "materials:\n"
+      "  default: {youngs_modulus_kPa: 5, poisson_ratio: 0.45, density_kg_per_mm3: 1.06e-6}\n"
+      "  left: {youngs_modulus_kPa: 8, poisson_ratio: 0.4, density_kg_per_mm3: 1.0e-6, damping_mass_per_s: 1}\n"
+      "  lesion: {youngs_modulus_kPa: 40, poisson_ratio: 0.45, density_kg_per_mm3: 1.1e-6}\n"
+      "  vessels: {youngs_modulus_kPa: 500, poisson_ratio: 0.45, density_kg_per_mm3: 1.06e-6}\n"
+      "boundary:\n"
+      "  fixed:\n"
+      "    - box_mm: {min: [-1, -1, -1], max: [0.1, 21, 21]}\n"
+      "    - vertices: [44]\n"
+      "gravity_mm_s2: [0, -9810, 0]\n"
+      "time_step_s: 0.01\n"
+      "frames: 5\n"
+      "model: {kind: corotational_fem, integrator: implicit_euler, linear_solver: cholmod, tolerance: 1e-8}\n";
+  const Scene s = load_scene(write_file(dir, "full.scene.yaml", text));
+  const TetMesh& m = s.problem.mesh;
+  EXPECT_EQ(m.region_names, (std::vector<std::string>{"default", "left", "lesion"}));
+  ASSERT_EQ(s.problem.region_materials.size(), 3u);
+  EXPECT_EQ(s.problem.region_materials[1].youngs_modulus_kPa, 8);
+  EXPECT_EQ(s.problem.region_materials[1].damping_mass_per_s, 1);
+  EXPECT_EQ(s.problem.region_materials[2].youngs_modulus_kPa, 40);
+  // Region rules by box and by tumour surface, checked per tet centroid.
+  const TriMesh lesion = make_ellipsoid_surface(Eigen::Vector3d(30, 10, 10), Eigen::Vector3d(5, 5, 5), 2);
+  int left = 0, inside = 0;
+  for (int t = 0; t < m.num_tets(); ++t) {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (int v : m.tets[t]) c += m.rest_positions_World_mm.col(v) / 4;
+    const int expect = winding_number(lesion, c) > 0.5 ? 2 : (c.x() <= 10 ? 1 : 0);
+    EXPECT_EQ(m.tet_region[t], expect) << "tet " << t;
+    left += m.tet_region[t] == 1;
+    inside += m.tet_region[t] == 2;
+  }
+  EXPECT_GT(left, 0);
+  EXPECT_GT(inside, 0);
+  // Fixed: the x = 0 face (5 x 5 vertices) plus vertex 44.
+  EXPECT_EQ(s.problem.fixed_vertices.size(), 26u);
+  EXPECT_TRUE(std::find(s.problem.fixed_vertices.begin(), s.problem.fixed_vertices.end(), 44) != s.problem.fixed_vertices.end());
+  ASSERT_TRUE(s.problem.vessels.has_value());
+  EXPECT_EQ(s.problem.vessels->segments.size(), 2u);
+  EXPECT_EQ(s.problem.vessel_material.youngs_modulus_kPa, 500);
+  ASSERT_TRUE(s.vessels.has_value());
+  EXPECT_EQ(s.vessels->embedding.size(), 3);
+  ASSERT_EQ(s.tumours.size(), 1u);
+  EXPECT_LT((s.tumours[0].rest_centroid_World_mm - Eigen::Vector3d(30, 10, 10)).norm(), 1e-9);
+  // The embedded tumour follows a translation of the volume exactly.
+  const Eigen::Matrix3Xd moved = m.rest_positions_World_mm.colwise() + Eigen::Vector3d(1, 2, 3);
+  EXPECT_LT((tumour_centroid_World_mm(s, 0, moved) - Eigen::Vector3d(31, 12, 13)).norm(), 1e-9);
+  EXPECT_EQ(s.problem.gravity_World_mm_s2, Eigen::Vector3d(0, -9810, 0));
+  EXPECT_DOUBLE_EQ(s.time_step_s, 0.01);
+  EXPECT_EQ(s.frames, 5);
+  EXPECT_EQ(s.model.kind, "corotational_fem");
+  EXPECT_EQ(s.model.linear_solver, "cholmod");
+  EXPECT_DOUBLE_EQ(s.model.tolerance, 1e-8);
+}
+
+TEST(SceneFile, VesselsForDisplayOnlyAreNotGivenToTheModel) {
+  const std::string dir = make_box_files(scratch("display"));
+  const std::string text = kBase + "structures:\n  vessels:\n    nodes_mm: [[2, 10, 10], [20, 10, 10]]\n    radius_mm: [2, 1]\n"
+                                   "    segments: [[0, 1]]\n    mechanics: display\n";
+  const Scene s = load_scene(write_file(dir, "display.scene.yaml", text));
+  EXPECT_TRUE(s.vessels.has_value());
+  EXPECT_FALSE(s.problem.vessels.has_value());
+}
+
+struct BadScene {
+  std::string text;
+  int line;
+  std::string expect;
+};
+
+TEST(SceneFile, SchemaErrorsNameFileAndLine) {
+  const std::string dir = make_box_files(scratch("errors"));
+  const std::vector<BadScene> cases = {
+      {kBase + "colour: red\n", 9, "unknown key 'colour'"},
+      {kBase + "time_step_s: -1\n", 9, "time_step_s must be in"},
+      {kBase + "gravity_mm_s2: [0, 0]\n", 9, "list of 3 numbers"},
+      {kBase + "frames: many\n", 9, "must be an integer"},
+      {"organ:\n  surface: block.obj\n  colour: red\n", 3, "unknown key 'colour' in organ"},
+      {"organ: {surface: block.obj}\nvolume: {file: block.vtk}\nmaterials:\n  default: {youngs_modulus_kPa: -5, poisson_ratio: 0.45, "
+       "density_kg_per_mm3: 1e-6}\nmodel: {kind: xpbd}\n",
+       4, "Young's modulus must be positive"},
+      {"organ: {surface: block.obj}\nvolume: {file: block.vtk}\nmaterials:\n  default: {youngs_modulus_kPa: 5, poisson_ratio: 0.45, "
+       "density_kg_per_mm3: 1060}\nmodel: {kind: xpbd}\n",
+       4, "kg/mm^3"},
+      {"organ: {surface: block.obj}\nvolume: {file: block.vtk}\nmaterials:\n  default: {youngs_modulus_kPa: 5, poisson_ratio: 0.45, "
+       "density_kg_per_mm3: 1e-6}\n  liver: {youngs_modulus_kPa: 5, poisson_ratio: 0.45, density_kg_per_mm3: 1e-6}\nmodel: {kind: xpbd}\n",
+       5, "unknown region 'liver'"},
+      {kBase + "  iterations: 0\n", 9, "model.iterations"},
+      {"organ: {surface: block.obj}\nvolume: {file: block.vtk}\nmaterials:\n  default: {youngs_modulus_kPa: 5, poisson_ratio: 0.45, "
+       "density_kg_per_mm3: 1e-6}\nmodel: {kind: fem}\n",
+       5, "unknown model kind 'fem'"},
+      {kBase + "boundary:\n  fixed:\n    - region: nowhere\n", 11, "unknown region 'nowhere'"},
+      {kBase + "boundary:\n  fixed:\n    - vertices: [1]\n      box_mm: {min: [0,0,0], max: [1,1,1]}\n", 11, "exactly one of"},
+      {kBase + "regions:\n  - name: r\n    box_mm: {min: [5, 0, 0], max: [1, 1, 1]}\n", 11, "min > max"},
+      {kBase + "structures:\n  tumours:\n    - name: t\n", 11, "needs 'surface' or 'ellipsoid'"},
+      {kBase + "structures:\n  vessels:\n    nodes_mm: [[0,0,0],[1,1,1]]\n    radius_mm: [1, 1]\n    segments: [[0, 5]]\n", 13,
+       "out of range"},
+      {kBase + "organ2: [\n", 10, "YAML syntax error"},
+      {"organ: {surface: block.obj}\nmaterials: {}\n", 1, "needs 'volume'"},
+  };
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    const std::string path = write_file(dir, "bad" + std::to_string(i) + ".scene.yaml", cases[i].text);
+    const std::string e = error_of([&] { check_scene_text(cases[i].text, path); });
+    SCOPED_TRACE("case " + std::to_string(i) + ": " + e);
+    EXPECT_NE(e.find(path + ":" + std::to_string(cases[i].line) + ":"), std::string::npos);
+    EXPECT_NE(e.find(cases[i].expect), std::string::npos);
+    EXPECT_NE(e.find("Fix:"), std::string::npos);
+    EXPECT_EQ(error_of([&] { load_scene(path); }), e);  // load_scene reports the same
+  }
+}
+
+TEST(SceneFile, BuildErrorsNameTheCause) {
+  const std::string dir = make_box_files(scratch("build_errors"));
+  auto err = [&](const std::string& name, const std::string& text) { return error_of([&] { load_scene(write_file(dir, name, text)); }); };
+  std::string e = err("far.scene.yaml", kBase + "structures:\n  tumours:\n    - name: t\n      ellipsoid: {center_mm: [100, 0, 0], radii_mm: [3, 3, 3]}\n");
+  EXPECT_NE(e.find("tumour 't'"), std::string::npos) << e;
+  EXPECT_NE(e.find("outside the volume mesh"), std::string::npos) << e;
+  e = err("range.scene.yaml", kBase + "boundary:\n  fixed:\n    - vertices: [100000]\n");
+  EXPECT_NE(e.find("range.scene.yaml:11:"), std::string::npos) << e;
+  EXPECT_NE(e.find("out of range"), std::string::npos) << e;
+  e = err("empty.scene.yaml", kBase + "boundary:\n  fixed:\n    - box_mm: {min: [100, 100, 100], max: [101, 101, 101]}\n");
+  EXPECT_NE(e.find("selects no vertex"), std::string::npos) << e;
+  e = err("nomat.scene.yaml", kBase + "regions:\n  - name: r\n    box_mm: {min: [0, 0, 0], max: [10, 20, 20]}\n");
+  EXPECT_NE(e.find("region 'r' has no material"), std::string::npos) << e;
+  e = err("missing.scene.yaml", "organ: {surface: nothere.obj}\nvolume: {file: block.vtk}\nmaterials:\n  default: {youngs_modulus_kPa: 5, "
+                                "poisson_ratio: 0.45, density_kg_per_mm3: 1e-6}\nmodel: {kind: xpbd}\n");
+  EXPECT_NE(e.find("nothere.obj: cannot open"), std::string::npos) << e;
+  e = err("broken.scene.yaml", "organ: {surface: " + test::shared_meshes() + "liver_for_test_broken.vtk}\nvolume: {file: block.vtk}\n"
+                               "materials:\n  default: {youngs_modulus_kPa: 5, poisson_ratio: 0.45, density_kg_per_mm3: 1e-6}\nmodel: {kind: xpbd}\n");
+  EXPECT_NE(e.find("liver_for_test_broken.vtk: byte offset"), std::string::npos) << e;
+  // Two closed components: refused unless the scene asks to keep the largest.
+  TriMesh two = make_ellipsoid_surface(Eigen::Vector3d(20, 10, 10), Eigen::Vector3d(8, 5, 5), 1);
+  const TriMesh bubble = make_ellipsoid_surface(Eigen::Vector3d(20, 10, 10), Eigen::Vector3d(1, 1, 1), 0);
+  const int offset = static_cast<int>(two.positions_World_mm.cols());
+  two.positions_World_mm.conservativeResize(3, offset + bubble.positions_World_mm.cols());
+  two.positions_World_mm.rightCols(bubble.positions_World_mm.cols()) = bubble.positions_World_mm;
+  for (auto t : bubble.tris) two.tris.push_back({t[0] + offset, t[2] + offset, t[1] + offset});
+  write_obj(dir + "/two.obj", two.positions_World_mm, two.tris);
+  const std::string two_scene = "organ:\n  surface: two.obj\nvolume: {file: block.vtk}\nmaterials:\n  default: {youngs_modulus_kPa: 5, "
+                                "poisson_ratio: 0.45, density_kg_per_mm3: 1e-6}\nmodel: {kind: xpbd}\n";
+  e = err("two.scene.yaml", two_scene);
+  EXPECT_NE(e.find("two.scene.yaml:2:"), std::string::npos) << e;
+  EXPECT_NE(e.find("2 separate closed components"), std::string::npos) << e;
+  EXPECT_NE(e.find("keep_largest_component"), std::string::npos) << e;
+  const Scene kept = load_scene(write_file(dir, "two_kept.scene.yaml",
+                                           std::string(two_scene).replace(two_scene.find("volume"), 0, "  keep_largest_component: true\n")));
+  EXPECT_EQ(kept.organ_surface.positions_World_mm.cols(), offset);
+  e = err("beams.scene.yaml", kBase + "structures:\n  vessels:\n    nodes_mm: [[2, 10, 10], [20, 10, 10]]\n    radius_mm: [2, 1]\n"
+                                      "    segments: [[0, 1]]\n    mechanics: beams\n");
+  EXPECT_NE(e.find("materials.vessels"), std::string::npos) << e;
+}
+
+TEST(BundledScenes, LiverAtPaperSizeWithTumourAndVessels) {
+  const Scene s = load_scene(test::source_dir() + "/data/liver/liver.scene.yaml");
+  const TetMesh& m = s.problem.mesh;
+  EXPECT_NEAR(m.num_vertices(), 6821, 200);  // paper 000: 6,510 vertices / 24,398 tets
+  EXPECT_NEAR(m.num_tets(), 26054, 800);
+  ASSERT_EQ(s.tumours.size(), 1u);
+  ASSERT_TRUE(s.vessels.has_value());
+  EXPECT_EQ(s.vessels->rest.segments.size(), 8u);
+  EXPECT_FALSE(s.problem.vessels.has_value());  // display only in this scene
+  EXPECT_GT(s.problem.fixed_vertices.size(), 50u);
+  EXPECT_EQ(m.region_names, (std::vector<std::string>{"default", "tumour"}));
+  int tumour_tets = 0;
+  for (int r : m.tet_region) tumour_tets += r == 1;
+  EXPECT_GT(tumour_tets, 20);
+  EXPECT_EQ(s.organ_embedding.size(), 4996);  // 5,008 less 3 bubbles of 4 vertices
+  EXPECT_EQ(s.organ_embedding.max_outside_mm, 0.0);  // the volume keeps the surface
+  // Internal structures sit well inside the organ: at least 5 mm from its surface.
+  const TriMesh& organ = s.organ_surface;
+  auto depth = [&](const Eigen::Vector3d& p) { return (organ.positions_World_mm.colwise() - p).colwise().norm().minCoeff(); };
+  for (int i = 0; i < s.vessels->rest.nodes_World_mm.cols(); ++i) {
+    EXPECT_GT(winding_number(organ, s.vessels->rest.nodes_World_mm.col(i)), 0.5);
+    EXPECT_GT(depth(s.vessels->rest.nodes_World_mm.col(i)), 5.0 + s.vessels->rest.radius_mm[i]) << "vessel node " << i;
+  }
+  for (int i = 0; i < s.tumours[0].rest.positions_World_mm.cols(); ++i) EXPECT_GT(depth(s.tumours[0].rest.positions_World_mm.col(i)), 5.0);
+}
+
+TEST(BundledScenes, CoarseVariant) {
+  const Scene s = load_scene(test::source_dir() + "/data/liver/liver_coarse.scene.yaml");
+  EXPECT_LT(s.problem.mesh.num_tets(), 8000);
+  EXPECT_GT(s.problem.mesh.num_tets(), 2000);
+  EXPECT_EQ(s.organ_embedding.size(), 4996);  // full display surface carried by the coarse volume
+  EXPECT_LE(s.organ_embedding.max_outside_mm, 3.0);
+  EXPECT_GT(s.problem.fixed_vertices.size(), 10u);
+}
+
+}  // namespace
+}  // namespace arnav::host

@@ -1,0 +1,335 @@
+#include "host/sim/xpbd/xpbd_model.hpp"
+
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "host/sim/element_measure.hpp"
+#include "host/sim/rotation_extraction.hpp"
+#include "host/sim/step_health.hpp"
+#include "host/sim/tet_geometry.hpp"
+
+namespace arnav::host {
+
+namespace {
+
+// cof(F) = d det(F) / dF: column k is the cross product of the other two columns.
+inline Eigen::Matrix3d cofactor(const Eigen::Matrix3d& F) {
+  Eigen::Matrix3d c;
+  c.col(0) = F.col(1).cross(F.col(2));
+  c.col(1) = F.col(2).cross(F.col(0));
+  c.col(2) = F.col(0).cross(F.col(1));
+  return c;
+}
+
+// Tets inverted for longer than this (simulated time) are beyond recovery.
+constexpr double kInversionGrace_s = 1.0;
+// RMS constraint residual (strain units) above which the step is reported as not converged.
+constexpr double kUnconvergedResidual = 0.01;
+
+}  // namespace
+
+XpbdModel::XpbdModel(const SimProblem& problem, const ModelConfig& config) : config_(config) {
+  if (config.substeps < 1) throw std::invalid_argument("xpbd: substeps must be >= 1");
+  if (config.iterations < 1) throw std::invalid_argument("xpbd: iterations must be >= 1");
+  if (config.threads < 1) throw std::invalid_argument("xpbd: threads must be >= 1");
+  if (!(config.tolerance >= 0.0)) throw std::invalid_argument("xpbd: tolerance must be >= 0");
+  const TetMesh& mesh = problem.mesh;
+  const int n = mesh.num_vertices();
+  if (n == 0 || mesh.num_tets() == 0) throw std::invalid_argument("xpbd: the mesh has no tetrahedra");
+  mass_ = lumped_masses_kg(mesh, problem.region_materials);
+  for (int i = 0; i < n; ++i) {
+    if (!(mass_[i] > 0.0)) throw std::invalid_argument("xpbd: vertex " + std::to_string(i) + " belongs to no tet (zero mass)");
+  }
+  gravity_ = problem.gravity_World_mm_s2;
+  x_ = mesh.rest_positions_World_mm;
+  v_ = Eigen::Matrix3Xd::Zero(3, n);
+  x_prev_ = x_;
+
+  coloring_ = greedy_vertex_coloring(mesh.tets, n);
+  tets_.resize(mesh.tets.size());
+  original_index_ = coloring_.order;
+  mass_damping_per_s_ = Eigen::VectorXd::Zero(n);
+  for (std::size_t k = 0; k < coloring_.order.size(); ++k) {
+    const int t = coloring_.order[k];
+    const int region = mesh.tet_region.empty() ? 0 : mesh.tet_region[t];
+    const Material& mat = problem.region_materials[region];
+    const Lame lame = lame_from(mat);
+    TetData& d = tets_[k];
+    d.v = mesh.tets[t];
+    d.Dm_inv = edge_matrix(x_, d.v).inverse();
+    d.volume_mm3 = signed_volume_mm3(x_, d.v);
+    d.mu_kPa = lame.mu_kPa;
+    d.lambda_kPa = lame.lambda_kPa;
+    d.beta_s = mat.damping_stiffness_s;
+    for (int v : d.v) mass_damping_per_s_[v] += 0.25 * d.volume_mm3 * mat.density_kg_per_mm3 * mat.damping_mass_per_s;
+  }
+  mass_damping_per_s_ = mass_damping_per_s_.cwiseQuotient(mass_);
+  lambda_dev_.assign(tets_.size(), Eigen::Matrix3d::Zero());
+  lambda_vol_.assign(tets_.size(), 0.0);
+  rotation_.assign(tets_.size(), Eigen::Quaterniond::Identity());
+  set_fixed_vertices(problem.fixed_vertices);
+}
+
+void XpbdModel::update_tet_mass_blocks() {
+  for (TetData& d : tets_) {
+    const Eigen::Vector3d b0 = -d.Dm_inv.colwise().sum().transpose();
+    d.B = inv_mass_[d.v[0]] * b0 * b0.transpose();
+    for (int a = 1; a < 4; ++a) {
+      const Eigen::Vector3d b = d.Dm_inv.row(a - 1).transpose();
+      d.B += inv_mass_[d.v[a]] * b * b.transpose();
+    }
+  }
+}
+
+void XpbdModel::reset_rotations() {
+  for (std::size_t k = 0; k < tets_.size(); ++k) {
+    const Eigen::Matrix3d F = edge_matrix(x_, tets_[k].v) * tets_[k].Dm_inv;
+    rotation_[k] = F.allFinite() ? Eigen::Quaterniond(polar_rotation(F)) : Eigen::Quaterniond::Identity();
+  }
+}
+
+void XpbdModel::set_fixed_vertices(const std::vector<int>& vertices) {
+  check_vertex_indices(vertices, static_cast<int>(x_.cols()), "set_fixed_vertices");
+  fixed_.assign(static_cast<std::size_t>(x_.cols()), 0);
+  inv_mass_ = mass_.cwiseInverse();
+  for (int v : vertices) {
+    fixed_[static_cast<std::size_t>(v)] = 1;
+    inv_mass_[v] = 0.0;
+    v_.col(v).setZero();
+  }
+  update_tet_mass_blocks();
+}
+
+AttachmentId XpbdModel::add_attachment(const AttachmentSpec& spec) { return attachments_.add(spec, static_cast<int>(x_.cols())); }
+void XpbdModel::set_attachment_target(AttachmentId id, const Eigen::Vector3d& target_World_mm) {
+  attachments_.set_target(id, target_World_mm);
+}
+void XpbdModel::set_attachment_stiffness(AttachmentId id, double stiffness_mN_per_mm) {
+  attachments_.set_stiffness(id, stiffness_mN_per_mm);
+}
+void XpbdModel::remove_attachment(AttachmentId id) { attachments_.remove(id); }
+
+void XpbdModel::set_state(const Eigen::Matrix3Xd& positions_World_mm, const Eigen::Matrix3Xd& velocities_World_mm_s) {
+  check_state_shape(positions_World_mm, velocities_World_mm_s, static_cast<int>(x_.cols()));
+  x_ = positions_World_mm;
+  v_ = velocities_World_mm_s;
+  for (std::size_t i = 0; i < fixed_.size(); ++i)
+    if (fixed_[i]) v_.col(static_cast<Eigen::Index>(i)).setZero();
+  inverted_time_s_ = 0.0;
+  reset_rotations();
+}
+
+double XpbdModel::solve_tets(double h) {
+  double residual_sq = 0.0;
+  double* X = x_.data();
+  const double* XP = x_prev_.data();
+  const double* W = inv_mass_.data();
+  const int threads = config_.threads;
+  const int colors = coloring_.num_colors();
+  const double inv_h2 = 1.0 / (h * h);
+#pragma omp parallel num_threads(threads) if (threads > 1) reduction(+ : residual_sq)
+  for (int c = 0; c < colors; ++c) {
+#pragma omp for schedule(static)
+    for (int k = coloring_.color_offsets[c]; k < coloring_.color_offsets[c + 1]; ++k) {
+      const std::size_t ks = static_cast<std::size_t>(k);
+      const TetData& d = tets_[ks];
+      Eigen::Vector3d p[4], dx[4];
+      double w[4];
+      Eigen::Vector3d b[4];
+      for (int a = 0; a < 4; ++a) {
+        const int i = d.v[a];
+        p[a] = Eigen::Vector3d(X[3 * i], X[3 * i + 1], X[3 * i + 2]);
+        dx[a] = p[a] - Eigen::Vector3d(XP[3 * i], XP[3 * i + 1], XP[3 * i + 2]);
+        w[a] = W[i];
+      }
+      b[1] = d.Dm_inv.row(0).transpose();
+      b[2] = d.Dm_inv.row(1).transpose();
+      b[3] = d.Dm_inv.row(2).transpose();
+      b[0] = -(b[1] + b[2] + b[3]);
+      Eigen::Matrix3d Ds;
+      Ds << p[1] - p[0], p[2] - p[0], p[3] - p[0];
+      Eigen::Matrix3d F = Ds * d.Dm_inv;
+      const double damp = d.beta_s / h;  // XPBD damping gamma for Rayleigh beta
+      // Rate of F over this substep, for the damping term grad C . (x - x_prev).
+      const Eigen::Matrix3d dF = dx[0] * b[0].transpose() + dx[1] * b[1].transpose() + dx[2] * b[2].transpose() +
+                                 dx[3] * b[3].transpose();
+
+      // Deviatoric block: C = F - R, dC_ij/dx_a = b_a[j] e_i, so the system is
+      // dLambda ((1 + damp) B + alpha I) = -(C + alpha Lambda) - damp dF (row by row).
+      const Eigen::Matrix3d R = extract_rotation(F, rotation_[ks], 5);
+      const double alpha_dev = inv_h2 / (2.0 * d.mu_kPa * d.volume_mm3);
+      Eigen::Matrix3d& lam = lambda_dev_[ks];
+      const Eigen::Matrix3d r_dev = -(F - R) - alpha_dev * lam;
+      residual_sq += r_dev.squaredNorm();
+      const Eigen::Matrix3d A = (1.0 + damp) * d.B + alpha_dev * Eigen::Matrix3d::Identity();
+      const Eigen::Matrix3d dlam = (r_dev - damp * dF) * A.inverse();  // A symmetric
+      lam += dlam;
+      for (int a = 0; a < 4; ++a) p[a] += w[a] * (dlam * b[a]);
+      F += dlam * d.B;  // F after the deviatoric update (dF = sum_a w_a dlam b_a b_a^T)
+
+      // Hydrostatic block: C_H = det F - 1, dC_H/dx_a = cof(F) b_a (absent for nu = 0).
+      const double J = F.determinant();
+      if (d.lambda_kPa <= 0.0) {
+        for (int a = 0; a < 4; ++a) {
+          if (w[a] == 0.0) continue;
+          const int i = d.v[a];
+          X[3 * i] = p[a].x();
+          X[3 * i + 1] = p[a].y();
+          X[3 * i + 2] = p[a].z();
+        }
+        continue;
+      }
+      const Eigen::Matrix3d cof = cofactor(F);
+      const double alpha_vol = inv_h2 / (d.lambda_kPa * d.volume_mm3);
+      double a_vol = 0.0, rate = 0.0;
+      Eigen::Vector3d g[4];
+      for (int a = 0; a < 4; ++a) {
+        g[a] = cof * b[a];
+        a_vol += w[a] * g[a].squaredNorm();
+        rate += g[a].dot(dx[a]);
+      }
+      const double r_vol = -(J - 1.0) - alpha_vol * lambda_vol_[ks];
+      residual_sq += r_vol * r_vol;
+      const double denom = (1.0 + damp) * a_vol + alpha_vol;
+      if (denom > 0.0 && std::isfinite(denom)) {
+        const double dl = (r_vol - damp * rate) / denom;
+        lambda_vol_[ks] += dl;
+        for (int a = 0; a < 4; ++a) p[a] += w[a] * dl * g[a];
+      }
+      for (int a = 0; a < 4; ++a) {
+        if (w[a] == 0.0) continue;
+        const int i = d.v[a];
+        X[3 * i] = p[a].x();
+        X[3 * i + 1] = p[a].y();
+        X[3 * i + 2] = p[a].z();
+      }
+    }
+  }
+  return residual_sq;
+}
+
+void XpbdModel::solve_attachments(double h) {
+  for (int id : attachments_.active()) {
+    Attachment& a = attachments_[id];
+    const double alpha = 1.0 / (a.stiffness_mN_per_mm * h * h);
+    double denom = alpha;
+    for (int k = 0; k < a.count; ++k) denom += a.weights[k] * a.weights[k] * inv_mass_[a.vertices[k]];
+    const Eigen::Vector3d C = a.point(x_) - a.target_World_mm;
+    const Eigen::Vector3d dl = -(C + alpha * a.lambda) / denom;
+    a.lambda += dl;
+    for (int k = 0; k < a.count; ++k) x_.col(a.vertices[k]) += inv_mass_[a.vertices[k]] * a.weights[k] * dl;
+  }
+}
+
+StepSummary XpbdModel::step(double dt_s) {
+  check_dt(dt_s);
+  const auto start = std::chrono::steady_clock::now();
+  StepSummary summary;
+  summary.termination = "max_iterations";
+  const double h = dt_s / config_.substeps;
+  const int n = static_cast<int>(x_.cols());
+  const int threads = config_.threads;
+  const double constraints = 10.0 * static_cast<double>(tets_.size());
+  const int inverted_at_start = count_inverted();
+  bool converged = false;
+  for (int s = 0; s < config_.substeps; ++s) {
+#pragma omp parallel for num_threads(threads) if (threads > 1) schedule(static)
+    for (int i = 0; i < n; ++i) {
+      x_prev_.col(i) = x_.col(i);
+      if (fixed_[static_cast<std::size_t>(i)]) continue;
+      // Damp the carried velocity only: damping gravity's increment too would weaken
+      // gravity at steady state by 1/(1 + h alpha).
+      v_.col(i) = v_.col(i) / (1.0 + h * mass_damping_per_s_[i]) + h * gravity_;
+      x_.col(i) += h * v_.col(i);
+    }
+    for (auto& l : lambda_dev_) l.setZero();
+    std::fill(lambda_vol_.begin(), lambda_vol_.end(), 0.0);
+    for (int id : attachments_.active()) attachments_[id].lambda.setZero();
+    for (int it = 0; it < config_.iterations; ++it) {
+      const double rms = std::sqrt(solve_tets(h) / constraints);
+      solve_attachments(h);
+      ++summary.iterations;
+      if (s == 0 && it == 0) summary.initial_residual = rms;
+      summary.final_residual = rms;
+      if (config_.tolerance > 0.0 && rms < config_.tolerance) {
+        converged = true;
+        break;
+      }
+    }
+#pragma omp parallel for num_threads(threads) if (threads > 1) schedule(static)
+    for (int i = 0; i < n; ++i) v_.col(i) = (x_.col(i) - x_prev_.col(i)) / h;
+  }
+  if (converged) summary.termination = "converged";
+  check_state(x_, v_, summary);
+  const int inverted = count_inverted();
+  if (inverted > 0) {
+    inverted_time_s_ += dt_s;
+    const bool stuck = inverted_time_s_ > kInversionGrace_s;
+    report(summary,
+           "inverted tets: " + std::to_string(inverted) +
+               (stuck ? " for more than " + std::to_string(kInversionGrace_s) + " s (beyond recovery)" : " (recovering)"),
+           stuck);
+  } else {
+    inverted_time_s_ = 0.0;
+    if (inverted_at_start > 0) report(summary, "inverted tets: " + std::to_string(inverted_at_start) + " at step start, recovered", false);
+  }
+  if (summary.final_residual > kUnconvergedResidual) {
+    report(summary,
+           "not converged: RMS constraint residual " + std::to_string(summary.final_residual) +
+               " (raise iterations or substeps; the tissue behaves softer than its material)",
+           false);
+  }
+  summary.kinetic_energy = kinetic_energy(mass_, v_);
+  summary.elastic_energy = elastic_energy();
+  summary.wall_time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return summary;
+}
+
+int XpbdModel::count_inverted() const {
+  const int nt = static_cast<int>(tets_.size());
+  const int threads = config_.threads;
+  int count = 0;
+#pragma omp parallel for num_threads(threads) if (threads > 1) reduction(+ : count) schedule(static)
+  for (int k = 0; k < nt; ++k) {
+    if (!(edge_matrix(x_, tets_[static_cast<std::size_t>(k)].v).determinant() > 0.0)) ++count;
+  }
+  return count;
+}
+
+double XpbdModel::elastic_energy() const {
+  double e = 0.0;
+  const int nt = static_cast<int>(tets_.size());
+  const int threads = config_.threads;
+#pragma omp parallel for num_threads(threads) if (threads > 1) reduction(+ : e) schedule(static)
+  for (int k = 0; k < nt; ++k) {
+    const TetData& d = tets_[static_cast<std::size_t>(k)];
+    const Eigen::Matrix3d F = edge_matrix(x_, d.v) * d.Dm_inv;
+    Eigen::Quaterniond q = rotation_[static_cast<std::size_t>(k)];
+    const Eigen::Matrix3d R = extract_rotation(F, q, 20);
+    const double J = F.determinant();
+    e += d.volume_mm3 * (d.mu_kPa * (F - R).squaredNorm() + 0.5 * d.lambda_kPa * (J - 1.0) * (J - 1.0));
+  }
+  return e + attachments_.energy(x_);
+}
+
+std::vector<ElementMeasure> XpbdModel::element_measures() const {
+  std::vector<ElementMeasure> out(tets_.size());
+  for (std::size_t k = 0; k < tets_.size(); ++k) {
+    const TetData& d = tets_[k];
+    const Eigen::Matrix3d F = edge_matrix(x_, d.v) * d.Dm_inv;
+    const double J = F.determinant();
+    // First Piola-Kirchhoff stress of the model's energy; Cauchy stress P F^T / J where
+    // the element is not (nearly) inverted, else P itself as the best available measure.
+    const Eigen::Matrix3d P = 2.0 * d.mu_kPa * (F - polar_rotation(F)) + d.lambda_kPa * (J - 1.0) * cofactor(F);
+    const Eigen::Matrix3d sigma = J > 1e-6 ? Eigen::Matrix3d(P * F.transpose() / J) : P;
+    out[static_cast<std::size_t>(original_index_[k])] = element_measure_from(F, sigma);
+  }
+  return out;
+}
+
+}  // namespace arnav::host

@@ -1,0 +1,30 @@
+#pragma once
+// Runs a loaded scene headless: steps the tissue model frame by frame, writes positions
+// (VTK or OBJ sequences) and a per-frame summary CSV. Frame World, units mm, s.
+#include <ostream>
+#include <string>
+
+#include "host/scene/scene.hpp"
+
+namespace arnav::host {
+
+struct SimRunOptions {
+  int frames = 60;
+  std::string out_dir;          // empty: no files, summary to the stream only
+  std::string format = "vtk";   // "vtk" (volume + surfaces) or "obj" (surfaces only)
+  int write_every = 1;          // write positions every N frames (frame 0 and the last always)
+};
+
+struct SimRunResult {
+  int frames_run = 0;
+  bool healthy = true;
+  std::string warning;               // first unhealthy step's reason
+  double median_step_ms = 0.0;
+  double max_displacement_mm = 0.0;  // over the volume vertices, last frame
+  Eigen::Vector3d tumour_displacement_mm = Eigen::Vector3d::Zero();  // first tumour, last frame
+};
+
+// `csv` receives the per-frame summary (header + one row per frame).
+SimRunResult run_scene(const Scene& scene, const SimRunOptions& options, std::ostream& csv);
+
+}  // namespace arnav::host
