@@ -44,7 +44,7 @@ class Reader {
   std::string source_;
 };
 
-const std::set<std::string> kKeys = {"port", "baud", "rate_hz", "device_rate_hz", "lcm_url", "reply_mode",
+const std::set<std::string> kKeys = {"camera", "frames", "port", "baud", "rate_hz", "device_rate_hz", "lcm_url", "reply_mode",
                                      "tx_firmware", "bx_failures_before_tx", "tracking_timeout_ms",
                                      "setup_timeout_ms", "reset_wait_ms", "health_rate_hz", "tools", "sim_command", "sim_args"};
 
@@ -82,6 +82,12 @@ AppConfig parse_config(const std::string& text, const std::string& source, const
   }
   AppConfig c;
   c.source = source;
+  // camera: and frames: are read by appliance/markers/camera_config (docs/camera.md).
+  if (!root["port"] && root["camera"] && !root["tools"]) {  // camera-only appliance
+    c.ndi_enabled = false;
+    if (root["lcm_url"]) c.lcm_url = r.get<std::string>(root["lcm_url"], "lcm_url", "a string");
+    return c;
+  }
   if (!root["port"]) r.fail(root, "port", "missing: give a serial port path (e.g. /dev/ttyUSB0) or 'sim'");
   c.port = r.get<std::string>(root["port"], "port", "a string");
   c.port_line = root["port"].Mark().line + 1;

@@ -16,6 +16,7 @@ class ConfigError : public std::runtime_error {
 };
 
 struct AppConfig {
+  bool ndi_enabled = true;    // false: no 'port' and a 'camera:' section (camera-only, docs/camera.md)
   std::string port;           // serial port path, or "sim"
   int port_line = 1;          // line of the port key (for errors found later)
   int baud = 115200;          // COMM target rate

@@ -16,6 +16,7 @@
 #include "appliance/app/config.hpp"
 #include "appliance/app/publisher.hpp"
 #include "appliance/app/sim_process.hpp"
+#include "appliance/markers/camera_runtime.hpp"
 #include "appliance/ndi/posix_transport.hpp"
 #include "appliance/ndi/serial_transport.hpp"
 #include "protocol/clock.hpp"
@@ -56,8 +57,10 @@ int main(int argc, char** argv) {
   CLI::App cli{"arnav-appliance: NDI Polaris -> LCM (poses, health, events). Configuration format: docs/appliance.md"};
   std::string config_path;
   bool check_only = false;
+  bool print_health = false;
   cli.add_option("config", config_path, "YAML configuration file")->required();
   cli.add_flag("--check", check_only, "validate the configuration and exit (0 when valid)");
+  cli.add_flag("--print-health", print_health, "also print each health message on stderr");
   try {
     cli.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -71,6 +74,32 @@ int main(int argc, char** argv) {
   } catch (const app::ConfigError& e) {
     std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
     return 2;
+  }
+  // Camera path (docs/camera.md): runs on its own thread when the config has `camera:`.
+  std::unique_ptr<camera::CameraRuntime> cam;
+  try {
+    cam = camera::CameraRuntime::load(config_path);
+  } catch (const camera::CameraConfigError& e) {
+    std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
+    return 2;
+  }
+  if (!cfg.ndi_enabled) {
+    if (check_only) {
+      std::cout << "configuration OK: " << cam->summary() << ", no NDI\n";
+      return 0;
+    }
+    install_signals();
+    try {
+      cam->start(cfg.lcm_url);
+    } catch (const camera::CameraConfigError& e) {
+      std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
+      return 2;
+    }
+    std::cerr << "arnav-appliance: " << cam->summary() << "\n";
+    while (!g_stop && !cam->finished()) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    cam->stop();
+    std::cerr << "arnav-appliance: stopping (" << (g_stop ? "signal" : "camera source ended") << ")\n";
+    return 0;
   }
 
   // Where the device is: a simulator on a pty, a libserialport port, or a tty device
@@ -101,7 +130,8 @@ int main(int argc, char** argv) {
     }
   }
   if (check_only) {
-    std::cout << "configuration OK: " << cfg.tools.size() << " tool(s), port " << cfg.port << "\n";
+    std::cout << "configuration OK: " << cfg.tools.size() << " tool(s), port " << cfg.port
+              << (cam ? "; " + cam->summary() : std::string()) << "\n";
     return 0;
   }
 
@@ -124,7 +154,10 @@ int main(int argc, char** argv) {
     }
     port_label = sim->pty_path();
     std::cerr << "arnav-appliance: simulator ready on " << port_label << "\n";
-    factory = [path = sim->pty_path()] { return std::unique_ptr<ndi::Transport>(new ndi::PosixTransport(path)); };
+    // Reopen through the link: after a simulated cable pull the simulator makes a new pty.
+    std::error_code ec;
+    const std::string path = std::filesystem::exists(sim->link_path(), ec) ? sim->link_path() : sim->pty_path();
+    factory = [path] { return std::unique_ptr<ndi::Transport>(new ndi::PosixTransport(path)); };
   }
 
   app::Publisher publisher(lcm, cfg.tools, cfg.device_rate_hz);
@@ -135,10 +168,31 @@ int main(int argc, char** argv) {
   std::unique_ptr<ndi::Session> session;
   try {
     session = std::make_unique<ndi::Session>(cfg.session_config(), factory, on_event);
+    session->set_cancel_flag(&g_stop);  // a signal during bring-up ends it at once
   } catch (const std::exception& e) {  // ROM or rate problems (already checked by the config)
     std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
     return 2;
   }
+
+  if (cam) {
+    try {
+      cam->start(cfg.lcm_url);
+    } catch (const camera::CameraConfigError& e) {
+      std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
+      return 2;
+    }
+    std::cerr << "arnav-appliance: " << cam->summary() << "\n";
+  }
+  // Reference tool poses for the camera path's frame Ref (appliance/frames).
+  auto feed_reference = [&](const ndi::TrackingReply& r, std::int64_t receive_us) {
+    if (!cam || cam->frames()->reference() != frames::Reference::Ref) return;
+    for (const auto& t : session->tools()) {
+      if (t.config.name != cam->frames()->reference_tool()) continue;
+      const ndi::HandleRecord* rec = r.find(t.handle);
+      if (rec && rec->state == ndi::HandleState::Valid) cam->frames()->update_reference(ndi::X_NdiTool(*rec), receive_us);
+      else cam->frames()->reference_missing(receive_us);
+    }
+  };
 
   const auto period_us = static_cast<std::int64_t>(1e6 / cfg.rate_hz);
   const auto health_period_us = static_cast<std::int64_t>(1e6 / cfg.health_rate_hz);
@@ -165,6 +219,7 @@ int main(int argc, char** argv) {
       switch (session->poll(reply, receive_us)) {
         case ndi::PollResult::NewFrame:
           publisher.publish_frame(*session, reply, receive_us);
+          feed_reference(reply, receive_us);
           ++frames_in_window;
           // Next frame is due one device period after this one was read; poll a little
           // early and re-poll quickly if the device has no new frame yet.
@@ -177,7 +232,19 @@ int main(int argc, char** argv) {
     now = monotonic_us();
     if (now >= next_health) {
       const double rate = static_cast<double>(frames_in_window) * 1e6 / static_cast<double>(std::max<std::int64_t>(1, now - window_start));
-      publisher.publish_health(*session, port_label, rate);
+      const device_health_t h = publisher.publish_health(*session, port_label, rate);
+      if (print_health) {
+        std::fprintf(stderr,
+                     "arnav-appliance: health %s %d baud %.1f Hz frames %lld crc %lld timeouts %lld resyncs %lld "
+                     "garbage %lld errors %lld resets %lld reconnects %lld dropped %lld latency p50 %.1f p99 %.1f max %.1f us\n",
+                     std::string(ndi::to_string(session->state())).c_str(), h.baud, static_cast<double>(h.frame_rate_hz),
+                     static_cast<long long>(h.frames_total), static_cast<long long>(h.crc_errors),
+                     static_cast<long long>(h.timeouts), static_cast<long long>(h.resyncs),
+                     static_cast<long long>(h.garbage_bytes), static_cast<long long>(h.error_replies),
+                     static_cast<long long>(h.resets), static_cast<long long>(h.reconnects),
+                     static_cast<long long>(h.dropped_frames), static_cast<double>(h.latency_p50_us),
+                     static_cast<double>(h.latency_p99_us), static_cast<double>(h.latency_max_us));
+      }
       frames_in_window = 0;
       window_start = now;
       next_health = now + health_period_us;
@@ -185,6 +252,7 @@ int main(int argc, char** argv) {
   }
 
   std::cerr << "arnav-appliance: stopping (signal)\n";
+  if (cam) cam->stop();
   session->stop();
   publisher.publish_health(*session, port_label, 0.0);
   session.reset();

@@ -68,7 +68,7 @@ float Publisher::publish_frame(const ndi::Session& session, const ndi::TrackingR
   return latency;
 }
 
-void Publisher::publish_health(const ndi::Session& session, const std::string& port_label, double frame_rate_hz) {
+device_health_t Publisher::publish_health(const ndi::Session& session, const std::string& port_label, double frame_rate_hz) {
   const auto c = session.counters();
   const LatencySummary l = latency_.take();
   device_health_t h{};
@@ -102,6 +102,7 @@ void Publisher::publish_health(const ndi::Session& session, const std::string& p
   h.detail = std::string(ndi::to_string(session.state())) + (session.using_bx() ? ", BX" : ", TX") +
              (session.detail().empty() ? "" : "; last fault: " + session.detail());
   lcm_.publish(health_channel_, &h);
+  return h;
 }
 
 void Publisher::publish_event(const ndi::Event& event) {

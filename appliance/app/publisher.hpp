@@ -22,7 +22,8 @@ class Publisher {
 
   // Publishes every configured tool's pose for one new frame; returns the latency (us).
   float publish_frame(const ndi::Session& session, const ndi::TrackingReply& reply, std::int64_t receive_mono_us);
-  void publish_health(const ndi::Session& session, const std::string& port_label, double frame_rate_hz);
+  // Returns the message published (for logging).
+  device_health_t publish_health(const ndi::Session& session, const std::string& port_label, double frame_rate_hz);
   void publish_event(const ndi::Event& event);
 
  private:

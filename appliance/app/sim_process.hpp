@@ -30,6 +30,9 @@ class SimProcess {
   SimProcess& operator=(const SimProcess&) = delete;
 
   const std::string& pty_path() const { return pty_path_; }
+  // The symlink the simulator keeps pointing at its current pty (it makes a new pty
+  // after a simulated cable pull): the name to (re)open.
+  std::string link_path() const { return (dir_ / "polaris").string(); }
   pid_t pid() const { return pid_; }
   bool running();
 

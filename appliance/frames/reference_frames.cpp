@@ -43,7 +43,7 @@ ReferenceFrames::ReferenceFrames(Reference reference, std::optional<Eigen::Isome
   if (!(max_reference_age_s > 0.0)) throw std::invalid_argument("frames.max_reference_age_s must be > 0");
 }
 
-ReferenceFrames ReferenceFrames::load(const FramesConfig& config) {
+std::shared_ptr<ReferenceFrames> ReferenceFrames::load(const FramesConfig& config) {
   std::optional<Eigen::Isometry3d> X_NdiCam;
   if (!config.hand_eye.empty()) {
     calib::RigidTransformRecord rec;
@@ -61,7 +61,7 @@ ReferenceFrames ReferenceFrames::load(const FramesConfig& config) {
                                   ", expected the hand-eye X_CamNdi or X_NdiCam");
     }
   }
-  return ReferenceFrames(config.reference, X_NdiCam, config.reference_tool, config.max_reference_age_s);
+  return std::make_shared<ReferenceFrames>(config.reference, X_NdiCam, config.reference_tool, config.max_reference_age_s);
 }
 
 void ReferenceFrames::update_reference(const Eigen::Isometry3d& X_NdiRef, std::int64_t time_us) {

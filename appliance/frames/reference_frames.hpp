@@ -18,6 +18,7 @@
 #include <cstdint>
 #include <deque>
 #include <filesystem>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -46,7 +47,7 @@ class ReferenceFrames {
   ReferenceFrames(Reference reference, std::optional<Eigen::Isometry3d> X_NdiCam, std::string reference_tool,
                   double max_reference_age_s);
   // Loads the hand-eye file (its name must be X_CamNdi or X_NdiCam); errors name the file.
-  static ReferenceFrames load(const FramesConfig& config);
+  static std::shared_ptr<ReferenceFrames> load(const FramesConfig& config);
 
   Reference reference() const { return reference_; }
   const std::string& reference_tool() const { return reference_tool_; }

@@ -81,6 +81,10 @@ Session::Outcome Session::transact(std::string_view command_bytes, std::chrono::
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   for (;;) {
     if (reader_.next(frame)) return frame.crc_ok ? Outcome::Reply : Outcome::Corrupt;
+    if (cancel_ && *cancel_ && !stopping_) {
+      reader_.clear();
+      return Outcome::Timeout;
+    }
     const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
     if (left.count() <= 0) {
       reader_.clear();
@@ -96,6 +100,7 @@ Session::Outcome Session::transact(std::string_view command_bytes, std::chrono::
 
 Session::CmdResult Session::command(std::string_view name, std::string_view params, std::chrono::milliseconds timeout,
                                     bool count_timeout) {
+  // count_timeout = false while probing, where silence and errors are expected.
   CmdResult r;
   Frame frame;
   const std::string bytes = encode_command(name, params);
@@ -104,6 +109,7 @@ Session::CmdResult Session::command(std::string_view name, std::string_view para
   const int attempts = (name == "COMM" || name == "PHRQ") ? 1 : 3;
   Outcome outcome = Outcome::Timeout;
   for (int attempt = 0; attempt < attempts; ++attempt) {
+    transport_->drain_input();  // a late reply to an earlier command must not answer this one
     outcome = transact(bytes, timeout, false, frame);
     if (outcome != Outcome::Corrupt) break;
   }
@@ -123,7 +129,7 @@ Session::CmdResult Session::command(std::string_view name, std::string_view para
   r.body = std::string(a.body);
   switch (a.kind) {
     case AsciiKind::Error:
-      ++counters_.error_replies;
+      if (count_timeout) ++counters_.error_replies;  // not while probing: errors are expected there
       r.status = CmdResult::Error;
       r.error_code = a.error_code;
       break;
@@ -242,7 +248,7 @@ bool Session::bring_up() {
 bool Session::wait_for_reset() {
   Frame frame;
   const auto deadline = std::chrono::steady_clock::now() + config_.reset_wait;
-  while (std::chrono::steady_clock::now() < deadline) {
+  while (std::chrono::steady_clock::now() < deadline && !(cancel_ && *cancel_)) {
     const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
     if (transact({}, left, false, frame) != Outcome::Reply) continue;
     AsciiReply a;
@@ -260,11 +266,12 @@ bool Session::probe_init(int baud) {
   transport_->drain_input();
   reader_.clear();
   CmdResult r = command("INIT", "", config_.probe_timeout, false);
-  if (r.status == CmdResult::Error && r.error_code == 0x0C) {
-    // A unit left tracking by a crashed host refuses INIT: stop tracking first.
-    command("TSTOP", "", config_.probe_timeout, false);
-    r = command("INIT", "", config_.probe_timeout, false);
-  }
+  if (r.status != CmdResult::Ok && r.status != CmdResult::Error) return false;
+  // Something answered at this rate. The unit was not reset, so it may still be tracking
+  // for a crashed host (then INIT answers ERROR0C, or OKAY on some firmware): stop
+  // tracking and initialise again; this INIT must succeed.
+  command("TSTOP", "", config_.setup_timeout, false);
+  r = command("INIT", "", config_.setup_timeout, false);
   return r.status == CmdResult::Ok;
 }
 
@@ -282,6 +289,7 @@ bool Session::establish_contact() {
   for (int b : kDeviceBauds) order.push_back(b);
   std::set<int> tried;
   for (int b : order) {
+    if (cancel_ && *cancel_) break;
     if (!tried.insert(b).second) continue;
     if (probe_init(b)) {
       emit(Severity::Info, "NDI_CONTACT", "device answered INIT at " + std::to_string(b) + " baud on " + port_name_);
@@ -294,7 +302,7 @@ bool Session::establish_contact() {
 
 bool Session::init_device() {
   // ERROR0C right after power-on means the unit is still booting: retry for a while.
-  for (int attempt = 0; attempt < 10; ++attempt) {
+  for (int attempt = 0; attempt < 10 && !(cancel_ && *cancel_); ++attempt) {
     CmdResult r = command("INIT", "", config_.setup_timeout);
     if (r.status == CmdResult::Ok) return true;
     if (!(r.status == CmdResult::Error && r.error_code == 0x0C)) break;
@@ -371,7 +379,8 @@ void Session::free_stale_handles() {
     for (const auto& e : entries) to_free.push_back(e.handle);
   std::sort(to_free.begin(), to_free.end());
   to_free.erase(std::unique(to_free.begin(), to_free.end()), to_free.end());
-  for (std::uint8_t h : to_free) command("PHF", hex2(h), config_.setup_timeout);  // errors: already gone
+  // Errors are expected (a reset already freed them) and are not counted.
+  for (std::uint8_t h : to_free) command("PHF", hex2(h), config_.setup_timeout, false);
   previous_handles_.clear();
 }
 
@@ -535,6 +544,7 @@ bool Session::probe(ProbeResult& out) {
 }
 
 void Session::stop() {
+  stopping_ = true;  // talk to the device even when cancelled
   if (!transport_) {
     state_ = LinkState::Down;
     return;
@@ -554,6 +564,7 @@ void Session::stop() {
   }
   close_port();
   state_ = LinkState::Down;
+  stopping_ = false;
 }
 
 }  // namespace arnav::ndi

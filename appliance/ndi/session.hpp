@@ -8,6 +8,7 @@
 // Recovering and the owner calls start() again (it reopens the port if needed).
 #include <array>
 #include <chrono>
+#include <csignal>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -116,6 +117,11 @@ class Session {
   // tracking; then stop(). false (detail() says why) when the device cannot be reached.
   bool probe(ProbeResult& out);
 
+  // While *flag is non-zero, start() and poll() give up at once (every wait ends as a
+  // timeout), so a signal handler that sets it gets a prompt shutdown; stop() still talks
+  // to the device. The flag must outlive the session.
+  void set_cancel_flag(const volatile std::sig_atomic_t* flag) { cancel_ = flag; }
+
   LinkState state() const { return state_; }
   SessionCounters counters() const;
   int baud() const { return baud_; }
@@ -184,6 +190,8 @@ class Session {
   std::uint32_t last_frame_ = 0;
   std::uint16_t last_system_status_ = 0;
   std::int64_t recovery_started_us_ = 0;
+  const volatile std::sig_atomic_t* cancel_ = nullptr;
+  bool stopping_ = false;
 };
 
 }  // namespace arnav::ndi

@@ -21,6 +21,7 @@
 #include "appliance/ndi/serial_transport.hpp"
 #include "appliance/ndi/session.hpp"
 #include "appliance/tools/decode.hpp"
+#include "protocol/clock.hpp"
 
 namespace {
 
@@ -91,6 +92,8 @@ int cmd_probe(const std::string& port, int baud) {
   return 0;
 }
 
+double g_rate_hz = 60.0;  // device frame rate: polls are paced to it
+
 int run_tracking(ndi::Session& s, long frames) {
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
@@ -107,7 +110,12 @@ int run_tracking(ndi::Session& s, long frames) {
       continue;
     }
     std::int64_t rx = 0;
-    if (s.poll(reply, rx) != ndi::PollResult::NewFrame) continue;
+    const ndi::PollResult result = s.poll(reply, rx);
+    if (result == ndi::PollResult::SameFrame) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    if (result != ndi::PollResult::NewFrame) continue;
+    // As the appliance does: the next frame is due one period after this one.
+    const auto next = std::chrono::microseconds(rx + static_cast<std::int64_t>(0.9e6 / g_rate_hz) - arnav::monotonic_us());
+    if (next.count() > 0) std::this_thread::sleep_for(next);
     for (const auto& tool : s.tools()) {
       const ndi::HandleRecord* r = reply.find(tool.handle);
       std::printf("frame %u %-12s ", reply.frame_number(), tool.config.name.c_str());
@@ -178,6 +186,7 @@ int main(int argc, char** argv) {
   track->add_option("--tool", roms, "tool definition (.rom), repeatable")->required()->check(CLI::ExistingFile);
   track->add_option("--baud", baud, "target baud rate")->capture_default_str();
   track->add_option("--frames", frames, "stop after this many frames (0: until Ctrl-C)");
+  track->add_option("--rate", g_rate_hz, "device frame rate in Hz (polling pace)")->capture_default_str()->check(CLI::Range(1.0, 1000.0));
   auto* decode = cli.add_subcommand("decode", "decode raw reply bytes (as read from the wire) to JSON lines");
   decode->add_option("FILE", file, "file of raw bytes")->required()->check(CLI::ExistingFile);
   auto* record = cli.add_subcommand("record", "track and write a session transcript (docs/appliance.md)");
@@ -186,6 +195,7 @@ int main(int argc, char** argv) {
   record->add_option("--out", out_path, "transcript file to write")->required();
   record->add_option("--baud", baud, "target baud rate")->capture_default_str();
   record->add_option("--frames", frames, "stop after this many frames (0: until Ctrl-C)");
+  record->add_option("--rate", g_rate_hz, "device frame rate in Hz (polling pace)")->capture_default_str()->check(CLI::Range(1.0, 1000.0));
 
   try {
     cli.parse(argc, argv);

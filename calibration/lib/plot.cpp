@@ -31,7 +31,7 @@ double nice_step(double span, int n) {
 
 cv::Mat render_chart(const Chart& c) {
   cv::Mat img(c.height, c.width, CV_8UC3, cv::Scalar(255, 255, 255));
-  const int left = 80, right = 20, top = 40, bottom = 60;
+  const int left = 80, right = 20, top = 56, bottom = 60;
   const cv::Rect area(left, top, c.width - left - right, c.height - top - bottom);
   double xmin = std::numeric_limits<double>::infinity(), xmax = -xmin, ymin = 0.0, ymax = -xmin;
   for (const auto& s : c.series) {
@@ -115,9 +115,9 @@ cv::Mat render_chart(const Chart& c) {
     cv::putText(img, s.name, cv::Point(area.x + area.width - 212, ly), cv::FONT_HERSHEY_SIMPLEX, 0.45, ink, 1, cv::LINE_AA);
     ly += 18;
   }
-  cv::putText(img, c.title, cv::Point(left, 26), cv::FONT_HERSHEY_SIMPLEX, 0.6, ink, 1, cv::LINE_AA);
+  cv::putText(img, c.title, cv::Point(left, 22), cv::FONT_HERSHEY_SIMPLEX, 0.6, ink, 1, cv::LINE_AA);
   cv::putText(img, c.x_label, cv::Point(area.x + area.width / 2 - 60, c.height - 14), cv::FONT_HERSHEY_SIMPLEX, 0.5, ink, 1, cv::LINE_AA);
-  cv::putText(img, c.y_label, cv::Point(8, top - 8), cv::FONT_HERSHEY_SIMPLEX, 0.45, ink, 1, cv::LINE_AA);
+  cv::putText(img, c.y_label, cv::Point(8, top - 12), cv::FONT_HERSHEY_SIMPLEX, 0.45, ink, 1, cv::LINE_AA);
   return img;
 }
 

@@ -13,8 +13,12 @@
 
 namespace arnav::calib {
 
-std::vector<PoseSample> parse_pose_list(const std::string& text, const std::string& source) {
-  std::vector<PoseSample> poses;
+namespace {
+
+// Calls row(values, line_no) for every data line: numbers separated by spaces, tabs or
+// commas; blank lines and '#' comments skipped.
+template <typename Row>
+void for_each_numeric_line(const std::string& text, const std::string& source, Row&& row) {
   std::istringstream in(text);
   std::string line;
   int line_no = 0;
@@ -38,6 +42,30 @@ std::vector<PoseSample> parse_pose_list(const std::string& text, const std::stri
       }
       values.push_back(v);
     }
+    row(values, line_no, at);
+  }
+}
+
+}  // namespace
+
+std::vector<Eigen::Vector3d> parse_point_list(const std::string& text, const std::string& source) {
+  std::vector<Eigen::Vector3d> points;
+  for_each_numeric_line(text, source, [&](const std::vector<double>& v, int, const std::string& at) {
+    if (v.size() != 3) {
+      throw CalibError(at + "expected 3 numbers (x y z, mm), found " + std::to_string(v.size()));
+    }
+    points.emplace_back(v[0], v[1], v[2]);
+  });
+  return points;
+}
+
+std::vector<Eigen::Vector3d> read_point_list(const std::filesystem::path& path) {
+  return parse_point_list(read_text_file(path, "the point file"), path.string());
+}
+
+std::vector<PoseSample> parse_pose_list(const std::string& text, const std::string& source) {
+  std::vector<PoseSample> poses;
+  for_each_numeric_line(text, source, [&](const std::vector<double>& values, int line_no, const std::string& at) {
     if (values.size() != 16) {
       throw CalibError(at + "expected 16 numbers (row-major 4x4 pose, mm), found " +
                        std::to_string(values.size()));
@@ -60,7 +88,7 @@ std::vector<PoseSample> parse_pose_list(const std::string& text, const std::stri
     s.X_ParentChild.translation() = M.topRightCorner<3, 1>();
     s.line = line_no;
     poses.push_back(s);
-  }
+  });
   return poses;
 }
 

@@ -1,8 +1,10 @@
 #pragma once
 // Finds a calibration board in an image and pairs image corners with board points:
 // chessboards with cv::findChessboardCorners + cornerSubPix, AprilTag grids and marker
-// boards with the AprilTag 3 detector (ids matched against the layout). Pixels use
-// OpenCV's convention (pixel centres at integer coordinates).
+// boards with the appliance's AprilTag detector (appliance/markers TagDetector, ids
+// matched against the layout). Pixels use OpenCV's convention (pixel centres at integer
+// coordinates). Separate target (arnav_calibration_detect): appliance/markers links
+// arnav_calibration for the file formats, so the core library cannot link it back.
 #include <string>
 #include <vector>
 
@@ -23,7 +25,7 @@ struct BoardObservation {
 
 struct DetectionOptions {
   int min_tags = 4;                 // AprilTag boards: fewer tags = not found
-  float quad_decimate = 1.0f;       // AprilTag decimation (1 = full resolution)
+  double quad_decimate = 1.0;       // AprilTag decimation (1 = full resolution)
 };
 
 // gray: CV_8UC1. Never throws for a board that is not there: found = false + reason.

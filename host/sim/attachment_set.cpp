@@ -18,7 +18,8 @@ void check_target(const Eigen::Vector3d& t) {
 }
 }  // namespace
 
-AttachmentId AttachmentSet::add(const AttachmentSpec& spec, int num_vertices) {
+AttachmentId AttachmentSet::add(const AttachmentSpec& spec, const Eigen::Matrix3Xd& x_World_mm, double& work) {
+  const int num_vertices = static_cast<int>(x_World_mm.cols());
   const auto& p = spec.point;
   if (p.vertices.empty() || p.vertices.size() > 4 || p.vertices.size() != p.weights.size()) {
     throw std::invalid_argument("attachment material point needs 1 to 4 vertices with one weight each (got " +
@@ -47,6 +48,7 @@ AttachmentId AttachmentSet::add(const AttachmentSpec& spec, int num_vertices) {
   items_.push_back(a);
   const int id = static_cast<int>(items_.size()) - 1;
   active_.push_back(id);
+  work = spring_energy(id, x_World_mm);
   return id;
 }
 
@@ -57,19 +59,31 @@ Attachment& AttachmentSet::checked(AttachmentId id, const char* what) {
   return items_[static_cast<std::size_t>(id)];
 }
 
-void AttachmentSet::set_target(AttachmentId id, const Eigen::Vector3d& target_World_mm) {
+double AttachmentSet::set_target(AttachmentId id, const Eigen::Vector3d& target_World_mm, const Eigen::Matrix3Xd& x_World_mm) {
   check_target(target_World_mm);
-  checked(id, "set_attachment_target").target_World_mm = target_World_mm;
+  checked(id, "set_attachment_target");
+  const double before = spring_energy(id, x_World_mm);
+  items_[static_cast<std::size_t>(id)].target_World_mm = target_World_mm;
+  return spring_energy(id, x_World_mm) - before;
 }
 
-void AttachmentSet::set_stiffness(AttachmentId id, double stiffness_mN_per_mm) {
+double AttachmentSet::set_stiffness(AttachmentId id, double stiffness_mN_per_mm, const Eigen::Matrix3Xd& x_World_mm) {
   check_stiffness(stiffness_mN_per_mm);
-  checked(id, "set_attachment_stiffness").stiffness_mN_per_mm = stiffness_mN_per_mm;
+  checked(id, "set_attachment_stiffness");
+  const double before = spring_energy(id, x_World_mm);
+  items_[static_cast<std::size_t>(id)].stiffness_mN_per_mm = stiffness_mN_per_mm;
+  return spring_energy(id, x_World_mm) - before;
 }
 
-void AttachmentSet::remove(AttachmentId id) {
+double AttachmentSet::remove(AttachmentId id, const Eigen::Matrix3Xd& x_World_mm) {
   checked(id, "remove_attachment");
   active_.erase(std::find(active_.begin(), active_.end(), id));
+  return -spring_energy(id, x_World_mm);
+}
+
+double AttachmentSet::spring_energy(AttachmentId id, const Eigen::Matrix3Xd& x_World_mm) const {
+  const Attachment& a = items_[static_cast<std::size_t>(id)];
+  return 0.5 * a.stiffness_mN_per_mm * (a.point(x_World_mm) - a.target_World_mm).squaredNorm();
 }
 
 double AttachmentSet::energy(const Eigen::Matrix3Xd& x_World_mm) const {

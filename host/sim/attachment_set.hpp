@@ -28,18 +28,22 @@ struct Attachment {
 
 class AttachmentSet {
  public:
-  // Validates the spec (vertex indices in range, 1..4 vertices, weights summing to 1,
-  // finite target, positive stiffness); throws std::invalid_argument naming the problem.
-  AttachmentId add(const AttachmentSpec& spec, int num_vertices);
-  void set_target(AttachmentId id, const Eigen::Vector3d& target_World_mm);
-  void set_stiffness(AttachmentId id, double stiffness_mN_per_mm);
-  void remove(AttachmentId id);
+  // Each mutator returns the external work it does: the change of spring energy at the
+  // current positions x_World_mm (for the energy ledger).
+  // add validates the spec (vertex indices in range, 1..4 vertices, weights summing to 1,
+  // finite target, positive stiffness); all throw std::invalid_argument naming the problem.
+  AttachmentId add(const AttachmentSpec& spec, const Eigen::Matrix3Xd& x_World_mm, double& work);
+  double set_target(AttachmentId id, const Eigen::Vector3d& target_World_mm, const Eigen::Matrix3Xd& x_World_mm);
+  double set_stiffness(AttachmentId id, double stiffness_mN_per_mm, const Eigen::Matrix3Xd& x_World_mm);
+  double remove(AttachmentId id, const Eigen::Matrix3Xd& x_World_mm);
 
   // Active attachments (ids are not reused; removed ones are skipped).
   const std::vector<int>& active() const { return active_; }
   Attachment& operator[](int id) { return items_[static_cast<std::size_t>(id)]; }
   const Attachment& operator[](int id) const { return items_[static_cast<std::size_t>(id)]; }
 
+  // 0.5 k |p - target|^2 of one attachment (mN*mm).
+  double spring_energy(AttachmentId id, const Eigen::Matrix3Xd& x_World_mm) const;
   // Sum of 0.5 k |p - target|^2 over active attachments (mN*mm).
   double energy(const Eigen::Matrix3Xd& x_World_mm) const;
 

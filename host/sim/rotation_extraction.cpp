@@ -4,7 +4,7 @@
 
 namespace arnav::host {
 
-Eigen::Matrix3d extract_rotation(const Eigen::Matrix3d& F, Eigen::Quaterniond& q, int max_iterations, double tol_rad) {
+Eigen::Matrix3d refine_rotation(const Eigen::Matrix3d& F, Eigen::Quaterniond& q, int max_iterations, double tol_rad) {
   Eigen::Matrix3d R = q.toRotationMatrix();
   for (int it = 0; it < max_iterations; ++it) {
     // Torque-like correction: sum r_i x f_i over the columns, scaled by the alignment.

@@ -8,9 +8,9 @@
 
 namespace arnav::host {
 
-// Refines q in place (unit quaternion) and returns its rotation matrix. Stops when the
+// (host/sim/fem has its own variant for the FEM.) Refines q in place (unit quaternion) and returns its rotation matrix. Stops when the
 // correction angle is below tol_rad or after max_iterations.
-Eigen::Matrix3d extract_rotation(const Eigen::Matrix3d& F, Eigen::Quaterniond& q, int max_iterations = 20,
+Eigen::Matrix3d refine_rotation(const Eigen::Matrix3d& F, Eigen::Quaterniond& q, int max_iterations = 20,
                                  double tol_rad = 1e-12);
 
 }  // namespace arnav::host

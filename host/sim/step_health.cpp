@@ -26,6 +26,35 @@ double kinetic_energy(const Eigen::VectorXd& mass_kg, const Eigen::Matrix3Xd& v_
   return 0.5 * (v_World_mm_s.colwise().squaredNorm().transpose().array() * mass_kg.array()).sum();
 }
 
+void EnergyLedger::reset(double ke_ee, double u_g) {
+  e0_ = ke_ee;
+  u0_ = u_g;
+  work_ = 0.0;
+  abs_work_ = 0.0;
+}
+
+void EnergyLedger::add_work(double work) {
+  work_ += work;
+  abs_work_ += std::abs(work);
+}
+
+void EnergyLedger::check(double ke_ee, double u_g, StepSummary& summary) const {
+  if (!std::isfinite(ke_ee) || !std::isfinite(u_g)) return;  // reported by check_state
+  const double created = (ke_ee + u_g) - (e0_ + u0_ + work_);
+  const double budget = e0_ + abs_work_ + std::abs(u_g - u0_);
+  constexpr double kFloor_mN_mm = 1e-6;
+  if (created > budget + kFloor_mN_mm) {
+    report(summary,
+           "energy balance violated: " + std::to_string(created) + " mN*mm created against a budget of " +
+               std::to_string(budget) + " mN*mm (solver unconverged in stiff regions, or unstable)",
+           true);
+  }
+}
+
+double gravity_potential(const Eigen::VectorXd& mass_kg, const Eigen::Matrix3Xd& x_World_mm, const Eigen::Vector3d& g) {
+  return -(mass_kg.transpose() * (g.transpose() * x_World_mm).transpose())(0);
+}
+
 void check_vertex_indices(const std::vector<int>& vertices, int num_vertices, const char* what) {
   for (int v : vertices) {
     if (v < 0 || v >= num_vertices) {

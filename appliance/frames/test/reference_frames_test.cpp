@@ -86,13 +86,13 @@ TEST(ReferenceFrames, LoadsEitherDirectionOfTheHandEyeFile) {
   calib::write_transform(dir / "X_CamNdi.yaml", rec);
   const auto a = ReferenceFrames::load({Reference::Ndi, "", dir / "X_CamNdi.yaml", 0.05});
   const Eigen::Isometry3d X_CamBoard = pose(0, 0, 1, 0.2, 10, 0, 500);
-  EXPECT_TRUE(a.camera_pose(X_CamBoard, 0).X_ParentChild->isApprox(X_NdiCam * X_CamBoard, 1e-6));
+  EXPECT_TRUE(a->camera_pose(X_CamBoard, 0).X_ParentChild->isApprox(X_NdiCam * X_CamBoard, 1e-6));
   rec.parent_frame = "Ndi";
   rec.child_frame = "Cam";
   rec.X_ParentChild = X_NdiCam;
   calib::write_transform(dir / "X_NdiCam.yaml", rec);
   const auto b = ReferenceFrames::load({Reference::Ndi, "", dir / "X_NdiCam.yaml", 0.05});
-  EXPECT_TRUE(b.camera_pose(X_CamBoard, 0).X_ParentChild->isApprox(X_NdiCam * X_CamBoard, 1e-6));
+  EXPECT_TRUE(b->camera_pose(X_CamBoard, 0).X_ParentChild->isApprox(X_NdiCam * X_CamBoard, 1e-6));
   rec.parent_frame = "Tool";
   rec.child_frame = "Tip";
   calib::write_transform(dir / "X_ToolTip.yaml", rec);

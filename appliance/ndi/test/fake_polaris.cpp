@@ -55,7 +55,7 @@ void FakeDevice::handle_command(const std::string& text) {
   if (c->has_crc && !c->crc_ok) return reply(encode_reply("ERROR04"));
   const std::string name(c->name), p(c->params);
   if (name == "INIT") {
-    if (tracking) return reply(encode_reply("ERROR0C"));
+    if (tracking && !init_ok_while_tracking) return reply(encode_reply("ERROR0C"));
     initialised = true;
     return reply(encode_reply("OKAY"));
   }
@@ -69,6 +69,8 @@ void FakeDevice::handle_command(const std::string& text) {
   }
   if (!initialised && name != "VER" && name != "TSTOP") return reply(encode_reply("ERROR10"));
   if (name == "VER") return reply(encode_reply(firmware));
+  if (tracking && (name == "PHRQ" || name == "PVWR" || name == "PINIT" || name == "PENA" || name == "COMM"))
+    return reply(encode_reply("ERROR0C"));
   if (name == "PHSR") return reply(encode_reply("00"));
   if (name == "PHF") return reply(encode_reply("OKAY"));
   if (name == "PHRQ") {

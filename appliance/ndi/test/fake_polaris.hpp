@@ -27,6 +27,7 @@ struct FakeDevice {
   bool unplugged = false;             // port gone: reads/writes throw, reopen fails
   std::string firmware = "Polaris Vicra Control Firmware\nNDI S/N: P6-01234\nFreeze Tag: Vicra Rev 007\n";
   std::uint32_t frame_step = 1;       // frame counter increment per tracking reply
+  bool init_ok_while_tracking = false;  // some units answer INIT with OKAY and keep tracking
 
   // ---- observed state ------------------------------------------------------------------
   int device_baud = 9600;

@@ -6,6 +6,9 @@
 
 #include <unistd.h>
 
+#include <sstream>
+
+#include "appliance/ndi/recording_transport.hpp"
 #include "appliance/ndi/session.hpp"
 #include "appliance/ndi/test/fake_polaris.hpp"
 
@@ -123,6 +126,19 @@ TEST(Session, NoResetOnAPtyProbesBaudRatesAndStopsStaleTracking) {
   EXPECT_EQ(h.session->baud(), 115200);
   TrackingReply t;
   EXPECT_EQ(h.poll(t), PollResult::NewFrame);
+}
+
+TEST(Session, StaleTrackingUnitThatAcceptsInitIsStoppedFirst) {
+  Harness h;
+  h.dev->break_resets = false;
+  h.dev->init_ok_while_tracking = true;
+  h.dev->device_baud = h.dev->host_baud = 57600;
+  h.dev->initialised = h.dev->tracking = true;
+  ASSERT_TRUE(h.session->start()) << h.session->detail();
+  EXPECT_EQ(h.session->counters().error_replies, 0);
+  TrackingReply t;
+  EXPECT_EQ(h.poll(t), PollResult::NewFrame);
+  EXPECT_EQ(t.count, 2u);
 }
 
 TEST(Session, NonNdiRomIsRefusedBeforeAnyTraffic) {
@@ -282,6 +298,63 @@ TEST(Session, ConfiguredTxFirmwarePollsWithTx) {
   TrackingReply t;
   ASSERT_EQ(h.poll(t), PollResult::NewFrame);
   EXPECT_EQ(h.dev->commands.back(), "TX");
+}
+
+TEST(Session, CancelFlagEndsBringUpAtOnceButStopStillTalks) {
+  SessionConfig c = fast_config();
+  c.reset_wait = 5000ms;  // would take seconds without the flag
+  c.setup_timeout = 5000ms;
+  Harness h(c);
+  h.dev->break_resets = false;
+  h.dev->device_baud = -1;  // nothing answers
+  volatile std::sig_atomic_t flag = 1;
+  h.session->set_cancel_flag(&flag);
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_FALSE(h.session->start());
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, 2s);
+
+  // Cancelled after tracking started: stop() still sends TSTOP and COMM.
+  Harness g;
+  ASSERT_TRUE(g.session->start());
+  volatile std::sig_atomic_t stop_now = 1;
+  g.session->set_cancel_flag(&stop_now);
+  TrackingReply t;
+  EXPECT_EQ(g.poll(t), PollResult::Failed);
+  g.session->stop();
+  EXPECT_FALSE(g.dev->tracking);
+  EXPECT_EQ(g.dev->device_baud, 9600);
+}
+
+TEST(Session, RecordingTransportWritesAReadableTranscript) {
+  auto dev = std::make_shared<FakeDevice>();
+  std::stringstream transcript;
+  auto inner = test::fake_factory(dev);
+  TransportFactory recording = [&] { return std::unique_ptr<Transport>(new RecordingTransport(inner(), transcript)); };
+  {
+    Session s(fast_config(1), recording, nullptr);
+    ASSERT_TRUE(s.start());
+    TrackingReply t;
+    std::int64_t rx = 0;
+    for (int i = 0; i < 3; ++i) ASSERT_EQ(s.poll(t, rx), PollResult::NewFrame);
+    s.stop();
+  }
+  const auto records = read_transcript(transcript, "recorded");
+  using K = TranscriptRecord::Kind;
+  ASSERT_GT(records.size(), 20u);
+  EXPECT_EQ(records[0].kind, K::Baud);
+  EXPECT_EQ(records[1].kind, K::Break);
+  EXPECT_EQ(records[2].kind, K::Reply);
+  EXPECT_EQ(records[2].bytes, "RESETBE6F\r");
+  EXPECT_EQ(records[3].bytes, "INIT:E3A5\r");
+  int bx_replies = 0, bauds = 0;
+  for (const auto& r : records) {
+    if (r.kind == K::Reply && !r.bytes.empty() && static_cast<std::uint8_t>(r.bytes[0]) == 0xC4) ++bx_replies;
+    if (r.kind == K::Baud && r.value == 115200) ++bauds;
+  }
+  EXPECT_EQ(bx_replies, 3);
+  EXPECT_EQ(bauds, 1);
+  EXPECT_EQ(records.back().kind, K::Baud);  // back to 9600 at the end
+  EXPECT_EQ(records.back().value, 9600);
 }
 
 }  // namespace

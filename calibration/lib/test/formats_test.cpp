@@ -288,3 +288,11 @@ TEST(PoseFile, ParsesCommentsSeparatorsAndRejectsBadLines) {
   EXPECT_EQ(back[0].line, 3);
   EXPECT_LT((back[1].X_ParentChild.matrix() - poses[1].X_ParentChild.matrix()).norm(), 1e-15);
 }
+
+TEST(PointFile, ParsesAndNamesBadLines) {
+  const auto pts = parse_point_list("# fiducials\n1 2 3\n4,5,6\n", "f.txt");
+  ASSERT_EQ(pts.size(), 2u);
+  EXPECT_DOUBLE_EQ(pts[1].z(), 6.0);
+  const std::string msg = error_of([] { parse_point_list("1 2 3\n\n1 2\n", "f.txt"); });
+  EXPECT_NE(msg.find("f.txt:3: expected 3 numbers"), std::string::npos) << msg;
+}

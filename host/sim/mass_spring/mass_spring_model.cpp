@@ -56,6 +56,9 @@ double dot(int threads, const Eigen::Matrix3Xd& a, const Eigen::Matrix3Xd& b) {
   return s;
 }
 
+// Tets inverted for longer than this (simulated time) are reported unhealthy.
+constexpr double kInversionGrace_s = 1.0;
+
 }  // namespace
 
 MassSpringModel::MassSpringModel(const SimProblem& problem, Integrator integrator, const ModelConfig& config)
@@ -99,6 +102,7 @@ MassSpringModel::MassSpringModel(const SimProblem& problem, Integrator integrato
     spring_s2_.resize(springs_.ends.size());
   }
   set_fixed_vertices(problem.fixed_vertices);
+  reset_ledger();
 }
 
 std::string MassSpringModel::name() const {
@@ -153,19 +157,21 @@ double MassSpringModel::explicit_stable_substep_s() const {
 }
 
 AttachmentId MassSpringModel::add_attachment(const AttachmentSpec& spec) {
-  const AttachmentId id = attachments_.add(spec, static_cast<int>(x_.cols()));
+  double work = 0.0;
+  const AttachmentId id = attachments_.add(spec, x_, work);
+  ledger_.add_work(work);
   update_omega_bound();
   return id;
 }
 void MassSpringModel::set_attachment_target(AttachmentId id, const Eigen::Vector3d& target_World_mm) {
-  attachments_.set_target(id, target_World_mm);
+  ledger_.add_work(attachments_.set_target(id, target_World_mm, x_));
 }
 void MassSpringModel::set_attachment_stiffness(AttachmentId id, double stiffness_mN_per_mm) {
-  attachments_.set_stiffness(id, stiffness_mN_per_mm);
+  ledger_.add_work(attachments_.set_stiffness(id, stiffness_mN_per_mm, x_));
   update_omega_bound();
 }
 void MassSpringModel::remove_attachment(AttachmentId id) {
-  attachments_.remove(id);
+  ledger_.add_work(attachments_.remove(id, x_));
   update_omega_bound();
 }
 
@@ -176,6 +182,12 @@ void MassSpringModel::set_state(const Eigen::Matrix3Xd& positions_World_mm, cons
   for (std::size_t i = 0; i < fixed_.size(); ++i)
     if (fixed_[i]) v_.col(static_cast<Eigen::Index>(i)).setZero();
   dv_.setZero();
+  inverted_time_s_ = 0.0;
+  reset_ledger();
+}
+
+void MassSpringModel::reset_ledger() {
+  ledger_.reset(kinetic_energy(mass_, v_) + elastic_energy(), gravity_potential(mass_, x_, gravity_));
 }
 
 void MassSpringModel::assemble(double h) {
@@ -356,10 +368,20 @@ StepSummary MassSpringModel::step(double dt_s) {
   check_state(x_, v_, summary);
   const int inverted = count_inverted();
   if (inverted > 0) {
-    report(summary, "inverted tets: " + std::to_string(inverted) + " (springs cannot restore orientation)", true);
+    // Springs have no orientation: inverted tets recover only if their neighbours push them
+    // back. Warned at once, unhealthy once they stay inverted beyond the grace time.
+    inverted_time_s_ += dt_s;
+    const bool stuck = inverted_time_s_ > kInversionGrace_s;
+    report(summary,
+           "inverted tets: " + std::to_string(inverted) + " (springs cannot restore orientation" +
+               (stuck ? "; inverted for more than " + std::to_string(kInversionGrace_s) + " s)" : ")"),
+           stuck);
+  } else {
+    inverted_time_s_ = 0.0;
   }
   summary.kinetic_energy = kinetic_energy(mass_, v_);
   summary.elastic_energy = elastic_energy();
+  ledger_.check(summary.kinetic_energy + summary.elastic_energy, gravity_potential(mass_, x_, gravity_), summary);
   summary.wall_time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return summary;
 }

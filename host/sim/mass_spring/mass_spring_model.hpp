@@ -15,7 +15,8 @@
 //    of the geometric stiffness so the matrix stays SPD: unconditionally stable for any
 //    dt, with numerical damping that grows with dt.
 // Known limit: springs do not know orientation; an inverted tet whose edges have their rest
-// length feels no force. Inverted tets are counted every step and reported (healthy=false).
+// length feels no force. Inverted tets are counted every step and reported (a warning at
+// once, healthy=false when they stay inverted for more than 1 s of simulated time).
 #include <Eigen/Core>
 
 #include <vector>
@@ -23,6 +24,7 @@
 #include "host/sim/attachment_set.hpp"
 #include "host/sim/mass_spring/spring_network.hpp"
 #include "host/sim/model_config.hpp"
+#include "host/sim/step_health.hpp"
 #include "host/sim/tet_geometry.hpp"
 #include "host/sim/tissue_model.hpp"
 
@@ -64,6 +66,7 @@ class MassSpringModel final : public TissueModel {
   void scatter_springs_to_buffers();
   int count_inverted() const;
   void update_omega_bound();
+  void reset_ledger();
 
   Integrator integrator_;
   ModelConfig config_;
@@ -83,6 +86,8 @@ class MassSpringModel final : public TissueModel {
   double omega_max_ = 0.0;  // Gershgorin bound of sqrt(max eig M^-1 K), 1/s
   double zeta_ = 0.0;       // damping ratio of that mode
   double current_h_ = 0.0;  // substep of the current semi-implicit solve
+  double inverted_time_s_ = 0.0;
+  EnergyLedger ledger_;
 
   // Work buffers, sized once (no allocation per step).
   std::vector<Eigen::Matrix3Xd> thread_buffers_;

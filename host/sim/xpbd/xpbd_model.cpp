@@ -73,6 +73,7 @@ XpbdModel::XpbdModel(const SimProblem& problem, const ModelConfig& config) : con
   lambda_vol_.assign(tets_.size(), 0.0);
   rotation_.assign(tets_.size(), Eigen::Quaterniond::Identity());
   set_fixed_vertices(problem.fixed_vertices);
+  reset_ledger();
 }
 
 void XpbdModel::update_tet_mass_blocks() {
@@ -105,14 +106,23 @@ void XpbdModel::set_fixed_vertices(const std::vector<int>& vertices) {
   update_tet_mass_blocks();
 }
 
-AttachmentId XpbdModel::add_attachment(const AttachmentSpec& spec) { return attachments_.add(spec, static_cast<int>(x_.cols())); }
+AttachmentId XpbdModel::add_attachment(const AttachmentSpec& spec) {
+  double work = 0.0;
+  const AttachmentId id = attachments_.add(spec, x_, work);
+  ledger_.add_work(work);
+  return id;
+}
 void XpbdModel::set_attachment_target(AttachmentId id, const Eigen::Vector3d& target_World_mm) {
-  attachments_.set_target(id, target_World_mm);
+  ledger_.add_work(attachments_.set_target(id, target_World_mm, x_));
 }
 void XpbdModel::set_attachment_stiffness(AttachmentId id, double stiffness_mN_per_mm) {
-  attachments_.set_stiffness(id, stiffness_mN_per_mm);
+  ledger_.add_work(attachments_.set_stiffness(id, stiffness_mN_per_mm, x_));
 }
-void XpbdModel::remove_attachment(AttachmentId id) { attachments_.remove(id); }
+void XpbdModel::remove_attachment(AttachmentId id) { ledger_.add_work(attachments_.remove(id, x_)); }
+
+void XpbdModel::reset_ledger() {
+  ledger_.reset(kinetic_energy(mass_, v_) + elastic_energy(), gravity_potential(mass_, x_, gravity_));
+}
 
 void XpbdModel::set_state(const Eigen::Matrix3Xd& positions_World_mm, const Eigen::Matrix3Xd& velocities_World_mm_s) {
   check_state_shape(positions_World_mm, velocities_World_mm_s, static_cast<int>(x_.cols()));
@@ -122,6 +132,7 @@ void XpbdModel::set_state(const Eigen::Matrix3Xd& positions_World_mm, const Eige
     if (fixed_[i]) v_.col(static_cast<Eigen::Index>(i)).setZero();
   inverted_time_s_ = 0.0;
   reset_rotations();
+  reset_ledger();
 }
 
 double XpbdModel::solve_tets(double h) {
@@ -161,7 +172,7 @@ double XpbdModel::solve_tets(double h) {
 
       // Deviatoric block: C = F - R, dC_ij/dx_a = b_a[j] e_i, so the system is
       // dLambda ((1 + damp) B + alpha I) = -(C + alpha Lambda) - damp dF (row by row).
-      const Eigen::Matrix3d R = extract_rotation(F, rotation_[ks], 5);
+      const Eigen::Matrix3d R = refine_rotation(F, rotation_[ks], 5);
       const double alpha_dev = inv_h2 / (2.0 * d.mu_kPa * d.volume_mm3);
       Eigen::Matrix3d& lam = lambda_dev_[ks];
       const Eigen::Matrix3d r_dev = -(F - R) - alpha_dev * lam;
@@ -286,6 +297,7 @@ StepSummary XpbdModel::step(double dt_s) {
   }
   summary.kinetic_energy = kinetic_energy(mass_, v_);
   summary.elastic_energy = elastic_energy();
+  ledger_.check(summary.kinetic_energy + summary.elastic_energy, gravity_potential(mass_, x_, gravity_), summary);
   summary.wall_time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return summary;
 }
@@ -310,7 +322,7 @@ double XpbdModel::elastic_energy() const {
     const TetData& d = tets_[static_cast<std::size_t>(k)];
     const Eigen::Matrix3d F = edge_matrix(x_, d.v) * d.Dm_inv;
     Eigen::Quaterniond q = rotation_[static_cast<std::size_t>(k)];
-    const Eigen::Matrix3d R = extract_rotation(F, q, 20);
+    const Eigen::Matrix3d R = refine_rotation(F, q, 20);
     const double J = F.determinant();
     e += d.volume_mm3 * (d.mu_kPa * (F - R).squaredNorm() + 0.5 * d.lambda_kPa * (J - 1.0) * (J - 1.0));
   }

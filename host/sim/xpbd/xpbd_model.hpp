@@ -23,6 +23,7 @@
 #include "host/sim/attachment_set.hpp"
 #include "host/sim/graph_coloring.hpp"
 #include "host/sim/model_config.hpp"
+#include "host/sim/step_health.hpp"
 #include "host/sim/tissue_model.hpp"
 
 namespace arnav::host {
@@ -62,6 +63,7 @@ class XpbdModel final : public TissueModel {
   };
   void update_tet_mass_blocks();
   void reset_rotations();
+  void reset_ledger();
   // One Gauss-Seidel sweep over all tets; returns the sum of squared constraint
   // residuals (each taken before its update).
   double solve_tets(double h);
@@ -81,6 +83,7 @@ class XpbdModel final : public TissueModel {
   Coloring coloring_;
   AttachmentSet attachments_;
   double inverted_time_s_ = 0.0;        // how long some tets have stayed inverted
+  EnergyLedger ledger_;
 };
 
 }  // namespace arnav::host

@@ -1,0 +1,53 @@
+// arnav-bench: benchmarks that print error against run time.
+//   arnav-bench deform [--quick] [--out DIR]   tissue models on the bundled liver
+// Writes DIR/deform.csv and DIR/deform_pareto.png and prints the CSV rows' summary as
+// JSON on stdout. Exit 2 on usage or scene errors.
+#include <CLI/CLI.hpp>
+
+#include <filesystem>
+#include <iostream>
+
+#include "host/bench/deform_bench.hpp"
+#include "host/bench/pareto_plot.hpp"
+#include "host/scene/load_error.hpp"
+
+int main(int argc, char** argv) {
+  using namespace arnav::host;
+  CLI::App app{"arnav-bench: error against run time (docs/benchmarks.md)"};
+  app.require_subcommand(1);
+  DeformBenchOptions options;
+  options.data_dir = ARNAV_DEFAULT_DATA_DIR;
+  std::string out_dir = "bench_out";
+  CLI::App* deform = app.add_subcommand("deform", "tissue models on the bundled liver: frame time vs error against a reference");
+  deform->add_flag("--quick", options.quick, "CI smoke run: coarse mesh, two settings, 5 frames, coarse reference (numbers not meaningful)");
+  deform->add_option("-o,--out", out_dir, "output folder for deform.csv and deform_pareto.png");
+  deform->add_option("--data", options.data_dir, "data folder with liver/*.scene.yaml");
+  deform->add_option("--frames", options.frames, "frames per run (1/60 s each)")->check(CLI::PositiveNumber);
+  deform->add_option("--threads", options.threads, "model threads")->check(CLI::PositiveNumber);
+  deform->add_option("--scenario", options.scenarios, "scenarios to run (gravity_sag, lobe_pull, vessel_stiffened)");
+  CLI11_PARSE(app, argc, argv);
+
+  DeformBenchResult result;
+  try {
+    result = run_deform_bench(options);
+  } catch (const LoadError& e) {
+    std::cerr << "arnav-bench: " << e.what() << "\n";
+    return 2;
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "arnav-bench: " << e.what() << "\n";
+    return 2;
+  }
+  std::filesystem::create_directories(out_dir);
+  write_deform_csv(out_dir + "/deform.csv", result);
+  write_pareto_png(out_dir + "/deform_pareto.png", result);
+  std::cout << "{\"csv\":\"" << out_dir << "/deform.csv\",\"png\":\"" << out_dir << "/deform_pareto.png\",\"rows\":" << result.rows.size()
+            << ",\"references\":[";
+  for (std::size_t i = 0; i < result.references.size(); ++i) {
+    const auto& r = result.references[i];
+    std::cout << (i ? "," : "") << "{\"scenario\":\"" << r.scenario << "\",\"tets\":" << r.tets << ",\"iterations\":" << r.iterations
+              << ",\"last_max_increment_mm\":" << r.last_max_increment_mm << ",\"converged\":" << (r.converged ? "true" : "false")
+              << ",\"wall_s\":" << r.wall_s << "}";
+  }
+  std::cout << "]}\n";
+  return 0;
+}

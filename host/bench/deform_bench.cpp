@@ -1,0 +1,275 @@
+#include "host/bench/deform_bench.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <ctime>
+#include <cmath>
+#include <fstream>
+#include <iostream>
+#include <memory>
+
+#include "host/scene/load_error.hpp"
+#include "host/scene/scene.hpp"
+#include "host/sim/model_factory.hpp"
+
+namespace arnav::host {
+namespace {
+
+constexpr double kFrame_s = 1.0 / 60.0;
+// Heavy mass damping so that every dynamic model settles within the run: the scenarios
+// compare equilibria (sag, pull), not transients. Damping does not change an equilibrium.
+constexpr double kBenchDamping_per_s = 20.0;
+const Eigen::Vector3d kPull_mm(25.0, 0.0, 0.0);   // tool displacement of the grasped point
+constexpr double kGraspStiffness_mN_per_mm = 200.0;
+const Material kVesselWall{.youngs_modulus_kPa = 500.0, .poisson_ratio = 0.45, .density_kg_per_mm3 = 1.06e-6};
+
+struct Setup {
+  SimProblem problem;
+  bool pull = false;
+  MaterialPoint grasp;
+  Eigen::Vector3d target_World_mm = Eigen::Vector3d::Zero();
+};
+
+// The organ-surface point the tool grasps: the lowest point of the display surface (the
+// tip of the hanging lobe). Same index in every bundled scene (same surface file).
+int grasp_index(const Scene& s) {
+  int best = 0;
+  for (int i = 1; i < s.organ_surface.positions_World_mm.cols(); ++i)
+    if (s.organ_surface.positions_World_mm(2, i) < s.organ_surface.positions_World_mm(2, best)) best = i;
+  return best;
+}
+
+Setup make_setup(const Scene& s, const std::string& scenario) {
+  Setup out;
+  out.problem = s.problem;
+  for (auto& m : out.problem.region_materials) m.damping_mass_per_s = kBenchDamping_per_s;
+  if (scenario == "vessel_stiffened") {
+    if (!s.vessels) throw LoadError(s.source + ": vessel_stiffened needs a scene with vessels");
+    out.problem.vessels = s.vessels->rest;
+    out.problem.vessel_material = kVesselWall;
+    out.problem.vessel_material.damping_mass_per_s = kBenchDamping_per_s;
+  } else if (scenario == "lobe_pull") {
+    const int g = grasp_index(s);
+    out.pull = true;
+    out.grasp = s.organ_embedding.material_point(s.problem.mesh, g);
+    out.target_World_mm = s.organ_surface.positions_World_mm.col(g) + kPull_mm;
+  } else if (scenario != "gravity_sag") {
+    throw std::invalid_argument("unknown scenario '" + scenario + "' (gravity_sag, lobe_pull, vessel_stiffened)");
+  }
+  return out;
+}
+
+struct Observed {
+  Eigen::Vector3d tumour;
+  Eigen::Matrix3Xd surface;
+};
+
+Observed observe(const Scene& s, const Eigen::Matrix3Xd& x) {
+  return {tumour_centroid_World_mm(s, 0, x), s.organ_embedding.apply(s.problem.mesh, x)};
+}
+
+struct Reference {
+  Observed rest, solved;
+  ReferenceInfo info;
+};
+
+Reference solve_reference(const Scene& s, const std::string& scenario, int threads, int max_iterations) {
+  const auto t0 = std::chrono::steady_clock::now();
+  Setup setup = make_setup(s, scenario);
+  ModelConfig c;
+  c.kind = "corotational_fem";
+  c.integrator = "quasi_static";
+  c.linear_solver = "cholmod";
+  c.tolerance = 1e-12;
+  c.threads = threads;
+  std::unique_ptr<TissueModel> model = make_tissue_model(setup.problem, c);
+  if (setup.pull) model->add_attachment({setup.grasp, setup.target_World_mm, kGraspStiffness_mN_per_mm});
+  Reference r;
+  r.info.scenario = scenario;
+  r.info.scene = s.source;
+  r.info.vertices = s.problem.mesh.num_vertices();
+  r.info.tets = s.problem.mesh.num_tets();
+  r.rest = observe(s, s.problem.mesh.rest_positions_World_mm);
+  // Each quasi-static call is one Newton-like step toward equilibrium; iterate until the
+  // update is below a micrometre of a micrometre.
+  for (int it = 1; it <= max_iterations; ++it) {
+    const StepSummary st = model->step(kFrame_s);
+    if (!st.healthy) throw std::runtime_error("reference solve (" + scenario + ") failed: " + st.warning);
+    r.info.iterations = it;
+    r.info.last_max_increment_mm = (model->velocities_World_mm_s() * kFrame_s).colwise().norm().maxCoeff();
+    if (r.info.last_max_increment_mm < 1e-6) {
+      r.info.converged = true;
+      break;
+    }
+  }
+  r.solved = observe(s, model->positions_World_mm());
+  r.info.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return r;
+}
+
+struct Setting {
+  std::string label;
+  ModelConfig config;
+};
+
+std::vector<Setting> settings(bool quick, bool fine, int threads) {
+  std::vector<Setting> out;
+  auto add = [&](const std::string& label, ModelConfig c) {
+    c.threads = threads;
+    out.push_back({label, c});
+  };
+  const std::vector<std::string> kinds = available_model_kinds();
+  auto have = [&](const char* k) { return std::find(kinds.begin(), kinds.end(), k) != kinds.end(); };
+  if (have("xpbd")) {
+    ModelConfig c;
+    c.kind = "xpbd";
+    c.tolerance = 0.0;
+    const std::vector<std::pair<int, int>> grid =
+        quick ? std::vector<std::pair<int, int>>{{4, 4}} : std::vector<std::pair<int, int>>{{1, 5}, {2, 5}, {4, 4}, {8, 4}};
+    for (auto [sub, it] : grid) {
+      c.substeps = sub;
+      c.iterations = it;
+      add("xpbd s" + std::to_string(sub) + " i" + std::to_string(it), c);
+    }
+  }
+  if (have("mass_spring") && !quick) {
+    ModelConfig c;
+    c.kind = "mass_spring";
+    c.integrator = "semi_implicit";
+    c.tolerance = 1e-4;
+    c.iterations = 20;
+    add("mass_spring semi_implicit cg20", c);
+    c.integrator = "explicit";
+    c.substeps = 20;
+    add("mass_spring explicit s20", c);
+  }
+  if (have("corotational_fem")) {
+    ModelConfig c;
+    c.kind = "corotational_fem";
+    c.integrator = "implicit_euler";
+    c.linear_solver = "pcg";
+    c.tolerance = 1e-4;
+    c.refactor_every = 30;
+    c.iterations = 20;
+    add("fem implicit pcg20 refactor30", c);
+    if (!quick && !fine) {  // exact solves every step: only affordable on the coarse mesh
+      c.linear_solver = "cholmod";
+      c.refactor_every = 1;
+      add("fem implicit cholmod", c);
+    }
+    if (!quick) {
+      c.linear_solver = "pcg";
+      c.iterations = 5;
+      c.refactor_every = 60;
+      add("fem implicit pcg5 refactor60", c);
+    }
+  }
+  return out;
+}
+
+double cpu_ms() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) * 1e3 + static_cast<double>(t.tv_nsec) * 1e-6;
+}
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))];
+}
+
+}  // namespace
+
+DeformBenchResult run_deform_bench(const DeformBenchOptions& o) {
+  DeformBenchResult result;
+  struct Mesh {
+    std::string name;
+    Scene scene;
+  };
+  std::vector<Mesh> meshes;
+  std::cerr << "arnav-bench deform: loading scenes from " << o.data_dir << "\n";
+  meshes.push_back({"coarse", load_scene(o.data_dir + "/liver/liver_coarse.scene.yaml")});
+  if (!o.quick) meshes.push_back({"fine", load_scene(o.data_dir + "/liver/liver.scene.yaml")});
+  // Reference mesh: finer than every model mesh (quick: the coarse mesh itself, smoke only).
+  const Scene reference_scene = o.quick ? meshes[0].scene : load_scene(o.data_dir + "/liver/liver_reference.scene.yaml");
+  const int frames = o.quick ? std::min(o.frames, 5) : o.frames;
+
+  for (const std::string& scenario : o.scenarios) {
+    std::cerr << "arnav-bench deform: " << scenario << ": reference on " << reference_scene.problem.mesh.num_tets() << " tets\n";
+    const Reference ref = solve_reference(reference_scene, scenario, o.threads, o.quick ? 5 : 200);
+    result.references.push_back(ref.info);
+    const double ref_tumour_disp = (ref.solved.tumour - ref.rest.tumour).norm();
+    const double ref_surface_disp = (ref.solved.surface - ref.rest.surface).colwise().norm().maxCoeff();
+    for (const Mesh& mesh : meshes) {
+      for (const Setting& setting : settings(o.quick, mesh.name == "fine", o.threads)) {
+        DeformBenchRow row;
+        row.scenario = scenario;
+        row.label = setting.label;
+        row.mesh = mesh.name;
+        row.config = setting.config;
+        row.vertices = mesh.scene.problem.mesh.num_vertices();
+        row.tets = mesh.scene.problem.mesh.num_tets();
+        row.vessels_modelled = scenario == "vessel_stiffened" && setting.config.kind == "corotational_fem";
+        row.reference_tumour_displacement_mm = ref_tumour_disp;
+        row.reference_max_surface_displacement_mm = ref_surface_disp;
+        Setup setup = make_setup(mesh.scene, scenario);
+        std::unique_ptr<TissueModel> model;
+        try {
+          model = make_tissue_model(setup.problem, setting.config);
+        } catch (const std::invalid_argument& e) {
+          row.healthy = false;
+          row.note = std::string("not built: ") + e.what();
+          result.rows.push_back(row);
+          continue;
+        }
+        if (setup.pull) model->add_attachment({setup.grasp, setup.target_World_mm, kGraspStiffness_mN_per_mm});
+        std::vector<double> wall, cpu;
+        for (int f = 0; f < frames; ++f) {
+          const auto t0 = std::chrono::steady_clock::now();
+          const double c0 = cpu_ms();
+          const StepSummary st = model->step(kFrame_s);
+          cpu.push_back(cpu_ms() - c0);
+          wall.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+          row.frames_run = f + 1;
+          if (!st.healthy) {
+            row.healthy = false;
+            row.note = st.warning;
+            break;
+          }
+          if (!st.warning.empty()) row.note = st.warning;  // last warning (e.g. not converged)
+        }
+        row.median_frame_ms = percentile(wall, 0.5);
+        row.p90_frame_ms = percentile(wall, 0.9);
+        row.median_frame_cpu_ms = percentile(cpu, 0.5);
+        const Observed obs = observe(mesh.scene, model->positions_World_mm());
+        row.tumour_error_mm = (obs.tumour - ref.solved.tumour).norm();
+        row.max_surface_error_mm = (obs.surface - ref.solved.surface).colwise().norm().maxCoeff();
+        if (scenario == "vessel_stiffened" && !row.vessels_modelled) row.note = "model ignores vessels" + (row.note.empty() ? "" : "; " + row.note);
+        std::cerr << "  " << scenario << " " << mesh.name << " " << setting.label << ": " << row.median_frame_ms << " ms/frame wall, " << row.median_frame_cpu_ms << " ms CPU, tumour "
+                  << row.tumour_error_mm << " mm, surface max " << row.max_surface_error_mm << " mm" << (row.healthy ? "" : " UNHEALTHY")
+                  << "\n";
+        result.rows.push_back(row);
+      }
+    }
+  }
+  return result;
+}
+
+void write_deform_csv(const std::string& path, const DeformBenchResult& r) {
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error(path + ": cannot write");
+  out << "scenario,model,setting,mesh,vertices,tets,frames,median_frame_ms,p90_frame_ms,median_frame_cpu_ms,rate_hz_cpu,tumour_centroid_error_mm,"
+         "max_surface_error_mm,reference_tumour_displacement_mm,reference_max_surface_displacement_mm,healthy,vessels_modelled,note\n";
+  for (const auto& row : r.rows) {
+    std::string note = row.note;
+    std::replace(note.begin(), note.end(), ',', ';');
+    out << row.scenario << ',' << row.config.kind << ',' << row.label << ',' << row.mesh << ',' << row.vertices << ',' << row.tets << ','
+        << row.frames_run << ',' << row.median_frame_ms << ',' << row.p90_frame_ms << ',' << row.median_frame_cpu_ms << ','
+        << (row.median_frame_cpu_ms > 0 ? 1000.0 / row.median_frame_cpu_ms : 0.0) << ',' << row.tumour_error_mm << ',' << row.max_surface_error_mm
+        << ',' << row.reference_tumour_displacement_mm << ',' << row.reference_max_surface_displacement_mm << ',' << (row.healthy ? 1 : 0)
+        << ',' << (row.vessels_modelled ? 1 : 0) << ',' << note << '\n';
+  }
+}
+
+}  // namespace arnav::host

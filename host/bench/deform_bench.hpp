@@ -1,0 +1,52 @@
+#pragma once
+// arnav-bench deform: error against run time of the tissue models on the bundled liver.
+// For each scenario, model setting and mesh: median wall time per 1/60 s frame, and the
+// tumour-centroid and maximum surface errors against a reference solution (co-rotational
+// FEM run quasi-statically to equilibrium with a direct solver on a finer mesh).
+// Frame World, units mm, s.
+#include <string>
+#include <vector>
+
+#include "host/sim/model_config.hpp"
+
+namespace arnav::host {
+
+struct DeformBenchOptions {
+  std::string data_dir;        // folder with liver/*.scene.yaml
+  bool quick = false;          // CI smoke run: coarse mesh, few settings, short runs
+  int frames = 60;             // simulated frames per run (1 s at 60 Hz)
+  int threads = 1;             // model threads (1: CPU time = unloaded wall time)
+  std::vector<std::string> scenarios = {"gravity_sag", "lobe_pull", "vessel_stiffened"};
+};
+
+struct DeformBenchRow {
+  std::string scenario, label, mesh;
+  ModelConfig config;
+  int vertices = 0, tets = 0, frames_run = 0;
+  double median_frame_ms = 0, p90_frame_ms = 0;  // wall time (inflated when the machine is shared)
+  double median_frame_cpu_ms = 0;                // process CPU time per frame (all threads)
+  double tumour_error_mm = 0, max_surface_error_mm = 0;
+  double reference_tumour_displacement_mm = 0, reference_max_surface_displacement_mm = 0;
+  bool healthy = true, vessels_modelled = false;
+  std::string note;
+};
+
+struct ReferenceInfo {
+  std::string scenario, scene;
+  int vertices = 0, tets = 0, iterations = 0;
+  double last_max_increment_mm = 0, wall_s = 0;
+  bool converged = false;
+};
+
+struct DeformBenchResult {
+  std::vector<DeformBenchRow> rows;
+  std::vector<ReferenceInfo> references;
+};
+
+// Runs the benchmark; progress goes to stderr. Throws LoadError / std::invalid_argument
+// when the scenes or models cannot be built.
+DeformBenchResult run_deform_bench(const DeformBenchOptions& options);
+
+void write_deform_csv(const std::string& path, const DeformBenchResult& result);
+
+}  // namespace arnav::host
