@@ -199,6 +199,29 @@ int main(int argc, char** argv) {
   std::int64_t next_health = monotonic_us() + health_period_us;
   std::int64_t window_start = monotonic_us();
   std::int64_t frames_in_window = 0;
+  auto health_if_due = [&] {
+    const std::int64_t now = monotonic_us();
+    if (now < next_health) return;
+    const double rate = static_cast<double>(frames_in_window) * 1e6 / static_cast<double>(std::max<std::int64_t>(1, now - window_start));
+    const device_health_t h = publisher.publish_health(*session, port_label, rate);
+    if (print_health) {
+      std::fprintf(stderr,
+                   "arnav-appliance: health %s %d baud %.1f Hz frames %lld crc %lld timeouts %lld resyncs %lld "
+                   "garbage %lld errors %lld resets %lld reconnects %lld dropped %lld latency p50 %.1f p99 %.1f max %.1f us\n",
+                   std::string(ndi::to_string(session->state())).c_str(), h.baud, static_cast<double>(h.frame_rate_hz),
+                   static_cast<long long>(h.frames_total), static_cast<long long>(h.crc_errors),
+                   static_cast<long long>(h.timeouts), static_cast<long long>(h.resyncs),
+                   static_cast<long long>(h.garbage_bytes), static_cast<long long>(h.error_replies),
+                   static_cast<long long>(h.resets), static_cast<long long>(h.reconnects),
+                   static_cast<long long>(h.dropped_frames), static_cast<double>(h.latency_p50_us),
+                   static_cast<double>(h.latency_p99_us), static_cast<double>(h.latency_max_us));
+    }
+    frames_in_window = 0;
+    window_start = now;
+    next_health = now + health_period_us;
+  };
+  // Bring-up and recovery take seconds: health keeps coming at its rate meanwhile.
+  session->set_idle_callback(health_if_due);
   std::int64_t next_start_attempt = 0;
   std::int64_t next_poll = 0;
   ndi::TrackingReply reply;
@@ -229,26 +252,7 @@ int main(int argc, char** argv) {
         case ndi::PollResult::Failed: next_poll = monotonic_us(); break;
       }
     }
-    now = monotonic_us();
-    if (now >= next_health) {
-      const double rate = static_cast<double>(frames_in_window) * 1e6 / static_cast<double>(std::max<std::int64_t>(1, now - window_start));
-      const device_health_t h = publisher.publish_health(*session, port_label, rate);
-      if (print_health) {
-        std::fprintf(stderr,
-                     "arnav-appliance: health %s %d baud %.1f Hz frames %lld crc %lld timeouts %lld resyncs %lld "
-                     "garbage %lld errors %lld resets %lld reconnects %lld dropped %lld latency p50 %.1f p99 %.1f max %.1f us\n",
-                     std::string(ndi::to_string(session->state())).c_str(), h.baud, static_cast<double>(h.frame_rate_hz),
-                     static_cast<long long>(h.frames_total), static_cast<long long>(h.crc_errors),
-                     static_cast<long long>(h.timeouts), static_cast<long long>(h.resyncs),
-                     static_cast<long long>(h.garbage_bytes), static_cast<long long>(h.error_replies),
-                     static_cast<long long>(h.resets), static_cast<long long>(h.reconnects),
-                     static_cast<long long>(h.dropped_frames), static_cast<double>(h.latency_p50_us),
-                     static_cast<double>(h.latency_p99_us), static_cast<double>(h.latency_max_us));
-      }
-      frames_in_window = 0;
-      window_start = now;
-      next_health = now + health_period_us;
-    }
+    health_if_due();
   }
 
   std::cerr << "arnav-appliance: stopping (signal)\n";

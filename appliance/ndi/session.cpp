@@ -90,7 +90,12 @@ Session::Outcome Session::transact(std::string_view command_bytes, std::chrono::
       reader_.clear();
       return Outcome::Timeout;
     }
-    const std::size_t n = transport_->read(read_buf_, left);
+    std::chrono::milliseconds wait = left;
+    if (idle_ && state_ != LinkState::Tracking) {
+      idle_();
+      wait = std::min(wait, std::chrono::milliseconds(100));
+    }
+    const std::size_t n = transport_->read(read_buf_, wait);
     if (n > 0) {
       last_read_mono_us_ = monotonic_us();
       reader_.feed(std::span(read_buf_.data(), n));

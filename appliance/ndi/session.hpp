@@ -122,6 +122,11 @@ class Session {
   // to the device. The flag must outlive the session.
   void set_cancel_flag(const volatile std::sig_atomic_t* flag) { cancel_ = flag; }
 
+  // Called about every 100 ms while start() waits for the device (bring-up and recovery
+  // can take seconds), so the owner can keep publishing health. Same thread; the callback
+  // may read the session's const accessors but must not call start/poll/stop.
+  void set_idle_callback(std::function<void()> idle) { idle_ = std::move(idle); }
+
   LinkState state() const { return state_; }
   SessionCounters counters() const;
   int baud() const { return baud_; }
@@ -191,6 +196,7 @@ class Session {
   std::uint16_t last_system_status_ = 0;
   std::int64_t recovery_started_us_ = 0;
   const volatile std::sig_atomic_t* cancel_ = nullptr;
+  std::function<void()> idle_;
   bool stopping_ = false;
 };
 

@@ -283,7 +283,10 @@ TEST(Session, NoDeviceFailsCleanly) {
   Harness h;
   h.dev->break_resets = false;
   h.dev->device_baud = -1;  // nothing ever answers
+  int idle_calls = 0;
+  h.session->set_idle_callback([&] { ++idle_calls; });
   EXPECT_FALSE(h.session->start());
+  EXPECT_GE(idle_calls, 5);  // the owner could publish health during the ~0.4 s of probing
   EXPECT_EQ(h.count("NDI_BRINGUP_FAILED"), 1);
   EXPECT_NE(h.session->detail().find("any baud rate"), std::string::npos);
   EXPECT_EQ(h.session->state(), LinkState::Down);

@@ -3,6 +3,7 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <chrono>
+#include <ctime>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -15,9 +16,11 @@ namespace arnav::host {
 namespace {
 
 // Warm-started per step: 1-2 updates; the cap only matters after set_state or a violent step.
-constexpr RotationExtraction kStepRotation{.max_iterations = 12, .tolerance_rad = 1e-8};
+constexpr RotationExtraction kStepRotation{.max_iterations = 12, .tolerance_rad = 1e-9};
 
 Eigen::Map<Eigen::VectorXd> flat(Eigen::Matrix3Xd& m) { return {m.data(), m.size()}; }
+
+double process_cpu_ms() { return 1000.0 * static_cast<double>(std::clock()) / CLOCKS_PER_SEC; }
 
 // Adds the 3x3 block B into the pattern through its 9 map entries (-1: skipped).
 inline void scatter(double* values, const int* map, const Eigen::Matrix3d& B) {
@@ -75,6 +78,7 @@ CorotationalFem::CorotationalFem(const SimProblem& problem, const ModelConfig& c
   mass_alpha_ = mass_alpha;
   q_.assign(tets_.size(), Eigen::Quaterniond::Identity());
   F_.assign(tets_.size(), Eigen::Matrix3d::Identity());
+  R_.assign(tets_.size(), Eigen::Matrix3d::Identity());
 
   // Beams only when the scene declares vessels.
   if (problem.vessels && !problem.vessels->segments.empty()) {
@@ -134,7 +138,7 @@ void CorotationalFem::update_fixed_entries() {
     }
 }
 
-void CorotationalFem::assemble(double dt_s, bool dynamic, double& elastic_energy, int& inverted) {
+CorotationalFem::AssemblyStats CorotationalFem::assemble(double dt_s, bool dynamic) {
   double* values = A_.valuePtr();
   std::fill(values, values + A_.nonZeros(), 0.0);
   f_.setZero(x_.size());
@@ -148,21 +152,23 @@ void CorotationalFem::assemble(double dt_s, bool dynamic, double& elastic_energy
     for (int k = 0; k < 3; ++k) Ds.col(k) = x_.col(e.v[k + 1]) - x_.col(e.v[0]);
     F_[t] = Ds * e.Dm_inv;
     q_[t] = extract_rotation(F_[t], q_[t], kStepRotation);
+    R_[t] = q_[t].toRotationMatrix();
   }
   for (std::size_t b = 0; b < beams_.size(); ++b) {
     // A beam co-rotates with the mean deformation of the two tets that hold its ends.
     const Eigen::Matrix3d F = 0.5 * (F_[beams_[b].tets[0]] + F_[beams_[b].tets[1]]);
     R_beam_[b] = extract_rotation(F, q_[beams_[b].tets[0]], kStepRotation).toRotationMatrix();
   }
-  double energy = 0.0;
+  double energy = 0.0, max_strain = 0.0;
   int n_inverted = 0;
   // Pass 2: forces and rotated stiffness; parts are vertex-disjoint (no write conflicts),
   // the interface elements follow serially: one synchronisation per step.
   const int parts = static_cast<int>(partition_.parts.size());
-#pragma omp parallel for schedule(static, 1) reduction(+ : energy, n_inverted) num_threads(threads_) if (threads_ > 1)
+#pragma omp parallel for schedule(static, 1) reduction(+ : energy, n_inverted) reduction(max : max_strain) \
+    num_threads(threads_) if (threads_ > 1)
   for (int part = 0; part < parts; ++part)
-    for (int id : partition_.parts[part]) assemble_element(id, dt_s, dynamic, energy, n_inverted);
-  for (int id : partition_.shared) assemble_element(id, dt_s, dynamic, energy, n_inverted);
+    for (int id : partition_.parts[part]) assemble_element(id, dt_s, dynamic, energy, n_inverted, max_strain);
+  for (int id : partition_.shared) assemble_element(id, dt_s, dynamic, energy, n_inverted, max_strain);
   // Attachments: zero-rest-length springs from material points to targets.
   const double s_att = dynamic ? dt_s * dt_s : 1.0;
   for (const auto& att : attachments_) {
@@ -183,21 +189,22 @@ void CorotationalFem::assemble(double dt_s, bool dynamic, double& elastic_energy
   if (dynamic)
     for (int i = 0; i < static_cast<int>(X_.cols()); ++i)
       for (int d = 0; d < 3; ++d) values[pattern_->diagonal()[3 * i + d]] += mass_damped_[i];
-  elastic_energy = energy;
-  inverted = n_inverted;
+  return {energy, n_inverted, max_strain};
 }
 
-void CorotationalFem::assemble_element(int id, double dt_s, bool dynamic, double& energy, int& n_inverted) {
+void CorotationalFem::assemble_element(int id, double dt_s, bool dynamic, double& energy, int& n_inverted,
+                                       double& max_strain) {
   double* values = A_.valuePtr();
   const int num_tets = static_cast<int>(tets_.size());
   if (id < num_tets) {
     const Tet& e = tets_[id];
-    const Eigen::Matrix3d R = q_[id].toRotationMatrix();
+    const Eigen::Matrix3d& R = R_[id];
     const Eigen::Matrix3d& F = F_[id];
     if (F.determinant() <= 0.0) ++n_inverted;
     const Eigen::Matrix3d S = R.transpose() * F;
     const Eigen::Matrix3d eps = 0.5 * (S + S.transpose()) - Eigen::Matrix3d::Identity();
     const double tr = eps.trace();
+    max_strain = std::max(max_strain, eps.cwiseAbs().maxCoeff());
     const Eigen::Matrix3d sigma = e.lambda * tr * Eigen::Matrix3d::Identity() + 2.0 * e.mu * eps;
     energy += e.volume * (e.mu * eps.squaredNorm() + 0.5 * e.lambda * tr * tr);
     const Eigen::Matrix3d P = e.volume * R * sigma;
@@ -255,6 +262,7 @@ StepSummary CorotationalFem::step(double dt_s) {
 
 StepSummary CorotationalFem::substep(double dt_s) {
   const auto t0 = std::chrono::steady_clock::now();
+  const double cpu0 = process_cpu_ms();
   StepSummary summary;
   auto finish = [&]() {
     summary.wall_time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
@@ -274,8 +282,12 @@ StepSummary CorotationalFem::substep(double dt_s) {
     if (dynamic) solver_.force_refactor();
     last_dt_ = dt_s;
   }
-  int inverted = 0;
-  assemble(dt_s, dynamic, summary.elastic_energy, inverted);
+  const AssemblyStats stats = assemble(dt_s, dynamic);
+  summary.elastic_energy = stats.energy;
+  const int inverted = stats.inverted;
+  const auto t_assembled = std::chrono::steady_clock::now();
+  timing_.assemble_ms = std::chrono::duration<double, std::milli>(t_assembled - t0).count();
+  timing_.assemble_cpu_ms = process_cpu_ms() - cpu0;
   const int nv = static_cast<int>(X_.cols());
   for (int i = 0; i < nv; ++i) f_ext_.segment<3>(3 * i) += mass_[i] * gravity_;
   f_ += f_ext_;
@@ -309,7 +321,11 @@ StepSummary CorotationalFem::substep(double dt_s) {
                                         : Eigen::Vector3d(f_ext_.segment<3>(3 * i));
       load_scale += l.squaredNorm();
     }
+  const auto t_solve = std::chrono::steady_clock::now();
+  const double cpu_solve = process_cpu_ms();
   last_solve_ = solver_.solve(A_, rhs_, sol_, std::sqrt(load_scale));
+  timing_.solve_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_solve).count();
+  timing_.solve_cpu_ms = process_cpu_ms() - cpu_solve;
   const LinearSolveSummary& ls = last_solve_;
   summary.iterations = ls.iterations;
   summary.initial_residual = ls.initial_residual;
@@ -357,6 +373,10 @@ StepSummary CorotationalFem::substep(double dt_s) {
     }
   } else {
     inverted_streak_ = 0;
+  }
+  if (stats.max_strain > options_.strain_warning) {
+    warnings.push_back("strain " + std::to_string(stats.max_strain) + " beyond the linear range (" +
+                       std::to_string(options_.strain_warning) + "): stresses are approximate");
   }
   for (std::size_t k = 0; k < warnings.size(); ++k) summary.warning += (k ? "; " : "") + warnings[k];
   double ke = 0.0;

@@ -36,6 +36,8 @@ namespace arnav::host {
 struct FemOptions {
   double max_speed_mm_s = kBlowUpSpeed_mm_s;  // above this a step is rejected as unstable
   int inverted_steps_limit = 30;    // inverted tets persisting this many steps -> unhealthy
+  double strain_warning = 0.3;      // co-rotated strain beyond which linear elasticity is
+                                    // reported as out of range (warning, still healthy)
   VesselBeamOptions beams;          // used only when the problem declares vessels
 };
 
@@ -66,6 +68,14 @@ class CorotationalFem final : public TissueModel {
   // Last assembled system matrix (lower triangle) and the last linear solve.
   const SparseMatrixLower& system_matrix() const { return A_; }
   const LinearSolveSummary& last_linear_solve() const { return last_solve_; }
+  // Where the last (sub-)step's time went, ms: rotations + forces + scatter, linear solve
+  // (including any factorisation); wall time and process CPU time (all threads). On a
+  // shared machine the CPU time is what the work costs when it gets a core.
+  struct Timing {
+    double assemble_ms = 0, solve_ms = 0;
+    double assemble_cpu_ms = 0, solve_cpu_ms = 0;
+  };
+  const Timing& last_timing() const { return timing_; }
   void set_estimate_condition(bool on) { solver_.set_estimate_condition(on); }
 
  private:
@@ -89,8 +99,13 @@ class CorotationalFem final : public TissueModel {
 
   void build_pattern();
   void update_fixed_entries();
-  void assemble(double dt_s, bool dynamic, double& elastic_energy, int& inverted);
-  void assemble_element(int id, double dt_s, bool dynamic, double& energy, int& inverted);
+  struct AssemblyStats {
+    double energy = 0;
+    int inverted = 0;
+    double max_strain = 0;  // largest |co-rotated strain component| of any tet
+  };
+  AssemblyStats assemble(double dt_s, bool dynamic);
+  void assemble_element(int id, double dt_s, bool dynamic, double& energy, int& inverted, double& max_strain);
   StepSummary substep(double dt_s);
 
   std::string integrator_;
@@ -105,6 +120,7 @@ class CorotationalFem final : public TissueModel {
   std::optional<VesselEmbedding> embedding_;
   std::vector<Eigen::Quaterniond> q_;      // per-tet rotation (warm start)
   std::vector<Eigen::Matrix3d> F_;         // per-tet deformation gradient of this step
+  std::vector<Eigen::Matrix3d> R_;         // per-tet rotation of this step
   std::vector<Eigen::Matrix3d> R_beam_;
   std::vector<std::optional<Attachment>> attachments_;
   std::vector<char> fixed_;               // per vertex
@@ -117,6 +133,7 @@ class CorotationalFem final : public TissueModel {
   Eigen::VectorXd f_, f_ext_, rhs_, sol_, last_dx_;
   FemLinearSolver solver_;
   LinearSolveSummary last_solve_;
+  Timing timing_;
   int inverted_streak_ = 0;
   double last_dt_ = -1.0;
 };

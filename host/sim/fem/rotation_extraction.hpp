@@ -1,8 +1,9 @@
 #pragma once
 // Rotation part of a deformation gradient for the co-rotational FEM.
 // Iterative maximisation of tr(R^T F) over SO(3) on a unit quaternion (after Mueller et
-// al. 2016, "A robust method to extract the rotational part of deformations"): warm
-// started from the previous step's rotation it needs 1-2 iterations, and it always returns
+// al. 2016, "A robust method to extract the rotational part of deformations", with a
+// Newton step where the local Hessian allows): warm started from the previous step's
+// rotation it needs 1-2 iterations, and it always returns
 // a proper rotation, also for degenerate or inverted elements (det F <= 0), where a plain
 // polar decomposition would return a reflection. For det F > 0 the result is the polar
 // rotation.

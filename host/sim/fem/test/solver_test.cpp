@@ -129,6 +129,20 @@ TEST(FemStability, InversionHeldByConstraintsBecomesUnhealthy) {
   EXPECT_NE(s.warning.find("not recovering"), std::string::npos) << s.warning;
 }
 
+TEST(FemStability, StrainBeyondTheLinearRangeIsReported) {
+  SimProblem problem = box_problem(2, 2, 2, Eigen::Vector3d(10, 10, 10), 5.0, 0.45);
+  problem.fixed_vertices = vertices_where(problem.mesh, [](const Eigen::Vector3d& q) { return q.x() == 0.0 || q.x() == 10.0; });
+  for (const double stretch : {1.1, 1.5}) {
+    CorotationalFem model(problem, {.kind = "corotational_fem", .integrator = "implicit_euler", .linear_solver = "cholmod"});
+    Eigen::Matrix3Xd x = problem.mesh.rest_positions_World_mm;
+    x.row(0) *= stretch;
+    model.set_state(x, Eigen::Matrix3Xd::Zero(3, x.cols()));
+    const StepSummary s = model.step(0.01);
+    EXPECT_TRUE(s.healthy);
+    EXPECT_EQ(s.warning.find("beyond the linear range") != std::string::npos, stretch > 1.3) << s.warning;
+  }
+}
+
 TEST(FemStability, UnsupportedQuasiStaticAndSingularSystemsAreReported) {
   SimProblem problem = box_problem(2, 2, 2, Eigen::Vector3d(10, 10, 10), 5.0, 0.45);
   problem.gravity_World_mm_s2 = Eigen::Vector3d(0, 0, -9810);
