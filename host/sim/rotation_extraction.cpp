@@ -12,7 +12,11 @@ Eigen::Matrix3d refine_rotation(const Eigen::Matrix3d& F, Eigen::Quaterniond& q,
                                   (std::abs(R.col(0).dot(F.col(0)) + R.col(1).dot(F.col(1)) + R.col(2).dot(F.col(2))) + 1e-9);
     const double angle = omega.norm();
     if (!(angle > tol_rad)) break;  // also stops on NaN input
-    q = Eigen::Quaterniond(Eigen::AngleAxisd(angle, omega / angle)) * q;
+    // Small corrections (the warm-started case) use the first-order quaternion of the
+    // rotation vector: same axis, angle 2 atan(angle/2), no trigonometry.
+    const Eigen::Quaterniond dq = angle < 0.1 ? Eigen::Quaterniond(1.0, 0.5 * omega.x(), 0.5 * omega.y(), 0.5 * omega.z())
+                                              : Eigen::Quaterniond(Eigen::AngleAxisd(angle, omega / angle));
+    q = dq * q;
     q.normalize();
     R = q.toRotationMatrix();
   }

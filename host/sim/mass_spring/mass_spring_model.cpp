@@ -2,6 +2,7 @@
 
 #include <omp.h>
 
+#include <Eigen/Geometry>
 #include <Eigen/LU>
 #include <algorithm>
 #include <chrono>
@@ -16,34 +17,88 @@ namespace arnav::host {
 
 namespace {
 
-// Spring kernels write into one buffer per thread (no locks, no atomics); a vertex pass
-// sums the buffers. `fn(s)` returns the contribution at end 0; end 1 gets `sign1` times it.
+// Spring kernels: out = sum over springs of the contribution fn(s) at end 0 and
+// sign1 * fn(s) at end 1. With several threads each writes into its own buffer (no locks,
+// no atomics) and a vertex pass sums the buffers; one thread writes into out directly.
 template <class Fn>
 void scatter(int threads, std::vector<Eigen::Matrix3Xd>& buffers, const std::vector<std::array<int, 2>>& ends,
-             double sign1, Fn fn) {
+             double sign1, Eigen::Matrix3Xd& out, Fn fn) {
   const int n = static_cast<int>(ends.size());
-#pragma omp parallel num_threads(threads) if (threads > 1)
+  if (threads == 1) {
+    out.setZero();
+    double* o = out.data();
+    for (int s = 0; s < n; ++s) {
+      const Eigen::Vector3d c = fn(s);
+      double* oi = o + 3 * ends[s][0];
+      double* oj = o + 3 * ends[s][1];
+      oi[0] += c.x(), oi[1] += c.y(), oi[2] += c.z();
+      oj[0] += sign1 * c.x(), oj[1] += sign1 * c.y(), oj[2] += sign1 * c.z();
+    }
+    return;
+  }
+  const int nv = static_cast<int>(out.cols());
+#pragma omp parallel num_threads(threads)
   {
     Eigen::Matrix3Xd& buf = buffers[static_cast<std::size_t>(omp_get_thread_num())];
     buf.setZero();
+    double* o = buf.data();
 #pragma omp for schedule(static)
     for (int s = 0; s < n; ++s) {
       const Eigen::Vector3d c = fn(s);
-      buf.col(ends[s][0]) += c;
-      buf.col(ends[s][1]) += sign1 * c;
+      double* oi = o + 3 * ends[s][0];
+      double* oj = o + 3 * ends[s][1];
+      oi[0] += c.x(), oi[1] += c.y(), oi[2] += c.z();
+      oj[0] += sign1 * c.x(), oj[1] += sign1 * c.y(), oj[2] += sign1 * c.z();
+    }
+#pragma omp for schedule(static)
+    for (int i = 0; i < nv; ++i) {
+      Eigen::Vector3d sum = buffers[0].col(i);
+      for (std::size_t t = 1; t < buffers.size(); ++t) sum += buffers[t].col(i);
+      out.col(i) = sum;
     }
   }
 }
 
-// out.col(i) = sum of the thread buffers at i.
-void gather(int threads, const std::vector<Eigen::Matrix3Xd>& buffers, Eigen::Matrix3Xd& out) {
-  const int n = static_cast<int>(out.cols());
-#pragma omp parallel for num_threads(threads) if (threads > 1) schedule(static)
-  for (int i = 0; i < n; ++i) {
-    Eigen::Vector3d sum = buffers[0].col(i);
-    for (std::size_t t = 1; t < buffers.size(); ++t) sum += buffers[t].col(i);
-    out.col(i) = sum;
+// Tet kernels: out += sum over tets of fn(t, c) (one contribution per tet vertex).
+template <class Fn>
+void scatter_tets_add(int threads, std::vector<Eigen::Matrix3Xd>& buffers, const std::vector<std::array<int, 4>>& tets,
+                      Eigen::Matrix3Xd& out, Fn fn) {
+  const int n = static_cast<int>(tets.size());
+  if (threads == 1) {
+    std::array<Eigen::Vector3d, 4> c;
+    for (int t = 0; t < n; ++t) {
+      if (!fn(t, c)) continue;
+      for (int a = 0; a < 4; ++a) out.col(tets[t][a]) += c[a];
+    }
+    return;
   }
+  const int nv = static_cast<int>(out.cols());
+#pragma omp parallel num_threads(threads)
+  {
+    Eigen::Matrix3Xd& buf = buffers[static_cast<std::size_t>(omp_get_thread_num())];
+    buf.setZero();
+    std::array<Eigen::Vector3d, 4> c;
+#pragma omp for schedule(static)
+    for (int t = 0; t < n; ++t) {
+      if (!fn(t, c)) continue;
+      for (int a = 0; a < 4; ++a) buf.col(tets[t][a]) += c[a];
+    }
+#pragma omp for schedule(static)
+    for (int i = 0; i < nv; ++i) {
+      Eigen::Vector3d sum = buffers[0].col(i);
+      for (std::size_t k = 1; k < buffers.size(); ++k) sum += buffers[k].col(i);
+      out.col(i) += sum;
+    }
+  }
+}
+
+// cof(F) = d det(F) / dF: column k is the cross product of the other two columns.
+inline Eigen::Matrix3d cofactor(const Eigen::Matrix3d& F) {
+  Eigen::Matrix3d c;
+  c.col(0) = F.col(1).cross(F.col(2));
+  c.col(1) = F.col(2).cross(F.col(0));
+  c.col(2) = F.col(0).cross(F.col(1));
+  return c;
 }
 
 double dot(int threads, const Eigen::Matrix3Xd& a, const Eigen::Matrix3Xd& b) {
@@ -58,6 +113,10 @@ double dot(int threads, const Eigen::Matrix3Xd& a, const Eigen::Matrix3Xd& b) {
 
 // Tets inverted for longer than this (simulated time) are reported unhealthy.
 constexpr double kInversionGrace_s = 1.0;
+// Modulus of the volume term as a fraction of E (see the header).
+constexpr double kVolumeModulusPerE = 0.5;
+// Relative CG residual above which a semi-implicit step is reported as not converged.
+constexpr double kUnconvergedResidual = 0.01;
 
 }  // namespace
 
@@ -85,11 +144,15 @@ MassSpringModel::MassSpringModel(const SimProblem& problem, Integrator integrato
   tets_ = mesh.tets;
   Dm_inv_.resize(tets_.size());
   tet_lame_.resize(tets_.size());
+  volume_stiffness_.resize(tets_.size());
   for (int t = 0; t < mesh.num_tets(); ++t) {
     const int region = mesh.tet_region.empty() ? 0 : mesh.tet_region[t];
     const Material& mat = problem.region_materials[region];
     Dm_inv_[t] = edge_matrix(x_, tets_[t]).inverse();
     tet_lame_[t] = lame_from(mat);
+    // Volume term with a fixed modulus kVolumeModulusPerE * E: enough to stop compressed
+    // tets from collapsing and inverting, small enough to keep the CG well conditioned.
+    volume_stiffness_[t] = kVolumeModulusPerE * mat.youngs_modulus_kPa * signed_volume_mm3(x_, tets_[t]);
     const double quarter = 0.25 * signed_volume_mm3(x_, tets_[t]) * mat.density_kg_per_mm3;
     for (int v : tets_[t]) mass_damping_[v] += quarter * mat.damping_mass_per_s;
   }
@@ -100,6 +163,8 @@ MassSpringModel::MassSpringModel(const SimProblem& problem, Integrator integrato
     spring_dir_.resize(springs_.ends.size());
     spring_s1_.resize(springs_.ends.size());
     spring_s2_.resize(springs_.ends.size());
+    vol_grad_.resize(tets_.size());
+    vol_coef_.resize(tets_.size());
   }
   set_fixed_vertices(problem.fixed_vertices);
   reset_ledger();
@@ -135,6 +200,18 @@ void MassSpringModel::update_omega_bound() {
   for (int id : attachments_.active()) {
     const Attachment& a = attachments_[id];
     for (int i = 0; i < a.count; ++i) row[a.vertices[i]] += a.stiffness_mN_per_mm * std::abs(a.weights[i]);
+  }
+  // Volume term: kv g g^T with g_a = cof(F) b_a, bounded with its rest value g_a = b_a
+  // (the energy ledger backs this up under large stretch).
+  for (std::size_t t = 0; t < tets_.size(); ++t) {
+    if (volume_stiffness_[t] <= 0.0) continue;
+    std::array<double, 4> gn;
+    gn[1] = Dm_inv_[t].row(0).norm();
+    gn[2] = Dm_inv_[t].row(1).norm();
+    gn[3] = Dm_inv_[t].row(2).norm();
+    gn[0] = Dm_inv_[t].colwise().sum().norm();
+    const double sum = gn[0] + gn[1] + gn[2] + gn[3];
+    for (int a = 0; a < 4; ++a) row[tets_[t][a]] += volume_stiffness_[t] * gn[a] * sum;
   }
   omega_max_ = 0.0;
   for (int i = 0; i < n; ++i) {
@@ -198,7 +275,8 @@ void MassSpringModel::assemble(double h) {
   const double* K = springs_.stiffness_mN_per_mm.data();
   const double* ETA = springs_.damping_mN_s_per_mm.data();
   const bool implicit = h > 0.0;
-  scatter(threads_, thread_buffers_, ends, -1.0, [&](int s) -> Eigen::Vector3d {
+  Eigen::Matrix3Xd& out = implicit ? rhs_ : f_;
+  scatter(threads_, thread_buffers_, ends, -1.0, out, [&](int s) -> Eigen::Vector3d {
     const int i = ends[s][0], j = ends[s][1];
     const Eigen::Vector3d d(X[3 * j] - X[3 * i], X[3 * j + 1] - X[3 * i + 1], X[3 * j + 2] - X[3 * i + 2]);
     const Eigen::Vector3d dv(V[3 * j] - V[3 * i], V[3 * j + 1] - V[3 * i + 1], V[3 * j + 2] - V[3 * i + 2]);
@@ -218,8 +296,30 @@ void MassSpringModel::assemble(double h) {
     // rhs at i: h f_i + h^2 (K v)_i, (K v)_i = -K_e (v_i - v_j) = K_e dv.
     return h * f + h2k * ((1.0 - c) * ndv * n + c * dv);
   });
-  Eigen::Matrix3Xd& out = implicit ? rhs_ : f_;
-  gather(threads_, thread_buffers_, out);
+  // Volume term E_V = kv/2 (J - 1)^2: f_a = -kv (J - 1) g_a, g_a = cof(F) b_a; its
+  // Gauss-Newton tangent -kv g g^T enters the implicit system.
+  scatter_tets_add(threads_, thread_buffers_, tets_, out, [&](int t, std::array<Eigen::Vector3d, 4>& c) {
+    const double kv = volume_stiffness_[t];
+    if (kv <= 0.0) return false;
+    const Eigen::Matrix3d F = edge_matrix(x_, tets_[t]) * Dm_inv_[t];
+    const Eigen::Matrix3d G = cofactor(F) * Dm_inv_[t].transpose();  // columns g_1..g_3
+    std::array<Eigen::Vector3d, 4> g;
+    g[1] = G.col(0);
+    g[2] = G.col(1);
+    g[3] = G.col(2);
+    g[0] = -(g[1] + g[2] + g[3]);
+    const double f = -kv * (F.determinant() - 1.0);
+    if (!implicit) {
+      for (int a = 0; a < 4; ++a) c[a] = f * g[a];
+      return true;
+    }
+    double gv = 0.0;
+    for (int a = 0; a < 4; ++a) gv += g[a].dot(v_.col(tets_[t][a]));
+    vol_grad_[t] = g;
+    vol_coef_[t] = h * h * kv;
+    for (int a = 0; a < 4; ++a) c[a] = (h * f - h * h * kv * gv) * g[a];
+    return true;
+  });
   const int n = static_cast<int>(x_.cols());
   const double scale = implicit ? h : 1.0;
 #pragma omp parallel for num_threads(threads_) if (threads_ > 1) schedule(static)
@@ -249,22 +349,33 @@ void MassSpringModel::explicit_substep(double h) {
 
 void MassSpringModel::apply_system(const Eigen::Matrix3Xd& p, Eigen::Matrix3Xd& out) {
   const auto& ends = springs_.ends;
-  scatter(threads_, thread_buffers_, ends, -1.0, [&](int s) -> Eigen::Vector3d {
+  scatter(threads_, thread_buffers_, ends, -1.0, out, [&](int s) -> Eigen::Vector3d {
     const Eigen::Vector3d d = p.col(ends[s][0]) - p.col(ends[s][1]);
     return spring_s1_[s] * spring_dir_[s].dot(d) * spring_dir_[s] + spring_s2_[s] * d;
   });
-  gather(threads_, thread_buffers_, out);
   const int n = static_cast<int>(x_.cols());
   const double h = current_h_;
-#pragma omp parallel for num_threads(threads_) if (threads_ > 1) schedule(static)
-  for (int i = 0; i < n; ++i) out.col(i) += (mass_[i] + h * mass_damping_[i]) * p.col(i);
+  scatter_tets_add(threads_, thread_buffers_, tets_, out, [&](int t, std::array<Eigen::Vector3d, 4>& c) {
+    if (volume_stiffness_[t] <= 0.0) return false;
+    const auto& g = vol_grad_[t];
+    double gp = 0.0;
+    for (int a = 0; a < 4; ++a) gp += g[a].dot(p.col(tets_[t][a]));
+    for (int a = 0; a < 4; ++a) c[a] = vol_coef_[t] * gp * g[a];
+    return true;
+  });
   for (int id : attachments_.active()) {
     const Attachment& a = attachments_[id];
     const Eigen::Vector3d pp = a.point(p);
     for (int k = 0; k < a.count; ++k) out.col(a.vertices[k]) += h * h * a.stiffness_mN_per_mm * a.weights[k] * pp;
   }
-  for (int i = 0; i < n; ++i)
-    if (fixed_[static_cast<std::size_t>(i)]) out.col(i).setZero();
+#pragma omp parallel for num_threads(threads_) if (threads_ > 1) schedule(static)
+  for (int i = 0; i < n; ++i) {
+    if (fixed_[static_cast<std::size_t>(i)]) {
+      out.col(i).setZero();
+    } else {
+      out.col(i) += (mass_[i] + h * mass_damping_[i]) * p.col(i);
+    }
+  }
 }
 
 StepSummary MassSpringModel::semi_implicit_substep(double h) {
@@ -273,10 +384,14 @@ StepSummary MassSpringModel::semi_implicit_substep(double h) {
   const int n = static_cast<int>(x_.cols());
   // Jacobi preconditioner: diagonal of M + h C_mass + sum of spring blocks + attachments.
   const auto& ends = springs_.ends;
-  scatter(threads_, thread_buffers_, ends, 1.0, [&](int s) -> Eigen::Vector3d {
+  scatter(threads_, thread_buffers_, ends, 1.0, diag_, [&](int s) -> Eigen::Vector3d {
     return spring_s1_[s] * spring_dir_[s].cwiseAbs2() + Eigen::Vector3d::Constant(spring_s2_[s]);
   });
-  gather(threads_, thread_buffers_, diag_);
+  scatter_tets_add(threads_, thread_buffers_, tets_, diag_, [&](int t, std::array<Eigen::Vector3d, 4>& c) {
+    if (volume_stiffness_[t] <= 0.0) return false;
+    for (int a = 0; a < 4; ++a) c[a] = vol_coef_[t] * vol_grad_[t][a].cwiseAbs2();
+    return true;
+  });
   for (int i = 0; i < n; ++i) diag_.col(i).array() += mass_[i] + h * mass_damping_[i];
   for (int id : attachments_.active()) {
     const Attachment& a = attachments_[id];
@@ -365,6 +480,12 @@ StepSummary MassSpringModel::step(double dt_s) {
       summary.termination = sub.termination;
     }
   }
+  if (integrator_ == Integrator::kSemiImplicit && summary.final_residual > kUnconvergedResidual) {
+    report(summary,
+           "CG not converged: relative residual " + std::to_string(summary.final_residual) + " after " +
+               std::to_string(config_.iterations) + " iterations (raise iterations)",
+           false);
+  }
   check_state(x_, v_, summary);
   const int inverted = count_inverted();
   if (inverted > 0) {
@@ -404,6 +525,13 @@ double MassSpringModel::elastic_energy() const {
   for (int s = 0; s < ns; ++s) {
     const double stretch = (x_.col(ends[s][1]) - x_.col(ends[s][0])).norm() - springs_.rest_length_mm[s];
     e += 0.5 * springs_.stiffness_mN_per_mm[s] * stretch * stretch;
+  }
+  const int nt = static_cast<int>(tets_.size());
+#pragma omp parallel for num_threads(threads_) if (threads_ > 1) reduction(+ : e) schedule(static)
+  for (int t = 0; t < nt; ++t) {
+    if (volume_stiffness_[t] <= 0.0) continue;
+    const double dJ = (edge_matrix(x_, tets_[t]) * Dm_inv_[t]).determinant() - 1.0;
+    e += 0.5 * volume_stiffness_[t] * dJ * dJ;
   }
   return e + attachments_.energy(x_);
 }

@@ -3,6 +3,12 @@
 // edge, after the liver model of paper 000), lumped vertex masses, gravity, attachments.
 // Frame World; units mm, kg, s, mN.
 //
+// Volume term (after Teschner et al. 2004): E_V = kv/2 (det F - 1)^2 per tet with
+// kv = 0.5 E V0. Edge springs alone have no sense of volume or orientation: a 100 mm block
+// of 5 kPa tissue collapsed under its own weight without it. The modulus is fixed (not
+// from nu) so that the implicit system stays well conditioned; the network behaves like
+// an isotropic material with nu of about 0.3 (nu of the region only enters the stress).
+//
 // Integrators (ModelConfig::integrator):
 //  - "explicit": symplectic (semi-explicit) Euler, v += h M^-1 f(x, v); x += h v.
 //    Conditionally stable: h < (2/w)(sqrt(1+z^2) - z), w^2 bounded by Gershgorin
@@ -82,6 +88,9 @@ class MassSpringModel final : public TissueModel {
   std::vector<std::array<int, 4>> tets_;
   std::vector<Eigen::Matrix3d> Dm_inv_;
   std::vector<Lame> tet_lame_;
+  std::vector<double> volume_stiffness_;  // kv = 0.5 E V0 per tet, mN*mm
+  std::vector<std::array<Eigen::Vector3d, 4>> vol_grad_;  // semi-implicit: g_a of the substep
+  std::vector<double> vol_coef_;                          // semi-implicit: h^2 kv
 
   double omega_max_ = 0.0;  // Gershgorin bound of sqrt(max eig M^-1 K), 1/s
   double zeta_ = 0.0;       // damping ratio of that mode

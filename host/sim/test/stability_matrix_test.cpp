@@ -58,19 +58,20 @@ std::vector<Case> cases() {
 const std::map<std::pair<std::string, std::string>, std::string>& known_limits() {
   const std::string explicit_bound =
       "explicit bound 2/omega ~ sqrt(m/k) shrinks with stiffness: step refused, warning names the substeps needed";
-  const std::string no_orientation = "springs have no orientation: inverted tets stay inverted";
   const std::string xpbd_contrast =
       "4 substeps x 4 iterations do not converge in the stiff vessel: it behaves softer and stores more energy than "
       "was put in (energy ledger); 16 x 16 passes";
+  const std::string cg_contrast =
+      "20 Jacobi-PCG iterations do not converge with 10^3+ contrast (truncated linear solve gains energy, "
+      "energy ledger reports it); a 200-iteration cap converges in ~100 and passes";
   static const std::map<std::pair<std::string, std::string>, std::string> limits = {
+      {{"mass_spring/semi_implicit", "contrast_1e3"}, cg_contrast},
+      {{"mass_spring/semi_implicit", "contrast_1e4"}, cg_contrast},
       {{"mass_spring/explicit", "contrast_1e2"}, explicit_bound},
       {{"mass_spring/explicit", "contrast_1e3"}, explicit_bound},
       {{"mass_spring/explicit", "contrast_1e4"}, explicit_bound},
       {{"mass_spring/explicit", "dt_100ms"}, explicit_bound},
       {{"mass_spring/explicit", "attachment_100x"}, explicit_bound},
-      {{"mass_spring/explicit", "inverted"}, no_orientation},
-      {{"mass_spring/explicit", "compressed_80"}, no_orientation},
-      {{"mass_spring/semi_implicit", "inverted"}, no_orientation},
       {{"xpbd", "contrast_1e2"}, xpbd_contrast},
       {{"xpbd", "contrast_1e3"}, xpbd_contrast},
       {{"xpbd", "contrast_1e4"}, xpbd_contrast},
@@ -197,8 +198,10 @@ TEST_P(StabilityMatrix, PassesOrDetectsKnownLimit) {
                         << ") rest error " << o.rest_error_mm << " mm (tolerance " << tolerance_mm
                         << ") warning: " << o.first_warning;
   } else {
+    // Also fails when the model now passes the case: then the entry is stale, remove it.
     EXPECT_TRUE(o.unhealthy && !o.first_warning.empty())
-        << "known limit (" << it->second << ") was not detected at run time";
+        << "known limit (" << it->second << ") was not detected at run time"
+        << (passed ? " (the case passes now: remove it from kKnownLimits)" : "");
   }
 }
 

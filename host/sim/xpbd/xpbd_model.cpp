@@ -172,7 +172,8 @@ double XpbdModel::solve_tets(double h) {
 
       // Deviatoric block: C = F - R, dC_ij/dx_a = b_a[j] e_i, so the system is
       // dLambda ((1 + damp) B + alpha I) = -(C + alpha Lambda) - damp dF (row by row).
-      const Eigen::Matrix3d R = refine_rotation(F, rotation_[ks], 5);
+      // Warm-started: two refinements per solve; R keeps converging over sweeps and substeps.
+      const Eigen::Matrix3d R = refine_rotation(F, rotation_[ks], 2, 1e-9);
       const double alpha_dev = inv_h2 / (2.0 * d.mu_kPa * d.volume_mm3);
       Eigen::Matrix3d& lam = lambda_dev_[ks];
       const Eigen::Matrix3d r_dev = -(F - R) - alpha_dev * lam;
@@ -322,7 +323,7 @@ double XpbdModel::elastic_energy() const {
     const TetData& d = tets_[static_cast<std::size_t>(k)];
     const Eigen::Matrix3d F = edge_matrix(x_, d.v) * d.Dm_inv;
     Eigen::Quaterniond q = rotation_[static_cast<std::size_t>(k)];
-    const Eigen::Matrix3d R = refine_rotation(F, q, 20);
+    const Eigen::Matrix3d R = refine_rotation(F, q, 1, 1e-6);  // R of the last sweep, one refinement
     const double J = F.determinant();
     e += d.volume_mm3 * (d.mu_kPa * (F - R).squaredNorm() + 0.5 * d.lambda_kPa * (J - 1.0) * (J - 1.0));
   }

@@ -1,0 +1,109 @@
+// arnav-sim-bench: frame time of the tissue models on a synthetic box of ~24k tets (the
+// size of the liver mesh) until the scenes carry their own benchmark. Prints JSON.
+// Scenario per frame (1/60 s): gravity, bottom face clamped, one top corner grasped and
+// pulled 25 mm over the first second, then held. Frame time = wall time of step().
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <iostream>
+
+#include "host/scene/box_mesh.hpp"
+#include "host/sim/model_factory.hpp"
+
+namespace {
+
+using namespace arnav::host;
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const std::size_t i = std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5));
+  return v[i];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Frame time of the tissue models (mass-spring, XPBD, ...) on a synthetic ~24k-tet box; JSON to stdout"};
+  int nx = 20, ny = 20, nz = 10, frames = 120;
+  std::vector<int> threads{1, 2};
+  std::vector<std::string> models;
+  int iterations = 0, substeps = 0;
+  app.add_option("--nx", nx, "cells along x (6 tets per cell)")->check(CLI::PositiveNumber);
+  app.add_option("--ny", ny, "cells along y")->check(CLI::PositiveNumber);
+  app.add_option("--nz", nz, "cells along z")->check(CLI::PositiveNumber);
+  app.add_option("--frames", frames, "frames of 1/60 s to time")->check(CLI::PositiveNumber);
+  app.add_option("--threads", threads, "thread counts to run")->check(CLI::PositiveNumber);
+  app.add_option("--model", models, "variant labels (default: every variant of model_variants())");
+  app.add_option("--iterations", iterations, "override iterations (XPBD sweeps per substep, CG max)");
+  app.add_option("--substeps", substeps, "override substeps per frame");
+  CLI11_PARSE(app, argc, argv);
+
+  SimProblem problem;
+  problem.mesh = make_box_tet_mesh(nx, ny, nz, Eigen::Vector3d(200, 200, 100));
+  problem.region_materials = {Material{.youngs_modulus_kPa = 5.0, .poisson_ratio = 0.45, .damping_mass_per_s = 5.0}};
+  for (int j = 0; j <= ny; ++j)
+    for (int i = 0; i <= nx; ++i) problem.fixed_vertices.push_back(box_vertex_index(nx, ny, i, j, 0));
+  const int grasp = box_vertex_index(nx, ny, nx, ny, nz);
+  const Eigen::Vector3d grasp_rest = problem.mesh.rest_positions_World_mm.col(grasp);
+
+  std::vector<ModelVariant> variants;
+  for (const ModelVariant& v : model_variants())
+    if (models.empty() || std::find(models.begin(), models.end(), v.label) != models.end()) variants.push_back(v);
+  if (variants.empty()) {
+    std::cerr << "arnav-sim-bench: no model variant matches --model; available:";
+    for (const ModelVariant& v : model_variants()) std::cerr << " " << v.label;
+    std::cerr << "\n";
+    return 2;
+  }
+
+  nlohmann::json out;
+  out["mesh"] = {{"tets", problem.mesh.num_tets()}, {"vertices", problem.mesh.num_vertices()},
+                 {"size_mm", {200, 200, 100}}, {"cells", {nx, ny, nz}}};
+  out["frame_s"] = 1.0 / 60.0;
+  out["runs"] = nlohmann::json::array();
+  for (const ModelVariant& variant : variants) {
+    for (int t : threads) {
+      ModelConfig config = variant.config;
+      config.threads = t;
+      if (iterations > 0) config.iterations = iterations;
+      if (substeps > 0) config.substeps = substeps;
+      auto model = make_tissue_model(problem, config);
+      const AttachmentId id = model->add_attachment(
+          {.point = {{grasp}, {1.0}}, .target_World_mm = grasp_rest, .stiffness_mN_per_mm = 200.0});
+      std::vector<double> ms;
+      double iters = 0.0, final_residual = 0.0;
+      int unhealthy = 0;
+      std::string warning;
+      for (int f = 0; f < frames; ++f) {
+        const double pull = std::min(1.0, (f + 1) / 60.0);
+        model->set_attachment_target(id, grasp_rest + Eigen::Vector3d(25.0 * pull, 0, 0));
+        const StepSummary s = model->step(1.0 / 60.0);
+        ms.push_back(s.wall_time_ms);
+        iters += s.iterations;
+        final_residual = s.final_residual;
+        if (!s.healthy) {
+          ++unhealthy;
+          if (warning.empty()) warning = s.warning;
+        }
+      }
+      const double median = percentile(ms, 0.5);
+      out["runs"].push_back({{"model", variant.label},
+                             {"threads", t},
+                             {"iterations", config.iterations},
+                             {"substeps", config.substeps},
+                             {"median_frame_ms", median},
+                             {"p90_frame_ms", percentile(ms, 0.9)},
+                             {"min_frame_ms", percentile(ms, 0.0)},
+                             {"median_rate_hz", median > 0 ? 1000.0 / median : 0.0},
+                             {"mean_iterations_per_frame", iters / frames},
+                             {"final_residual", final_residual},
+                             {"unhealthy_frames", unhealthy},
+                             {"first_warning", warning}});
+      std::cerr << variant.label << " threads=" << t << " median " << median << " ms\n";
+    }
+  }
+  std::cout << out.dump(2) << "\n";
+  return 0;
+}
