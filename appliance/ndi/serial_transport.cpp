@@ -104,13 +104,15 @@ SerialTransport::~SerialTransport() {
 }
 
 std::size_t SerialTransport::read(std::span<std::uint8_t> buffer, std::chrono::milliseconds timeout) {
-  const auto rc = sp_blocking_read_next(port_, buffer.data(), buffer.size(), static_cast<unsigned>(timeout.count()));
+  // libserialport returns byte counts in its enum type: read them as int (an enum holding
+  // a count is an invalid enum value; UBSan flags it).
+  const int rc = sp_blocking_read_next(port_, buffer.data(), buffer.size(), static_cast<unsigned>(timeout.count()));
   if (rc < 0) throw PortLost(name_ + ": read failed: " + last_error());
   return static_cast<std::size_t>(rc);
 }
 
 void SerialTransport::write(std::span<const std::uint8_t> bytes) {
-  const auto rc = sp_blocking_write(port_, bytes.data(), bytes.size(), 1000);
+  const int rc = sp_blocking_write(port_, bytes.data(), bytes.size(), 1000);
   if (rc < 0) throw PortLost(name_ + ": write failed: " + last_error());
   if (static_cast<std::size_t>(rc) != bytes.size()) throw PortLost(name_ + ": write stalled");
 }

@@ -1,18 +1,22 @@
 #include "calibration/lib/ar_chain_sim.hpp"
 
 #include <chrono>
+#include <memory>
 #include <cmath>
 #include <random>
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
 
+#include "appliance/markers/calibration_files.hpp"
 #include "appliance/markers/camera_model.hpp"
 #include "calibration/lib/board_layout.hpp"
 #include "calibration/lib/calib_error.hpp"
 #include "calibration/lib/intrinsics_calibration.hpp"
 #include "calibration/lib/pivot_calibration.hpp"
 #include "calibration/lib/point_registration.hpp"
+#include "calibration/lib/target_detection.hpp"
+#include "hil_tests/camera_sim/synthetic_renderer.hpp"
 
 namespace arnav::calib {
 namespace {
@@ -82,29 +86,97 @@ struct Corners {
   std::vector<cv::Point3f> board;
 };
 
-// Corners of the tags fully inside the image (5 px margin), noisy.
-Corners observe(const Bench& b, const BoardLayout& layout, const Eigen::Isometry3d& X_CamBoard, double noise_px,
-                std::mt19937_64& rng) {
-  Corners c;
-  std::normal_distribution<double> g(0.0, noise_px);
-  for (const auto& t : layout.tags) {
-    std::vector<Eigen::Vector3d> p_Cam;
-    for (const auto& p : t.p_BoardCorner_mm) p_Cam.push_back(X_CamBoard * p);
-    bool ok = true;
-    for (const auto& p : p_Cam) ok = ok && p.z() > 50.0;
-    if (!ok) continue;
-    const auto px = b.camera.project(p_Cam);
-    for (const auto& q : px) ok = ok && q.x > 5 && q.y > 5 && q.x < b.camera.width - 6 && q.y < b.camera.height - 6;
-    if (!ok) continue;
-    for (int k = 0; k < 4; ++k) {
-      const auto kk = static_cast<std::size_t>(k);
-      c.px.emplace_back(static_cast<float>(px[kk].x + g(rng)), static_cast<float>(px[kk].y + g(rng)));
-      const auto& p = t.p_BoardCorner_mm[kk];
-      c.board.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()));
+// The camera side of the simulation: Gaussian-noise corners, or rendered images and the
+// detector. Accumulates the corner error against the true projections.
+class SimCamera {
+ public:
+  SimCamera(const Bench& bench, const ArSimOptions& o) : bench_(bench), o_(o) {
+    if (o.render) {
+      renderer_ = std::make_unique<camera_sim::SyntheticRenderer>(bench.camera);
+      grid_ = markers::board_from_layout(bench.grid, "grid", "simulated grid");
+      marker_ = markers::board_from_layout(bench.marker, "marker", "simulated marker");
     }
   }
-  return c;
-}
+
+  Corners observe(const BoardLayout& layout, const Eigen::Isometry3d& X_CamBoard, std::mt19937_64& rng) {
+    return o_.render ? rendered(layout, X_CamBoard, rng) : projected(layout, X_CamBoard, rng);
+  }
+  double corner_error_rms_px() const { return n_ ? std::sqrt(sum_sq_ / (2.0 * n_)) : 0.0; }
+  int views_rendered() const { return rendered_; }
+
+ private:
+  // True corner pixels of a tag, or false when the tag is not fully visible.
+  bool true_corners(const BoardTag& t, const Eigen::Isometry3d& X_CamBoard, std::vector<cv::Point2d>& px) const {
+    std::vector<Eigen::Vector3d> p_Cam;
+    for (const auto& p : t.p_BoardCorner_mm) p_Cam.push_back(X_CamBoard * p);
+    for (const auto& p : p_Cam) {
+      if (p.z() <= 50.0) return false;
+    }
+    px = bench_.camera.project(p_Cam);
+    for (const auto& q : px) {
+      if (!(q.x > 5 && q.y > 5 && q.x < bench_.camera.width - 6 && q.y < bench_.camera.height - 6)) return false;
+    }
+    return true;
+  }
+
+  void add_error(const cv::Point2f& measured, const cv::Point2d& truth) {
+    const double dx = static_cast<double>(measured.x) - truth.x, dy = static_cast<double>(measured.y) - truth.y;
+    sum_sq_ += dx * dx + dy * dy;
+    ++n_;
+  }
+
+  Corners projected(const BoardLayout& layout, const Eigen::Isometry3d& X_CamBoard, std::mt19937_64& rng) {
+    Corners c;
+    std::normal_distribution<double> g(0.0, o_.corner_noise_px);
+    std::vector<cv::Point2d> px;
+    for (const auto& t : layout.tags) {
+      if (!true_corners(t, X_CamBoard, px)) continue;
+      for (std::size_t k = 0; k < 4; ++k) {
+        c.px.emplace_back(static_cast<float>(px[k].x + g(rng)), static_cast<float>(px[k].y + g(rng)));
+        add_error(c.px.back(), px[k]);
+        const auto& p = t.p_BoardCorner_mm[k];
+        c.board.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()));
+      }
+    }
+    return c;
+  }
+
+  Corners rendered(const BoardLayout& layout, const Eigen::Isometry3d& X_CamBoard, std::mt19937_64& rng) {
+    camera_sim::RenderOptions ro;
+    ro.noise_sigma = o_.render_noise_gray;
+    ro.blur_sigma_px = o_.render_blur_px;
+    ro.noise_seed = rng();
+    const markers::TagBoard& board = &layout == &bench_.grid ? grid_ : marker_;
+    const auto frame = renderer_->render({{&board, X_CamBoard}}, ro);
+    ++rendered_;
+    DetectionOptions d;
+    d.min_tags = 1;
+    const BoardObservation obs = detect_board(frame.image, layout, d);
+    Corners c;
+    if (!obs.found) return c;
+    std::vector<cv::Point2d> px;
+    for (std::size_t i = 0; i < obs.tag_ids.size(); ++i) {
+      const BoardTag* t = layout.find_tag(obs.tag_ids[i]);
+      // Only fully visible tags, as in the projected mode (partial tags are not detected
+      // reliably and would bias the comparison).
+      if (!t || !true_corners(*t, X_CamBoard, px)) continue;
+      for (std::size_t k = 0; k < 4; ++k) {
+        c.px.push_back(obs.image_px[4 * i + k]);
+        c.board.push_back(obs.board_mm[4 * i + k]);
+        add_error(c.px.back(), px[k]);
+      }
+    }
+    return c;
+  }
+
+  const Bench& bench_;
+  const ArSimOptions& o_;
+  std::unique_ptr<camera_sim::SyntheticRenderer> renderer_;
+  markers::TagBoard grid_, marker_;
+  double sum_sq_ = 0.0;
+  long n_ = 0;
+  int rendered_ = 0;
+};
 
 Eigen::Isometry3d solve_pnp(const Corners& c, const CameraIntrinsics& in) {
   cv::Mat rvec, tvec;
@@ -133,14 +205,15 @@ Eigen::Matrix3d random_tilt(std::mt19937_64& rng, double max_deg) {
       .toRotationMatrix();
 }
 
-CameraIntrinsics calibrate_camera(const Bench& b, std::mt19937_64& rng, const ArSimOptions& o, ArSimRun& run) {
+CameraIntrinsics calibrate_camera(const Bench& b, SimCamera& camera, std::mt19937_64& rng, const ArSimOptions& o,
+                                  ArSimRun& run) {
   std::vector<CalibrationView> views;
   std::uniform_real_distribution<double> off(-1.0, 1.0);
   int attempts = 0;
   while (static_cast<int>(views.size()) < o.intrinsics_views && attempts++ < 50 * o.intrinsics_views) {
     const Eigen::Vector3d centre(140 * off(rng), 80 * off(rng), 420 + 120 * (0.5 + 0.5 * off(rng)));
     const Eigen::Isometry3d X = board_pose(b.grid, centre, random_tilt(rng, 40));
-    Corners c = observe(b, b.grid, X, o.corner_noise_px, rng);
+    Corners c = camera.observe(b.grid, X, rng);
     if (c.px.size() < 4u * 12u) continue;  // at least 12 tags, as a usable real view
     views.push_back({"sim" + std::to_string(views.size()), c.px, c.board});
   }
@@ -165,10 +238,11 @@ ArSimResult simulate_ar_accuracy(const ArSimOptions& o) {
   const Eigen::Isometry3d X_NdiCam = b.X_CamNdi.inverse();
   ArSimResult result;
   std::mt19937_64 rng(o.seed);
+  SimCamera camera(b, o);
   for (int run_i = 0; run_i < o.runs; ++run_i) {
     ArSimRun run;
     // 1. Intrinsics.
-    const CameraIntrinsics intr = calibrate_camera(b, rng, o, run);
+    const CameraIntrinsics intr = calibrate_camera(b, camera, rng, o, run);
     // 2. Pivot of the pointer in a divot in the work volume.
     const Eigen::Vector3d p_NdiPivot = X_NdiCam * (b.p_CamWork + Eigen::Vector3d(40, 30, 20));
     std::vector<Eigen::Isometry3d> pivot_poses;
@@ -188,7 +262,7 @@ ArSimResult simulate_ar_accuracy(const ArSimOptions& o) {
     while (static_cast<int>(he_ndi.size()) < o.hand_eye_poses) {
       const Eigen::Vector3d centre = b.p_CamWork + Eigen::Vector3d(80 * off(rng), 60 * off(rng), 80 * off(rng));
       const Eigen::Isometry3d X_CamBoard = board_pose(b.marker, centre, random_tilt(rng, 35));
-      const Corners c = observe(b, b.marker, X_CamBoard, o.corner_noise_px, rng);
+      const Corners c = camera.observe(b.marker, X_CamBoard, rng);
       if (c.px.size() < 16u) continue;
       const Eigen::Isometry3d X_NdiTool = X_NdiCam * X_CamBoard * b.X_ToolBoard.inverse();
       he_ndi.push_back(ndi_measure(X_NdiTool, b.spheres_Ref, o.ndi_rms_mm, rng));
@@ -212,7 +286,7 @@ ArSimResult simulate_ar_accuracy(const ArSimOptions& o) {
                 .toRotationMatrix();
         const Eigen::Vector3d centre = b.p_CamWork + Eigen::Vector3d(40 * off(rng), 30 * off(rng), 40 * off(rng));
         const Eigen::Isometry3d X_CamBoard = board_pose(b.marker, centre, R_tilt);
-        const Corners c = observe(b, b.marker, X_CamBoard, o.corner_noise_px, rng);
+        const Corners c = camera.observe(b.marker, X_CamBoard, rng);
         if (c.px.size() < 8u) {
           --t;
           continue;
@@ -251,6 +325,8 @@ ArSimResult simulate_ar_accuracy(const ArSimOptions& o) {
     }
   }
   result.stats = summarize_ar_trials(result.trials);
+  result.corner_error_rms_px = camera.corner_error_rms_px();
+  result.views_rendered = camera.views_rendered();
   result.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
 }

@@ -9,9 +9,13 @@
 //  - NDI: each tool's 4 marker spheres get isotropic Gaussian noise (ndi_rms_mm, 3D RMS)
 //    and the tool pose is the rigid fit of the noisy spheres (Umeyama), as the tracker's
 //    marker fit does; no volumetric bias, no latency.
-//  - Camera: tag corners projected through the true camera (markers::CameraModel, the
-//    synthetic camera's projection) plus Gaussian pixel noise (corner_noise_px per axis);
-//    no blur, rolling shutter, or detector failures.
+//  - Camera, default: tag corners projected through the true camera (markers::CameraModel,
+//    the synthetic camera's projection) plus Gaussian pixel noise (corner_noise_px per
+//    axis); no blur, rolling shutter, or detector failures.
+//  - Camera, render = true: every view is rendered by the synthetic camera
+//    (hil_tests/camera_sim: anti-aliased tags, blur, sensor noise) and the corners come
+//    from the appliance's AprilTag detector; corner_noise_px is then unused and the
+//    detector's real corner error is measured against the renderer's ground truth.
 //  - Calibrations from simulated data: intrinsics (AprilTag grid views, calibrateCamera),
 //    pivot (algebraic), hand-eye (AX=ZB Shah or a chosen method), with the same noise.
 //  - The AR error: the virtual ball is drawn where the chain puts it; the error is its
@@ -41,6 +45,9 @@ struct ArSimOptions {
   // "direct": drawn through the hand-eye X_CamNdi only.
   std::string chain = "marker";
   std::uint64_t seed = 1;
+  bool render = false;
+  double render_noise_gray = 2.0;    // sensor noise, gray levels (render = true)
+  double render_blur_px = 0.5;       // Gaussian blur sigma (render = true)
 };
 
 struct ArSimRun {
@@ -58,6 +65,10 @@ struct ArSimResult {
   std::vector<ArTrial> trials;
   std::vector<ArAngleStats> stats;
   std::vector<ArSimRun> runs;
+  // Corner error of the camera observations against the true projections (px, RMS per
+  // axis): the injected noise, or the detector's error on rendered images.
+  double corner_error_rms_px = 0.0;
+  int views_rendered = 0;
   double wall_time_s = 0.0;
 };
 

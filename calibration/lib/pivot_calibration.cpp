@@ -86,6 +86,7 @@ LinearPivot solve_sphere(const std::vector<Eigen::Isometry3d>& X, SolverSummary&
       break;
     }
   }
+  summary.final_cost = rms_of(c, r);
   Eigen::Vector3d tip = Eigen::Vector3d::Zero();
   for (const auto& P : X) tip += P.linear().transpose() * (c - P.translation());
   tip /= static_cast<double>(X.size());
@@ -181,6 +182,8 @@ PivotResult calibrate_pivot(const std::vector<Eigen::Isometry3d>& X, const Pivot
       break;
     case PivotMethod::SphereFit:
       sol = solve_sphere(X, res.summary);
+      // Summary costs are the sphere's radial RMS (before/after Gauss-Newton); the pivot
+      // residual of the result is rms_mm.
       res.summary.method = "pivot: sphere fit to tool origins (linear + Gauss-Newton)";
       break;
     case PivotMethod::Ransac: {
@@ -236,8 +239,10 @@ PivotResult calibrate_pivot(const std::vector<Eigen::Isometry3d>& X, const Pivot
     }
   }
   res.rms_mm = std::sqrt(sum / count);
-  if (opt.method != PivotMethod::SphereFit) res.summary.initial_cost = res.rms_mm;
-  res.summary.final_cost = res.rms_mm;
+  if (opt.method != PivotMethod::SphereFit) {
+    res.summary.initial_cost = res.rms_mm;
+    res.summary.final_cost = res.rms_mm;
+  }
   res.summary.wall_time_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return res;

@@ -76,20 +76,21 @@ std::vector<PolarisModel::Reply> PolarisModel::receive(std::span<const std::uint
 }
 
 int PolarisModel::identify_tool(const std::vector<std::uint8_t>& rom, std::uint16_t bytes_written) const {
-  // The device recognises a tool by its definition; tools in the scenario without a ROM
-  // file take the loaded ROMs in order.
+  // The device recognises a tool by its definition. A scenario tool is on one handle at a
+  // time; tools without a ROM file take the remaining loaded ROMs in order (so a bench
+  // may run more tools than there are distinct ROM files).
+  const auto taken = [&](std::size_t i) {
+    return std::any_of(ports_.begin(), ports_.end(), [&](const auto& kv) { return kv.second.tool_index == static_cast<int>(i); });
+  };
   for (std::size_t i = 0; i < scenario_.tools.size(); ++i) {
     const auto& want = scenario_.tools[i].rom;
-    if (want.empty() || want.size() > bytes_written) continue;
+    if (want.empty() || want.size() > bytes_written || taken(i)) continue;
     if (std::equal(want.begin(), want.end(), rom.begin()) &&
         std::all_of(rom.begin() + static_cast<std::ptrdiff_t>(want.size()), rom.begin() + bytes_written, [](std::uint8_t b) { return b == 0; }))
       return static_cast<int>(i);
   }
-  for (std::size_t i = 0; i < scenario_.tools.size(); ++i) {
-    if (!scenario_.tools[i].rom.empty()) continue;
-    const bool taken = std::any_of(ports_.begin(), ports_.end(), [&](const auto& kv) { return kv.second.tool_index == static_cast<int>(i); });
-    if (!taken) return static_cast<int>(i);
-  }
+  for (std::size_t i = 0; i < scenario_.tools.size(); ++i)
+    if (scenario_.tools[i].rom.empty() && !taken(i)) return static_cast<int>(i);
   return -1;
 }
 
@@ -190,6 +191,7 @@ PolarisModel::Reply PolarisModel::execute(const std::string& raw, double now_s) 
     if (!p) return reply(error_reply(kInvalidHandle));
     if (p->rom_bytes_written == 0) return reply(error_reply(kNoTool));
     if (!(p->rom[0] == 'N' && p->rom[1] == 'D' && p->rom[2] == 'I' && p->rom[3] == 0)) return reply(error_reply(kToolDefinitionError));
+    p->tool_index = -1;  // re-initialising a handle frees its tool first
     p->tool_index = identify_tool(p->rom, p->rom_bytes_written);
     p->initialised = true;
     return reply(okay_reply());

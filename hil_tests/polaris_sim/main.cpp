@@ -81,6 +81,7 @@ int main(int argc, char** argv) {
   app.add_option("--control", opt.control_socket, "unix datagram socket accepting fault commands");
   app.add_option("--truth", opt.truth_csv, "write ground truth (per frame and handle) to this CSV file");
   app.add_option("--events", opt.events_jsonl, "write faults and link events to this JSON-lines file");
+  app.add_option("--trace", opt.trace, "write the session (commands, replies, host baud changes) as an arnav-ndi transcript");
   app.add_option("--reset-delay", opt.reset_delay_s, "seconds from break release to RESET (default 0.3)")->check(CLI::Range(0.0, 10.0));
   app.add_flag("--wire-timing", opt.wire_timing, "pace output at the device baud rate (10 bits a byte)");
   app.add_option("--seed", opt.seed, "seed of the random fault positions");

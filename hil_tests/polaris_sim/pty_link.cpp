@@ -19,7 +19,7 @@ PtyLink::PtyLink(std::string link_path, std::string bind_over) : link_path_(std:
 
 PtyLink::~PtyLink() {
   unplug();
-  if (bound_) unbind();
+  if (guarded_) ::umount2(bind_over_.c_str(), MNT_DETACH);
 }
 
 void PtyLink::plug() {
@@ -44,26 +44,29 @@ void PtyLink::plug() {
   ::unlink(link_path_.c_str());
   if (::symlink(slave_path_.c_str(), link_path_.c_str()) != 0) throw sys_error("symlink " + link_path_ + " -> " + slave_path_);
   if (!bind_over_.empty()) {
-    if (bound_) unbind();
+    // Underneath the pty lies a /dev/null guard for the whole run: while unplugged (and in
+    // the instant of re-plugging) the node is /dev/null, which no serial library can
+    // configure, and never the real device below (on these machines ttyS0 is the console).
+    if (!guarded_) {
+      if (::mount("/dev/null", bind_over_.c_str(), nullptr, MS_BIND, nullptr) != 0)
+        throw sys_error("bind mount /dev/null over " + bind_over_ + " (needs root in a private mount namespace)");
+      guarded_ = true;
+    }
     if (::mount(slave_path_.c_str(), bind_over_.c_str(), nullptr, MS_BIND, nullptr) != 0)
       throw sys_error("bind mount " + slave_path_ + " over " + bind_over_ + " (needs root in a private mount namespace)");
     bound_ = true;
   }
 }
 
-void PtyLink::unbind() {
-  // Lazy detach: the host may still hold the old node open.
-  ::umount2(bind_over_.c_str(), MNT_DETACH);
-  bound_ = false;
-}
 
 void PtyLink::unplug() {
   if (!plugged()) return;
   ::unlink(link_path_.c_str());
   if (bound_) {
-    unbind();
-    // The real node underneath may be a live UART (the console): never expose it.
-    if (::mount("/dev/null", bind_over_.c_str(), nullptr, MS_BIND, nullptr) == 0) bound_ = true;
+    // Detach the pty's mount (lazily: the host may still hold the node open); the guard
+    // below shows through.
+    ::umount2(bind_over_.c_str(), MNT_DETACH);
+    bound_ = false;
   }
   ::close(slave_fd_);
   ::close(master_fd_);

@@ -28,13 +28,13 @@ class PtyLink {
   int host_baud() const;
 
  private:
-  void unbind();
   std::string link_path_;
   std::string bind_over_;
   std::string slave_path_;
   int master_fd_ = -1;
   int slave_fd_ = -1;  // held open so host close/reopen keeps termios and no EIO on master
-  bool bound_ = false;
+  bool bound_ = false;    // the pty is mounted over bind_over_
+  bool guarded_ = false;  // the /dev/null guard is mounted over bind_over_
 };
 
 // Reads the output baud of a tty fd via TCGETS2 (handles non-standard rates such as

@@ -15,6 +15,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "appliance/ndi/transcript.hpp"
 #include "protocol/clock.hpp"
 
 namespace arnav::hil {
@@ -84,12 +85,27 @@ std::string Simulator::start() {
     events_.open(options_.events_jsonl);
     if (!events_) throw std::runtime_error("cannot write events file " + options_.events_jsonl);
   }
+  if (!options_.trace.empty()) {
+    trace_.open(options_.trace);
+    if (!trace_) throw std::runtime_error("cannot write trace file " + options_.trace);
+    trace_ << ndi::kTranscriptHeader << "\n# arnav-polaris-sim session trace (device side)\n";
+  }
   if (!options_.break_socket.empty()) break_fd_ = bind_datagram_socket(options_.break_socket);
   if (!options_.control_socket.empty()) control_fd_ = bind_datagram_socket(options_.control_socket);
   device_.reset(now_s());  // power-on: the unit boots silently at 9600
   link_.plug();
   event("port_ready", link_.slave_path());
   return link_.slave_path();
+}
+
+void Simulator::trace(int kind, const std::string& bytes, std::int64_t value) {
+  if (!trace_.is_open()) return;
+  ndi::TranscriptRecord r;
+  r.t_us = static_cast<std::int64_t>(now_s() * 1e6);
+  r.kind = static_cast<ndi::TranscriptRecord::Kind>(kind);
+  r.bytes = bytes;
+  r.value = value;
+  trace_ << ndi::format_record(r) << '\n';
 }
 
 void Simulator::record_truth(const TruthRow& row) {
@@ -153,13 +169,14 @@ std::string Simulator::inject(const FaultCommand& f) {
     }
   }
   event("fault", f.text);
+  trace(static_cast<int>(ndi::TranscriptRecord::Kind::Note), "fault: " + f.text);
   return {};
 }
 
 void Simulator::send_reset(double now) {
   const Bytes msg = device_.reset(now);
   // The message goes out at 9600 whatever rate the host uses: noise if it is elsewhere.
-  output_.push_back(Pending{now, msg, 0});
+  output_.push_back(Pending{now, msg, 0, true});
 }
 
 void Simulator::queue_reply(PolarisModel::Reply reply, double now) {
@@ -210,13 +227,13 @@ void Simulator::queue_reply(PolarisModel::Reply reply, double now) {
       const std::size_t n = std::min(size(rng_), b.size() - at);
       const bool last = at + n == b.size();
       output_.push_back(Pending{due, Bytes(b.begin() + static_cast<std::ptrdiff_t>(at), b.begin() + static_cast<std::ptrdiff_t>(at + n)),
-                                last ? reply.baud_after : 0});
+                                last ? reply.baud_after : 0, last});
       at += n;
       due += gap(rng_);
     }
     return;
   }
-  output_.push_back(Pending{due, std::move(b), reply.baud_after});
+  output_.push_back(Pending{due, std::move(b), reply.baud_after, true});
 }
 
 void Simulator::on_host_bytes(double now) {
@@ -230,8 +247,13 @@ void Simulator::on_host_bytes(double now) {
       stats_.noise_bytes_in += static_cast<std::uint64_t>(n);
       continue;
     }
+    if (trace_.is_open() && link_.host_baud() != traced_host_baud_) {
+      traced_host_baud_ = link_.host_baud();
+      trace(static_cast<int>(ndi::TranscriptRecord::Kind::Baud), {}, traced_host_baud_);
+    }
     for (auto& r : device_.receive(std::span<const std::uint8_t>(buf, static_cast<std::size_t>(n)), now)) {
       ++stats_.commands;
+      trace(static_cast<int>(ndi::TranscriptRecord::Kind::Command), r.command + "\r");
       queue_reply(std::move(r), now);
     }
   }
@@ -249,6 +271,7 @@ void Simulator::flush_output(double now) {
     }
     const ssize_t n = ::write(link_.master_fd(), bytes.data(), bytes.size());
     if (n < 0) return;  // pty buffer full: the host is not reading; try later
+    trace(static_cast<int>(ndi::TranscriptRecord::Kind::Reply), std::string(bytes.begin(), bytes.begin() + n));
     stats_.bytes_out += static_cast<std::uint64_t>(n);
     if (options_.wire_timing) wire_free_s_ = std::max(wire_free_s_, now) + static_cast<double>(n) * 10.0 / device_.baud();
     if (static_cast<std::size_t>(n) < bytes.size()) {
@@ -256,7 +279,7 @@ void Simulator::flush_output(double now) {
       return;
     }
     if (p.baud_after != 0) device_.set_baud(p.baud_after);  // COMM: switch after the OKAY
-    ++stats_.replies;
+    if (p.last_piece) ++stats_.replies;
     output_.pop_front();
   }
 }
@@ -275,6 +298,7 @@ void Simulator::handle_break_socket(double now) {
       in_break_ = true;
       output_.clear();
       event("break", "asserted");
+      trace(static_cast<int>(ndi::TranscriptRecord::Kind::Note), "break asserted");
     } else if (msg.rfind("off", 0) == 0 || msg.rfind("pulse", 0) == 0) {
       in_break_ = false;
       output_.clear();
@@ -364,6 +388,7 @@ void Simulator::run(const std::atomic<bool>& stop) {
     flush_output(now);
   }
   if (truth_.is_open()) truth_.flush();
+  if (trace_.is_open()) trace_.flush();
   link_.unplug();
 }
 

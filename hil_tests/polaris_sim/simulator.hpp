@@ -26,6 +26,7 @@ struct SimulatorOptions {
   std::string control_socket;  // optional: unix datagram socket taking fault commands
   std::string truth_csv;       // optional: ground truth per (frame, handle)
   std::string events_jsonl;    // optional: faults and link events, one JSON object a line
+  std::string trace;           // optional: the session as an arnav-ndi transcript (replayable)
   double reset_delay_s = 0.3;  // break released -> RESET sent
   bool wire_timing = false;    // pace output at the device baud rate (10 bits a byte)
   std::uint32_t seed = 1;      // for random fault positions
@@ -56,6 +57,7 @@ class Simulator {
     double due_s;
     Bytes bytes;
     int baud_after;
+    bool last_piece = true;  // a reply sent in chunks counts once
   };
   double now_s() const;
   void event(const std::string& kind, const std::string& detail);
@@ -66,6 +68,7 @@ class Simulator {
   void handle_control_socket(double now);
   void run_timeline(double now);
   void send_reset(double now);
+  void trace(int kind, const std::string& bytes, std::int64_t value = 0);
 
   SimDevice& device_;
   std::vector<TimedFault> timeline_;
@@ -86,6 +89,8 @@ class Simulator {
   std::mt19937 rng_;
   std::ofstream truth_;
   std::ofstream events_;
+  std::ofstream trace_;
+  int traced_host_baud_ = 0;
   double truth_flushed_s_ = 0.0;
   std::set<std::pair<std::uint32_t, std::uint8_t>> truth_seen_;
   std::uint32_t truth_last_frame_ = 0;

@@ -12,7 +12,7 @@
 #include <lcm/lcm-cpp.hpp>
 #include <nlohmann/json.hpp>
 
-#include "host/app/tool_freshness.hpp"
+#include "host/app/status_report.hpp"
 #include "protocol/channels.hpp"
 #include "protocol/clock.hpp"
 
@@ -71,7 +71,7 @@ int main(int argc, char** argv) {
   std::string lcm_url = "udpm://239.255.76.67:7667?ttl=0";
   double stale_after_ms = 250.0, print_period_s = 1.0, duration_s = 0.0;
   std::string summary_path;
-  bool quiet = false, events = false;
+  bool quiet = false, events = false, print_summary = false;
   app.add_option("--lcm-url", lcm_url, "LCM URL (default: the appliance's, TTL 0)");
   app.add_option("--stale-after-ms", stale_after_ms, "a tool is stale when its last valid pose is older (default 250)")
       ->check(CLI::Range(1.0, 600000.0));
@@ -80,6 +80,7 @@ int main(int argc, char** argv) {
   app.add_option("--summary-json", summary_path, "write a JSON summary (per tool, per device, events) at exit");
   app.add_flag("--quiet", quiet, "no periodic table (final table only)");
   app.add_flag("--events", events, "print appliance events as they arrive");
+  app.add_flag("--summary", print_summary, "print a summary at exit (rates, outages, device counters, latency, events)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -116,10 +117,12 @@ int main(int argc, char** argv) {
   }
   const std::int64_t now = arnav::monotonic_us();
   tracker.update(now);
+  const double run_s = static_cast<double>(now - t0) * 1e-6;
   std::cout << format_status_table(tracker, now) << std::flush;
+  if (print_summary) std::cout << format_summary(tracker, run_s) << std::flush;
   if (!summary_path.empty()) {
     std::ofstream out(summary_path);
-    out << summary(tracker, static_cast<double>(now - t0) * 1e-6).dump(2) << "\n";
+    out << summary(tracker, run_s).dump(2) << "\n";
     if (!out) {
       std::cerr << "arnav-host: cannot write " << summary_path << "\n";
       return 1;

@@ -51,6 +51,8 @@ class ToolFreshnessTracker {
 
   const std::map<std::string, ToolFreshness>& tools() const { return tools_; }
   const std::map<std::string, device_health_t>& health() const { return health_; }
+  // Worst latency p99 (us) any health message of the device reported during the run.
+  const std::map<std::string, float>& worst_latency_p99_us() const { return worst_p99_; }
   const std::vector<appliance_event_t>& events() const { return events_; }
   std::int64_t stale_after_us() const { return stale_after_us_; }
 
@@ -59,10 +61,8 @@ class ToolFreshnessTracker {
   std::int64_t rate_window_us_;
   std::map<std::string, ToolFreshness> tools_;
   std::map<std::string, device_health_t> health_;
+  std::map<std::string, float> worst_p99_;
   std::vector<appliance_event_t> events_;
 };
-
-// The status table arnav-host prints: one row per tool, then one per device.
-std::string format_status_table(const ToolFreshnessTracker& tracker, std::int64_t now_us);
 
 }  // namespace arnav::host

@@ -61,7 +61,7 @@ TEST(Intrinsics, AprilTagGridFromSyntheticCameraImages) {
     const auto frame = renderer.render({{&board, X_CamBoard}}, ro);
     const BoardObservation obs = detect_board(frame.image, layout);
     ASSERT_TRUE(obs.found) << "view " << k << ": " << obs.reason;
-    views.push_back({"view" + std::to_string(k), obs.image_px, obs.board_mm});
+    views.push_back({std::string("view").append(std::to_string(k)), obs.image_px, obs.board_mm});
   }
   const IntrinsicsResult r = calibrate_intrinsics(views, cv::Size(cam.width, cam.height));
   const auto& K = r.intrinsics.camera_matrix;
@@ -107,7 +107,7 @@ TEST(Intrinsics, ChessboardFromPrintedBoardImage) {
     cv::warpPerspective(page, image, cv::Mat(H), cv::Size(640, 480), cv::INTER_AREA, cv::BORDER_CONSTANT, cv::Scalar(90));
     const BoardObservation obs = detect_board(image, layout);
     ASSERT_TRUE(obs.found) << "view " << i << ": " << obs.reason;
-    views.push_back({"chess" + std::to_string(i), obs.image_px, obs.board_mm});
+    views.push_back({std::string("chess").append(std::to_string(i)), obs.image_px, obs.board_mm});
   }
   IntrinsicsOptions o;
   o.fix_k3 = true;
@@ -135,7 +135,7 @@ TEST(Intrinsics, OutlierViewRejectedWithReasonAndTooFewViewsRejected) {
     if (i == 4) {
       for (std::size_t k = 0; k < px.size(); k += 3) px[k] += cv::Point2f(6.0f, -5.0f);  // mis-detection
     }
-    views.push_back({"v" + std::to_string(i), px, grid});
+    views.push_back({std::string("v").append(std::to_string(i)), px, grid});
   }
   views.push_back({"sparse", {{1, 1}, {2, 2}}, {{0, 0, 0}, {1, 0, 0}}});
   IntrinsicsOptions o;

@@ -1,35 +1,20 @@
 #pragma once
-// Test glue: an ARNav board layout as the synthetic camera's TagBoard (tag centre and
-// axes from its corners), and board poses facing a camera.
+// Test glue: an ARNav board layout as the synthetic camera's TagBoard, and board poses
+// facing a camera.
 #include <cmath>
 #include <random>
 
 #include <Eigen/Geometry>
 
+#include "appliance/markers/calibration_files.hpp"
 #include "appliance/markers/tag_board.hpp"
 #include "calibration/lib/board_layout.hpp"
 
 namespace arnav::calib::test {
 
+// The appliance's own conversion (appliance/markers/calibration_files.hpp).
 inline markers::TagBoard to_tag_board(const BoardLayout& layout) {
-  markers::TagBoard board;
-  board.name = layout.name;
-  board.family = layout.tag_family;
-  board.paper_mm = Eigen::AlignedBox2d(Eigen::Vector2d(0, 0), Eigen::Vector2d(layout.board_width_mm, layout.board_height_mm));
-  for (const auto& t : layout.tags) {
-    const auto& p = t.p_BoardCorner_mm;
-    markers::BoardTag bt;
-    bt.id = t.id;
-    bt.size_mm = layout.tag_size_mm;
-    const Eigen::Vector3d ex = (p[1] - p[0]).normalized();
-    const Eigen::Vector3d ey = (p[3] - p[0]).normalized();
-    bt.X_BoardTag.linear().col(0) = ex;
-    bt.X_BoardTag.linear().col(1) = ey;
-    bt.X_BoardTag.linear().col(2) = ex.cross(ey);
-    bt.X_BoardTag.translation() = 0.25 * (p[0] + p[1] + p[2] + p[3]);
-    board.tags.push_back(bt);
-  }
-  return board;
+  return markers::board_from_layout(layout, layout.name, "test layout " + layout.name);
 }
 
 // Board centre at distance z_mm on the optical axis (+ offset), facing the camera, then

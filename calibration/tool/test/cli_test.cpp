@@ -259,3 +259,54 @@ TEST(Cli, ArAccuracySimulationAndMeasurements) {
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("meas_bad.csv:2: expected 7 columns"), std::string::npos) << r.err;
 }
+
+TEST(Cli, HandEyeFromRenderedImages) {
+  // The hybrid target rendered by the synthetic camera at 10 poses (one image without the
+  // board: its pose pair is skipped with the reason and the pose file line).
+  const BoardLayout layout = make_marker_board("tag36h11", 40.0, 50.0, 100, 5.0);
+  write_board_layout(work_dir() / "marker.yaml", layout);
+  const auto board = arnav::calib::test::to_tag_board(layout);
+  arnav::markers::CameraModel cam;
+  cam.width = 800;
+  cam.height = 600;
+  cam.K = cv::Matx33d(700, 0, 401, 0, 700, 297, 0, 0, 1);
+  cam.distortion = {-0.05, 0.01, 0, 0, 0};
+  CameraIntrinsics in;
+  in.image_width = 800;
+  in.image_height = 600;
+  in.camera_matrix = cam.K;
+  in.distortion = cam.distortion;
+  in.calibration_date = "test";
+  write_intrinsics(work_dir() / "he_camera.yaml", in);
+  const Eigen::Isometry3d X_CamNdi = Eigen::Translation3d(600, -300, -250) * Eigen::AngleAxisd(2.2, Eigen::Vector3d(0.3, 1, 0.2).normalized());
+  const Eigen::Isometry3d X_ToolBoard = Eigen::Translation3d(-60, -150, 10) * Eigen::AngleAxisd(0.15, Eigen::Vector3d::UnitY());
+  arnav::camera_sim::SyntheticRenderer renderer(cam);
+  arnav::camera_sim::RenderOptions ro;
+  ro.noise_sigma = 1.0;
+  const fs::path images = work_dir() / "he_images";
+  fs::create_directories(images);
+  const double tilts[][2] = {{0, 0}, {30, 0}, {-30, 0}, {0, 30}, {0, -30}, {25, 25}, {-25, 25}, {25, -25}, {-25, -25}, {0, 0}};
+  std::vector<Eigen::Isometry3d> ndi;
+  for (int i = 0; i < 10; ++i) {
+    const auto X_CamBoard = arnav::calib::test::board_facing_camera(layout, 450 + 10 * i, tilts[i][0], tilts[i][1], 10.0 * i,
+                                                                    Eigen::Vector2d(10.0 * (i % 3), -8.0 * (i % 2)));
+    ndi.push_back(X_CamNdi.inverse() * X_CamBoard * X_ToolBoard.inverse());
+    cv::Mat image = renderer.render({{&board, X_CamBoard}}, ro).image;
+    if (i == 9) image.setTo(cv::Scalar(100));  // the target left the view
+    cv::imwrite((images / ("he" + std::to_string(i) + ".png")).string(), image);
+  }
+  write_pose_list(work_dir() / "he_img_ndi.txt", ndi, "X_NdiTool of the hybrid target");
+  const fs::path out = work_dir() / "handeye_images";
+  const Result r = run("handeye --ndi-poses " + (work_dir() / "he_img_ndi.txt").string() + " --images " + images.string() +
+                       " --intrinsics " + (work_dir() / "he_camera.yaml").string() + " --board " +
+                       (work_dir() / "marker.yaml").string() + " --tool Ref --out " + out.string());
+  ASSERT_EQ(r.code, 0) << r.err << r.out;
+  EXPECT_NE(r.out.find("he9.png: 0 tags"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("he_img_ndi.txt:11 skipped"), std::string::npos) << r.out;  // header comment is line 1
+  const auto cam_ndi = read_transform(out / "X_CamNdi.yaml", "X_CamNdi");
+  // Only the camera's corner error remains: the hand-eye must be close to the truth.
+  EXPECT_LT((cam_ndi.X_ParentChild.translation() - X_CamNdi.translation()).norm(), 3.0);
+  EXPECT_LT(Eigen::AngleAxisd(cam_ndi.X_ParentChild.linear().transpose() * X_CamNdi.linear()).angle() * 180 / M_PI, 0.3);
+  const auto ref_board = read_transform(out / "X_RefBoard.yaml", "X_RefBoard");
+  EXPECT_LT((ref_board.X_ParentChild.translation() - X_ToolBoard.translation()).norm(), 3.0);
+}

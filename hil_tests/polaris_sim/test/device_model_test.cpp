@@ -151,6 +151,28 @@ TEST_F(ModelTest, MissingAndOutOfVolumeTools) {
   EXPECT_NE(ask(device, "TX:0801", 4.0).find("MISSING00000031"), std::string::npos);
 }
 
+TEST(Model, ToolsWithoutRomTakeTheRemainingHandles) {
+  Scenario s;
+  add_tool_spec(s, "a=" + rom_dir() + "8700340.rom");
+  s.tools.push_back(SimTool{});
+  s.tools.back().name = "b";  // no ROM: takes the next unclaimed handle
+  PolarisModel model(s);
+  ModelDevice device(model);
+  model.reset(0.0);
+  EXPECT_EQ(body(ask(device, "INIT:")), "OKAY");
+  const auto rom = read_rom(rom_dir() + "8700340.rom");
+  std::vector<std::string> handles;
+  for (int k = 0; k < 3; ++k) {  // the same ROM three times
+    handles.push_back(body(ask(device, "PHRQ:*********1****")));
+    for (unsigned addr = 0; addr < rom.size(); addr += 64) EXPECT_EQ(body(ask(device, pvwr(handles.back(), addr, rom))), "OKAY");
+    EXPECT_EQ(body(ask(device, "PINIT:" + handles.back())), "OKAY");
+  }
+  EXPECT_EQ(body(ask(device, "PINIT:" + handles[0])), "OKAY");  // re-initialising keeps its tool
+  std::vector<int> tools;
+  for (const auto& [h, p] : model.ports()) tools.push_back(p.tool_index);
+  EXPECT_EQ(tools, (std::vector<int>{0, 1, -1}));
+}
+
 TEST_F(ModelTest, ResetForgetsEverything) {
   EXPECT_EQ(body(ask(device, "INIT:")), "OKAY");
   load("8700340.rom");

@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 #include <lcm/lcm-cpp.hpp>
 
+#include "host/app/status_report.hpp"
 #include "host/app/tool_freshness.hpp"
 #include "protocol/channels.hpp"
 #include "protocol/pose_convert.hpp"
@@ -76,6 +77,15 @@ TEST(ToolFreshness, TableShowsToolsAndDevices) {
   EXPECT_NE(table.find("fresh"), std::string::npos);
   EXPECT_NE(table.find("TRACKING"), std::string::npos);
   EXPECT_NE(table.find("/42/"), std::string::npos);
+  appliance_event_t e{};
+  e.code = "NDI_RECOVERED";
+  e.text = "recovered after 703 ms";
+  t.on_event(e);
+  const std::string summary = format_summary(t, 2.0);
+  EXPECT_NE(summary.find("tool pointer"), std::string::npos) << summary;
+  EXPECT_NE(summary.find("worst p99 of the run 42 us"), std::string::npos) << summary;
+  EXPECT_NE(summary.find("NDI_RECOVERED x1"), std::string::npos) << summary;
+  EXPECT_NE(summary.find("recovered after 703 ms"), std::string::npos) << summary;
 }
 
 // The same bookkeeping fed over LCM (memq://), as arnav-host subscribes.

@@ -99,6 +99,7 @@ CorotationalFem::CorotationalFem(const SimProblem& problem, const ModelConfig& c
   check_vertex_indices(problem.fixed_vertices, nv, "corotational_fem: fixed vertices");
   fixed_.assign(nv, 0);
   for (int v : problem.fixed_vertices) fixed_[v] = 1;
+  solver_.set_refresh_residual(options_.refresh_residual);
   build_pattern();
 }
 

@@ -36,6 +36,7 @@ namespace arnav::host {
 struct FemOptions {
   double max_speed_mm_s = kBlowUpSpeed_mm_s;  // above this a step is rejected as unstable
   int inverted_steps_limit = 30;    // inverted tets persisting this many steps -> unhealthy
+  double refresh_residual = 0.1;    // lagged factor refreshed when its residual exceeds this
   double strain_warning = 0.3;      // co-rotated strain beyond which linear elasticity is
                                     // reported as out of range (warning, still healthy)
   VesselBeamOptions beams;          // used only when the problem declares vessels

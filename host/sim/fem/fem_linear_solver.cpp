@@ -101,6 +101,13 @@ LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eige
     s.iterations = 1;
     s.final_residual = (b - Asym * x).norm() / b_norm;
     s.termination = s.factorized ? "direct" : "direct_lagged";
+    if (!s.factorized && s.final_residual > refresh_residual_) {
+      // The lagged factor no longer solves this system: refactorise now.
+      if (!factorize(A, s)) return s;
+      apply_factor(b, x);
+      s.final_residual = (b - Asym * x).norm() / b_norm;
+      s.termination = "direct_refreshed";
+    }
     return s;
   }
   // Preconditioned conjugate gradients, warm started from x.
@@ -110,11 +117,26 @@ LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eige
   double rz = 0;
   double res = s.initial_residual;
   int it = 0;
+  int cap = max_iterations_;
   std::vector<double> alphas, betas;  // CG coefficients: the Lanczos tridiagonal, for kappa
-  while (res > tolerance_ && it < max_iterations_) {
+  for (;;) {
+    if (res <= tolerance_) break;
+    if (it >= cap) {
+      // Cap reached far from the solution with a lagged factor: refresh it and give CG
+      // another `iterations` (restarted: the preconditioner changed).
+      if (kind_ != Kind::PcgFactor || s.factorized || res <= refresh_residual_) break;
+      if (!factorize(A, s)) return s;
+      s.message = "preconditioner refreshed after " + std::to_string(it) + " iterations at residual " + std::to_string(res);
+      cap = it + max_iterations_;
+      rz = 0;
+      alphas.clear();
+      betas.clear();
+      p.resize(0);
+      continue;
+    }
     apply_factor(r, z);
     const double rz_new = r.dot(z);
-    if (it == 0) {
+    if (p.size() == 0) {
       p = z;
     } else {
       p = z + (rz_new / rz) * p;

@@ -21,7 +21,8 @@ struct LinearSolveSummary {
   int iterations = 0;            // CG iterations (1 for a direct solve)
   double initial_residual = 0;   // ||b - A x0|| / max(||b||, load_scale)
   double final_residual = 0;     // ||b - A x|| / max(||b||, load_scale)
-  std::string termination;       // "direct", "direct_lagged", "converged", "max_iterations", "factorization_failed"
+  std::string termination;       // "direct", "direct_lagged", "direct_refreshed", "converged",
+                                 // "max_iterations", "factorization_failed"
   bool factorized = false;       // a numeric factorisation ran in this solve
   double factor_ms = 0;
   bool ok = true;                // false: factorisation failed (A not positive definite)
@@ -53,6 +54,10 @@ class FemLinearSolver {
   Kind kind() const { return kind_; }
   // Costs an O(iterations^2) eigenvalue solve per CG solve: for studies, not for real time.
   void set_estimate_condition(bool on) { estimate_condition_ = on; }
+  // A lagged factor whose result leaves a relative residual above this (direct kinds), or
+  // with which PCG ends its iterations above it, is refactorised at once and the solve
+  // repeated ("direct_refreshed" / PCG restarted): lagging must not turn into divergence.
+  void set_refresh_residual(double r) { refresh_residual_ = r; }
 
  private:
   bool factorize(const SparseMatrixLower& A, LinearSolveSummary& s);
@@ -63,6 +68,7 @@ class FemLinearSolver {
   int max_iterations_;
   double tolerance_;
   bool estimate_condition_ = false;
+  double refresh_residual_ = 0.1;
   bool analyzed_ = false;
   bool have_factor_ = false;
   int steps_since_factor_ = 0;

@@ -54,9 +54,12 @@ TEST(FemSolvers, LaggedFactorIsApproximateButPcgOnItConverges) {
   const SimProblem problem = hanging_block();
   std::vector<StepSummary> pcg_log, jacobi_log;
   {
-    // A lagged factor used as a direct solve: only the refactorised steps are exact.
+    // A lagged factor used as a direct solve is inexact; without the refresh safeguard the
+    // swinging soft block (large rotations) makes it diverge.
+    FemOptions no_refresh;
+    no_refresh.refresh_residual = 1e30;
     CorotationalFem model(problem, {.kind = "corotational_fem", .integrator = "implicit_euler", .linear_solver = "cholmod",
-                                    .refactor_every = 4});
+                                    .refactor_every = 4}, no_refresh);
     std::vector<StepSummary> log;
     for (int k = 0; k < 5; ++k) log.push_back(model.step(1.0 / 60.0));
     EXPECT_EQ(log[0].termination, "direct");
@@ -64,6 +67,19 @@ TEST(FemSolvers, LaggedFactorIsApproximateButPcgOnItConverges) {
     EXPECT_EQ(log[4].termination, "direct");  // refactorised every 4 steps
     EXPECT_LT(log[0].final_residual, 1e-10);
     EXPECT_GT(log[2].final_residual, 1e-3);  // the lagged factor is not the current matrix
+  }
+  {
+    // With the safeguard (default 0.1) a lagged solve that misses is refactorised at once.
+    CorotationalFem model(problem, {.kind = "corotational_fem", .integrator = "implicit_euler", .linear_solver = "cholmod",
+                                    .refactor_every = 4});
+    int refreshed = 0;
+    for (int k = 0; k < 16; ++k) {
+      const StepSummary s = model.step(1.0 / 60.0);
+      EXPECT_TRUE(s.healthy) << s.warning;
+      EXPECT_LE(s.final_residual, 0.1) << k;
+      refreshed += s.termination == "direct_refreshed";
+    }
+    EXPECT_GT(refreshed, 0);
   }
   run(problem, {.kind = "corotational_fem", .integrator = "implicit_euler", .linear_solver = "pcg", .iterations = 200,
                 .tolerance = 1e-8, .refactor_every = 8}, 16, &pcg_log);

@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# Soak (by hand, not in CI; needs root and ~10 quiet minutes):
+#   hil_tests/scenarios/soak.sh [SECONDS=600] [BUILD_DIR=build/release]
+# 6 tools at 400 Hz on the simulated Polaris for SECONDS; passes when no tool lost or
+# repeated a device frame (arnav-host's continuity counters and the appliance's
+# dropped_frames), the appliance shut down cleanly, and its resident memory did not grow
+# after the first minute by more than 1 MiB.
+set -euo pipefail
+here=$(cd "$(dirname "$0")" && pwd)
+seconds=${1:-600}
+build=${2:-$here/../../build/release}
+out=$(mktemp -d /tmp/arnav-soak-XXXXXX)
+echo "soak: ${seconds} s, 6 tools at 400 Hz; output in $out"
+"$here/bench_session.sh" "$build" "$here/soak_sim.yaml" "$here/soak_appliance.yaml" "$seconds" "$out" 10
+echo "== soak verdict =="
+awk '/^tool /' "$out/host.log"
+bad=$(grep -cE "^tool .* ([1-9][0-9]*) duplicate frames|, ([1-9][0-9]*) frame gaps|STALE at exit" "$out/host.log" || true)
+dropped=$(grep -oE "dropped frames [0-9]+" "$out/host.log" | tail -1 | awk '{print $3}')
+growth=$(awk -F, 'NR > 1 { if ($1 >= 60 && at60 == "") at60 = $2; last = $2 } END { print (at60 == "" ? 0 : last - at60) }' "$out/appliance_rss.csv")
+echo "tools with lost/repeated frames: $bad; appliance dropped_frames: ${dropped:-?}; RSS growth after 60 s: ${growth} KiB"
+if [ "$bad" = "0" ] && [ "${dropped:-1}" = "0" ] && [ "$growth" -le 1024 ]; then
+  echo "SOAK PASSED"
+else
+  echo "SOAK FAILED"
+  exit 1
+fi
