@@ -80,7 +80,11 @@ ReadResult SyntheticSource::read(Frame& frame) {
     const auto due = static_cast<std::int64_t>(std::floor(static_cast<double>(now - start_us_) / period_us));
     if (due > next_) next_ = due;
     sleep_until_mono_us(start_us_ + static_cast<std::int64_t>(static_cast<double>(next_) * period_us));
-    if (in_outage(monotonic_us())) {
+    // The first read at or after the outage start reports the loss, even when a slow
+    // consumer only comes back after the outage window (the device was gone meanwhile).
+    const double t_s = 1e-6 * static_cast<double>(monotonic_us() - start_us_);
+    if (!outage_reported_ && settings_.outage_at_s >= 0 && t_s >= settings_.outage_at_s) {
+      outage_reported_ = true;
       open_ = false;
       return {ReadStatus::Lost, "synthetic camera: device stopped delivering (scheduled outage)"};
     }

@@ -65,6 +65,7 @@ class SyntheticSource : public FrameSource {
   std::int64_t start_us_ = -1;   // time of frame 0 (kept across reopen: the scene goes on)
   std::int64_t next_ = 0;        // next frame index
   bool open_ = false;
+  bool outage_reported_ = false;
 };
 
 }  // namespace arnav::capture

@@ -322,7 +322,6 @@ bool Session::negotiate_baud() {
     if (b <= config_.target_baud && transport_->supports_baud(b) && !failed_bauds_.count(b)) candidates.push_back(b);
   for (int rate : candidates) {
     if (rate == baud_) return read_version();
-    const int from = baud_;
     CmdResult r = command("COMM", *comm_params(rate), config_.setup_timeout);
     if (r.status == CmdResult::Ok) {
       std::this_thread::sleep_for(config_.comm_settle);
@@ -341,12 +340,8 @@ bool Session::negotiate_baud() {
          "COMM to " + std::to_string(rate) + " baud refused on " + port_name_ + " (" +
              (r.status == CmdResult::Error ? error_text(r.error_code) : std::string("no valid reply")) +
              "); trying a lower rate");
-    if (r.status != CmdResult::Error) {
-      // The device may or may not have switched: find it again.
-      if (!establish_contact()) return false;
-    } else {
-      (void)from;
-    }
+    // No valid reply: the device may or may not have switched; find it again.
+    if (r.status != CmdResult::Error && !establish_contact()) return false;
   }
   if (baud_ == 9600 || candidates.empty()) return read_version();
   fail_bring_up("no working baud rate on " + port_name_);
@@ -364,7 +359,7 @@ bool Session::read_version() {
   firmware_ = v.firmware;
   serial_ = v.serial_number;
   version_lines_ = v.lines;
-  use_bx_ = config_.use_bx;
+  use_bx_ = config_.use_bx && !bx_unreliable_;  // a BX fallback lasts for the process lifetime
   for (const auto& pattern : config_.tx_firmware) {
     if (r.body.find(pattern) != std::string::npos && use_bx_) {
       use_bx_ = false;
@@ -486,6 +481,7 @@ PollResult Session::poll(TrackingReply& out, std::int64_t& receive_mono_us) {
            std::string(use_bx_ ? "BX" : "TX") + " reply did not parse: " + std::string(to_string(parse)));
     if (use_bx_ && consecutive_bad_ >= config_.bx_failures_before_tx) {
       use_bx_ = false;
+      bx_unreliable_ = true;
       consecutive_bad_ = 0;
       emit(Severity::Warning, "NDI_TX_FALLBACK",
            std::to_string(config_.bx_failures_before_tx) + " consecutive bad BX replies on " + port_name_ +

@@ -183,6 +183,7 @@ class Session {
   LinkState state_ = LinkState::Down;
   bool ever_opened_ = false;
   bool use_bx_ = true;
+  bool bx_unreliable_ = false;  // BX fell back to TX once: stay on TX after recoveries
   int baud_ = 9600;
   std::string firmware_, serial_, port_name_, detail_;
   std::vector<std::string> version_lines_;

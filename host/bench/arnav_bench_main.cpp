@@ -1,5 +1,6 @@
 // arnav-bench: benchmarks that print error against run time.
 //   arnav-bench deform [--quick] [--out DIR]   tissue models on the bundled liver
+//   arnav-bench plot deform.csv out.png          redraw the plot from a CSV
 // Writes DIR/deform.csv and DIR/deform_pareto.png and prints the CSV rows' summary as
 // JSON on stdout. Exit 2 on usage or scene errors.
 #include <CLI/CLI.hpp>
@@ -25,7 +26,25 @@ int main(int argc, char** argv) {
   deform->add_option("--frames", options.frames, "frames per run (1/60 s each)")->check(CLI::PositiveNumber);
   deform->add_option("--threads", options.threads, "model threads")->check(CLI::PositiveNumber);
   deform->add_option("--scenario", options.scenarios, "scenarios to run (gravity_sag, lobe_pull, vessel_stiffened)");
-  CLI11_PARSE(app, argc, argv);
+  std::string csv_in, png_out;
+  CLI::App* plot = app.add_subcommand("plot", "redraw the Pareto PNG from a deform.csv");
+  plot->add_option("csv", csv_in, "deform.csv written by 'arnav-bench deform'")->required()->check(CLI::ExistingFile);
+  plot->add_option("png", png_out, "PNG to write")->required();
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;  // --help: 0; usage errors: 2
+  }
+
+  if (plot->parsed()) {
+    try {
+      write_pareto_png(png_out, read_deform_csv(csv_in));
+    } catch (const std::runtime_error& e) {
+      std::cerr << "arnav-bench: " << e.what() << "\n";
+      return 2;
+    }
+    return 0;
+  }
 
   DeformBenchResult result;
   try {

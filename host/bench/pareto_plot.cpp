@@ -42,7 +42,7 @@ void write_pareto_png(const std::string& path, const DeformBenchResult& result) 
   // Common axes: decades covering every healthy point and the budget lines.
   double tmin = 1.0, tmax = 20.0, emin = 0.5, emax = 2.0;
   for (const auto& r : result.rows) {
-    if (!r.healthy || r.median_frame_cpu_ms <= 0) continue;
+    if (r.median_frame_cpu_ms <= 0) continue;
     tmin = std::min(tmin, r.median_frame_cpu_ms);
     tmax = std::max(tmax, r.median_frame_cpu_ms);
     emin = std::min(emin, std::max(r.tumour_error_mm, 1e-3));
@@ -81,8 +81,13 @@ void write_pareto_png(const std::string& path, const DeformBenchResult& result) 
     // Points: filled = fine mesh, hollow = coarse; unhealthy runs are not drawn.
     std::vector<std::pair<double, double>> pts;
     for (const auto& r : result.rows) {
-      if (r.scenario != scenarios[p] || !r.healthy) continue;
+      if (r.scenario != scenarios[p] || r.median_frame_cpu_ms <= 0) continue;
       const cv::Point c(X(r.median_frame_cpu_ms), Y(r.tumour_error_mm));
+      if (!r.healthy) {  // reported unhealthy: a cross, and not on the front
+        cv::line(img, c + cv::Point(-5, -5), c + cv::Point(5, 5), colour_of(r.config.kind), 2, cv::LINE_AA);
+        cv::line(img, c + cv::Point(-5, 5), c + cv::Point(5, -5), colour_of(r.config.kind), 2, cv::LINE_AA);
+        continue;
+      }
       cv::circle(img, c, 5, colour_of(r.config.kind), r.mesh == "fine" ? cv::FILLED : 2, cv::LINE_AA);
       pts.emplace_back(r.median_frame_cpu_ms, r.tumour_error_mm);
     }
@@ -106,8 +111,8 @@ void write_pareto_png(const std::string& path, const DeformBenchResult& result) 
     lx += 170;
   }
   int ref_tets = 0;
-  for (const auto& r : result.references) ref_tets = std::max(ref_tets, r.tets);
-  text(img, "filled: fine mesh, hollow: coarse; line: Pareto front; error against quasi-static FEM (CHOLMOD) on " +
+  for (const auto& r : result.rows) ref_tets = std::max(ref_tets, r.reference_tets);
+  text(img, "filled: fine mesh, hollow: coarse, x: unhealthy run; line: Pareto front; error against the FEM static equilibrium on " +
                 std::to_string(ref_tets) + " tets", {lx, ly}, 0.4);
   if (!cv::imwrite(path, img)) throw std::runtime_error(path + ": cannot write the PNG");
 }

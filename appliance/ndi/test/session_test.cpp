@@ -176,6 +176,15 @@ TEST(Session, CorruptBxNeverGivesAPoseAndFallsBackToTx) {
   EXPECT_EQ(h.dev->commands.back(), "TX");
   EXPECT_EQ(t.count, 2u);
   EXPECT_EQ(h.session->counters().crc_errors, 4);
+
+  // After a recovery the session stays on TX.
+  h.dev->spontaneous_reset();
+  for (int i = 0; i < 3; ++i) h.poll(t);
+  ASSERT_EQ(h.session->state(), LinkState::Recovering);
+  ASSERT_TRUE(h.session->start());
+  EXPECT_FALSE(h.session->using_bx());
+  ASSERT_EQ(h.poll(t), PollResult::NewFrame);
+  EXPECT_EQ(h.dev->commands.back(), "TX");
 }
 
 TEST(Session, OccasionalCorruptionStaysOnBx) {
