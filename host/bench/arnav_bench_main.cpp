@@ -30,7 +30,11 @@ int main(int argc, char** argv) {
   CLI::App* plot = app.add_subcommand("plot", "redraw the Pareto PNG from a deform.csv");
   plot->add_option("csv", csv_in, "deform.csv written by 'arnav-bench deform'")->required()->check(CLI::ExistingFile);
   plot->add_option("png", png_out, "PNG to write")->required();
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;  // --help: 0; usage errors: 2
+  }
 
   if (plot->parsed()) {
     try {

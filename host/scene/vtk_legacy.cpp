@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdlib>
 
 #include "host/scene/load_error.hpp"
 #include "host/scene/text_cursor.hpp"
@@ -73,7 +74,8 @@ VtkLegacyData parse_vtk_legacy(std::string_view content, const std::string& sour
   if (magic.rfind("# vtk DataFile Version", 0) != 0)
     in.fail("not a legacy VTK file (first line must be '# vtk DataFile Version x.y')", "give a legacy .vtk file");
   const std::string version(magic.substr(22));
-  if (version.find('5') != std::string::npos && version.find("5.") != std::string::npos)
+  const std::size_t digit = version.find_first_of("0123456789");
+  if (digit != std::string::npos && std::atoi(version.c_str() + digit) >= 5)
     in.fail("legacy VTK version" + version + " (OFFSETS/CONNECTIVITY layout) is not supported",
             "save the file as legacy VTK 4.2 or earlier (vtkDataWriter::SetFileVersion(42))");
   in.skip_one_newline();
@@ -92,7 +94,6 @@ VtkLegacyData parse_vtk_legacy(std::string_view content, const std::string& sour
   }
   bool have_points = false;
   std::string last_section = "the header";
-  int last_line = in.line();
   while (!in.at_end()) {
     const std::string_view raw = in.token("section keyword");
     const std::string key = upper(raw);
@@ -154,9 +155,7 @@ VtkLegacyData parse_vtk_legacy(std::string_view content, const std::string& sour
       in.fail("unknown section " + printable(raw) + " after " + last_section,
               "expected POINTS, POLYGONS, CELLS, CELL_TYPES or POINT_DATA");
     }
-    last_line = in.line();
   }
-  (void)last_line;
   if (!have_points) in.fail("the file has no POINTS section", "give the vertex coordinates in a POINTS section");
   if (out.unstructured && out.cell_types.size() != out.cells.size())
     in.fail("CELLS without matching CELL_TYPES", "add a CELL_TYPES section with one type per cell");

@@ -9,7 +9,7 @@ struct ModelConfig {
   std::string kind = "xpbd";          // "mass_spring" | "xpbd" | "corotational_fem"
   std::string integrator;             // mass_spring: "explicit" | "semi_implicit";
                                       // corotational_fem: "implicit_euler" | "quasi_static"
-  std::string linear_solver;          // corotational_fem: "cholmod" | "eigen_ldlt" | "pcg"
+  std::string linear_solver;          // corotational_fem: "cholmod" | "eigen_ldlt" | "pcg" | "pcg_jacobi"
   int iterations = 10;                // XPBD iterations per substep; PCG max iterations
   int substeps = 1;                   // substeps per step(dt)
   double tolerance = 1e-6;            // relative residual for iterative solves

@@ -31,7 +31,11 @@ int main(int argc, char** argv) {
   app.add_option("--model", model_kind, "override the scene's model kind (mass_spring, xpbd, corotational_fem)");
   app.add_option("--iterations", iterations, "override model.iterations")->check(CLI::PositiveNumber);
   app.add_option("--substeps", substeps, "override model.substeps")->check(CLI::PositiveNumber);
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;  // --help: 0; usage errors: 2
+  }
 
   Scene scene;
   try {

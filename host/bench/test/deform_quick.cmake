@@ -26,3 +26,7 @@ execute_process(COMMAND ${EXE} deform --quick --scenario nonsense --out ${OUT}/b
 if(NOT rc EQUAL 2 OR NOT err MATCHES "unknown scenario 'nonsense'")
   message(FATAL_ERROR "bad scenario: expected exit 2 naming it, got ${rc}: ${err}")
 endif()
+execute_process(COMMAND ${EXE} deform --frames 0 RESULT_VARIABLE rc OUTPUT_QUIET ERROR_QUIET)
+if(NOT rc EQUAL 2)
+  message(FATAL_ERROR "arnav-bench deform --frames 0: expected exit 2, got ${rc}")
+endif()

@@ -242,6 +242,43 @@ void CorotationalFem::assemble_element(int id, double dt_s, bool dynamic, double
   }
 }
 
+double CorotationalFem::external_potential(const Eigen::Matrix3Xd& x) const {
+  double e = 0.0;
+  for (Eigen::Index i = 0; i < x.cols(); ++i) e -= mass_[i] * gravity_.dot(x.col(i));
+  for (const auto& att : attachments_) {
+    if (!att) continue;
+    Eigen::Vector3d pos = Eigen::Vector3d::Zero();
+    for (std::size_t a = 0; a < att->spec.point.vertices.size(); ++a)
+      pos += att->spec.point.weights[a] * x.col(att->spec.point.vertices[a]);
+    e += 0.5 * att->spec.stiffness_mN_per_mm * (att->spec.target_World_mm - pos).squaredNorm();
+  }
+  return e;
+}
+
+double CorotationalFem::potential_energy(const Eigen::Matrix3Xd& x) {
+  const int num_tets = static_cast<int>(tets_.size());
+  double energy = 0.0;
+#pragma omp parallel for schedule(static) reduction(+ : energy) num_threads(threads_) if (threads_ > 1)
+  for (int t = 0; t < num_tets; ++t) {
+    const Tet& e = tets_[t];
+    const Eigen::Matrix3d F = edge_matrix(x, e.v) * e.Dm_inv;
+    q_[t] = extract_rotation(F, q_[t], kStepRotation);
+    const Eigen::Matrix3d S = q_[t].toRotationMatrix().transpose() * F;
+    const Eigen::Matrix3d eps = 0.5 * (S + S.transpose()) - Eigen::Matrix3d::Identity();
+    const double tr = eps.trace();
+    energy += e.volume * (e.mu * eps.squaredNorm() + 0.5 * e.lambda * tr * tr);
+  }
+  for (const Beam& bm : beams_) {
+    const Eigen::Matrix3d F = 0.5 * (edge_matrix(x, tets_[bm.tets[0]].v) * tets_[bm.tets[0]].Dm_inv +
+                                     edge_matrix(x, tets_[bm.tets[1]].v) * tets_[bm.tets[1]].Dm_inv);
+    const Eigen::Matrix3d R = extract_rotation(F, q_[bm.tets[0]], kStepRotation).toRotationMatrix();
+    Eigen::VectorXd u(bm.X.size());
+    for (std::size_t a = 0; a < bm.v.size(); ++a) u.segment<3>(3 * a) = R.transpose() * x.col(bm.v[a]) - bm.X.segment<3>(3 * a);
+    energy += 0.5 * u.dot(bm.K * u);
+  }
+  return energy + external_potential(x);
+}
+
 StepSummary CorotationalFem::step(double dt_s) {
   check_dt(dt_s);
   if (substeps_ == 1) return substep(dt_s);
@@ -357,8 +394,36 @@ StepSummary CorotationalFem::substep(double dt_s) {
     flat(v_) = v_new;
     flat(x_) = x_flat + dt_s * v_new;
   } else {
-    flat(x_) = x_flat + sol_;
-    flat(v_) = v_new;
+    // The warped stiffness is not the exact Hessian: under large deformation a full
+    // Newton-like step can overshoot, and repeated steps then cycle instead of converging
+    // (seen on the hanging liver: 130 mm back and forth). Backtrack on the total potential
+    // energy, whose gradient is exactly -f (R is the polar rotation).
+    const double slope = -f_.dot(sol_);    // dPi/dalpha at alpha = 0 (< 0: K is SPD)
+    const double pi0 = summary.elastic_energy + external_potential(x_);
+    double alpha = 1.0;
+    Eigen::Matrix3Xd trial = x_;
+    bool accepted = false;
+    for (int k = 0; k < 12 && !accepted; ++k, alpha *= 0.5) {
+      flat(trial) = x_flat + alpha * sol_;
+      accepted = potential_energy(trial) <= pi0 + 1e-4 * alpha * slope;
+    }
+    if (!accepted) {
+      if (-slope <= 1e-10 * (std::abs(pi0) + 1.0)) {
+        // The predicted decrease is below the round-off of the energy: at equilibrium.
+        v_.setZero();
+        last_dx_.setZero(sol_.size());
+        summary.termination = "at_equilibrium";
+        return finish();
+      }
+      summary.healthy = false;
+      summary.warning = "quasi_static: no energy decrease along the update (not converging); state kept";
+      return finish();
+    }
+    alpha *= 2.0;  // undo the last halving
+    if (alpha < 1.0) warnings.push_back("quasi_static step shortened to " + std::to_string(alpha) + " (line search)");
+    x_ = trial;
+    sol_ *= alpha;
+    flat(v_) = sol_ / dt_s;
     last_dx_ = sol_;
   }
   if (ls.termination == "max_iterations") {

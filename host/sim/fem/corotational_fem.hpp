@@ -10,7 +10,8 @@
 // Integrators (ModelConfig.integrator):
 //   implicit_euler  one linearised backward-Euler solve per step for the new velocity:
 //                   (M + dt C + dt^2 K) v+ = M v + dt f(x), C = alpha M + beta K (Rayleigh).
-//   quasi_static    one Newton-like step per call toward equilibrium: K dx = f(x); repeated
+//   quasi_static    one Newton-like step per call toward equilibrium: K dx = f(x), shortened
+//                   by a backtracking line search on the total potential energy; repeated
 //                   calls converge; velocities report dx/dt.
 // Linear solvers: fem_linear_solver.hpp. ModelConfig.threads workers assemble in parallel
 // (OpenMP); ModelConfig.substeps splits step(dt) into equal sub-steps.
@@ -108,6 +109,9 @@ class CorotationalFem final : public TissueModel {
   AssemblyStats assemble(double dt_s, bool dynamic);
   void assemble_element(int id, double dt_s, bool dynamic, double& energy, int& inverted, double& max_strain);
   StepSummary substep(double dt_s);
+  // Total potential (elastic + gravity + attachments), mN*mm; updates the warm-start rotations.
+  double potential_energy(const Eigen::Matrix3Xd& x);
+  double external_potential(const Eigen::Matrix3Xd& x) const;
 
   std::string integrator_;
   FemOptions options_;

@@ -137,6 +137,7 @@ MassSpringModel::MassSpringModel(const SimProblem& problem, Integrator integrato
   }
   springs_ = build_spring_network(mesh, problem.region_materials);
   gravity_ = problem.gravity_World_mm_s2;
+  vessels_ignored_ = problem.vessels.has_value() && !problem.vessels->segments.empty();
   x_ = mesh.rest_positions_World_mm;
   v_ = Eigen::Matrix3Xd::Zero(3, n);
 
@@ -485,6 +486,9 @@ StepSummary MassSpringModel::step(double dt_s) {
            "CG not converged: relative residual " + std::to_string(summary.final_residual) + " after " +
                std::to_string(config_.iterations) + " iterations (raise iterations)",
            false);
+  }
+  if (vessels_ignored_) {
+    report(summary, "vessel tree ignored: this model has no beam coupling (model vessels as a stiff tet region, or use corotational_fem)", false);
   }
   check_state(x_, v_, summary);
   const int inverted = count_inverted();

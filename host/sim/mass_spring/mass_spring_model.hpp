@@ -81,6 +81,7 @@ class MassSpringModel final : public TissueModel {
   Eigen::VectorXd mass_, inv_mass_, mass_damping_;  // mass_damping_: Rayleigh alpha * m (kg/s)
   std::vector<unsigned char> fixed_;
   Eigen::Vector3d gravity_;
+  bool vessels_ignored_ = false;  // the problem declares vessels this model cannot couple
   SpringNetwork springs_;
   AttachmentSet attachments_;
 

@@ -35,6 +35,26 @@ TEST(ModelFactory, EveryVariantBuildsAndSteps) {
   }
 }
 
+// Mass-spring and XPBD have no beam coupling: a declared vessel tree must not be dropped
+// silently.
+TEST(ModelFactory, ModelsWithoutBeamsSayTheyIgnoreVessels) {
+  SimProblem p = small_problem();
+  VesselTree tree;
+  tree.nodes_World_mm.resize(3, 2);
+  tree.nodes_World_mm << 5, 15, 10, 10, 10, 10;
+  tree.radius_mm = {1.0, 1.0};
+  tree.segments = {{0, 1}};
+  p.vessels = tree;
+  for (const ModelVariant& v : model_variants()) {
+    if (v.config.kind != "mass_spring" && v.config.kind != "xpbd") continue;
+    ModelConfig c = v.config;
+    c.substeps = std::max(c.substeps, 20);
+    const StepSummary s = make_tissue_model(p, c)->step(1e-3);
+    EXPECT_NE(s.warning.find("vessel tree ignored"), std::string::npos) << v.label << ": " << s.warning;
+    EXPECT_EQ(make_tissue_model(small_problem(), c)->step(1e-3).warning.find("vessel"), std::string::npos);
+  }
+}
+
 TEST(ModelFactory, RejectsUnknownKindAndBadSettingsByName) {
   ModelConfig c;
   c.kind = "finite_volume";

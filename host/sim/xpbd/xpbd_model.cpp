@@ -46,6 +46,7 @@ XpbdModel::XpbdModel(const SimProblem& problem, const ModelConfig& config) : con
     if (!(mass_[i] > 0.0)) throw std::invalid_argument("xpbd: vertex " + std::to_string(i) + " belongs to no tet (zero mass)");
   }
   gravity_ = problem.gravity_World_mm_s2;
+  vessels_ignored_ = problem.vessels.has_value() && !problem.vessels->segments.empty();
   x_ = mesh.rest_positions_World_mm;
   v_ = Eigen::Matrix3Xd::Zero(3, n);
   x_prev_ = x_;
@@ -277,6 +278,9 @@ StepSummary XpbdModel::step(double dt_s) {
     for (int i = 0; i < n; ++i) v_.col(i) = (x_.col(i) - x_prev_.col(i)) / h;
   }
   if (converged) summary.termination = "converged";
+  if (vessels_ignored_) {
+    report(summary, "vessel tree ignored: this model has no beam coupling (model vessels as a stiff tet region, or use corotational_fem)", false);
+  }
   check_state(x_, v_, summary);
   const int inverted = count_inverted();
   if (inverted > 0) {

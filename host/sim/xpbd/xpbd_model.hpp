@@ -75,6 +75,7 @@ class XpbdModel final : public TissueModel {
   Eigen::VectorXd mass_, inv_mass_, mass_damping_per_s_;
   std::vector<unsigned char> fixed_;
   Eigen::Vector3d gravity_;
+  bool vessels_ignored_ = false;  // the problem declares vessels this model cannot couple
   std::vector<TetData> tets_;           // colour order
   std::vector<int> original_index_;     // colour order -> mesh tet index
   std::vector<Eigen::Matrix3d> lambda_dev_;  // Lagrange multipliers of C = F - R

@@ -24,3 +24,7 @@ execute_process(COMMAND ${EXE} ${OUT}/bad.scene.yaml RESULT_VARIABLE rc ERROR_VA
 if(NOT rc EQUAL 2 OR NOT err MATCHES "bad.scene.yaml:5: unknown key 'extra'")
   message(FATAL_ERROR "bad scene: expected exit 2 naming line 5, got ${rc}: ${err}")
 endif()
+execute_process(COMMAND ${EXE} RESULT_VARIABLE rc OUTPUT_QUIET ERROR_QUIET)
+if(NOT rc EQUAL 2)
+  message(FATAL_ERROR "arnav-sim without a scene: expected exit 2, got ${rc}")
+endif()

@@ -61,6 +61,21 @@ struct Scenario {
   std::string description;
 };
 
+// Gravity equilibrium: exact quasi-static steps until the update is below 1e-9 mm.
+// Warnings (strain range) are allowed; an unhealthy step or no convergence is an error.
+Eigen::Matrix3Xd settle(const SimProblem& problem, int threads) {
+  ModelConfig qs{.kind = "corotational_fem", .integrator = "quasi_static", .linear_solver = "cholmod"};
+  qs.threads = threads;
+  CorotationalFem eq(problem, qs);
+  for (int k = 0; k < 200; ++k) {
+    const Eigen::Matrix3Xd before = eq.positions_World_mm();
+    const StepSummary s = eq.step(1.0);
+    if (!s.healthy) throw std::runtime_error("gravity equilibrium failed: " + s.warning);
+    if ((eq.positions_World_mm() - before).cwiseAbs().maxCoeff() < 1e-9) return eq.positions_World_mm();
+  }
+  throw std::runtime_error("gravity equilibrium not reached in 200 quasi-static steps");
+}
+
 Eigen::Vector3d tumour_centroid(const Scenario& sc, const Eigen::Matrix3Xd& x) {
   if (sc.scene) return tumour_centroid_World_mm(*sc.scene, 0, x);
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
@@ -69,13 +84,13 @@ Eigen::Vector3d tumour_centroid(const Scenario& sc, const Eigen::Matrix3Xd& x) {
 }
 
 // A loaded scene (the liver): starts from its rest shape in gravity (the transient sag is
-// part of the run); the grasper holds the surface vertices within 12 mm of the surface
+// part of the run) or, with --settle, from its gravity equilibrium; the grasper holds the surface vertices within 12 mm of the surface
 // point nearest to tumour 0 and pulls them 20 mm away from the tumour over 1 s.
-Scenario scene_scenario(const Scene& scene) {
+Scenario scene_scenario(const Scene& scene, bool settled, int threads) {
   Scenario sc;
   sc.scene = &scene;
   sc.problem = scene.problem;
-  sc.x0 = scene.problem.mesh.rest_positions_World_mm;
+  sc.x0 = settled ? settle(scene.problem, threads) : scene.problem.mesh.rest_positions_World_mm;
   if (scene.tumours.empty()) throw std::runtime_error(scene.source + ": the scene has no tumour to track");
   const Eigen::Vector3d c = scene.tumours[0].rest_centroid_World_mm;
   std::vector<char> on_surface(sc.x0.cols(), 0);
@@ -88,7 +103,8 @@ Scenario scene_scenario(const Scene& scene) {
   for (int i = 0; i < sc.x0.cols(); ++i)
     if (on_surface[i] && (sc.x0.col(i) - at).norm() < 12.0) sc.grasp.push_back(i);
   sc.pull_mm = 20.0 * (at - c).normalized();
-  sc.description = scene.source + ": grasp " + std::to_string(sc.grasp.size()) + " surface vertices nearest tumour 0, pull 20 mm";
+  sc.description = scene.source + (settled ? " (settled under gravity first)" : " (from rest, gravity on)") + ": grasp " +
+                   std::to_string(sc.grasp.size()) + " surface vertices nearest tumour 0, pull 20 mm";
   return sc;
 }
 
@@ -106,17 +122,7 @@ Scenario make_scenario(int nx, int ny, int nz, int threads) {
   sc.tumour = where(mesh, [&](const Eigen::Vector3d& p) { return (p - (grasp_at - Eigen::Vector3d(0, 0, 25))).norm() < 12.0; });
   sc.description = "box 160x120x80 mm on its bottom face, settled; grasp near the top far end, pull 30 mm";
   if (sc.grasp.empty() || sc.tumour.empty()) throw std::runtime_error("mesh too coarse for the grasp/tumour regions");
-  // Gravity equilibrium (exact solves until the update is below 1e-9 mm).
-  ModelConfig qs{.kind = "corotational_fem", .integrator = "quasi_static", .linear_solver = "cholmod"};
-  qs.threads = threads;
-  CorotationalFem eq(sc.problem, qs);
-  for (int k = 0; k < 100; ++k) {
-    const Eigen::Matrix3Xd before = eq.positions_World_mm();
-    const StepSummary s = eq.step(1.0);
-    if (!s.healthy) throw std::runtime_error("gravity equilibrium failed: " + s.warning);
-    if ((eq.positions_World_mm() - before).cwiseAbs().maxCoeff() < 1e-9) break;
-  }
-  sc.x0 = eq.positions_World_mm();
+  sc.x0 = settle(sc.problem, threads);
   return sc;
 }
 
@@ -160,14 +166,15 @@ RunResult run(const Scenario& sc, const ModelConfig& config, int frames) {
   return r;
 }
 
-int realtime(int nx, int ny, int nz, int frames, int threads, bool csv, bool with_ldlt, const std::string& scene_file) {
+int realtime(int nx, int ny, int nz, int frames, int threads, bool csv, bool with_ldlt, const std::string& scene_file,
+             bool settle_scene) {
   std::optional<Scene> scene;
   Scenario sc;
   if (scene_file.empty()) {
     sc = make_scenario(nx, ny, nz, threads);
   } else {
     scene = load_scene(scene_file);
-    sc = scene_scenario(*scene);
+    sc = scene_scenario(*scene, settle_scene, threads);
   }
   struct Variant {
     std::string label;
@@ -356,7 +363,7 @@ int main(int argc, char** argv) {
   CLI::App app{"Co-rotational FEM benchmarks: solver error vs run time, vessel conditioning, cantilever refinement"};
   app.require_subcommand(1);
   int nx = 20, ny = 15, nz = 13, frames = 90, threads = 2, max_n = 8;
-  bool csv = false, with_ldlt = false;
+  bool csv = false, with_ldlt = false, settle_scene = false;
   std::string scene_file;
   std::vector<double> contrasts{1, 10, 100, 1000, 10000};
   auto* rt = app.add_subcommand("realtime", "solver strategies vs the direct-every-step reference (JSON or CSV)");
@@ -366,6 +373,7 @@ int main(int argc, char** argv) {
   rt->add_option("--frames", frames, "60 Hz frames to simulate")->check(CLI::PositiveNumber);
   rt->add_option("--threads", threads, "assembly threads")->check(CLI::PositiveNumber);
   rt->add_flag("--csv", csv, "CSV instead of JSON");
+  rt->add_flag("--settle", settle_scene, "with --scene: start from the gravity equilibrium instead of the rest shape");
   rt->add_option("--scene", scene_file, "scene file (e.g. data/liver/liver.scene.yaml) instead of the box")->check(CLI::ExistingFile);
   rt->add_flag("--with-eigen-ldlt", with_ldlt, "also time Eigen's simplicial LDLT every step (slow)");
   auto* cond = app.add_subcommand("conditioning", "PCG iterations and kappa vs vessel/parenchyma stiffness contrast");
@@ -384,7 +392,7 @@ int main(int argc, char** argv) {
     return e.get_exit_code() == 0 ? 0 : (code == 0 ? 0 : 2);
   }
   try {
-    if (*rt) return realtime(nx, ny, nz, frames, threads, csv, with_ldlt, scene_file);
+    if (*rt) return realtime(nx, ny, nz, frames, threads, csv, with_ldlt, scene_file, settle_scene);
     if (*cond) return conditioning(contrasts, nx, ny, nz, threads);
     return cantilever(max_n, threads);
   } catch (const std::exception& e) {

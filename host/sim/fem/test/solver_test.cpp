@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 
 #include "host/sim/fem/test/fem_test_util.hpp"
+#include "host/sim/tet_geometry.hpp"
 
 namespace arnav::host {
 namespace {
@@ -143,6 +144,38 @@ TEST(FemStability, InversionHeldByConstraintsBecomesUnhealthy) {
   for (int k = 0; k < 10; ++k) s = model.step(0.01);
   EXPECT_FALSE(s.healthy);
   EXPECT_NE(s.warning.find("not recovering"), std::string::npos) << s.warning;
+}
+
+TEST(FemStability, QuasiStaticLineSearchConvergesUnderLargeSag) {
+  // A very soft column (0.3 kPa) hung from its top face sags by about its own height
+  // scale: full warped-Newton steps overshoot here; the line search keeps the total
+  // potential decreasing and the iteration converges.
+  SimProblem problem = box_problem(3, 3, 8, Eigen::Vector3d(20, 20, 40), 0.3, 0.45);
+  problem.gravity_World_mm_s2 = Eigen::Vector3d(0, 0, -9810.0);
+  problem.fixed_vertices = vertices_where(problem.mesh, [](const Eigen::Vector3d& q) { return q.z() == 40.0; });
+  CorotationalFem model(problem, fem_test::quasi_static_cholmod());
+  const Eigen::VectorXd mass = lumped_masses_kg(problem.mesh, problem.region_materials);
+  auto potential = [&](const StepSummary& s, const Eigen::Matrix3Xd& x_before) {
+    double e = s.elastic_energy;
+    for (int i = 0; i < x_before.cols(); ++i) e -= mass[i] * problem.gravity_World_mm_s2.dot(x_before.col(i));
+    return e;
+  };
+  double previous = 1e300;
+  bool shortened = false, converged = false;
+  for (int k = 0; k < 80 && !converged; ++k) {
+    const Eigen::Matrix3Xd before = model.positions_World_mm();
+    const StepSummary s = model.step(1.0);
+    ASSERT_TRUE(s.healthy) << k << ": " << s.warning;
+    const double pi = potential(s, before);  // energies are of the state before the update
+    EXPECT_LE(pi, previous + 1e-9 * std::abs(previous)) << k;
+    previous = pi;
+    shortened = shortened || s.warning.find("line search") != std::string::npos;
+    converged = (model.positions_World_mm() - before).cwiseAbs().maxCoeff() < 1e-8;
+  }
+  EXPECT_TRUE(converged);
+  EXPECT_TRUE(shortened);
+  const double sag = (problem.mesh.rest_positions_World_mm - model.positions_World_mm()).row(2).maxCoeff();
+  EXPECT_GT(sag, 10.0);
 }
 
 TEST(FemStability, StrainBeyondTheLinearRangeIsReported) {
