@@ -13,7 +13,7 @@ out=$(mktemp -d /tmp/arnav-soak-XXXXXX)
 echo "soak: ${seconds} s, 6 tools at 400 Hz; output in $out"
 "$here/bench_session.sh" "$build" "$here/soak_sim.yaml" "$here/soak_appliance.yaml" "$seconds" "$out" 10
 echo "== soak verdict =="
-awk '/^tool /' "$out/host.log"
+grep -E '^tool [^ ]+ +[0-9]+ valid' "$out/host.log"
 bad=$(grep -cE "^tool .* ([1-9][0-9]*) duplicate frames|, ([1-9][0-9]*) frame gaps|STALE at exit" "$out/host.log" || true)
 dropped=$(grep -oE "dropped frames [0-9]+" "$out/host.log" | tail -1 | awk '{print $3}')
 growth=$(awk -F, 'NR > 1 { if ($1 >= 60 && at60 == "") at60 = $2; last = $2 } END { print (at60 == "" ? 0 : last - at60) }' "$out/appliance_rss.csv")

@@ -270,6 +270,47 @@ TEST_F(SimPty, CablePullAndReset) {
   EXPECT_EQ(host.ask("BX:0001").substr(0, 7), "ERROR10");  // forgot INIT and tracking
 }
 
+// Replay mode through the executable: the real IGSTK capture acted out on the pty.
+TEST(SimReplay, ActsOutTheRealCaptureOnThePty) {
+  const std::string dir = make_temp_dir("arnav-sim-replay");
+  const std::string capture = std::string(std::getenv("ARNAV_SHARED_DIR")) + "/data/ndi_captures/polaris_classic_stream.txt";
+  ChildProcess sim({kSim, "--pty-link", dir + "/polaris", "--replay", capture, "--control", dir + "/control.sock"}, {}, dir + "/sim.log", true);
+  ASSERT_TRUE(sim.read_line(20.0).value_or("").rfind("READY ", 0) == 0) << sim.log_tail();
+  {
+    Host host(dir + "/polaris");
+    ASSERT_GE(host.fd, 0);
+    EXPECT_EQ(host.ask("INIT:"), "OKAYA896\r");
+    EXPECT_NE(host.ask("VER:0").find("Polaris Control Firmware"), std::string::npos);
+    EXPECT_EQ(host.ask("COMM:50000"), "OKAYA896\r");  // as recorded; the replay switches too
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    host.set_baud(115200);
+    EXPECT_EQ(host.ask("BX:0001").substr(0, 7), "ERROR01");  // never recorded
+    ChildProcess c({kSim, "inject", "--control", dir + "/control.sock", "no_reply"}, {}, dir + "/inject.log", true);
+    EXPECT_NE(c.read_line(10.0).value_or("").find("cannot model"), std::string::npos);
+  }
+  EXPECT_EQ(sim.stop(), 0) << sim.log_tail();
+  EXPECT_NE(sim.log_tail().find("is not in"), std::string::npos);
+  fs::remove_all(dir);
+}
+
+// --wire-timing paces replies at the device's baud rate: never faster than 10 bits a byte.
+TEST(SimWireTiming, RepliesTakeTheirWireTime) {
+  const std::string dir = make_temp_dir("arnav-sim-wire");
+  ChildProcess sim({kSim, "--pty-link", dir + "/polaris", "--wire-timing"}, {}, dir + "/sim.log", true);
+  ASSERT_TRUE(sim.read_line(20.0).value_or("").rfind("READY ", 0) == 0) << sim.log_tail();
+  {
+    Host host(dir + "/polaris");
+    ASSERT_GE(host.fd, 0);
+    const auto t0 = std::chrono::steady_clock::now();
+    for (int i = 0; i < 5; ++i) EXPECT_EQ(host.ask("INIT:"), "OKAYA896\r");
+    // 5 replies of 9 bytes at 9600 baud: at least 5 * 9 * 10 / 9600 s = 46.9 ms (the
+    // first one may go out at once).
+    EXPECT_GE(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 4 * 9 * 10 / 9600.0);
+  }
+  EXPECT_EQ(sim.stop(), 0);
+  fs::remove_all(dir);
+}
+
 TEST(SimCli, UsageErrorsExitTwo) {
   const std::string dir = make_temp_dir("arnav-sim-cli");
   ChildProcess none({kSim}, {}, dir + "/a.log");
