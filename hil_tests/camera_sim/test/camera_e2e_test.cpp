@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <mutex>
 #include <sstream>
@@ -30,6 +31,7 @@
 #include "arnav/image_frame_t.hpp"
 #include "arnav/tool_pose_t.hpp"
 #include "calibration/lib/board_layout.hpp"
+#include "calibration/lib/rigid_transform_file.hpp"
 #include "hil_tests/camera_sim/ground_truth.hpp"
 #include "protocol/pose_convert.hpp"
 
@@ -89,7 +91,9 @@ struct Bus {
   }
 };
 
-int run_appliance(const std::string& config, const std::string& log, double timeout_s) {
+// Runs arnav-appliance until it exits, or until stop_when() holds (then SIGTERM).
+int run_appliance(const std::string& config, const std::string& log, double timeout_s,
+                  const std::function<bool()>& stop_when = nullptr) {
   const char* bin_dir = std::getenv("ARNAV_BINARY_DIR");
   const std::string exe = std::string(bin_dir ? bin_dir : ".") + "/appliance/app/arnav-appliance";
   posix_spawn_file_actions_t fa;
@@ -103,7 +107,12 @@ int run_appliance(const std::string& config, const std::string& log, double time
   if (rc != 0) return -1000 - rc;
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
   int status = 0;
+  bool term_sent = false;
   while (::waitpid(pid, &status, WNOHANG) == 0) {
+    if (!term_sent && stop_when && stop_when()) {
+      ::kill(pid, SIGTERM);
+      term_sent = true;
+    }
     if (std::chrono::steady_clock::now() > deadline) {
       ::kill(pid, SIGKILL);
       ::waitpid(pid, &status, 0);
@@ -202,6 +211,106 @@ camera:
   const cv::Mat img = cv::imdecode(bus.images.front().data, cv::IMREAD_UNCHANGED);
   EXPECT_EQ(img.cols, 640);
   EXPECT_EQ(img.rows, 480);
+  std::filesystem::remove_all(dir);
+}
+
+// NDI and camera in one appliance: the simulated Polaris tracks the reference tool, the
+// camera poses are published in Ref: X_RefBoard = X_NdiRef^-1 X_NdiCam X_CamBoard, with
+// X_NdiRef the NDI pose closest in time to the camera frame (checked against the NDI poses
+// the appliance published and the camera's ground truth).
+TEST(CameraEndToEnd, CameraPosesInTheReferenceToolFrameWithTheSimulatedPolaris) {
+  const std::string why = enter_private_network();
+  if (!why.empty()) GTEST_SKIP() << why;
+  const char* src = std::getenv("ARNAV_SOURCE_DIR");
+  const std::string rom = std::string(src ? src : ".") + "/../shared/data/ndi_roms/8700339.rom";
+  if (!std::filesystem::exists(rom)) GTEST_SKIP() << "no NDI ROM at " << rom;
+  const auto dir = std::filesystem::temp_directory_path() / ("arnav_camera_ref_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  Eigen::Isometry3d X_CamNdi = Eigen::Isometry3d::Identity();
+  X_CamNdi.linear() = Eigen::AngleAxisd(0.4, Eigen::Vector3d(0.2, 1, 0.1).normalized()).toRotationMatrix();
+  X_CamNdi.translation() = Eigen::Vector3d(150, -80, 1400);
+  calib::RigidTransformRecord rec;
+  rec.parent_frame = "Cam";
+  rec.child_frame = "Ndi";
+  rec.X_ParentChild = X_CamNdi;
+  rec.method = "camera_e2e_test";
+  rec.date = "2026-11-21T11:00:00Z";
+  calib::write_transform(dir / "X_CamNdi.yaml", rec);
+  std::ofstream(dir / "appliance.yaml") << "lcm_url: \"" << kUrl << R"("
+port: sim
+rate_hz: 60
+tools:
+  - name: reference
+    rom: )" << rom << R"(
+sim_args: ["--tool", "reference=)" << rom << R"("]
+camera:
+  name: bench
+  source: synthetic
+  width: 640
+  height: 480
+  fps: 15
+  detector: {family: tag36h11, decimate: 1}
+  tools:
+    - name: pointer
+      tag: {id: 3, size_mm: 40}
+  synthetic:
+    ground_truth: ground_truth.csv
+    noise_sigma: 1
+    boards:
+      - tool: pointer
+        trajectory: {distance_mm: 380, amplitude_mm: [25, 20, 30], period_s: 3, tilt_deg: 25}
+frames:
+  reference: Ref
+  reference_tool: reference
+  hand_eye: X_CamNdi.yaml
+  max_reference_age_s: 0.05
+)";
+  Bus bus;
+  ASSERT_TRUE(bus.lcm.good());
+  auto ref_camera_poses = [&] {
+    std::lock_guard l(bus.mutex);
+    return std::count_if(bus.poses.begin(), bus.poses.end(), [](const tool_pose_t& m) {
+      return m.tool_name == "pointer" && m.status == tool_pose_t::STATUS_VALID;
+    });
+  };
+  const int rc = run_appliance((dir / "appliance.yaml").string(), (dir / "appliance.log").string(), 150.0,
+                               [&] { return ref_camera_poses() >= 20; });
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  const std::string log = slurp((dir / "appliance.log").string());
+  ASSERT_EQ(rc, 0) << log;
+  ASSERT_GE(ref_camera_poses(), 20) << log;
+
+  const auto truth = read_ground_truth(dir / "ground_truth.csv");
+  std::map<std::int64_t, Eigen::Isometry3d> X_CamBoard_true;
+  for (const auto& r : truth) X_CamBoard_true[r.sequence] = r.X_CamBoard;
+  std::lock_guard l(bus.mutex);
+  std::vector<const tool_pose_t*> ndi_ref;
+  for (const auto& m : bus.poses) {
+    if (m.tool_name == "reference" && m.status == tool_pose_t::STATUS_VALID) {
+      EXPECT_EQ(m.frame_parent, "Ndi");
+      ndi_ref.push_back(&m);
+    }
+  }
+  ASSERT_FALSE(ndi_ref.empty());
+  int checked = 0;
+  double worst_mm = 0;
+  for (const auto& m : bus.poses) {
+    if (m.tool_name != "pointer" || m.status != tool_pose_t::STATUS_VALID) continue;
+    EXPECT_EQ(m.frame_parent, "Ref");
+    const tool_pose_t* nearest = *std::min_element(ndi_ref.begin(), ndi_ref.end(), [&](const tool_pose_t* a, const tool_pose_t* b) {
+      return std::llabs(a->receive_time_mono_us - m.receive_time_mono_us) < std::llabs(b->receive_time_mono_us - m.receive_time_mono_us);
+    });
+    ASSERT_LE(std::llabs(nearest->receive_time_mono_us - m.receive_time_mono_us), 50000);
+    const auto gt = X_CamBoard_true.find(m.device_frame_number);
+    ASSERT_NE(gt, X_CamBoard_true.end());
+    const Eigen::Isometry3d expected = get_pose(*nearest).inverse() * X_CamNdi.inverse() * gt->second;
+    worst_mm = std::max(worst_mm, (get_pose(m).translation() - expected.translation()).norm());
+    ++checked;
+  }
+  EXPECT_GE(checked, 20);
+  // Camera error (~1-3 mm at this range) plus the reference tool's motion between the two
+  // nearest NDI samples; a wrong frame or transform order is off by hundreds of mm.
+  EXPECT_LT(worst_mm, 6.0);
   std::filesystem::remove_all(dir);
 }
 

@@ -30,7 +30,7 @@ struct Case {
   double contrast = 1.0;           // vessel E / parenchyma E
   double nu = 0.45;
   double dt_s = 1.0 / 60.0;
-  std::string initial;             // "", "inverted", "compressed_80", "rotated_180"
+  std::string initial{};           // "", "inverted", "compressed_80", "rotated_180"
   double pull_mm = 10.0;           // attachment pull distance (0: none)
   double attach_factor = 1.0;      // attachment stiffness / tissue stiffness
 };
