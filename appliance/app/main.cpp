@@ -102,6 +102,24 @@ int main(int argc, char** argv) {
     return 0;
   }
 
+  // One reference frame for both paths (appliance/frames, docs/camera.md).
+  std::shared_ptr<frames::ReferenceFrames> reference_frames;
+  try {
+    reference_frames = cam ? cam->frames() : camera::CameraRuntime::load_frames(config_path);
+  } catch (const camera::CameraConfigError& e) {
+    std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
+    return 2;
+  }
+  if (reference_frames->reference() == frames::Reference::Ref) {
+    bool known = false;
+    for (const auto& t : cfg.tools) known |= t.name == reference_frames->reference_tool();
+    if (!known) {
+      std::cerr << "arnav-appliance: configuration error: " << config_path << ": key 'frames.reference_tool': '"
+                << reference_frames->reference_tool() << "' is not one of the NDI tools under 'tools:'\n";
+      return 2;
+    }
+  }
+
   // Where the device is: a simulator on a pty, a libserialport port, or a tty device
   // libserialport does not list (a pty given by path).
   ndi::TransportFactory factory;
@@ -183,14 +201,16 @@ int main(int argc, char** argv) {
     }
     std::cerr << "arnav-appliance: " << cam->summary() << "\n";
   }
-  // Reference tool poses for the camera path's frame Ref (appliance/frames).
+  // NDI poses are published in the reference frame too; the reference tool's pose of
+  // each frame is fed in before that frame's poses are published (one device frame).
+  publisher.set_reference_frames(reference_frames);
   auto feed_reference = [&](const ndi::TrackingReply& r, std::int64_t receive_us) {
-    if (!cam || cam->frames()->reference() != frames::Reference::Ref) return;
+    if (reference_frames->reference() != frames::Reference::Ref) return;
     for (const auto& t : session->tools()) {
-      if (t.config.name != cam->frames()->reference_tool()) continue;
+      if (t.config.name != reference_frames->reference_tool()) continue;
       const ndi::HandleRecord* rec = r.find(t.handle);
-      if (rec && rec->state == ndi::HandleState::Valid) cam->frames()->update_reference(ndi::X_NdiTool(*rec), receive_us);
-      else cam->frames()->reference_missing(receive_us);
+      if (rec && rec->state == ndi::HandleState::Valid) reference_frames->update_reference(ndi::X_NdiTool(*rec), receive_us);
+      else reference_frames->reference_missing(receive_us);
     }
   };
 
@@ -241,8 +261,8 @@ int main(int argc, char** argv) {
       std::int64_t receive_us = 0;
       switch (session->poll(reply, receive_us)) {
         case ndi::PollResult::NewFrame:
-          publisher.publish_frame(*session, reply, receive_us);
           feed_reference(reply, receive_us);
+          publisher.publish_frame(*session, reply, receive_us);
           ++frames_in_window;
           // Next frame is due one device period after this one was read; poll a little
           // early and re-poll quickly if the device has no new frame yet.

@@ -8,6 +8,28 @@
 
 namespace arnav::app {
 
+namespace {
+// Writes the pose in the publisher's reference frame when it can be expressed there.
+void write_pose(tool_pose_t& msg, const Eigen::Isometry3d& X_NdiTool, const frames::ReferenceFrames* reference_frames,
+                const std::string& tool_name, std::int64_t time_us) {
+  if (reference_frames && !(reference_frames->reference() == frames::Reference::Ref &&
+                            tool_name == reference_frames->reference_tool())) {
+    const frames::Converted c = reference_frames->ndi_pose(X_NdiTool, time_us);
+    if (c.X_ParentChild) {
+      set_pose(msg, *c.X_ParentChild);
+      msg.frame_parent = c.frame_parent;
+      return;
+    }
+  }
+  set_pose(msg, X_NdiTool);
+  msg.frame_parent = "Ndi";
+}
+}  // namespace
+
+void Publisher::set_reference_frames(std::shared_ptr<const frames::ReferenceFrames> reference_frames) {
+  frames_ = std::move(reference_frames);
+}
+
 Publisher::Publisher(lcm::LCM& lcm, const std::vector<ndi::ToolConfig>& tools, double device_rate_hz)
     : lcm_(lcm), device_rate_hz_(device_rate_hz), health_channel_(channels::health("ndi")) {
   for (const auto& t : tools) {
@@ -41,7 +63,7 @@ float Publisher::publish_frame(const ndi::Session& session, const ndi::TrackingR
       msg.port_status = static_cast<std::int32_t>(r->port_status);
       switch (r->state) {
         case ndi::HandleState::Valid:
-          set_pose(msg, ndi::X_NdiTool(*r));
+          write_pose(msg, ndi::X_NdiTool(*r), frames_.get(), tools[i].config.name, receive_mono_us);
           msg.rms_error_mm = static_cast<float>(r->rms_error_mm);
           msg.quality = 1.0f;
           msg.status = r->out_of_volume()         ? +tool_pose_t::STATUS_OUT_OF_VOLUME

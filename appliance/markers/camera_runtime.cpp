@@ -8,23 +8,38 @@ namespace arnav::camera {
 CameraRuntime::CameraRuntime(CameraConfig config, std::shared_ptr<frames::ReferenceFrames> frames)
     : config_(std::move(config)), frames_(std::move(frames)) {}
 
-std::unique_ptr<CameraRuntime> CameraRuntime::load(const std::filesystem::path& config_file) {
+namespace {
+struct ConfigText {
+  std::string text, source;
+  std::filesystem::path base;
+};
+ConfigText read_config(const std::filesystem::path& config_file) {
   std::ifstream in(config_file);
   if (!in) throw CameraConfigError(config_file.string() + ": cannot open the configuration file");
   std::stringstream ss;
   ss << in.rdbuf();
-  const std::string source = config_file.string();
-  const std::filesystem::path base = config_file.parent_path().empty() ? std::filesystem::path(".") : config_file.parent_path();
-  std::optional<CameraConfig> cam = parse_camera_config(ss.str(), source, base);
-  if (!cam) return nullptr;
-  const frames::FramesConfig fc = parse_frames_config(ss.str(), source, base);
-  std::shared_ptr<frames::ReferenceFrames> frames;
+  return {ss.str(), config_file.string(),
+          config_file.parent_path().empty() ? std::filesystem::path(".") : config_file.parent_path()};
+}
+std::shared_ptr<frames::ReferenceFrames> frames_from(const ConfigText& c) {
+  const frames::FramesConfig fc = parse_frames_config(c.text, c.source, c.base);
   try {
-    frames = frames::ReferenceFrames::load(fc);
+    return frames::ReferenceFrames::load(fc);
   } catch (const std::invalid_argument& e) {
-    throw CameraConfigError(source + ": frames: " + e.what());
+    throw CameraConfigError(c.source + ": frames: " + e.what());
   }
-  return std::unique_ptr<CameraRuntime>(new CameraRuntime(std::move(*cam), std::move(frames)));
+}
+}  // namespace
+
+std::unique_ptr<CameraRuntime> CameraRuntime::load(const std::filesystem::path& config_file) {
+  const ConfigText c = read_config(config_file);
+  std::optional<CameraConfig> cam = parse_camera_config(c.text, c.source, c.base);
+  if (!cam) return nullptr;
+  return std::unique_ptr<CameraRuntime>(new CameraRuntime(std::move(*cam), frames_from(c)));
+}
+
+std::shared_ptr<frames::ReferenceFrames> CameraRuntime::load_frames(const std::filesystem::path& config_file) {
+  return frames_from(read_config(config_file));
 }
 
 std::string CameraRuntime::summary() const {

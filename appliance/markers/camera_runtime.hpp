@@ -19,6 +19,8 @@ class CameraRuntime {
   // nullptr when the configuration has no `camera:`; throws CameraConfigError (message
   // "<file>:<line>: key ...: ...") for a bad section or a bad calibration/board file.
   static std::unique_ptr<CameraRuntime> load(const std::filesystem::path& config_file);
+  // Only the `frames:` section (the NDI path uses it without a camera); same errors.
+  static std::shared_ptr<frames::ReferenceFrames> load_frames(const std::filesystem::path& config_file);
 
   const CameraConfig& config() const { return config_; }
   const std::shared_ptr<frames::ReferenceFrames>& frames() const { return frames_; }

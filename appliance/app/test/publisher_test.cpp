@@ -130,3 +130,57 @@ TEST(Publisher, OutOfVolumeAndMissingTools) {
 
 }  // namespace
 }  // namespace arnav::app
+
+namespace arnav::app {
+namespace {
+
+// With frames.reference: Ref, NDI poses go out as X_RefTool computed from the same device
+// frame; the reference tool itself stays X_NdiRef; without the reference, X_NdiTool.
+TEST(Publisher, PosesInTheReferenceFrame) {
+  lcm::LCM lcm("memq://");
+  Sink sink;
+  lcm.subscribe("ARNAV_POSE_.*", &Sink::on_pose, &sink);
+  ndi::SessionConfig c;
+  c.tools = {{"pointer", rom("8700340.rom")}, {"reference", rom("8700339.rom")}};
+  c.setup_timeout = 300ms;
+  c.reset_wait = 80ms;
+  c.break_duration = 1ms;
+  c.comm_settle = 1ms;
+  auto dev = std::make_shared<ndi::test::FakeDevice>();
+  ndi::Session session(c, ndi::test::fake_factory(dev), nullptr);
+  ASSERT_TRUE(session.start());
+  // frames: requires a hand-eye for Ref (the camera path needs it); X_RefTool does not use it.
+  Eigen::Isometry3d X_NdiCam = Eigen::Isometry3d::Identity();
+  X_NdiCam.translation() = Eigen::Vector3d(100, 0, -1000);
+  auto reference_frames = std::make_shared<frames::ReferenceFrames>(frames::Reference::Ref, X_NdiCam, "reference", 0.05);
+  Publisher pub(lcm, c.tools, 60.0);
+  pub.set_reference_frames(reference_frames);
+
+  ndi::TrackingReply reply;
+  std::int64_t rx = 0;
+  ASSERT_EQ(session.poll(reply, rx), ndi::PollResult::NewFrame);
+  const ndi::HandleRecord* pointer = reply.find(session.tools()[0].handle);
+  const ndi::HandleRecord* reference = reply.find(session.tools()[1].handle);
+  ASSERT_TRUE(pointer && reference);
+  const Eigen::Isometry3d X_NdiPointer = ndi::X_NdiTool(*pointer);
+  const Eigen::Isometry3d X_NdiRef = ndi::X_NdiTool(*reference);
+  reference_frames->update_reference(X_NdiRef, rx);
+  pub.publish_frame(session, reply, rx);
+  reference_frames->reference_missing(rx + 1);
+  pub.publish_frame(session, reply, rx + 1);
+  drain(lcm);
+
+  ASSERT_EQ(sink.poses.size(), 4u);
+  EXPECT_EQ(sink.poses[0].tool_name, "pointer");
+  EXPECT_EQ(sink.poses[0].frame_parent, "Ref");
+  EXPECT_TRUE(get_pose(sink.poses[0]).isApprox(X_NdiRef.inverse() * X_NdiPointer, 1e-9));
+  EXPECT_EQ(sink.poses[1].tool_name, "reference");
+  EXPECT_EQ(sink.poses[1].frame_parent, "Ndi");
+  EXPECT_TRUE(get_pose(sink.poses[1]).isApprox(X_NdiRef, 1e-9));
+  // Reference not visible: the pose is still published, in the frame it can be given in.
+  EXPECT_EQ(sink.poses[2].frame_parent, "Ndi");
+  EXPECT_TRUE(get_pose(sink.poses[2]).isApprox(X_NdiPointer, 1e-9));
+}
+
+}  // namespace
+}  // namespace arnav::app
