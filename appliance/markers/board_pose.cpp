@@ -4,6 +4,7 @@
 #include <opencv2/core/eigen.hpp>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <map>
 #include <stdexcept>
@@ -54,6 +55,7 @@ BoardPoseEstimator::BoardPoseEstimator(TagBoard board, CameraModel camera, PoseS
 
 PoseOutcome BoardPoseEstimator::estimate(const std::vector<TagDetection>& detections,
                                          const std::optional<Eigen::Isometry3d>& X_CamBoard_prior) const {
+  const auto t_start = std::chrono::steady_clock::now();
   std::map<int, const BoardTag*> by_id;
   for (const auto& t : board_.tags) by_id[t.id] = &t;
 
@@ -106,28 +108,34 @@ PoseOutcome BoardPoseEstimator::estimate(const std::vector<TagDetection>& detect
   struct Candidate {
     Eigen::Isometry3d X;
     double rms_px;
+    double initial_rms_px;
   };
-  std::vector<Candidate> candidates;
-  for (size_t s = 0; s < rvecs.size(); ++s) {
-    cv::Mat r = rvecs[s].clone(), t = tvecs[s].clone();
-    if (est.tags_used > 1) {
-      cv::solvePnPRefineLM(object, normalised, I, cv::noArray(), r, t);
-    }
-    const Eigen::Isometry3d X = to_isometry(r, t);
+  // RMS reprojection error in distorted pixels; negative when a corner is behind the camera.
+  auto rms_of = [&](const Eigen::Isometry3d& X) {
     std::vector<Eigen::Vector3d> p_Cam;
-    bool in_front = true;
     for (const auto& p : object) {
       p_Cam.push_back(X * Eigen::Vector3d(p.x, p.y, p.z));
-      in_front = in_front && p_Cam.back().z() > 0.0;
+      if (p_Cam.back().z() <= 0.0) return -1.0;
     }
-    if (!in_front) continue;
     const auto proj = camera_.project(p_Cam);
     double sum = 0.0;
     for (size_t k = 0; k < proj.size(); ++k) {
       const cv::Point2d d = proj[k] - image_px[k];
       sum += d.dot(d);
     }
-    candidates.push_back({X, std::sqrt(sum / static_cast<double>(proj.size()))});
+    return std::sqrt(sum / static_cast<double>(proj.size()));
+  };
+  std::vector<Candidate> candidates;
+  for (size_t s = 0; s < rvecs.size(); ++s) {
+    cv::Mat r = rvecs[s].clone(), t = tvecs[s].clone();
+    const double initial = rms_of(to_isometry(r, t));
+    if (est.tags_used > 1) {
+      cv::solvePnPRefineLM(object, normalised, I, cv::noArray(), r, t);
+    }
+    const Eigen::Isometry3d X = to_isometry(r, t);
+    const double rms = rms_of(X);
+    if (rms < 0.0) continue;
+    candidates.push_back({X, rms, initial});
   }
   if (candidates.empty()) {
     out.reason = "pose solve for board '" + board_.name + "' put it behind the camera";
@@ -149,6 +157,11 @@ PoseOutcome BoardPoseEstimator::estimate(const std::vector<TagDetection>& detect
   }
   est.X_CamBoard = candidates[chosen].X;
   est.reprojection_rms_px = candidates[chosen].rms_px;
+  est.summary.method = est.tags_used == 1 ? "IPPE_SQUARE" : "IPPE+LM";
+  est.summary.initial_rms_px = candidates[chosen].initial_rms_px;
+  est.summary.final_rms_px = candidates[chosen].rms_px;
+  est.summary.wall_time_us =
+      std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t_start).count();
   est.flipped = chosen != 0;
   if (X_CamBoard_prior) {
     // The board normal turning by more than 30 deg between frames is a flip, not motion.

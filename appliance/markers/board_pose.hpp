@@ -28,6 +28,16 @@ struct PoseSettings {
   double max_reprojection_px = 3.0;
 };
 
+// Summary of the solve (the conventions' solver summary): closed-form IPPE, then OpenCV's
+// Levenberg-Marquardt refinement (its own criterion: 20 iterations or a tiny step) for
+// boards of several tags. RMS in distorted pixels over the corners used.
+struct SolveSummary {
+  std::string method;            // "IPPE_SQUARE" (one tag) or "IPPE+LM" (several)
+  double initial_rms_px = 0.0;   // chosen solution before refinement
+  double final_rms_px = 0.0;     // after refinement (= reprojection_rms_px)
+  double wall_time_us = 0.0;     // undistortion + solve + scoring
+};
+
 struct PoseEstimate {
   Eigen::Isometry3d X_CamBoard = Eigen::Isometry3d::Identity();
   double reprojection_rms_px = 0.0;       // chosen solution, distorted pixels
@@ -38,6 +48,7 @@ struct PoseEstimate {
   bool ambiguous = false;
   bool flipped = false;                   // took the higher-error solution, or the normal jumped
   std::vector<int> tag_ids;
+  SolveSummary summary;
 };
 
 struct PoseOutcome {

@@ -276,7 +276,7 @@ std::optional<CameraConfig> parse_camera_config(const std::string& yaml_text, co
     capture::SyntheticSettings syn;
     if (s) {
       r.only(s, k, {"hfov_deg", "distortion", "frames", "ground_truth", "frames_dir", "noise_sigma", "blur_sigma_px",
-                    "lighting", "outage", "boards", "seed"});
+                    "lighting", "outage", "boards", "seed", "occluders"});
     }
     const YAML::Node none;
     const YAML::Node sn = s ? s : none;
@@ -314,6 +314,24 @@ std::optional<CameraConfig> parse_camera_config(const std::string& yaml_text, co
           const auto g = r.numbers(l["gradient_per_px"], kl + ".gradient_per_px");
           if (g.size() != 2) r.fail(l["gradient_per_px"], kl + ".gradient_per_px", "expected [gx, gy]");
           syn.render.lighting.gradient_per_px = Eigen::Vector2d(g[0], g[1]);
+        }
+      }
+      if (const YAML::Node occ = s["occluders"]) {
+        // Foreground objects (instruments, hands) as image polygons, drawn over the scene.
+        if (!occ.IsSequence()) r.fail(occ, k + ".occluders", "expected a list of {polygon_px: [[x, y], ...], reflectance}");
+        for (std::size_t i = 0; i < occ.size(); ++i) {
+          const std::string ko = k + ".occluders[" + std::to_string(i) + "]";
+          r.only(occ[i], ko, {"polygon_px", "reflectance"});
+          const YAML::Node poly = occ[i]["polygon_px"];
+          if (!poly || !poly.IsSequence() || poly.size() < 3) r.fail(poly ? poly : occ[i], ko + ".polygon_px", "needs at least 3 [x, y] points");
+          camera_sim::Occluder o;
+          for (std::size_t j = 0; j < poly.size(); ++j) {
+            const auto xy = r.numbers(poly[j], ko + ".polygon_px[" + std::to_string(j) + "]");
+            if (xy.size() != 2) r.fail(poly[j], ko + ".polygon_px[" + std::to_string(j) + "]", "expected [x, y]");
+            o.polygon_px.emplace_back(xy[0], xy[1]);
+          }
+          o.reflectance = r.number(occ[i], ko, "reflectance", o.reflectance, 0, 1);
+          syn.render.occluders.push_back(o);
         }
       }
       if (const YAML::Node o = s["outage"]) {

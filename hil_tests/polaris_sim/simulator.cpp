@@ -308,7 +308,7 @@ void Simulator::handle_break_socket(double now) {
   }
 }
 
-void Simulator::handle_control_socket(double /*now*/) {
+void Simulator::handle_control_socket() {
   char buf[512];
   for (;;) {
     sockaddr_un from{};
@@ -357,11 +357,9 @@ void Simulator::run(const std::atomic<bool>& stop) {
     }
     run_timeline(now);
     flush_output(now);
-    if (output_.size() > 0 && [&] {
-          std::size_t total = 0;
-          for (const auto& p : output_) total += p.bytes.size();
-          return total > kMaxQueuedBytes;
-        }()) {
+    std::size_t queued = 0;
+    for (const auto& p : output_) queued += p.bytes.size();
+    if (queued > kMaxQueuedBytes) {  // a host that stopped reading must not grow us forever
       event("output_dropped", "host is not reading: " + std::to_string(output_.size()) + " replies discarded");
       output_.clear();
     }
@@ -383,7 +381,7 @@ void Simulator::run(const std::atomic<bool>& stop) {
     if (::poll(fds, nfds, timeout_ms) < 0 && errno != EINTR) throw std::runtime_error(std::string("poll: ") + std::strerror(errno));
     now = now_s();
     if (break_fd_ >= 0 && (fds[1].revents & POLLIN)) handle_break_socket(now);
-    if (control_fd_ >= 0 && (fds[2].revents & POLLIN)) handle_control_socket(now);
+    if (control_fd_ >= 0 && (fds[2].revents & POLLIN)) handle_control_socket();
     if (master >= 0 && link_.plugged() && (fds[0].revents & POLLIN)) on_host_bytes(now);
     flush_output(now);
   }

@@ -65,7 +65,7 @@ class Simulator {
   void queue_reply(PolarisModel::Reply reply, double now);
   void flush_output(double now);
   void handle_break_socket(double now);
-  void handle_control_socket(double now);
+  void handle_control_socket();
   void run_timeline(double now);
   void send_reset(double now);
   void trace(int kind, const std::string& bytes, std::int64_t value = 0);

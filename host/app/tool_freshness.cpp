@@ -56,7 +56,7 @@ void ToolFreshnessTracker::update(std::int64_t now_us) {
     if (stale && !t.stale && t.last_valid_arrival_us >= 0) ++t.stale_episodes;
     t.stale = stale;
     auto& r = t.recent_valid_us;
-    r.erase(r.begin(), std::find_if(r.begin(), r.end(), [&](std::int64_t a) { return a > now_us - rate_window_us_; }));
+    while (!r.empty() && r.front() <= now_us - rate_window_us_) r.pop_front();
     t.rate_hz = static_cast<double>(r.size()) * 1e6 / static_cast<double>(rate_window_us_);
   }
 }

@@ -5,6 +5,7 @@
 // Also keeps the last health message per device and counts events. Pure bookkeeping:
 // the caller passes the arrival time, so it is testable without a clock.
 #include <cstdint>
+#include <deque>
 #include <map>
 #include <string>
 #include <vector>
@@ -36,7 +37,7 @@ struct ToolFreshness {
   Eigen::Isometry3d X_ParentChild = Eigen::Isometry3d::Identity();
   std::string frame_parent, frame_child;
   double rate_hz = 0.0;  // valid poses over the last rate window
-  std::vector<std::int64_t> recent_valid_us;  // arrival times inside the rate window
+  std::deque<std::int64_t> recent_valid_us;  // arrival times inside the rate window
 };
 
 class ToolFreshnessTracker {

@@ -21,6 +21,9 @@ camera:
     hfov_deg: 60
     distortion: [-0.1, 0.01, 0, 0, 0]
     noise_sigma: 2
+    occluders:
+      - polygon_px: [[10, 10], [100, 10], [100, 60]]
+        reflectance: 0.2
     boards:
       - tool: pointer
         trajectory: {distance_mm: 400, amplitude_mm: [30, 20, 40], period_s: 5}
@@ -54,6 +57,9 @@ TEST(CameraConfig, SyntheticCameraSectionParses) {
   EXPECT_EQ(c->camera.width, 640);
   EXPECT_EQ(c->camera.distortion.size(), 5u);
   EXPECT_DOUBLE_EQ(c->synthetic->render.noise_sigma, 2);
+  ASSERT_EQ(c->synthetic->render.occluders.size(), 1u);
+  EXPECT_EQ(c->synthetic->render.occluders[0].polygon_px.size(), 3u);
+  EXPECT_DOUBLE_EQ(c->synthetic->render.occluders[0].reflectance, 0.2);
   EXPECT_FALSE(parse_camera_config("port: sim\n", "app.yaml", "."));
 }
 
@@ -71,6 +77,7 @@ TEST(CameraConfig, MistakesNameFileLineAndKey) {
                "nope.yaml");
   expect_error(replace(kSynthetic, "amplitude_mm: [30, 20, 40]", "amplitude_mm: [30, 20]"), "expected [x, y, z]");
   expect_error("camera: [1, 2\n", "YAML syntax error");
+  expect_error(replace(kSynthetic, "[[10, 10], [100, 10], [100, 60]]", "[[10, 10], [100, 10]]"), "needs at least 3");
 }
 
 TEST(FramesConfig, ReferenceNeedsItsCalibration) {

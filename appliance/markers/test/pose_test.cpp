@@ -86,6 +86,10 @@ TEST(BoardPose, RenderedBoardThroughDistortedLensMatchesTruth) {
     EXPECT_GT(out.pose->quality, 0.5);
     EXPECT_EQ(out.pose->tags_used, 4);
     EXPECT_FALSE(out.pose->ambiguous);
+    // Solver summary: the LM refinement never makes the joint fit worse.
+    EXPECT_EQ(out.pose->summary.method, "IPPE+LM");
+    EXPECT_LE(out.pose->summary.final_rms_px, out.pose->summary.initial_rms_px + 1e-9);
+    EXPECT_GT(out.pose->summary.wall_time_us, 0.0);
   }
 }
 

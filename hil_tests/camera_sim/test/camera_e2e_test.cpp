@@ -191,6 +191,8 @@ camera:
   for (const auto& r : truth) visible_rows += r.tags_visible == (r.board == "pointer" ? 1 : 4);
   EXPECT_LT(worst_mm, 4.0);
   EXPECT_LT(worst_deg, 2.5);
+  RecordProperty("worst_error_um", static_cast<int>(1000 * worst_mm));
+  RecordProperty("worst_error_mdeg", static_cast<int>(1000 * worst_deg));
   // Every frame the camera delivered was processed; nearly every clear view gives a pose.
   EXPECT_GE(checked, visible_rows * 8 / 10) << checked << " valid poses for " << visible_rows << " clear views";
   EXPECT_GT(checked, 8);  // few under sanitizers on a loaded machine: late frames are dropped
@@ -311,6 +313,8 @@ frames:
   // Camera error (~1-3 mm at this range) plus the reference tool's motion between the two
   // nearest NDI samples; a wrong frame or transform order is off by hundreds of mm.
   EXPECT_LT(worst_mm, 6.0);
+  RecordProperty("checked_poses", checked);
+  RecordProperty("worst_error_um", static_cast<int>(1000 * worst_mm));
   std::filesystem::remove_all(dir);
 }
 
