@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <ctime>
+#include <fstream>
 #include <iostream>
 
 #include "host/scene/box_mesh.hpp"
@@ -40,6 +41,8 @@ int main(int argc, char** argv) {
   std::vector<int> threads{1, 2};
   std::vector<std::string> models;
   int iterations = 0, substeps = 0;
+  std::string positions_csv;
+  double tolerance = -1.0;
   app.add_option("--nx", nx, "cells along x (6 tets per cell)")->check(CLI::PositiveNumber);
   app.add_option("--ny", ny, "cells along y")->check(CLI::PositiveNumber);
   app.add_option("--nz", nz, "cells along z")->check(CLI::PositiveNumber);
@@ -48,6 +51,10 @@ int main(int argc, char** argv) {
   app.add_option("--model", models, "variant labels (default: every variant of model_variants())");
   app.add_option("--iterations", iterations, "override iterations (XPBD sweeps per substep, CG max)");
   app.add_option("--substeps", substeps, "override substeps per frame");
+  app.add_option("--tolerance", tolerance, "override the tolerance (early stop; 0 = run all iterations)");
+  app.add_option("--positions-csv", positions_csv,
+                 "write the final vertex positions (mm) of the last run to this CSV, to measure the error of a "
+                 "cheap setting against a converged run");
   CLI11_PARSE(app, argc, argv);
 
   SimProblem problem;
@@ -79,6 +86,7 @@ int main(int argc, char** argv) {
       config.threads = t;
       if (iterations > 0) config.iterations = iterations;
       if (substeps > 0) config.substeps = substeps;
+      if (tolerance >= 0.0) config.tolerance = tolerance;
       auto model = make_tissue_model(problem, config);
       const AttachmentId id = model->add_attachment(
           {.point = {{grasp}, {1.0}}, .target_World_mm = grasp_rest, .stiffness_mN_per_mm = 200.0});
@@ -115,6 +123,16 @@ int main(int argc, char** argv) {
                              {"unhealthy_frames", unhealthy},
                              {"first_warning", warning}});
       std::cerr << variant.label << " threads=" << t << " median " << median << " ms\n";
+      if (!positions_csv.empty()) {
+        std::ofstream csv(positions_csv);
+        if (!csv) {
+          std::cerr << "arnav-sim-bench: cannot write --positions-csv " << positions_csv << "\n";
+          return 2;
+        }
+        csv.precision(17);
+        const Eigen::Matrix3Xd& x = model->positions_World_mm();
+        for (Eigen::Index i = 0; i < x.cols(); ++i) csv << x(0, i) << "," << x(1, i) << "," << x(2, i) << "\n";
+      }
     }
   }
   std::cout << out.dump(2) << "\n";

@@ -348,35 +348,86 @@ void MassSpringModel::explicit_substep(double h) {
   }
 }
 
-void MassSpringModel::apply_system(const Eigen::Matrix3Xd& p, Eigen::Matrix3Xd& out) {
+double MassSpringModel::apply_system(const Eigen::Matrix3Xd& p, Eigen::Matrix3Xd& out) {
+  // One fused pass (the CG spends most of its time here): springs and volume terms
+  // scatter into per-thread buffers inside a single parallel region, then one vertex pass
+  // sums the buffers, adds the mass term, zeroes fixed rows and accumulates p.out (the
+  // CG's curvature), so the buffers are zeroed and read once per product, not twice.
   const auto& ends = springs_.ends;
-  scatter(threads_, thread_buffers_, ends, -1.0, out, [&](int s) -> Eigen::Vector3d {
-    const Eigen::Vector3d d = p.col(ends[s][0]) - p.col(ends[s][1]);
-    return spring_s1_[s] * spring_dir_[s].dot(d) * spring_dir_[s] + spring_s2_[s] * d;
-  });
+  const int ns = static_cast<int>(ends.size());
+  const int nt = static_cast<int>(tets_.size());
   const int n = static_cast<int>(x_.cols());
   const double h = current_h_;
-  scatter_tets_add(threads_, thread_buffers_, tets_, out, [&](int t, std::array<Eigen::Vector3d, 4>& c) {
-    if (volume_stiffness_[t] <= 0.0) return false;
+  const double* P = p.data();
+  const unsigned char* fixed = fixed_.data();
+  auto spring_kernel = [&](double* o, int s) {
+    const int i = ends[s][0], j = ends[s][1];
+    const Eigen::Vector3d d(P[3 * i] - P[3 * j], P[3 * i + 1] - P[3 * j + 1], P[3 * i + 2] - P[3 * j + 2]);
+    const Eigen::Vector3d& dir = spring_dir_[s];
+    const Eigen::Vector3d c = spring_s1_[s] * dir.dot(d) * dir + spring_s2_[s] * d;
+    double* oi = o + 3 * i;
+    double* oj = o + 3 * j;
+    oi[0] += c.x(), oi[1] += c.y(), oi[2] += c.z();
+    oj[0] -= c.x(), oj[1] -= c.y(), oj[2] -= c.z();
+  };
+  auto tet_kernel = [&](double* o, int t) {
+    if (volume_stiffness_[t] <= 0.0) return;
     const auto& g = vol_grad_[t];
+    const auto& v = tets_[t];
     double gp = 0.0;
-    for (int a = 0; a < 4; ++a) gp += g[a].dot(p.col(tets_[t][a]));
-    for (int a = 0; a < 4; ++a) c[a] = vol_coef_[t] * gp * g[a];
-    return true;
-  });
+    for (int a = 0; a < 4; ++a) gp += g[a].x() * P[3 * v[a]] + g[a].y() * P[3 * v[a] + 1] + g[a].z() * P[3 * v[a] + 2];
+    const double coef = vol_coef_[t] * gp;
+    for (int a = 0; a < 4; ++a) {
+      double* oa = o + 3 * v[a];
+      oa[0] += coef * g[a].x(), oa[1] += coef * g[a].y(), oa[2] += coef * g[a].z();
+    }
+  };
+  // Attachments (few) are added after the vertex pass; they never touch fixed rows.
+  double pq = 0.0;
+  if (threads_ == 1) {
+    out.setZero();
+    double* o = out.data();
+    for (int s = 0; s < ns; ++s) spring_kernel(o, s);
+    for (int t = 0; t < nt; ++t) tet_kernel(o, t);
+    for (int i = 0; i < n; ++i) {
+      if (fixed[i]) {
+        out.col(i).setZero();
+      } else {
+        out.col(i) += (mass_[i] + h * mass_damping_[i]) * p.col(i);
+      }
+    }
+  } else {
+#pragma omp parallel num_threads(threads_)
+    {
+      Eigen::Matrix3Xd& buf = thread_buffers_[static_cast<std::size_t>(omp_get_thread_num())];
+      buf.setZero();
+      double* o = buf.data();
+#pragma omp for schedule(static) nowait
+      for (int s = 0; s < ns; ++s) spring_kernel(o, s);
+#pragma omp for schedule(static)
+      for (int t = 0; t < nt; ++t) tet_kernel(o, t);
+#pragma omp for schedule(static)
+      for (int i = 0; i < n; ++i) {
+        if (fixed[i]) {
+          out.col(i).setZero();
+          continue;
+        }
+        Eigen::Vector3d sum = thread_buffers_[0].col(i);
+        for (std::size_t k = 1; k < thread_buffers_.size(); ++k) sum += thread_buffers_[k].col(i);
+        out.col(i) = sum + (mass_[i] + h * mass_damping_[i]) * p.col(i);
+      }
+    }
+  }
   for (int id : attachments_.active()) {
     const Attachment& a = attachments_[id];
     const Eigen::Vector3d pp = a.point(p);
-    for (int k = 0; k < a.count; ++k) out.col(a.vertices[k]) += h * h * a.stiffness_mN_per_mm * a.weights[k] * pp;
-  }
-#pragma omp parallel for num_threads(threads_) if (threads_ > 1) schedule(static)
-  for (int i = 0; i < n; ++i) {
-    if (fixed_[static_cast<std::size_t>(i)]) {
-      out.col(i).setZero();
-    } else {
-      out.col(i) += (mass_[i] + h * mass_damping_[i]) * p.col(i);
+    for (int k = 0; k < a.count; ++k) {
+      if (fixed[a.vertices[k]]) continue;
+      out.col(a.vertices[k]) += h * h * a.stiffness_mN_per_mm * a.weights[k] * pp;
     }
   }
+  pq = dot(threads_, p, out);
+  return pq;
 }
 
 StepSummary MassSpringModel::semi_implicit_substep(double h) {
@@ -420,25 +471,39 @@ StepSummary MassSpringModel::semi_implicit_substep(double h) {
     z_ = r_.cwiseQuotient(diag_);
     p_ = z_;
     double rz = dot(threads_, r_, z_);
+    const int nc = static_cast<int>(r_.size());
+    double* DV = dv_.data();
+    double* R = r_.data();
+    double* Z = z_.data();
+    double* PP = p_.data();
+    const double* Q = q_.data();
+    const double* D = diag_.data();
     for (int it = 0; it < config_.iterations; ++it) {
-      apply_system(p_, q_);
-      const double pq = dot(threads_, p_, q_);
+      const double pq = apply_system(p_, q_);
       if (!(pq > 0.0)) {
         s.termination = "breakdown";
         break;
       }
       const double alpha = rz / pq;
-      dv_ += alpha * p_;
-      r_ -= alpha * q_;
+      // One pass: update dv and r, precondition, and both dot products.
+      double rr = 0.0, rz_new = 0.0;
+#pragma omp parallel for num_threads(threads_) if (threads_ > 1) reduction(+ : rr, rz_new) schedule(static)
+      for (int k = 0; k < nc; ++k) {
+        DV[k] += alpha * PP[k];
+        R[k] -= alpha * Q[k];
+        Z[k] = R[k] / D[k];
+        rr += R[k] * R[k];
+        rz_new += R[k] * Z[k];
+      }
       ++s.iterations;
-      r_norm = std::sqrt(dot(threads_, r_, r_));
+      r_norm = std::sqrt(rr);
       if (r_norm <= config_.tolerance * denom) {
         s.termination = "converged";
         break;
       }
-      z_ = r_.cwiseQuotient(diag_);
-      const double rz_new = dot(threads_, r_, z_);
-      p_ = z_ + (rz_new / rz) * p_;
+      const double beta = rz_new / rz;
+#pragma omp parallel for num_threads(threads_) if (threads_ > 1) schedule(static)
+      for (int k = 0; k < nc; ++k) PP[k] = Z[k] + beta * PP[k];
       rz = rz_new;
     }
   }

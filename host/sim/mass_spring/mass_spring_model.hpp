@@ -68,7 +68,8 @@ class MassSpringModel final : public TissueModel {
   // Accumulates spring (and attachment) forces into f_ (3 x n), gravity and mass damping
   // included; with h > 0 also fills the per-spring tangent data and the CG right-hand side.
   void assemble(double h);
-  void apply_system(const Eigen::Matrix3Xd& p, Eigen::Matrix3Xd& out);  // (M - hC - h^2 K) p
+  // out = (M - hC - h^2 K) p (fixed rows zero); returns p.out.
+  double apply_system(const Eigen::Matrix3Xd& p, Eigen::Matrix3Xd& out);
   void scatter_springs_to_buffers();
   int count_inverted() const;
   void update_omega_bound();

@@ -84,6 +84,7 @@ class XpbdModel final : public TissueModel {
   Coloring coloring_;
   AttachmentSet attachments_;
   double inverted_time_s_ = 0.0;        // how long some tets have stayed inverted
+  int inverted_at_end_ = -1;            // inverted tets after the last step; -1: unknown
   EnergyLedger ledger_;
 };
 
