@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "host/sim/model_setup.hpp"
 #include "host/sim/element_measure.hpp"
 #include "host/sim/fem/rotation_extraction.hpp"
 #include "host/sim/tet_geometry.hpp"
@@ -51,13 +52,8 @@ CorotationalFem::CorotationalFem(const SimProblem& problem, const ModelConfig& c
   X_ = mesh.rest_positions_World_mm;
   x_ = X_;
   v_ = Eigen::Matrix3Xd::Zero(3, X_.cols());
-  mass_ = lumped_masses_kg(mesh, problem.region_materials);  // validates volumes and regions
+  mass_ = checked_masses_kg(problem, "corotational_fem");
   const int nv = mesh.num_vertices();
-  for (int i = 0; i < nv; ++i)
-    if (!(mass_[i] > 0.0)) {
-      throw std::invalid_argument("corotational_fem: vertex " + std::to_string(i) +
-                                  " belongs to no tetrahedron (zero mass): remove unused vertices from the mesh");
-    }
   mass_damped_ = mass_;
   tets_.resize(mesh.tets.size());
   Eigen::VectorXd mass_alpha = Eigen::VectorXd::Zero(nv);

@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "host/sim/model_setup.hpp"
 #include "host/sim/element_measure.hpp"
 #include "host/sim/step_health.hpp"
 
@@ -122,19 +123,10 @@ constexpr double kUnconvergedResidual = 0.01;
 
 MassSpringModel::MassSpringModel(const SimProblem& problem, Integrator integrator, const ModelConfig& config)
     : integrator_(integrator), config_(config), threads_(config.threads) {
-  if (config.substeps < 1) throw std::invalid_argument("mass_spring: substeps must be >= 1");
-  if (config.iterations < 1) throw std::invalid_argument("mass_spring: iterations (CG) must be >= 1");
-  if (config.threads < 1) throw std::invalid_argument("mass_spring: threads must be >= 1");
-  if (!(config.tolerance >= 0.0)) throw std::invalid_argument("mass_spring: tolerance must be >= 0");
+  check_iterative_config(config, "mass_spring");  // iterations: CG iterations per substep
   const TetMesh& mesh = problem.mesh;
+  mass_ = checked_masses_kg(problem, "mass_spring");
   const int n = mesh.num_vertices();
-  if (n == 0 || mesh.num_tets() == 0) throw std::invalid_argument("mass_spring: the mesh has no tetrahedra");
-  mass_ = lumped_masses_kg(mesh, problem.region_materials);
-  for (int i = 0; i < n; ++i) {
-    if (!(mass_[i] > 0.0)) {
-      throw std::invalid_argument("mass_spring: vertex " + std::to_string(i) + " belongs to no tet (zero mass)");
-    }
-  }
   springs_ = build_spring_network(mesh, problem.region_materials);
   gravity_ = problem.gravity_World_mm_s2;
   vessels_ignored_ = problem.vessels.has_value() && !problem.vessels->segments.empty();

@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "host/sim/model_setup.hpp"
 #include "host/sim/element_measure.hpp"
 #include "host/sim/rotation_extraction.hpp"
 #include "host/sim/step_health.hpp"
@@ -36,17 +37,10 @@ constexpr double kUnconvergedResidual = 0.01;
 }  // namespace
 
 XpbdModel::XpbdModel(const SimProblem& problem, const ModelConfig& config) : config_(config) {
-  if (config.substeps < 1) throw std::invalid_argument("xpbd: substeps must be >= 1");
-  if (config.iterations < 1) throw std::invalid_argument("xpbd: iterations must be >= 1");
-  if (config.threads < 1) throw std::invalid_argument("xpbd: threads must be >= 1");
-  if (!(config.tolerance >= 0.0)) throw std::invalid_argument("xpbd: tolerance must be >= 0");
+  check_iterative_config(config, "xpbd");
   const TetMesh& mesh = problem.mesh;
+  mass_ = checked_masses_kg(problem, "xpbd");
   const int n = mesh.num_vertices();
-  if (n == 0 || mesh.num_tets() == 0) throw std::invalid_argument("xpbd: the mesh has no tetrahedra");
-  mass_ = lumped_masses_kg(mesh, problem.region_materials);
-  for (int i = 0; i < n; ++i) {
-    if (!(mass_[i] > 0.0)) throw std::invalid_argument("xpbd: vertex " + std::to_string(i) + " belongs to no tet (zero mass)");
-  }
   gravity_ = problem.gravity_World_mm_s2;
   vessels_ignored_ = problem.vessels.has_value() && !problem.vessels->segments.empty();
   x_ = mesh.rest_positions_World_mm;
