@@ -36,7 +36,11 @@ class TetGrid {
   }
   std::array<int, 3> cell_of(const Eigen::Vector3d& p) const {
     std::array<int, 3> c{};
-    for (int k = 0; k < 3; ++k) c[k] = std::clamp(static_cast<int>(std::floor((p[k] - lo_[k]) / cell_)), 0, n_[k] - 1);
+    // Clamp in floating point first: a point far outside the grid must not overflow int.
+    for (int k = 0; k < 3; ++k) {
+      const double f = std::floor((p[k] - lo_[k]) / cell_);
+      c[k] = f >= 0.0 ? static_cast<int>(std::min(f, static_cast<double>(n_[k] - 1))) : 0;  // NaN -> 0
+    }
     return c;
   }
   std::size_t index(int i, int j, int k) const { return (static_cast<std::size_t>(k) * n_[1] + j) * n_[0] + i; }

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <charconv>
+#include <cmath>
+#include <cstdio>
 #include <map>
 #include <unordered_map>
 
@@ -148,7 +150,7 @@ TetMesh parse_tetgen(std::string_view node_content, const std::string& node_sour
   check_count(ele, nt, "tetrahedron count");
   if (per != 4) ele.fail(std::to_string(per) + " nodes per tetrahedron", "only linear (4-node) tetrahedra are supported: run tetgen without -o2");
   if (eattr < 0 || eattr > 100) ele.fail("bad attribute count", "fix the header");
-  std::map<long long, int> region_of_attr;
+  std::map<double, int> region_of_attr;  // TetGen region attributes are reals
   for (long long t = 0; t < nt; ++t) {
     ele.skip_comment_lines('#');
     ele.integer("tetrahedron number");
@@ -165,8 +167,11 @@ TetMesh parse_tetgen(std::string_view node_content, const std::string& node_sour
     if (eattr > 0) {
       const double attr = ele.real("region attribute");
       for (long long a = 1; a < eattr; ++a) ele.real("attribute");
-      const auto key = static_cast<long long>(attr);
-      auto [it, inserted] = region_of_attr.emplace(key, static_cast<int>(region_of_attr.size()));
+      if (!std::isfinite(attr)) {
+        ele.fail("tetrahedron " + std::to_string(t) + " has a region attribute that is not a finite number",
+                 "fix the attribute column (tetgen -A writes one finite value per region)");
+      }
+      auto [it, inserted] = region_of_attr.emplace(attr, static_cast<int>(region_of_attr.size()));
       out.tet_region.push_back(it->second);
     }
     out.tets.push_back(tet);
@@ -174,7 +179,11 @@ TetMesh parse_tetgen(std::string_view node_content, const std::string& node_sour
   }
   if (!region_of_attr.empty()) {
     out.region_names.resize(region_of_attr.size());
-    for (const auto& [attr, idx] : region_of_attr) out.region_names[idx] = "region_" + std::to_string(attr);
+    for (const auto& [attr, idx] : region_of_attr) {
+      char name[48];
+      std::snprintf(name, sizeof name, "region_%.15g", attr);  // 1 -> "region_1", 0.5 -> "region_0.5"
+      out.region_names[idx] = name;
+    }
   }
   return out;
 }

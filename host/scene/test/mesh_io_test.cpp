@@ -207,6 +207,12 @@ TEST(VolumeLoaders, TetGenFilesOneBasedWithRegions) {
   EXPECT_EQ(m.tets[0], (std::array<int, 4>{0, 1, 2, 3}));
   EXPECT_EQ(m.region_names, (std::vector<std::string>{"region_1", "region_2"}));
   EXPECT_EQ(m.tet_region, (std::vector<int>{0, 1}));
+  // Region attributes are reals (TetGen -A): fractional and huge values are regions too
+  // (a huge one once overflowed an integer conversion; found by fuzz_scene_mesh_parsers).
+  write_file(dir, "r.node", "5 3 0 0\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n5 1 1 1\n");
+  write_file(dir, "r.ele", "2 4 1\n1 1 2 3 4 0.5\n2 2 3 4 5 5888888888888888888888888888888888888888888888888888888\n");
+  const TetMesh r = load_volume(dir + "/r.ele");
+  EXPECT_EQ(r.region_names, (std::vector<std::string>{"region_0.5", "region_5.88888888888889e+54"}));
   write_file(dir, "bad.node", "4 3 0 0\n0 0 0 0\n1 1 0 0\n2 0 1 0\n3 0 0 1\n");
   write_file(dir, "bad.ele", "1 4 0\n0 0 1 2 7\n");
   const std::string e = error_of([&] { load_volume(dir + "/bad.node"); });
