@@ -10,6 +10,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "calibration/lib/calib_error.hpp"
+#include "calibration/lib/versioned_yaml.hpp"
 
 namespace arnav::calib {
 namespace {
@@ -152,19 +153,7 @@ void validate_board_layout(const BoardLayout& b, const std::string& source) {
 }
 
 BoardLayout parse_board_layout(const std::string& yaml_text, const std::string& source) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(yaml_text);
-  } catch (const YAML::Exception& e) {
-    throw CalibError(source + ":" + std::to_string(e.mark.line + 1) + ": not valid YAML (" +
-                     e.msg + ")");
-  }
-  if (!root.IsMap()) throw CalibError(source + ": expected a YAML map (an ARNav board layout)");
-  const int version = get<int>(root, "arnav_board_version", source);
-  if (version != 1) {
-    throw CalibError(source + ": arnav_board_version " + std::to_string(version) +
-                     " is not supported (this build reads version 1)");
-  }
+  const YAML::Node root = load_versioned_yaml(yaml_text, source, "an ARNav board layout", "arnav_board_version");
   BoardLayout b;
   b.name = get<std::string>(root, "name", source);
   const std::string type = get<std::string>(root, "type", source);

@@ -10,6 +10,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "calibration/lib/calib_error.hpp"
+#include "calibration/lib/versioned_yaml.hpp"
 
 namespace arnav::calib {
 namespace {
@@ -44,19 +45,7 @@ bool valid_frame_name(const std::string& name) {
 }
 
 RigidTransformRecord parse_transform(const std::string& yaml_text, const std::string& source) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(yaml_text);
-  } catch (const YAML::Exception& e) {
-    throw CalibError(source + ":" + std::to_string(e.mark.line + 1) + ": not valid YAML (" +
-                     e.msg + ")");
-  }
-  if (!root.IsMap()) throw CalibError(source + ": expected a YAML map (an ARNav transform file)");
-  const int version = scalar<int>(root, "arnav_transform_version", source);
-  if (version != 1) {
-    throw CalibError(source + ": arnav_transform_version " + std::to_string(version) +
-                     " is not supported (this build reads version 1)");
-  }
+  const YAML::Node root = load_versioned_yaml(yaml_text, source, "an ARNav transform file", "arnav_transform_version");
   RigidTransformRecord r;
   r.parent_frame = scalar<std::string>(root, "parent_frame", source);
   r.child_frame = scalar<std::string>(root, "child_frame", source);
