@@ -26,6 +26,10 @@ int main(int argc, char** argv) {
   deform->add_option("--frames", options.frames, "frames per run (1/60 s each)")->check(CLI::PositiveNumber);
   deform->add_option("--threads", options.threads, "model threads")->check(CLI::PositiveNumber);
   deform->add_option("--scenario", options.scenarios, "scenarios to run (gravity_sag, lobe_pull, vessel_stiffened)");
+  deform->add_option("--setting", options.setting_prefixes,
+                     "run only the settings whose label starts with this (repeatable), e.g. 'fem', 'xpbd s4'");
+  deform->add_option("--mesh", options.meshes, "model meshes to run (coarse, fine)")
+      ->check(CLI::IsMember({"coarse", "fine"}));
   std::string csv_in, png_out;
   CLI::App* plot = app.add_subcommand("plot", "redraw the Pareto PNG from a deform.csv");
   plot->add_option("csv", csv_in, "deform.csv written by 'arnav-bench deform'")->required()->check(CLI::ExistingFile);

@@ -205,8 +205,15 @@ DeformBenchResult run_deform_bench(const DeformBenchOptions& o) {
   };
   std::vector<Mesh> meshes;
   std::cerr << "arnav-bench deform: loading scenes from " << o.data_dir << "\n";
-  meshes.push_back({"coarse", load_scene(o.data_dir + "/liver/liver_coarse.scene.yaml")});
-  if (!o.quick) meshes.push_back({"fine", load_scene(o.data_dir + "/liver/liver.scene.yaml")});
+  auto wanted_mesh = [&](const char* name) { return std::find(o.meshes.begin(), o.meshes.end(), name) != o.meshes.end(); };
+  if (o.quick || wanted_mesh("coarse")) meshes.push_back({"coarse", load_scene(o.data_dir + "/liver/liver_coarse.scene.yaml")});
+  if (!o.quick && wanted_mesh("fine")) meshes.push_back({"fine", load_scene(o.data_dir + "/liver/liver.scene.yaml")});
+  auto wanted_setting = [&](const std::string& label) {
+    if (o.setting_prefixes.empty()) return true;
+    for (const std::string& p : o.setting_prefixes)
+      if (label.rfind(p, 0) == 0) return true;
+    return false;
+  };
   // Reference mesh: finer than every model mesh (quick: the coarse mesh itself, smoke only).
   const Scene reference_scene = o.quick ? meshes[0].scene : load_scene(o.data_dir + "/liver/liver_reference.scene.yaml");
   const int frames = o.quick ? std::min(o.frames, 5) : o.frames;
@@ -230,6 +237,7 @@ DeformBenchResult run_deform_bench(const DeformBenchOptions& o) {
     const double ref_surface_disp = (ref.solved.surface - ref.rest.surface).colwise().norm().maxCoeff();
     for (const Mesh& mesh : meshes) {
       for (const Setting& setting : settings(o.quick, mesh.name == "fine", o.threads)) {
+        if (!wanted_setting(setting.label)) continue;
         DeformBenchRow row;
         row.scenario = scenario;
         row.label = setting.label;

@@ -17,6 +17,8 @@ struct DeformBenchOptions {
   int frames = 45;             // simulated frames per run (0.75 s at 60 Hz)
   int threads = 1;             // model threads (1: CPU time = unloaded wall time)
   std::vector<std::string> scenarios = {"gravity_sag", "lobe_pull", "vessel_stiffened"};
+  std::vector<std::string> setting_prefixes;  // run only settings whose label starts with one (empty: all)
+  std::vector<std::string> meshes = {"coarse", "fine"};  // model meshes to run (quick: coarse only)
 };
 
 struct DeformBenchRow {
