@@ -41,7 +41,7 @@ int main(int argc, char** argv) {
   std::vector<int> threads{1, 2};
   std::vector<std::string> models;
   int iterations = 0, substeps = 0;
-  std::string positions_csv;
+  std::string positions_csv, energy;
   double tolerance = -1.0;
   app.add_option("--nx", nx, "cells along x (6 tets per cell)")->check(CLI::PositiveNumber);
   app.add_option("--ny", ny, "cells along y")->check(CLI::PositiveNumber);
@@ -51,6 +51,7 @@ int main(int argc, char** argv) {
   app.add_option("--model", models, "variant labels (default: every variant of model_variants())");
   app.add_option("--iterations", iterations, "override iterations (XPBD sweeps per substep, CG max)");
   app.add_option("--substeps", substeps, "override substeps per frame");
+  app.add_option("--energy", energy, "override the XPBD energy (neo_hookean, corotated)");
   app.add_option("--tolerance", tolerance, "override the tolerance (early stop; 0 = run all iterations)");
   app.add_option("--positions-csv", positions_csv,
                  "write the final vertex positions (mm) of the last run to this CSV, to measure the error of a "
@@ -87,6 +88,7 @@ int main(int argc, char** argv) {
       if (iterations > 0) config.iterations = iterations;
       if (substeps > 0) config.substeps = substeps;
       if (tolerance >= 0.0) config.tolerance = tolerance;
+      if (!energy.empty() && config.kind == "xpbd") config.energy = energy;
       auto model = make_tissue_model(problem, config);
       const AttachmentId id = model->add_attachment(
           {.point = {{grasp}, {1.0}}, .target_World_mm = grasp_rest, .stiffness_mN_per_mm = 200.0});
@@ -113,6 +115,7 @@ int main(int argc, char** argv) {
                              {"threads", t},
                              {"iterations", config.iterations},
                              {"substeps", config.substeps},
+                             {"energy", config.energy},
                              {"median_frame_ms", median},
                              {"p90_frame_ms", percentile(ms, 0.9)},
                              {"min_frame_ms", percentile(ms, 0.0)},

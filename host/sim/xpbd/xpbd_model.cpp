@@ -4,6 +4,7 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <chrono>
+#include <omp.h>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -47,10 +48,32 @@ XpbdModel::XpbdModel(const SimProblem& problem, const ModelConfig& config) : con
   v_ = Eigen::Matrix3Xd::Zero(3, n);
   x_prev_ = x_;
 
+  if (config.energy == "neo_hookean") {
+    neo_hookean_ = true;
+    // Its shear stiffness at rest lives in the multiplier of C_D = |F| (a prestress that
+    // the gradient's rotation turns into shear force). XPBD's later sweeps ignore how the
+    // gradient of an already loaded constraint changes, so a second sweep per substep
+    // finds no shear stiffness and round-off grows without bound (measured: a box at rest
+    // drifted 5e-3 mm in 3 steps of 2 sweeps). One sweep per substep is stable.
+    if (config.iterations != 1)
+      throw std::invalid_argument("xpbd: energy neo_hookean needs iterations = 1 (got " + std::to_string(config.iterations) +
+                                  "): raise substeps instead (small steps), or use energy corotated");
+  } else if (config.energy.empty() || config.energy == "corotated") {
+    neo_hookean_ = false;
+  } else {
+    throw std::invalid_argument("xpbd: unknown energy '" + config.energy + "': use corotated or neo_hookean");
+  }
   coloring_ = greedy_vertex_coloring(mesh.tets, n);
-  tets_.resize(mesh.tets.size());
   original_index_ = coloring_.order;
   mass_damping_per_s_ = Eigen::VectorXd::Zero(n);
+  if (neo_hookean_) {
+    build_neo_hookean_batches(problem);
+    mass_damping_per_s_ = mass_damping_per_s_.cwiseQuotient(mass_);
+    set_fixed_vertices(problem.fixed_vertices);
+    reset_ledger();
+    return;
+  }
+  tets_.resize(mesh.tets.size());
   for (std::size_t k = 0; k < coloring_.order.size(); ++k) {
     const int t = coloring_.order[k];
     const int region = mesh.tet_region.empty() ? 0 : mesh.tet_region[t];
@@ -73,7 +96,86 @@ XpbdModel::XpbdModel(const SimProblem& problem, const ModelConfig& config) : con
   reset_ledger();
 }
 
+void XpbdModel::build_neo_hookean_batches(const SimProblem& problem) {
+  const TetMesh& mesh = problem.mesh;
+  using xpbd::kLanes;
+  xpbd::NhBatches& nb = nh_;
+  nb.color_begin.assign(1, 0);
+  for (int c = 0; c < coloring_.num_colors(); ++c) {
+    const int n_c = coloring_.color_offsets[c + 1] - coloring_.color_offsets[c];
+    nb.color_begin.push_back(nb.color_begin.back() + (n_c + kLanes - 1) / kLanes);
+  }
+  const int num_batches = nb.color_begin.back();
+  nb.batches.assign(static_cast<std::size_t>(num_batches), xpbd::NhBatch{});
+  nb.count.assign(static_cast<std::size_t>(num_batches), 0);
+  nb.tet.assign(static_cast<std::size_t>(num_batches) * kLanes, -1);
+  for (int c = 0; c < coloring_.num_colors(); ++c) {
+    for (int k = coloring_.color_offsets[c]; k < coloring_.color_offsets[c + 1]; ++k) {
+      const int slot = k - coloring_.color_offsets[c];
+      const int bi = nb.color_begin[c] + slot / kLanes, l = slot % kLanes;
+      const int t = coloring_.order[static_cast<std::size_t>(k)];
+      nb.tet[static_cast<std::size_t>(bi) * kLanes + l] = t;
+      nb.count[static_cast<std::size_t>(bi)] = l + 1;
+      const int region = mesh.tet_region.empty() ? 0 : mesh.tet_region[t];
+      const Material& mat = problem.region_materials[region];
+      const Lame lame = lame_from(mat);
+      // Stable Neo-Hookean linearises to Lame (mu, lambda - mu): shift lambda by mu so
+      // that small strains see the region's E and nu.
+      const double mu = lame.mu_kPa, lambda = lame.lambda_kPa + lame.mu_kPa;
+      const double V = signed_volume_mm3(x_, mesh.tets[t]);
+      const Eigen::Matrix3d Dm_inv = edge_matrix(x_, mesh.tets[t]).inverse();
+      xpbd::NhBatch& b = nb.batches[static_cast<std::size_t>(bi)];
+      for (int a = 0; a < 4; ++a) b.v[a][l] = mesh.tets[t][a];
+      for (int a = 0; a < 3; ++a)
+        for (int j = 0; j < 3; ++j) b.b[a][j][l] = Dm_inv(a, j);
+      b.inv_mu_V[l] = 1.0 / (mu * V);
+      b.inv_lambda_V[l] = 1.0 / (lambda * V);
+      b.gamma[l] = 1.0 + mu / lambda;
+      b.beta_s[l] = mat.damping_stiffness_s;
+      b.mu_V[l] = mu * V;
+      b.lambda_V[l] = lambda * V;
+      if (mat.damping_stiffness_s != 0.0) nh_damped_ = true;
+      for (int v : mesh.tets[t]) mass_damping_per_s_[v] += 0.25 * V * mat.density_kg_per_mm3 * mat.damping_mass_per_s;
+    }
+  }
+  // Unused lanes repeat lane 0 (finite arithmetic; never written back nor summed).
+  for (int bi = 0; bi < num_batches; ++bi) {
+    xpbd::NhBatch& b = nb.batches[static_cast<std::size_t>(bi)];
+    for (int l = nb.count[static_cast<std::size_t>(bi)]; l < kLanes; ++l) {
+      for (int a = 0; a < 4; ++a) b.v[a][l] = b.v[a][0];
+      for (int a = 0; a < 3; ++a)
+        for (int j = 0; j < 3; ++j) b.b[a][j][l] = b.b[a][j][0];
+      b.inv_mu_V[l] = b.inv_mu_V[0];
+      b.inv_lambda_V[l] = b.inv_lambda_V[0];
+      b.gamma[l] = b.gamma[0];
+      b.beta_s[l] = b.beta_s[0];
+      b.mu_V[l] = b.mu_V[0];
+      b.lambda_V[l] = b.lambda_V[0];
+    }
+  }
+  nh_lambda_d_.assign(static_cast<std::size_t>(num_batches) * kLanes, 0.0);
+  nh_lambda_h_.assign(static_cast<std::size_t>(num_batches) * kLanes, 0.0);
+}
+
 void XpbdModel::update_tet_mass_blocks() {
+  for (xpbd::NhBatch& b : nh_.batches) {
+    for (int l = 0; l < xpbd::kLanes; ++l) {
+      Eigen::Matrix3d B = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d b0 = Eigen::Vector3d::Zero();
+      for (int a = 1; a < 4; ++a) {
+        const Eigen::Vector3d ba(b.b[a - 1][0][l], b.b[a - 1][1][l], b.b[a - 1][2][l]);
+        B += inv_mass_[b.v[a][l]] * ba * ba.transpose();
+        b0 -= ba;
+      }
+      B += inv_mass_[b.v[0][l]] * b0 * b0.transpose();
+      b.B[0][l] = B(0, 0);
+      b.B[1][l] = B(0, 1);
+      b.B[2][l] = B(0, 2);
+      b.B[3][l] = B(1, 1);
+      b.B[4][l] = B(1, 2);
+      b.B[5][l] = B(2, 2);
+    }
+  }
   for (TetData& d : tets_) {
     const Eigen::Vector3d b0 = -d.Dm_inv.colwise().sum().transpose();
     d.B = inv_mass_[d.v[0]] * b0 * b0.transpose();
@@ -227,6 +329,109 @@ double XpbdModel::solve_tets(double h) {
   return residual_sq;
 }
 
+void XpbdModel::step_neo_hookean(double h, StepSummary& summary, bool& converged, double& energy, int& inverted) {
+  using xpbd::kLanes;
+  const int n = static_cast<int>(x_.cols());
+  const int threads = config_.threads;
+  const int colors = nh_.num_colors();
+  const int num_batches = nh_.color_begin.back();
+  const double tets = static_cast<double>(coloring_.order.size());
+  xpbd::SweepParams params;
+  params.h_s = h;
+  params.damped = nh_damped_;
+  params.multipliers = config_.iterations > 1;  // one sweep from zero needs none stored
+  double* X = x_.data();
+  double* V = v_.data();
+  double* XP = x_prev_.data();
+  const double* W = inv_mass_.data();
+  const double* mass_damping = mass_damping_per_s_.data();
+  const xpbd::NhBatch* batches = nh_.batches.data();
+  const int* count = nh_.count.data();
+  double* lambda_d = nh_lambda_d_.data();
+  double* lambda_h = nh_lambda_h_.data();
+  const Eigen::Vector3d g = gravity_;
+  // Per-thread partial sums, a cache line apart.
+  std::vector<double> partial(static_cast<std::size_t>(8 * threads), 0.0);
+  std::vector<int> partial_inverted(static_cast<std::size_t>(16 * threads), 0);
+  bool stop = false;
+  // One parallel region for the whole step: the barriers between colours are the only
+  // synchronisation (no fork/join per sweep or per colour).
+#pragma omp parallel num_threads(threads) if (threads > 1)
+  {
+    const int tid = omp_get_thread_num(), nt = omp_get_num_threads();
+    auto slice = [&](int begin, int end, int& b, int& e) {
+      const long len = end - begin;
+      b = begin + static_cast<int>(len * tid / nt);
+      e = begin + static_cast<int>(len * (tid + 1) / nt);
+    };
+    int v0 = 0, v1 = 0;
+    slice(0, n, v0, v1);
+    for (int s = 0; s < config_.substeps && !stop; ++s) {
+      for (int i = v0; i < v1; ++i) {
+        for (int k = 0; k < 3; ++k) XP[3 * i + k] = X[3 * i + k];
+        if (fixed_[static_cast<std::size_t>(i)]) continue;
+        // Damp the carried velocity only: damping gravity's increment too would weaken
+        // gravity at steady state by 1/(1 + h alpha).
+        const double keep = 1.0 / (1.0 + h * mass_damping[i]);
+        for (int k = 0; k < 3; ++k) {
+          V[3 * i + k] = V[3 * i + k] * keep + h * g[k];
+          X[3 * i + k] += h * V[3 * i + k];
+        }
+      }
+      if (params.multipliers) {
+        int b0 = 0, b1 = 0;
+        slice(0, num_batches * kLanes, b0, b1);
+        std::fill(lambda_d + b0, lambda_d + b1, 0.0);
+        std::fill(lambda_h + b0, lambda_h + b1, 0.0);
+      }
+#pragma omp barrier
+      for (int it = 0; it < config_.iterations; ++it) {
+        double correction = 0.0;
+        for (int c = 0; c < colors; ++c) {
+          int b0 = 0, b1 = 0;
+          slice(nh_.color_begin[c], nh_.color_begin[c + 1], b0, b1);
+          correction += xpbd::solve_nh_batches(batches, count, b0, b1, X, XP, W, lambda_d, lambda_h, params);
+#pragma omp barrier
+        }
+        partial[static_cast<std::size_t>(8 * tid)] = correction;
+#pragma omp barrier
+#pragma omp single
+        {
+          if (it == 0)
+            for (int id : attachments_.active()) attachments_[id].lambda.setZero();
+          solve_attachments(h);
+          double sum = 0.0;
+          for (int t = 0; t < nt; ++t) sum += partial[static_cast<std::size_t>(8 * t)];
+          const double rms = std::sqrt(sum / tets);
+          ++summary.iterations;
+          if (s == 0 && it == 0) summary.initial_residual = rms;
+          summary.final_residual = rms;
+          if (config_.tolerance > 0.0 && rms < config_.tolerance) {
+            converged = true;
+            stop = true;
+          }
+        }  // implicit barrier: every thread sees stop
+        if (stop) break;
+      }
+      for (int i = v0; i < v1; ++i)
+        for (int k = 0; k < 3; ++k) V[3 * i + k] = (X[3 * i + k] - XP[3 * i + k]) / h;
+#pragma omp barrier
+    }
+    // Energy and inverted tets at the end of the step, in the same region.
+    int b0 = 0, b1 = 0;
+    slice(0, num_batches, b0, b1);
+    int bad = 0;
+    partial[static_cast<std::size_t>(8 * tid)] = xpbd::nh_energy(batches, count, b0, b1, X, &bad);
+    partial_inverted[static_cast<std::size_t>(16 * tid)] = bad;
+  }
+  energy = attachments_.energy(x_);
+  inverted = 0;
+  for (int t = 0; t < threads; ++t) {
+    energy += partial[static_cast<std::size_t>(8 * t)];
+    inverted += partial_inverted[static_cast<std::size_t>(16 * t)];
+  }
+}
+
 void XpbdModel::solve_attachments(double h) {
   for (int id : attachments_.active()) {
     Attachment& a = attachments_[id];
@@ -252,7 +457,10 @@ StepSummary XpbdModel::step(double dt_s) {
   // The count at the end of the last step still holds unless set_state moved the vertices.
   const int inverted_at_start = inverted_at_end_ >= 0 ? inverted_at_end_ : count_inverted();
   bool converged = false;
-  for (int s = 0; s < config_.substeps; ++s) {
+  double energy = 0.0;
+  int inverted = 0;
+  if (neo_hookean_) step_neo_hookean(h, summary, converged, energy, inverted);
+  for (int s = 0; s < (neo_hookean_ ? 0 : config_.substeps); ++s) {
 #pragma omp parallel for num_threads(threads) if (threads > 1) schedule(static)
     for (int i = 0; i < n; ++i) {
       x_prev_.col(i) = x_.col(i);
@@ -284,7 +492,10 @@ StepSummary XpbdModel::step(double dt_s) {
     report(summary, "vessel tree ignored: this model has no beam coupling (model vessels as a stiff tet region, or use corotational_fem)", false);
   }
   check_state(x_, v_, summary);
-  const int inverted = count_inverted();
+  if (!neo_hookean_) {
+    inverted = count_inverted();
+    energy = elastic_energy();
+  }
   inverted_at_end_ = inverted;
   if (inverted > 0) {
     inverted_time_s_ += dt_s;
@@ -299,18 +510,24 @@ StepSummary XpbdModel::step(double dt_s) {
   }
   if (summary.final_residual > kUnconvergedResidual) {
     report(summary,
-           "not converged: RMS constraint residual " + std::to_string(summary.final_residual) +
+           std::string(neo_hookean_ ? "not converged: RMS strain correction of the last sweep " : "not converged: RMS constraint residual ") +
+               std::to_string(summary.final_residual) +
                " (raise iterations or substeps; the tissue behaves softer than its material)",
            false);
   }
   summary.kinetic_energy = kinetic_energy(mass_, v_);
-  summary.elastic_energy = elastic_energy();
+  summary.elastic_energy = energy;
   ledger_.check(summary.kinetic_energy + summary.elastic_energy, gravity_potential(mass_, x_, gravity_), summary);
   summary.wall_time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return summary;
 }
 
 int XpbdModel::count_inverted() const {
+  if (neo_hookean_) {
+    int inverted = 0;
+    xpbd::nh_energy(nh_.batches.data(), nh_.count.data(), 0, nh_.color_begin.back(), x_.data(), &inverted);
+    return inverted;
+  }
   const int nt = static_cast<int>(tets_.size());
   const int threads = config_.threads;
   int count = 0;
@@ -322,6 +539,11 @@ int XpbdModel::count_inverted() const {
 }
 
 double XpbdModel::elastic_energy() const {
+  if (neo_hookean_) {
+    int inverted = 0;
+    return xpbd::nh_energy(nh_.batches.data(), nh_.count.data(), 0, nh_.color_begin.back(), x_.data(), &inverted) +
+           attachments_.energy(x_);
+  }
   double e = 0.0;
   const int nt = static_cast<int>(tets_.size());
   const int threads = config_.threads;
@@ -338,6 +560,27 @@ double XpbdModel::elastic_energy() const {
 }
 
 std::vector<ElementMeasure> XpbdModel::element_measures() const {
+  if (neo_hookean_) {
+    std::vector<ElementMeasure> out(coloring_.order.size());
+    for (std::size_t bi = 0; bi < nh_.batches.size(); ++bi) {
+      const xpbd::NhBatch& b = nh_.batches[bi];
+      for (int l = 0; l < nh_.count[bi]; ++l) {
+        Eigen::Matrix3d Dm_inv;
+        for (int a = 0; a < 3; ++a)
+          for (int j = 0; j < 3; ++j) Dm_inv(a, j) = b.b[a][j][l];
+        const Eigen::Matrix3d F = edge_matrix(x_, {b.v[0][l], b.v[1][l], b.v[2][l], b.v[3][l]}) * Dm_inv;
+        const double J = F.determinant();
+        // First Piola-Kirchhoff stress mu F + lambda (J - gamma) cof F (per unit volume:
+        // mu_V / V = mu); Cauchy stress P F^T / J unless (nearly) inverted.
+        const double V = 1.0 / (6.0 * Dm_inv.determinant());  // rest volume
+        const double mu = b.mu_V[l] / V, lambda = b.lambda_V[l] / V;
+        const Eigen::Matrix3d P = mu * F + lambda * (J - b.gamma[l]) * cofactor(F);
+        const Eigen::Matrix3d sigma = J > 1e-6 ? Eigen::Matrix3d(P * F.transpose() / J) : P;
+        out[static_cast<std::size_t>(nh_.tet[bi * xpbd::kLanes + static_cast<std::size_t>(l)])] = element_measure_from(F, sigma);
+      }
+    }
+    return out;
+  }
   std::vector<ElementMeasure> out(tets_.size());
   for (std::size_t k = 0; k < tets_.size(); ++k) {
     const TetData& d = tets_[k];

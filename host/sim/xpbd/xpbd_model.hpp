@@ -1,18 +1,21 @@
 #pragma once
-// XPBD tissue model (Macklin et al. 2016) with tetrahedral strain-energy constraints of
-// the fixed-corotated hyperelastic energy (Stomakhin et al. 2012)
-//   Psi(F) = mu |F - R|_F^2 + lambda/2 (det F - 1)^2,
-// which equals linear elasticity at small strain, is invariant to rigid motion and pushes
-// inverted tets back. Per tet two constraint blocks, solved one after the other:
-//  - deviatoric: the 9 entries of C = F - R (R the polar rotation, frozen during the
-//    local solve, as in co-rotational FEM), compliance 1/(2 mu V); the 9x9 block is
-//    I3 (x) B with B = sum_a w_a b_a b_a^T, so it costs one 3x3 solve;
-//  - hydrostatic, volume preservation: C_H = det F - 1, compliance 1/(lambda V).
-// Lagrange multipliers per constraint, reset every substep; substepping; Gauss-Seidel
-// over a greedy colouring of the tets so that one colour runs in parallel without locks.
-// R comes from a warm-started rotation extraction (Mueller et al. 2016), re-initialised by
-// SVD whenever the state is set from outside (so a 180 degree rotation is not a saddle).
-// Attachments: compliant vector constraints (compliance 1/stiffness).
+// XPBD tissue model (Macklin et al. 2016) with tetrahedral strain-energy constraints,
+// substeps (small steps, Macklin et al. 2019) and Gauss-Seidel over a greedy colouring
+// of the tets, so that one colour runs in parallel without locks. Two energies
+// (ModelConfig::energy):
+//  - "neo_hookean": stable Neo-Hookean (Macklin & Mueller 2021), constraints |F| and
+//    det F - gamma solved per tet as one coupled 2x2 block, no polar decomposition; tets
+//    stored in SIMD batches (neo_hookean_batches.hpp). One sweep per substep only (small
+//    steps): see the constructor;
+//  - "corotated" (default): fixed-corotated Psi(F) = mu |F - R|_F^2 + lambda/2 (det F - 1)^2
+//    (Stomakhin et al. 2012), two blocks per tet solved in turn: deviatoric C = F - R
+//    (R the polar rotation, frozen during the local solve, as in co-rotational FEM; the
+//    9x9 block is I3 (x) B with B = sum_a w_a b_a b_a^T, one 3x3 solve) and hydrostatic
+//    C_H = det F - 1. R comes from a warm-started rotation extraction (Mueller et al. 2016),
+//    re-initialised by SVD whenever the state is set from outside.
+// Both equal linear elasticity with the region's E and nu at small strain, are invariant
+// to rigid motion and push inverted tets back. Lagrange multipliers per constraint, reset
+// every substep. Attachments: compliant vector constraints (compliance 1/stiffness).
 // Damping: Rayleigh beta as XPBD constraint damping, Rayleigh alpha on vertex velocities.
 // Frame World; units mm, kg, s, mN, kPa.
 #include <Eigen/Core>
@@ -25,16 +28,19 @@
 #include "host/sim/model_config.hpp"
 #include "host/sim/step_health.hpp"
 #include "host/sim/tissue_model.hpp"
+#include "host/sim/xpbd/neo_hookean_batches.hpp"
 
 namespace arnav::host {
 
 class XpbdModel final : public TissueModel {
  public:
-  // ModelConfig: iterations per substep, substeps per step, tolerance (RMS constraint
-  // residual for an early stop; 0 = always run all iterations), threads.
+  // ModelConfig: energy ("corotated" when empty, or "neo_hookean"), iterations per
+  // substep, substeps per step, tolerance (early stop on the sweep residual, see
+  // step(); 0 = always run all iterations), threads.
   XpbdModel(const SimProblem& problem, const ModelConfig& config);
 
-  std::string name() const override { return "xpbd"; }
+  // The label of its variant in model_variants(): "xpbd" (corotated) or "xpbd/neo_hookean".
+  std::string name() const override { return neo_hookean_ ? "xpbd/neo_hookean" : "xpbd"; }
   StepSummary step(double dt_s) override;
 
   AttachmentId add_attachment(const AttachmentSpec& spec) override;
@@ -51,6 +57,8 @@ class XpbdModel final : public TissueModel {
   // Stored elastic energy of tets and attachments at the current state (mN*mm).
   double elastic_energy() const;
   int num_colors() const { return coloring_.num_colors(); }
+  // The energy in use: "neo_hookean" or "corotated".
+  std::string energy() const { return neo_hookean_ ? "neo_hookean" : "corotated"; }
 
  private:
   // Per-tet rest data in colour order (so one colour is a contiguous range).
@@ -62,6 +70,11 @@ class XpbdModel final : public TissueModel {
     double mu_kPa, lambda_kPa, beta_s;
   };
   void update_tet_mass_blocks();
+  void build_neo_hookean_batches(const SimProblem& problem);
+  // One step of the Neo-Hookean model (substeps, sweeps, attachments) in one parallel
+  // region; returns the elastic energy and the inverted tets at its end.
+  void step_neo_hookean(double h, StepSummary& summary, bool& converged, double& energy, int& inverted);
+  void solve_attachment_block(double h);
   void reset_rotations();
   void reset_ledger();
   // One Gauss-Seidel sweep over all tets; returns the sum of squared constraint
@@ -71,6 +84,7 @@ class XpbdModel final : public TissueModel {
   void solve_attachments(double h);
 
   ModelConfig config_;
+  bool neo_hookean_ = false;
   Eigen::Matrix3Xd x_, v_, x_prev_;
   Eigen::VectorXd mass_, inv_mass_, mass_damping_per_s_;
   std::vector<unsigned char> fixed_;
@@ -82,6 +96,9 @@ class XpbdModel final : public TissueModel {
   std::vector<double> lambda_vol_;           // Lagrange multipliers of C_H
   std::vector<Eigen::Quaterniond> rotation_; // warm start of the rotation extraction
   Coloring coloring_;
+  xpbd::NhBatches nh_;                  // Neo-Hookean: tets in SIMD batches, colour order
+  std::vector<double> nh_lambda_d_, nh_lambda_h_;  // its multipliers per batch lane
+  bool nh_damped_ = false;              // some region has Rayleigh beta > 0
   AttachmentSet attachments_;
   double inverted_time_s_ = 0.0;        // how long some tets have stayed inverted
   int inverted_at_end_ = -1;            // inverted tets after the last step; -1: unknown

@@ -1,0 +1,64 @@
+#pragma once
+// Stable Neo-Hookean tet constraints of XPBD (Macklin & Mueller 2021), stored and solved
+// in batches of kLanes tets of one colour (structure of arrays inside a batch), so that
+// one batch is solved with SIMD arithmetic across its tets.
+//
+// Energy per unit rest volume: Psi = mu/2 (|F|^2 - 3) + lambda/2 (det F - gamma)^2 with
+// gamma = 1 + mu/lambda (rest is stress free). Linearised it is linear elasticity with
+// Lame parameters (mu, lambda - mu), so lambda = lambda_0 + mu_0 for a material's
+// (mu_0, lambda_0). Two constraints per tet, solved together as one 2x2 block:
+//   C_D = |F|_F                 compliance 1/(mu V)      (deviatoric)
+//   C_H = det F - gamma         compliance 1/(lambda V)  (hydrostatic)
+// No polar decomposition. At rest (and any rotation of it) the two gradients are
+// parallel (F/|F| and cof F = F); the coupled block then returns corrections that cancel
+// exactly, so a rigid state gets no correction (solving the two one after the other
+// would not: the rest state would drift).
+// Frame World; units mm, kg, s, kPa.
+#include <cstdint>
+#include <vector>
+
+namespace arnav::host::xpbd {
+
+constexpr int kLanes = 8;  // tets per batch: one AVX-512 register of doubles
+
+struct alignas(64) NhBatch {
+  std::int32_t v[4][kLanes];  // vertex indices; unused lanes repeat lane 0 (never written back)
+  double b[3][3][kLanes];     // b_a = row a-1 of Dm^-1 (a = 1..3): dF/dx_a = e_i b_a^T, b_0 = -(b_1+b_2+b_3)
+  double B[6][kLanes];        // sum_a w_a b_a b_a^T (w inverse masses): xx, xy, xz, yy, yz, zz
+  double inv_mu_V[kLanes];    // deviatoric compliance 1/(mu V), 1/(kPa mm^3)
+  double inv_lambda_V[kLanes];
+  double gamma[kLanes];       // 1 + mu/lambda
+  double beta_s[kLanes];      // Rayleigh beta (stiffness damping), s
+  double mu_V[kLanes];        // mu V and lambda V, for the energy
+  double lambda_V[kLanes];
+};
+
+// The tets of a mesh in colour order, in batches that never mix colours.
+struct NhBatches {
+  std::vector<NhBatch> batches;
+  std::vector<int> count;         // used lanes per batch
+  std::vector<int> tet;           // batch * kLanes + lane -> mesh tet index (-1 unused)
+  std::vector<int> color_begin;   // colour c holds batches [color_begin[c], color_begin[c+1])
+  int num_colors() const { return static_cast<int>(color_begin.size()) - 1; }
+};
+
+struct SweepParams {
+  double h_s = 0.0;           // substep
+  bool damped = false;        // some tet has beta > 0
+  bool multipliers = false;   // accumulate Lagrange multipliers (iterations > 1)
+};
+
+// Solves batches [begin, end) of one colour once (Gauss-Seidel within the colour is
+// Jacobi: the batches of a colour touch disjoint vertices). X: positions (3 x n, column
+// major), XP: positions at the substep start (read only when damped), W: inverse masses.
+// lambda_d, lambda_h: multipliers per batch lane (read and written when
+// params.multipliers). Returns the sum over tets of |dF|^2, the squared Frobenius norm of
+// the change of F this solve made (strain units): the sweep's correction.
+double solve_nh_batches(const NhBatch* batches, const int* count, int begin, int end, double* X, const double* XP,
+                        const double* W, double* lambda_d, double* lambda_h, const SweepParams& params);
+
+// Stored energy (mN mm) of batches [begin, end) at positions X, and the number of tets
+// with det F <= 0 (added to *inverted).
+double nh_energy(const NhBatch* batches, const int* count, int begin, int end, const double* X, int* inverted);
+
+}  // namespace arnav::host::xpbd
