@@ -111,8 +111,12 @@ TEST_P(XpbdEnergy, ConvergesTowardStaticSolutionAsIterationsGrow) {
     const Eigen::Matrix3Xd x = bar.settle(iterations, 4, &healthy, GetParam());
     // Too little work settles in a wrong state that stores more energy than gravity put
     // in: the energy ledger must report it.
-    if (iterations == 2) EXPECT_FALSE(healthy);
-    if (iterations == 32) EXPECT_TRUE(healthy);
+    if (iterations == 2) {
+      EXPECT_FALSE(healthy);
+    }
+    if (iterations == 32) {
+      EXPECT_TRUE(healthy);
+    }
     const double rms_mm = std::sqrt((x - reference).colwise().squaredNorm().mean());
     RecordProperty("rms_distance_mm_at_" + std::to_string(iterations), std::to_string(rms_mm));
     EXPECT_LT(rms_mm, previous) << iterations << " iterations";
@@ -139,7 +143,9 @@ TEST_P(XpbdEnergy, EnergyIsBoundedUndampedAndDissipatedWithDamping) {
       max_e = std::max(max_e, last);
     }
     EXPECT_LE(max_e, 1.001 * e0) << "beta " << beta;  // implicit: never gains energy
-    if (beta > 0.0) EXPECT_LT(last, 0.01 * e0);
+    if (beta > 0.0) {
+      EXPECT_LT(last, 0.01 * e0);
+    }
   }
 }
 
@@ -149,6 +155,7 @@ TEST_P(XpbdEnergy, InvertedElementsRecover) {
   const SimProblem p = box_problem(2, 2, 2, {20, 20, 20}, m, false);
   XpbdModel model(p, config(20, 2, 1, GetParam()));
   Eigen::Matrix3Xd x = p.mesh.rest_positions_World_mm;
+  ASSERT_EQ(x.cols(), 27);
   x(2, box_vertex_index(2, 2, 1, 1, 1)) = 25.0;  // centre vertex pushed through the top
   model.set_state(x, Eigen::Matrix3Xd::Zero(3, x.cols()));
   const StepSummary first = model.step(1.0 / 60.0);
