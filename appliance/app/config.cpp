@@ -46,7 +46,7 @@ class Reader {
 
 const std::set<std::string> kKeys = {"camera", "frames", "port", "baud", "rate_hz", "device_rate_hz", "lcm_url", "reply_mode",
                                      "tx_firmware", "bx_failures_before_tx", "tracking_timeout_ms",
-                                     "setup_timeout_ms", "reset_wait_ms", "health_rate_hz", "tools", "sim_command", "sim_args"};
+                                     "setup_timeout_ms", "reset_wait_ms", "health_rate_hz", "tools", "sim_command", "sim_args", "realtime"};
 
 }  // namespace
 
@@ -126,6 +126,22 @@ AppConfig parse_config(const std::string& text, const std::string& source, const
   int_in("reset_wait_ms", c.reset_wait_ms, 0, 60000);
   if (root["sim_command"]) c.sim_command = r.get<std::string>(root["sim_command"], "sim_command", "a string");
   if (root["sim_args"]) c.sim_args = r.strings(root["sim_args"], "sim_args");
+  if (const YAML::Node rt = root["realtime"]) {
+    if (!rt.IsMap()) r.fail(rt, "realtime", "expected a mapping with 'cpu_latency_us' and/or 'priority'");
+    for (const auto& kv : rt)
+      if (kv.first.Scalar() != "cpu_latency_us" && kv.first.Scalar() != "priority")
+        r.fail(kv.first, "realtime." + kv.first.Scalar(), "unknown key (realtime has 'cpu_latency_us' and 'priority')");
+    if (rt["cpu_latency_us"]) {
+      c.realtime.cpu_latency_us = r.get<int>(rt["cpu_latency_us"], "realtime.cpu_latency_us", "an integer");
+      if (c.realtime.cpu_latency_us < -1 || c.realtime.cpu_latency_us > 100000)
+        r.fail(rt["cpu_latency_us"], "realtime.cpu_latency_us", "must be between 0 and 100000 us, or -1 to leave the CPU idle policy alone");
+    }
+    if (rt["priority"]) {
+      c.realtime.priority = r.get<int>(rt["priority"], "realtime.priority", "an integer");
+      if (c.realtime.priority < 0 || c.realtime.priority > 99)
+        r.fail(rt["priority"], "realtime.priority", "must be between 1 and 99 (SCHED_FIFO), or 0 for normal scheduling");
+    }
+  }
 
   const YAML::Node tools = root["tools"];
   if (!tools) r.fail(root, "tools", "missing: list the tools, each with 'name' and 'rom'");
