@@ -173,6 +173,14 @@ std::vector<Setting> settings(bool quick, bool fine, int threads) {
     c.integrator = "explicit";
     c.substeps = 20;
     add("mass_spring explicit s20", c);
+    // Prefactored backward Euler (local/global): iterations per 1/60 s frame.
+    c.integrator = "local_global";
+    c.substeps = 1;
+    c.tolerance = 0.0;
+    for (int it : {1, 2, 4}) {
+      c.iterations = it;
+      add("mass_spring local_global i" + std::to_string(it), c);
+    }
   }
   if (have("corotational_fem")) {
     ModelConfig c;
