@@ -29,8 +29,6 @@ ARNAV_INLINE vd load(const double* p) {
   std::memcpy(&v, p, sizeof v);
   return v;
 }
-ARNAV_INLINE void store(double* p, const vd& v) { std::memcpy(p, &v, sizeof v); }
-ARNAV_INLINE vd splat(double s) { return vd{} + s; }
 ARNAV_INLINE vd vsqrt(vd x) {
   for (int l = 0; l < kLanes; ++l) x[l] = __builtin_sqrt(x[l]);
   return x;
@@ -76,9 +74,8 @@ ARNAV_INLINE void cofactor(const vd F[3][3], vd C[3][3]) {
   C[2][2] = F[0][0] * F[1][1] - F[1][0] * F[0][1];
 }
 
-template <bool kDamped, bool kMultipliers>
-ARNAV_INLINE double solve_batch(const NhBatch& b, int count, double* X, const double* XP, const double* W, double* lam_d,
-                          double* lam_h, double h) {
+template <bool kDamped>
+ARNAV_INLINE double solve_batch(const NhBatch& b, int count, double* X, const double* XP, const double* W, double h) {
   Corners c = gather(b, X);
   vd F[3][3], cof[3][3];
   deformation_gradient(b, c, F);
@@ -112,14 +109,8 @@ ARNAV_INLINE double solve_batch(const NhBatch& b, int count, double* X, const do
     }
   const double inv_h2 = 1.0 / (h * h);
   const vd alpha_d = load(b.inv_mu_V) * inv_h2, alpha_h = load(b.inv_lambda_V) * inv_h2;
+  // Right side -(C + alpha lambda) with lambda = 0 (first and only sweep of the substep).
   vd r_d = -norm_F, r_h = load(b.gamma) - J;
-  vd ld = vd{}, lh = vd{};
-  if constexpr (kMultipliers) {
-    ld = load(lam_d);
-    lh = load(lam_h);
-    r_d -= alpha_d * ld;
-    r_h -= alpha_h * lh;
-  }
   vd a11 = sFF * (inv_norm * inv_norm), a12 = sFC * inv_norm, a22 = sCC;
   if constexpr (kDamped) {
     // XPBD constraint damping with gamma = beta / h (Rayleigh beta): the rate term
@@ -149,10 +140,6 @@ ARNAV_INLINE double solve_batch(const NhBatch& b, int count, double* X, const do
   const vd inv_det = 1.0 / (a11 * a22 - a12 * a12);
   const vd dl_d = (a22 * r_d - a12 * r_h) * inv_det;
   const vd dl_h = (a11 * r_h - a12 * r_d) * inv_det;
-  if constexpr (kMultipliers) {
-    store(lam_d, ld + dl_d);
-    store(lam_h, lh + dl_h);
-  }
   // Position update dx_a = w_a M b_a with M = dl_d F/|F| + dl_h cof F; the change of F
   // it makes is M B (for the residual).
   const vd md = dl_d * inv_norm;
@@ -193,14 +180,11 @@ ARNAV_INLINE double solve_batch(const NhBatch& b, int count, double* X, const do
   return correction;
 }
 
-template <bool kDamped, bool kMultipliers>
+template <bool kDamped>
 ARNAV_INLINE double solve_range(const NhBatch* batches, const int* count, int begin, int end, double* X, const double* XP,
-                   const double* W, double* lambda_d, double* lambda_h, double h) {
+                                const double* W, double h) {
   double sum = 0.0;
-  for (int k = begin; k < end; ++k) {
-    const long o = static_cast<long>(k) * kLanes;
-    sum += solve_batch<kDamped, kMultipliers>(batches[k], count[k], X, XP, W, lambda_d + o, lambda_h + o, h);
-  }
+  for (int k = begin; k < end; ++k) sum += solve_batch<kDamped>(batches[k], count[k], X, XP, W, h);
   return sum;
 }
 
@@ -208,13 +192,9 @@ ARNAV_INLINE double solve_range(const NhBatch* batches, const int* count, int be
 
 ARNAV_XPBD_CLONES
 double solve_nh_batches(const NhBatch* batches, const int* count, int begin, int end, double* X, const double* XP,
-                        const double* W, double* lambda_d, double* lambda_h, const SweepParams& params) {
-  const double h = params.h_s;
-  if (params.damped)
-    return params.multipliers ? solve_range<true, true>(batches, count, begin, end, X, XP, W, lambda_d, lambda_h, h)
-                              : solve_range<true, false>(batches, count, begin, end, X, XP, W, lambda_d, lambda_h, h);
-  return params.multipliers ? solve_range<false, true>(batches, count, begin, end, X, XP, W, lambda_d, lambda_h, h)
-                            : solve_range<false, false>(batches, count, begin, end, X, XP, W, lambda_d, lambda_h, h);
+                        const double* W, const SweepParams& params) {
+  return params.damped ? solve_range<true>(batches, count, begin, end, X, XP, W, params.h_s)
+                       : solve_range<false>(batches, count, begin, end, X, XP, W, params.h_s);
 }
 
 ARNAV_XPBD_CLONES

@@ -14,6 +14,7 @@
 // exactly, so a rigid state gets no correction (solving the two one after the other
 // would not: the rest state would drift).
 // Frame World; units mm, kg, s, kPa.
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -33,29 +34,29 @@ struct alignas(64) NhBatch {
   double lambda_V[kLanes];
 };
 
-// The tets of a mesh in colour order, in batches that never mix colours.
+// The tets of a mesh in batches whose kLanes tets touch distinct vertices, grouped:
+// batches [group_begin[g], group_begin[g+1]) hold group g = 0, 1 (the two halves of the
+// mesh, which share no vertex) and 2 (the interface tets touching both halves).
 struct NhBatches {
   std::vector<NhBatch> batches;
   std::vector<int> count;         // used lanes per batch
   std::vector<int> tet;           // batch * kLanes + lane -> mesh tet index (-1 unused)
-  std::vector<int> color_begin;   // colour c holds batches [color_begin[c], color_begin[c+1])
-  int num_colors() const { return static_cast<int>(color_begin.size()) - 1; }
+  std::array<int, 4> group_begin{};
 };
 
 struct SweepParams {
   double h_s = 0.0;           // substep
   bool damped = false;        // some tet has beta > 0
-  bool multipliers = false;   // accumulate Lagrange multipliers (iterations > 1)
 };
 
-// Solves batches [begin, end) of one colour once (Gauss-Seidel within the colour is
-// Jacobi: the batches of a colour touch disjoint vertices). X: positions (3 x n, column
+// Solves the blocks of batches [begin, end) once, in order (Gauss-Seidel from batch to
+// batch, Jacobi across the lanes of a batch). One sweep per substep, so the Lagrange
+// multipliers start and stay at zero and are not stored. X: positions (3 x n, column
 // major), XP: positions at the substep start (read only when damped), W: inverse masses.
-// lambda_d, lambda_h: multipliers per batch lane (read and written when
-// params.multipliers). Returns the sum over tets of |dF|^2, the squared Frobenius norm of
-// the change of F this solve made (strain units): the sweep's correction.
+// Returns the sum over tets of |dF|^2, the squared Frobenius norm of the change of F
+// this solve made (strain units): the sweep's correction.
 double solve_nh_batches(const NhBatch* batches, const int* count, int begin, int end, double* X, const double* XP,
-                        const double* W, double* lambda_d, double* lambda_h, const SweepParams& params);
+                        const double* W, const SweepParams& params);
 
 // Stored energy (mN mm) of batches [begin, end) at positions X, and the number of tets
 // with det F <= 0 (added to *inverted).

@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <Eigen/LU>
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <omp.h>
 #include <cmath>
@@ -99,49 +100,94 @@ XpbdModel::XpbdModel(const SimProblem& problem, const ModelConfig& config) : con
 void XpbdModel::build_neo_hookean_batches(const SimProblem& problem) {
   const TetMesh& mesh = problem.mesh;
   using xpbd::kLanes;
-  xpbd::NhBatches& nb = nh_;
-  nb.color_begin.assign(1, 0);
-  for (int c = 0; c < coloring_.num_colors(); ++c) {
-    const int n_c = coloring_.color_offsets[c + 1] - coloring_.color_offsets[c];
-    nb.color_begin.push_back(nb.color_begin.back() + (n_c + kLanes - 1) / kLanes);
+  const int n = mesh.num_vertices(), nt = mesh.num_tets();
+  // Two halves split at the median tet centroid along the longest axis of the body; a
+  // tet whose vertices are all touched only by tets of its own half is interior to it,
+  // every other tet belongs to the interface. The halves share no vertex, so two threads
+  // sweep them at the same time without colours or barriers; the interface (a thin layer
+  // along the cut) follows on one thread. The split does not depend on the thread count,
+  // so 1 and 2 threads compute the same positions.
+  std::vector<Eigen::Vector3d> centroid(static_cast<std::size_t>(nt), Eigen::Vector3d::Zero());
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(HUGE_VAL), hi = -lo;
+  for (int t = 0; t < nt; ++t) {
+    Eigen::Vector3d& c = centroid[static_cast<std::size_t>(t)];
+    for (int v : mesh.tets[t]) c += 0.25 * x_.col(v);
+    lo = lo.cwiseMin(c);
+    hi = hi.cwiseMax(c);
   }
-  const int num_batches = nb.color_begin.back();
-  nb.batches.assign(static_cast<std::size_t>(num_batches), xpbd::NhBatch{});
-  nb.count.assign(static_cast<std::size_t>(num_batches), 0);
-  nb.tet.assign(static_cast<std::size_t>(num_batches) * kLanes, -1);
-  for (int c = 0; c < coloring_.num_colors(); ++c) {
-    for (int k = coloring_.color_offsets[c]; k < coloring_.color_offsets[c + 1]; ++k) {
-      const int slot = k - coloring_.color_offsets[c];
-      const int bi = nb.color_begin[c] + slot / kLanes, l = slot % kLanes;
-      const int t = coloring_.order[static_cast<std::size_t>(k)];
-      nb.tet[static_cast<std::size_t>(bi) * kLanes + l] = t;
-      nb.count[static_cast<std::size_t>(bi)] = l + 1;
-      const int region = mesh.tet_region.empty() ? 0 : mesh.tet_region[t];
-      const Material& mat = problem.region_materials[region];
-      const Lame lame = lame_from(mat);
-      // Stable Neo-Hookean linearises to Lame (mu, lambda - mu): shift lambda by mu so
-      // that small strains see the region's E and nu.
-      const double mu = lame.mu_kPa, lambda = lame.lambda_kPa + lame.mu_kPa;
-      const double V = signed_volume_mm3(x_, mesh.tets[t]);
-      const Eigen::Matrix3d Dm_inv = edge_matrix(x_, mesh.tets[t]).inverse();
-      xpbd::NhBatch& b = nb.batches[static_cast<std::size_t>(bi)];
-      for (int a = 0; a < 4; ++a) b.v[a][l] = mesh.tets[t][a];
-      for (int a = 0; a < 3; ++a)
-        for (int j = 0; j < 3; ++j) b.b[a][j][l] = Dm_inv(a, j);
-      b.inv_mu_V[l] = 1.0 / (mu * V);
-      b.inv_lambda_V[l] = 1.0 / (lambda * V);
-      b.gamma[l] = 1.0 + mu / lambda;
-      b.beta_s[l] = mat.damping_stiffness_s;
-      b.mu_V[l] = mu * V;
-      b.lambda_V[l] = lambda * V;
-      if (mat.damping_stiffness_s != 0.0) nh_damped_ = true;
-      for (int v : mesh.tets[t]) mass_damping_per_s_[v] += 0.25 * V * mat.density_kg_per_mm3 * mat.damping_mass_per_s;
+  const Eigen::Vector3d extent = hi - lo;
+  const int axis = extent.x() >= extent.y() && extent.x() >= extent.z() ? 0 : (extent.y() >= extent.z() ? 1 : 2);
+  std::vector<double> key(static_cast<std::size_t>(nt));
+  for (int t = 0; t < nt; ++t) key[static_cast<std::size_t>(t)] = centroid[static_cast<std::size_t>(t)][axis];
+  std::vector<double> sorted = key;
+  std::nth_element(sorted.begin(), sorted.begin() + nt / 2, sorted.end());
+  const double cut = sorted[static_cast<std::size_t>(nt / 2)];
+  std::vector<unsigned char> half(static_cast<std::size_t>(nt)), touched(static_cast<std::size_t>(n), 0);
+  for (int t = 0; t < nt; ++t) {
+    half[static_cast<std::size_t>(t)] = key[static_cast<std::size_t>(t)] < cut ? 0 : 1;
+    for (int v : mesh.tets[t]) touched[static_cast<std::size_t>(v)] |= static_cast<unsigned char>(1u << half[static_cast<std::size_t>(t)]);
+  }
+  std::array<std::vector<std::array<int, 4>>, 3> group_tets;
+  std::array<std::vector<int>, 3> group_index;
+  for (int t = 0; t < nt; ++t) {
+    int g = half[static_cast<std::size_t>(t)];
+    for (int v : mesh.tets[t])
+      if (touched[static_cast<std::size_t>(v)] == 3) g = 2;
+    group_tets[static_cast<std::size_t>(g)].push_back(mesh.tets[t]);
+    group_index[static_cast<std::size_t>(g)].push_back(t);
+  }
+  for (auto& list : nh_vertices_) list.clear();
+  for (int v = 0; v < n; ++v) nh_vertices_[static_cast<std::size_t>(touched[static_cast<std::size_t>(v)] - 1)].push_back(v);
+
+  // Within a group, colours only make batches: the 8 tets of a batch touch distinct
+  // vertices (one thread runs a group's batches in order, Gauss-Seidel between them).
+  xpbd::NhBatches& nb = nh_;
+  nb.batches.clear();
+  nb.count.clear();
+  nb.tet.clear();
+  nb.group_begin[0] = 0;
+  for (std::size_t g = 0; g < 3; ++g) {
+    const Coloring col = greedy_vertex_coloring(group_tets[g], n);
+    for (int c = 0; c < col.num_colors(); ++c) {
+      for (int k = col.color_offsets[c]; k < col.color_offsets[c + 1]; ++k) {
+        const int slot = k - col.color_offsets[c], l = slot % kLanes;
+        if (l == 0) {
+          nb.batches.emplace_back();
+          nb.count.push_back(0);
+          nb.tet.insert(nb.tet.end(), kLanes, -1);
+        }
+        const std::size_t bi = nb.batches.size() - 1;
+        const int t = group_index[g][static_cast<std::size_t>(col.order[static_cast<std::size_t>(k)])];
+        nb.tet[bi * kLanes + static_cast<std::size_t>(l)] = t;
+        nb.count[bi] = l + 1;
+        const int region = mesh.tet_region.empty() ? 0 : mesh.tet_region[t];
+        const Material& mat = problem.region_materials[region];
+        const Lame lame = lame_from(mat);
+        // Stable Neo-Hookean linearises to Lame (mu, lambda - mu): shift lambda by mu so
+        // that small strains see the region's E and nu.
+        const double mu = lame.mu_kPa, lambda = lame.lambda_kPa + lame.mu_kPa;
+        const double V = signed_volume_mm3(x_, mesh.tets[t]);
+        const Eigen::Matrix3d Dm_inv = edge_matrix(x_, mesh.tets[t]).inverse();
+        xpbd::NhBatch& b = nb.batches[bi];
+        for (int a = 0; a < 4; ++a) b.v[a][l] = mesh.tets[t][a];
+        for (int a = 0; a < 3; ++a)
+          for (int j = 0; j < 3; ++j) b.b[a][j][l] = Dm_inv(a, j);
+        b.inv_mu_V[l] = 1.0 / (mu * V);
+        b.inv_lambda_V[l] = 1.0 / (lambda * V);
+        b.gamma[l] = 1.0 + mu / lambda;
+        b.beta_s[l] = mat.damping_stiffness_s;
+        b.mu_V[l] = mu * V;
+        b.lambda_V[l] = lambda * V;
+        if (mat.damping_stiffness_s != 0.0) nh_damped_ = true;
+        for (int v : mesh.tets[t]) mass_damping_per_s_[v] += 0.25 * V * mat.density_kg_per_mm3 * mat.damping_mass_per_s;
+      }
     }
+    nb.group_begin[g + 1] = static_cast<int>(nb.batches.size());
   }
   // Unused lanes repeat lane 0 (finite arithmetic; never written back nor summed).
-  for (int bi = 0; bi < num_batches; ++bi) {
-    xpbd::NhBatch& b = nb.batches[static_cast<std::size_t>(bi)];
-    for (int l = nb.count[static_cast<std::size_t>(bi)]; l < kLanes; ++l) {
+  for (std::size_t bi = 0; bi < nb.batches.size(); ++bi) {
+    xpbd::NhBatch& b = nb.batches[bi];
+    for (int l = nb.count[bi]; l < kLanes; ++l) {
       for (int a = 0; a < 4; ++a) b.v[a][l] = b.v[a][0];
       for (int a = 0; a < 3; ++a)
         for (int j = 0; j < 3; ++j) b.b[a][j][l] = b.b[a][j][0];
@@ -153,8 +199,13 @@ void XpbdModel::build_neo_hookean_batches(const SimProblem& problem) {
       b.lambda_V[l] = b.lambda_V[0];
     }
   }
-  nh_lambda_d_.assign(static_cast<std::size_t>(num_batches) * kLanes, 0.0);
-  nh_lambda_h_.assign(static_cast<std::size_t>(num_batches) * kLanes, 0.0);
+}
+
+std::array<int, 3> XpbdModel::neo_hookean_group_tets() const {
+  std::array<int, 3> out{};
+  for (std::size_t g = 0; g < 3; ++g)
+    for (int bi = nh_.group_begin[g]; bi < nh_.group_begin[g + 1]; ++bi) out[g] += nh_.count[static_cast<std::size_t>(bi)];
+  return out;
 }
 
 void XpbdModel::update_tet_mass_blocks() {
@@ -330,16 +381,13 @@ double XpbdModel::solve_tets(double h) {
 }
 
 void XpbdModel::step_neo_hookean(double h, StepSummary& summary, bool& converged, double& energy, int& inverted) {
-  using xpbd::kLanes;
-  const int n = static_cast<int>(x_.cols());
-  const int threads = config_.threads;
-  const int colors = nh_.num_colors();
-  const int num_batches = nh_.color_begin.back();
+  // At most two threads: one per half of the mesh (build_neo_hookean_batches).
+  const int threads = std::min(config_.threads, 2);
   const double tets = static_cast<double>(coloring_.order.size());
+  const std::array<int, 4> group = nh_.group_begin;
   xpbd::SweepParams params;
   params.h_s = h;
   params.damped = nh_damped_;
-  params.multipliers = config_.iterations > 1;  // one sweep from zero needs none stored
   double* X = x_.data();
   double* V = v_.data();
   double* XP = x_prev_.data();
@@ -347,27 +395,20 @@ void XpbdModel::step_neo_hookean(double h, StepSummary& summary, bool& converged
   const double* mass_damping = mass_damping_per_s_.data();
   const xpbd::NhBatch* batches = nh_.batches.data();
   const int* count = nh_.count.data();
-  double* lambda_d = nh_lambda_d_.data();
-  double* lambda_h = nh_lambda_h_.data();
   const Eigen::Vector3d g = gravity_;
   // Per-thread partial sums, a cache line apart.
-  std::vector<double> partial(static_cast<std::size_t>(8 * threads), 0.0);
-  std::vector<int> partial_inverted(static_cast<std::size_t>(16 * threads), 0);
+  std::array<double, 16> partial{};
+  std::array<int, 32> partial_inverted{};
   bool stop = false;
-  // One parallel region for the whole step: the barriers between colours are the only
-  // synchronisation (no fork/join per sweep or per colour).
+  // One parallel region for the whole step. Thread d owns half d: it moves the vertices
+  // only half d touches (prediction, sweep, velocity) with no synchronisation; thread 0
+  // also owns the vertices on the cut and sweeps the interface and the attachments while
+  // the other waits. Two barriers per sweep.
 #pragma omp parallel num_threads(threads) if (threads > 1)
   {
     const int tid = omp_get_thread_num(), nt = omp_get_num_threads();
-    auto slice = [&](int begin, int end, int& b, int& e) {
-      const long len = end - begin;
-      b = begin + static_cast<int>(len * tid / nt);
-      e = begin + static_cast<int>(len * (tid + 1) / nt);
-    };
-    int v0 = 0, v1 = 0;
-    slice(0, n, v0, v1);
-    for (int s = 0; s < config_.substeps && !stop; ++s) {
-      for (int i = v0; i < v1; ++i) {
+    auto predict = [&](const std::vector<int>& vertices) {
+      for (int i : vertices) {
         for (int k = 0; k < 3; ++k) XP[3 * i + k] = X[3 * i + k];
         if (fixed_[static_cast<std::size_t>(i)]) continue;
         // Damp the carried velocity only: damping gravity's increment too would weaken
@@ -378,29 +419,26 @@ void XpbdModel::step_neo_hookean(double h, StepSummary& summary, bool& converged
           X[3 * i + k] += h * V[3 * i + k];
         }
       }
-      if (params.multipliers) {
-        int b0 = 0, b1 = 0;
-        slice(0, num_batches * kLanes, b0, b1);
-        std::fill(lambda_d + b0, lambda_d + b1, 0.0);
-        std::fill(lambda_h + b0, lambda_h + b1, 0.0);
-      }
-#pragma omp barrier
+    };
+    auto update_velocity = [&](const std::vector<int>& vertices) {
+      for (int i : vertices)
+        for (int k = 0; k < 3; ++k) V[3 * i + k] = (X[3 * i + k] - XP[3 * i + k]) / h;
+    };
+    for (int s = 0; s < config_.substeps && !stop; ++s) {
+      for (int d = tid; d < 2; d += nt) predict(nh_vertices_[static_cast<std::size_t>(d)]);
+      if (tid == 0) predict(nh_vertices_[2]);
       for (int it = 0; it < config_.iterations; ++it) {
         double correction = 0.0;
-        for (int c = 0; c < colors; ++c) {
-          int b0 = 0, b1 = 0;
-          slice(nh_.color_begin[c], nh_.color_begin[c + 1], b0, b1);
-          correction += xpbd::solve_nh_batches(batches, count, b0, b1, X, XP, W, lambda_d, lambda_h, params);
-#pragma omp barrier
-        }
+        for (int d = tid; d < 2; d += nt)
+          correction += xpbd::solve_nh_batches(batches, count, group[static_cast<std::size_t>(d)],
+                                               group[static_cast<std::size_t>(d) + 1], X, XP, W, params);
         partial[static_cast<std::size_t>(8 * tid)] = correction;
 #pragma omp barrier
-#pragma omp single
-        {
+        if (tid == 0) {
+          double sum = xpbd::solve_nh_batches(batches, count, group[2], group[3], X, XP, W, params);
           if (it == 0)
             for (int id : attachments_.active()) attachments_[id].lambda.setZero();
           solve_attachments(h);
-          double sum = 0.0;
           for (int t = 0; t < nt; ++t) sum += partial[static_cast<std::size_t>(8 * t)];
           const double rms = std::sqrt(sum / tets);
           ++summary.iterations;
@@ -410,16 +448,18 @@ void XpbdModel::step_neo_hookean(double h, StepSummary& summary, bool& converged
             converged = true;
             stop = true;
           }
-        }  // implicit barrier: every thread sees stop
+        }
+#pragma omp barrier
         if (stop) break;
       }
-      for (int i = v0; i < v1; ++i)
-        for (int k = 0; k < 3; ++k) V[3 * i + k] = (X[3 * i + k] - XP[3 * i + k]) / h;
-#pragma omp barrier
+      for (int d = tid; d < 2; d += nt) update_velocity(nh_vertices_[static_cast<std::size_t>(d)]);
+      if (tid == 0) update_velocity(nh_vertices_[2]);
     }
+#pragma omp barrier
     // Energy and inverted tets at the end of the step, in the same region.
-    int b0 = 0, b1 = 0;
-    slice(0, num_batches, b0, b1);
+    const int num_batches = group[3];
+    const int b0 = static_cast<int>(static_cast<long>(num_batches) * tid / nt);
+    const int b1 = static_cast<int>(static_cast<long>(num_batches) * (tid + 1) / nt);
     int bad = 0;
     partial[static_cast<std::size_t>(8 * tid)] = xpbd::nh_energy(batches, count, b0, b1, X, &bad);
     partial_inverted[static_cast<std::size_t>(16 * tid)] = bad;
@@ -525,7 +565,7 @@ StepSummary XpbdModel::step(double dt_s) {
 int XpbdModel::count_inverted() const {
   if (neo_hookean_) {
     int inverted = 0;
-    xpbd::nh_energy(nh_.batches.data(), nh_.count.data(), 0, nh_.color_begin.back(), x_.data(), &inverted);
+    xpbd::nh_energy(nh_.batches.data(), nh_.count.data(), 0, nh_.group_begin[3], x_.data(), &inverted);
     return inverted;
   }
   const int nt = static_cast<int>(tets_.size());
@@ -541,7 +581,7 @@ int XpbdModel::count_inverted() const {
 double XpbdModel::elastic_energy() const {
   if (neo_hookean_) {
     int inverted = 0;
-    return xpbd::nh_energy(nh_.batches.data(), nh_.count.data(), 0, nh_.color_begin.back(), x_.data(), &inverted) +
+    return xpbd::nh_energy(nh_.batches.data(), nh_.count.data(), 0, nh_.group_begin[3], x_.data(), &inverted) +
            attachments_.energy(x_);
   }
   double e = 0.0;

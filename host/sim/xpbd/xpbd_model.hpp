@@ -21,6 +21,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <array>
 #include <vector>
 
 #include "host/sim/attachment_set.hpp"
@@ -56,7 +57,11 @@ class XpbdModel final : public TissueModel {
 
   // Stored elastic energy of tets and attachments at the current state (mN*mm).
   double elastic_energy() const;
+  // Colours of the corotated sweep (the Neo-Hookean one colours only to form batches).
   int num_colors() const { return coloring_.num_colors(); }
+  // Neo-Hookean: tets in half 0, in half 1 and on the interface (threads sweep the halves
+  // at the same time, then the interface).
+  std::array<int, 3> neo_hookean_group_tets() const;
   // The energy in use: "neo_hookean" or "corotated".
   std::string energy() const { return neo_hookean_ ? "neo_hookean" : "corotated"; }
 
@@ -96,8 +101,8 @@ class XpbdModel final : public TissueModel {
   std::vector<double> lambda_vol_;           // Lagrange multipliers of C_H
   std::vector<Eigen::Quaterniond> rotation_; // warm start of the rotation extraction
   Coloring coloring_;
-  xpbd::NhBatches nh_;                  // Neo-Hookean: tets in SIMD batches, colour order
-  std::vector<double> nh_lambda_d_, nh_lambda_h_;  // its multipliers per batch lane
+  xpbd::NhBatches nh_;                  // Neo-Hookean: tets in SIMD batches, two halves + interface
+  std::array<std::vector<int>, 3> nh_vertices_;  // vertices touched only by half 0, only by half 1, by both
   bool nh_damped_ = false;              // some region has Rayleigh beta > 0
   AttachmentSet attachments_;
   double inverted_time_s_ = 0.0;        // how long some tets have stayed inverted
