@@ -149,10 +149,10 @@ std::vector<Setting> settings(bool quick, bool fine, int threads) {
     }
     // Small steps (Macklin et al. 2019): many substeps of one sweep each, with the
     // fixed-corotated energy and with the stable Neo-Hookean one ("nh": one sweep per
-    // substep only, SIMD batches).
+    // substep only).
     if (!quick) {
       c.iterations = 1;
-      for (int sub : {10, 20}) {
+      for (int sub : {5, 10, 20, 40}) {
         c.substeps = sub;
         add("xpbd s" + std::to_string(sub) + " i1", c);
       }

@@ -1,11 +1,10 @@
 #pragma once
 // XPBD tissue model (Macklin et al. 2016) with tetrahedral strain-energy constraints,
-// substeps (small steps, Macklin et al. 2019) and Gauss-Seidel over a greedy colouring
-// of the tets, so that one colour runs in parallel without locks. Two energies
+// substeps (small steps, Macklin et al. 2019) and Gauss-Seidel over the tets. Two energies
 // (ModelConfig::energy):
 //  - "neo_hookean": stable Neo-Hookean (Macklin & Mueller 2021), constraints |F| and
 //    det F - gamma solved per tet as one coupled 2x2 block, no polar decomposition; tets
-//    stored in SIMD batches (neo_hookean_batches.hpp). One sweep per substep only (small
+//    stored in SIMD batches (tet_batches.hpp). One sweep per substep only (small
 //    steps): see the constructor;
 //  - "corotated" (default): fixed-corotated Psi(F) = mu |F - R|_F^2 + lambda/2 (det F - 1)^2
 //    (Stomakhin et al. 2012), two blocks per tet solved in turn: deviatoric C = F - R
@@ -15,7 +14,9 @@
 //    re-initialised by SVD whenever the state is set from outside.
 // Both equal linear elasticity with the region's E and nu at small strain, are invariant
 // to rigid motion and push inverted tets back. Lagrange multipliers per constraint, reset
-// every substep. Attachments: compliant vector constraints (compliance 1/stiffness).
+// every substep. Both run on the SIMD batches of tet_batches.hpp: the mesh is cut into two
+// halves that share no vertex (swept by two threads at once) and the interface between
+// them. Attachments: compliant vector constraints (compliance 1/stiffness).
 // Damping: Rayleigh beta as XPBD constraint damping, Rayleigh alpha on vertex velocities.
 // Frame World; units mm, kg, s, mN, kPa.
 #include <Eigen/Core>
@@ -25,11 +26,10 @@
 #include <vector>
 
 #include "host/sim/attachment_set.hpp"
-#include "host/sim/graph_coloring.hpp"
 #include "host/sim/model_config.hpp"
 #include "host/sim/step_health.hpp"
 #include "host/sim/tissue_model.hpp"
-#include "host/sim/xpbd/neo_hookean_batches.hpp"
+#include "host/sim/xpbd/tet_batches.hpp"
 
 namespace arnav::host {
 
@@ -57,56 +57,40 @@ class XpbdModel final : public TissueModel {
 
   // Stored elastic energy of tets and attachments at the current state (mN*mm).
   double elastic_energy() const;
-  // Colours of the corotated sweep (the Neo-Hookean one colours only to form batches).
-  int num_colors() const { return coloring_.num_colors(); }
-  // Neo-Hookean: tets in half 0, in half 1 and on the interface (threads sweep the halves
-  // at the same time, then the interface).
-  std::array<int, 3> neo_hookean_group_tets() const;
+  // Tets in half 0, in half 1 and on the interface between them: two threads sweep the
+  // halves at the same time, then one the interface (tet_batches.hpp).
+  std::array<int, 3> group_tets() const;
   // The energy in use: "neo_hookean" or "corotated".
   std::string energy() const { return neo_hookean_ ? "neo_hookean" : "corotated"; }
 
  private:
-  // Per-tet rest data in colour order (so one colour is a contiguous range).
-  struct TetData {
-    std::array<int, 4> v;
-    Eigen::Matrix3d Dm_inv;  // rows b_1..b_3: dF/dx_a = e_i b_a^T; b_0 = -(b_1 + b_2 + b_3)
-    Eigen::Matrix3d B;       // sum_a w_a b_a b_a^T (inverse masses; 0 for fixed vertices)
-    double volume_mm3;
-    double mu_kPa, lambda_kPa, beta_s;
-  };
+  void build_batches(const SimProblem& problem);
   void update_tet_mass_blocks();
-  void build_neo_hookean_batches(const SimProblem& problem);
-  // One step of the Neo-Hookean model (substeps, sweeps, attachments) in one parallel
-  // region; returns the elastic energy and the inverted tets at its end.
-  void step_neo_hookean(double h, StepSummary& summary, bool& converged, double& energy, int& inverted);
-  void solve_attachment_block(double h);
+  // One step (substeps, sweeps, attachments) in one parallel region; returns the elastic
+  // energy of the tets and attachments and the inverted tets at its end.
+  void step_batches(double h, StepSummary& summary, bool& converged, double& energy, int& inverted);
   void reset_rotations();
   void reset_ledger();
-  // One Gauss-Seidel sweep over all tets; returns the sum of squared constraint
-  // residuals (each taken before its update).
-  double solve_tets(double h);
   int count_inverted() const;
+  double tet_energy(int* inverted) const;
   void solve_attachments(double h);
 
   ModelConfig config_;
   bool neo_hookean_ = false;
+  int num_tets_ = 0;
   Eigen::Matrix3Xd x_, v_, x_prev_;
   Eigen::VectorXd mass_, inv_mass_, mass_damping_per_s_;
   std::vector<unsigned char> fixed_;
   Eigen::Vector3d gravity_;
   bool vessels_ignored_ = false;  // the problem declares vessels this model cannot couple
-  std::vector<TetData> tets_;           // colour order
-  std::vector<int> original_index_;     // colour order -> mesh tet index
-  std::vector<Eigen::Matrix3d> lambda_dev_;  // Lagrange multipliers of C = F - R
-  std::vector<double> lambda_vol_;           // Lagrange multipliers of C_H
-  std::vector<Eigen::Quaterniond> rotation_; // warm start of the rotation extraction
-  Coloring coloring_;
-  xpbd::NhBatches nh_;                  // Neo-Hookean: tets in SIMD batches, two halves + interface
-  std::array<std::vector<int>, 3> nh_vertices_;  // vertices touched only by half 0, only by half 1, by both
-  bool nh_damped_ = false;              // some region has Rayleigh beta > 0
+  xpbd::TetBatches batches_;      // tets in SIMD batches: two halves + interface
+  std::array<std::vector<int>, 3> group_vertices_;  // vertices touched only by half 0, only by half 1, by both
+  bool damped_ = false;           // some region has Rayleigh beta > 0
+  std::vector<double> rotation_;  // corotated: warm start of each tet's rotation (4 x kLanes per batch)
+  std::vector<double> lambda_;    // corotated, iterations > 1: multipliers (10 x kLanes per batch)
   AttachmentSet attachments_;
-  double inverted_time_s_ = 0.0;        // how long some tets have stayed inverted
-  int inverted_at_end_ = -1;            // inverted tets after the last step; -1: unknown
+  double inverted_time_s_ = 0.0;  // how long some tets have stayed inverted
+  int inverted_at_end_ = -1;      // inverted tets after the last step; -1: unknown
   EnergyLedger ledger_;
 };
 

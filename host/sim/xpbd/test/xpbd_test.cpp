@@ -196,15 +196,11 @@ TEST_P(XpbdEnergy, TwoThreadsGiveTheSameResultAsOne) {
     for (int i = 0; i <= 3; ++i) fixed.fixed_vertices.push_back(box_vertex_index(3, 3, i, j, 3));
   XpbdModel serial(fixed, config(5, 2, 1, GetParam()));
   XpbdModel parallel(fixed, config(5, 2, 2, GetParam()));
-  if (GetParam() == "neo_hookean") {
-    // Both halves hold tets, so the two threads really sweep at the same time.
-    const std::array<int, 3> groups = serial.neo_hookean_group_tets();
-    EXPECT_GT(groups[0], 0);
-    EXPECT_GT(groups[1], 0);
-    EXPECT_EQ(groups[0] + groups[1] + groups[2], fixed.mesh.num_tets());
-  } else {
-    EXPECT_GT(serial.num_colors(), 1);
-  }
+  // Both halves hold tets, so the two threads really sweep at the same time.
+  const std::array<int, 3> groups = serial.group_tets();
+  EXPECT_GT(groups[0], 0);
+  EXPECT_GT(groups[1], 0);
+  EXPECT_EQ(groups[0] + groups[1] + groups[2], fixed.mesh.num_tets());
   for (int k = 0; k < 2; ++k) {
     serial.step(1.0 / 60.0);
     parallel.step(1.0 / 60.0);
