@@ -9,44 +9,16 @@
 
 #include "appliance/ndi/command.hpp"
 #include "appliance/ndi/rom.hpp"
+#include "appliance/yaml/yaml_reader.hpp"
 
 namespace arnav::app {
 namespace {
 
-class Reader {
- public:
-  explicit Reader(std::string source) : source_(std::move(source)) {}
-
-  [[noreturn]] void fail(const YAML::Node& node, const std::string& key, const std::string& what) const {
-    const int line = node.IsDefined() && node.Mark().line >= 0 ? node.Mark().line + 1 : 1;
-    throw ConfigError(source_ + ":" + std::to_string(line) + ": key '" + key + "': " + what);
-  }
-
-  template <typename T>
-  T get(const YAML::Node& node, const std::string& key, const char* type_name) const {
-    if (!node.IsScalar()) fail(node, key, std::string("expected ") + type_name);
-    try {
-      return node.as<T>();
-    } catch (const YAML::Exception&) {
-      fail(node, key, std::string("expected ") + type_name + ", got '" + node.Scalar() + "'");
-    }
-  }
-
-  std::vector<std::string> strings(const YAML::Node& node, const std::string& key) const {
-    if (!node.IsSequence()) fail(node, key, "expected a list of strings");
-    std::vector<std::string> out;
-    for (std::size_t i = 0; i < node.size(); ++i)
-      out.push_back(get<std::string>(node[i], key + "[" + std::to_string(i) + "]", "a string"));
-    return out;
-  }
-
- private:
-  std::string source_;
-};
+using Reader = yaml::YamlReader<ConfigError>;
 
 const std::set<std::string> kKeys = {"camera", "frames", "port", "baud", "rate_hz", "device_rate_hz", "lcm_url", "reply_mode",
                                      "tx_firmware", "bx_failures_before_tx", "tracking_timeout_ms",
-                                     "setup_timeout_ms", "reset_wait_ms", "health_rate_hz", "tools", "sim_command", "sim_args"};
+                                     "setup_timeout_ms", "reset_wait_ms", "health_rate_hz", "tools", "sim_command", "sim_args", "realtime"};
 
 }  // namespace
 
@@ -64,22 +36,9 @@ ndi::SessionConfig AppConfig::session_config() const {
 }
 
 AppConfig parse_config(const std::string& text, const std::string& source, const std::filesystem::path& base_dir) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(text);
-  } catch (const YAML::ParserException& e) {
-    throw ConfigError(source + ":" + std::to_string(e.mark.line + 1) + ": YAML syntax error: " + e.msg);
-  }
   Reader r(source);
-  if (!root.IsMap()) throw ConfigError(source + ":1: the configuration must be a YAML mapping (key: value lines)");
-  for (const auto& kv : root) {
-    const std::string key = kv.first.Scalar();
-    if (!kKeys.count(key)) {
-      std::string known;
-      for (const auto& k : kKeys) known += (known.empty() ? "" : ", ") + k;
-      r.fail(kv.first, key, "unknown key (known keys: " + known + ")");
-    }
-  }
+  const YAML::Node root = r.load_root(text);
+  r.only(root, "", kKeys);
   AppConfig c;
   c.source = source;
   // camera: and frames: are read by appliance/markers/camera_config (docs/camera.md).
@@ -126,6 +85,19 @@ AppConfig parse_config(const std::string& text, const std::string& source, const
   int_in("reset_wait_ms", c.reset_wait_ms, 0, 60000);
   if (root["sim_command"]) c.sim_command = r.get<std::string>(root["sim_command"], "sim_command", "a string");
   if (root["sim_args"]) c.sim_args = r.strings(root["sim_args"], "sim_args");
+  if (const YAML::Node rt = root["realtime"]) {
+    r.only(rt, "realtime", {"cpu_latency_us", "priority"});
+    if (rt["cpu_latency_us"]) {
+      c.realtime.cpu_latency_us = r.get<int>(rt["cpu_latency_us"], "realtime.cpu_latency_us", "an integer");
+      if (c.realtime.cpu_latency_us < -1 || c.realtime.cpu_latency_us > 100000)
+        r.fail(rt["cpu_latency_us"], "realtime.cpu_latency_us", "must be between 0 and 100000 us, or -1 to leave the CPU idle policy alone");
+    }
+    if (rt["priority"]) {
+      c.realtime.priority = r.get<int>(rt["priority"], "realtime.priority", "an integer");
+      if (c.realtime.priority < 0 || c.realtime.priority > 99)
+        r.fail(rt["priority"], "realtime.priority", "must be between 1 and 99 (SCHED_FIFO), or 0 for normal scheduling");
+    }
+  }
 
   const YAML::Node tools = root["tools"];
   if (!tools) r.fail(root, "tools", "missing: list the tools, each with 'name' and 'rom'");

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "appliance/app/realtime.hpp"
 #include "appliance/ndi/session.hpp"
 
 namespace arnav::app {
@@ -33,6 +34,7 @@ struct AppConfig {
   std::vector<ndi::ToolConfig> tools;
   std::string sim_command;    // port: sim -> program to run (default: arnav-polaris-sim)
   std::vector<std::string> sim_args;
+  RealtimeConfig realtime;    // `realtime:` (CPU latency request, polling-thread priority)
   std::filesystem::path source;  // the file read
 
   ndi::SessionConfig session_config() const;

@@ -15,6 +15,7 @@
 
 #include "appliance/app/config.hpp"
 #include "appliance/app/publisher.hpp"
+#include "appliance/app/realtime.hpp"
 #include "appliance/app/sim_process.hpp"
 #include "appliance/markers/camera_runtime.hpp"
 #include "appliance/ndi/posix_transport.hpp"
@@ -213,6 +214,18 @@ int main(int argc, char** argv) {
       else reference_frames->reference_missing(receive_us);
     }
   };
+
+  // Real-time settings for this (the polling) thread only: the camera thread and the
+  // simulator were started above and keep normal scheduling.
+  const app::CpuLatencyRequest cpu_latency(cfg.realtime.cpu_latency_us);
+  if (!cpu_latency.error().empty())
+    on_event({ndi::Severity::Warning, "APPLIANCE_REALTIME_DENIED", cpu_latency.error()});
+  else if (cpu_latency.held())
+    std::cerr << "arnav-appliance: CPU latency request " << cfg.realtime.cpu_latency_us << " us held\n";
+  if (const std::string error = app::make_this_thread_realtime(cfg.realtime.priority); !error.empty())
+    on_event({ndi::Severity::Warning, "APPLIANCE_REALTIME_DENIED", error});
+  else if (cfg.realtime.priority > 0)
+    std::cerr << "arnav-appliance: NDI polling thread SCHED_FIFO " << cfg.realtime.priority << "\n";
 
   const auto period_us = static_cast<std::int64_t>(1e6 / cfg.rate_hz);
   const auto health_period_us = static_cast<std::int64_t>(1e6 / cfg.health_rate_hz);

@@ -7,92 +7,12 @@
 
 #include "appliance/markers/calibration_files.hpp"
 #include "appliance/markers/tag_family.hpp"
+#include "appliance/yaml/yaml_reader.hpp"
 
 namespace arnav::camera {
 namespace {
 
-class Reader {
- public:
-  explicit Reader(std::string source) : source_(std::move(source)) {}
-
-  [[noreturn]] void fail(const YAML::Node& node, const std::string& key, const std::string& what) const {
-    const int line = node.IsDefined() && node.Mark().line >= 0 ? node.Mark().line + 1 : 1;
-    throw CameraConfigError(source_ + ":" + std::to_string(line) + ": key '" + key + "': " + what);
-  }
-
-  // Rejects keys outside `known` (typos must not fall back to defaults).
-  void only(const YAML::Node& map, const std::string& prefix, const std::set<std::string>& known) const {
-    if (!map.IsMap()) fail(map, prefix, "expected a mapping (key: value lines)");
-    for (const auto& kv : map) {
-      const std::string key = kv.first.Scalar();
-      if (!known.count(key)) {
-        std::string list;
-        for (const auto& k : known) list += (list.empty() ? "" : ", ") + k;
-        fail(kv.first, prefix + "." + key, "unknown key (known: " + list + ")");
-      }
-    }
-  }
-
-  template <typename T>
-  T get(const YAML::Node& node, const std::string& key, const char* type_name) const {
-    if (!node.IsScalar()) fail(node, key, std::string("expected ") + type_name);
-    try {
-      return node.as<T>();
-    } catch (const YAML::Exception&) {
-      fail(node, key, std::string("expected ") + type_name + ", got '" + node.Scalar() + "'");
-    }
-  }
-
-  double number(const YAML::Node& map, const std::string& prefix, const char* key, double def, double lo, double hi) const {
-    const YAML::Node n = map[key];
-    if (!n) return def;
-    const double v = get<double>(n, prefix + "." + key, "a number");
-    if (!(v >= lo && v <= hi)) fail(n, prefix + "." + key, "must be between " + fmt(lo) + " and " + fmt(hi));
-    return v;
-  }
-  int integer(const YAML::Node& map, const std::string& prefix, const char* key, int def, int lo, int hi) const {
-    const YAML::Node n = map[key];
-    if (!n) return def;
-    const int v = get<int>(n, prefix + "." + key, "an integer");
-    if (v < lo || v > hi) fail(n, prefix + "." + key, "must be between " + std::to_string(lo) + " and " + std::to_string(hi));
-    return v;
-  }
-  bool boolean(const YAML::Node& map, const std::string& prefix, const char* key, bool def) const {
-    const YAML::Node n = map[key];
-    return n ? get<bool>(n, prefix + "." + key, "true or false") : def;
-  }
-  std::string text(const YAML::Node& map, const std::string& prefix, const char* key, const std::string& def) const {
-    const YAML::Node n = map[key];
-    return n ? get<std::string>(n, prefix + "." + key, "a string") : def;
-  }
-  std::vector<double> numbers(const YAML::Node& n, const std::string& key) const {
-    if (!n.IsSequence()) fail(n, key, "expected a list of numbers");
-    std::vector<double> out;
-    for (std::size_t i = 0; i < n.size(); ++i) out.push_back(get<double>(n[i], key + "[" + std::to_string(i) + "]", "a number"));
-    return out;
-  }
-
-  static std::string fmt(double v) {
-    std::string s = std::to_string(v);
-    while (s.size() > 1 && s.back() == '0') s.pop_back();
-    if (!s.empty() && s.back() == '.') s.pop_back();
-    return s;
-  }
-
- private:
-  std::string source_;
-};
-
-YAML::Node load_root(const std::string& text, const std::string& source) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(text);
-  } catch (const YAML::ParserException& e) {
-    throw CameraConfigError(source + ":" + std::to_string(e.mark.line + 1) + ": YAML syntax error: " + e.msg);
-  }
-  if (!root.IsMap()) throw CameraConfigError(source + ":1: the configuration must be a YAML mapping (key: value lines)");
-  return root;
-}
+using Reader = yaml::YamlReader<CameraConfigError>;
 
 std::filesystem::path resolve(const std::filesystem::path& base, const std::string& p) {
   const std::filesystem::path path(p);
@@ -136,7 +56,7 @@ camera_sim::Trajectory parse_trajectory(const Reader& r, const YAML::Node& n, co
 
 std::optional<CameraConfig> parse_camera_config(const std::string& yaml_text, const std::string& source,
                                                 const std::filesystem::path& base_dir) {
-  const YAML::Node root = load_root(yaml_text, source);
+  const YAML::Node root = Reader(source).load_root(yaml_text);
   const YAML::Node cam = root["camera"];
   if (!cam) return std::nullopt;
   Reader r(source);
@@ -377,7 +297,7 @@ std::optional<CameraConfig> parse_camera_config(const std::string& yaml_text, co
 
 frames::FramesConfig parse_frames_config(const std::string& yaml_text, const std::string& source,
                                          const std::filesystem::path& base_dir) {
-  const YAML::Node root = load_root(yaml_text, source);
+  const YAML::Node root = Reader(source).load_root(yaml_text);
   frames::FramesConfig f;
   const YAML::Node n = root["frames"];
   if (!n) return f;
@@ -392,8 +312,12 @@ frames::FramesConfig parse_frames_config(const std::string& yaml_text, const std
   f.reference_tool = r.text(n, "frames", "reference_tool", "");
   if (n["hand_eye"]) f.hand_eye = resolve(base_dir, r.text(n, "frames", "hand_eye", ""));
   f.max_reference_age_s = r.number(n, "frames", "max_reference_age_s", f.max_reference_age_s, 0.001, 10);
-  if (f.reference != frames::Reference::Cam && f.hand_eye.empty()) {
-    r.fail(n, "frames.hand_eye", "missing: reference " + ref + " needs the hand-eye file (X_CamNdi.yaml)");
+  // The hand-eye relates the camera to the tracker: only a camera path needs it to put
+  // its poses into Ndi or Ref. An NDI-only appliance expresses its poses in Ndi or Ref
+  // without one.
+  if (f.reference != frames::Reference::Cam && f.hand_eye.empty() && root["camera"]) {
+    r.fail(n, "frames.hand_eye",
+           "missing: with a camera, reference " + ref + " needs the hand-eye file (X_CamNdi.yaml from `arnav-calib handeye`)");
   }
   if (f.reference == frames::Reference::Ref && f.reference_tool.empty()) {
     r.fail(n, "frames.reference_tool", "missing: the NDI tool that defines frame Ref");

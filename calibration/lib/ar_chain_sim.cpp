@@ -179,23 +179,7 @@ class SimCamera {
 };
 
 Eigen::Isometry3d solve_pnp(const Corners& c, const CameraIntrinsics& in) {
-  cv::Mat rvec, tvec;
-  const cv::Mat K(in.camera_matrix);
-  const cv::Mat dist = in.distortion_mat();
-  if (!cv::solvePnP(c.board, c.px, K, dist, rvec, tvec, false, cv::SOLVEPNP_IPPE)) {
-    throw CalibError("AR simulation: solvePnP failed");
-  }
-  cv::solvePnPRefineLM(c.board, c.px, K, dist, rvec, tvec);
-  cv::Mat R;
-  cv::Rodrigues(rvec, R);
-  Eigen::Matrix3d Re;
-  Eigen::Vector3d te;
-  cv::cv2eigen(R, Re);
-  cv::cv2eigen(tvec, te);
-  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
-  X.linear() = Re;
-  X.translation() = te;
-  return X;
+  return board_pose_pnp(c.board, c.px, in, "AR simulation");
 }
 
 Eigen::Matrix3d random_tilt(std::mt19937_64& rng, double max_deg) {

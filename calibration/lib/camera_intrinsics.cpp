@@ -4,6 +4,9 @@
 #include <fstream>
 #include <sstream>
 
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core/eigen.hpp>
+
 #include "calibration/lib/calib_error.hpp"
 
 namespace arnav::calib {
@@ -155,6 +158,25 @@ void write_intrinsics(const std::filesystem::path& path, const CameraIntrinsics&
   fs << "views_used" << in.views_used;
   fs << "calibration_date" << in.calibration_date;
   fs.release();
+}
+
+Eigen::Isometry3d board_pose_pnp(const std::vector<cv::Point3f>& board_mm, const std::vector<cv::Point2f>& image_px,
+                                 const CameraIntrinsics& intrinsics, const std::string& what) {
+  cv::Mat rvec, tvec, R;
+  const cv::Mat K(intrinsics.camera_matrix);
+  const cv::Mat dist = intrinsics.distortion_mat();
+  if (!cv::solvePnP(board_mm, image_px, K, dist, rvec, tvec, false, cv::SOLVEPNP_IPPE))
+    throw CalibError(what + ": solvePnP failed");
+  cv::solvePnPRefineLM(board_mm, image_px, K, dist, rvec, tvec);
+  cv::Rodrigues(rvec, R);
+  Eigen::Matrix3d R_CamBoard;
+  Eigen::Vector3d t_CamBoard_mm;
+  cv::cv2eigen(R, R_CamBoard);
+  cv::cv2eigen(tvec, t_CamBoard_mm);
+  Eigen::Isometry3d X_CamBoard = Eigen::Isometry3d::Identity();
+  X_CamBoard.linear() = R_CamBoard;
+  X_CamBoard.translation() = t_CamBoard_mm;
+  return X_CamBoard;
 }
 
 }  // namespace arnav::calib

@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 
 namespace arnav::calib {
@@ -45,5 +46,11 @@ CameraIntrinsics parse_intrinsics(const std::string& yaml_text, const std::strin
 void write_intrinsics(const std::filesystem::path& path, const CameraIntrinsics& intrinsics);
 // Checks sizes, focal lengths, principal point inside the image, coefficient count.
 void validate_intrinsics(const CameraIntrinsics& intrinsics, const std::string& source);
+
+// X_CamBoard from planar board corners (board_mm in the Board frame, z = 0) and their
+// pixels: OpenCV IPPE, then Levenberg-Marquardt refinement. Throws CalibError (naming
+// `what`) when solvePnP fails.
+Eigen::Isometry3d board_pose_pnp(const std::vector<cv::Point3f>& board_mm, const std::vector<cv::Point2f>& image_px,
+                                 const CameraIntrinsics& intrinsics, const std::string& what);
 
 }  // namespace arnav::calib

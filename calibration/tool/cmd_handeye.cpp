@@ -25,22 +25,7 @@ struct HandEyeArgs {
 };
 
 Eigen::Isometry3d board_pose(const BoardObservation& obs, const CameraIntrinsics& in) {
-  cv::Mat rvec, tvec, R;
-  const cv::Mat K(in.camera_matrix);
-  const cv::Mat dist = in.distortion_mat();
-  if (!cv::solvePnP(obs.board_mm, obs.image_px, K, dist, rvec, tvec, false, cv::SOLVEPNP_IPPE)) {
-    throw CalibError("solvePnP failed");
-  }
-  cv::solvePnPRefineLM(obs.board_mm, obs.image_px, K, dist, rvec, tvec);
-  cv::Rodrigues(rvec, R);
-  Eigen::Matrix3d Re;
-  Eigen::Vector3d te;
-  cv::cv2eigen(R, Re);
-  cv::cv2eigen(tvec, te);
-  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
-  X.linear() = Re;
-  X.translation() = te;
-  return X;
+  return board_pose_pnp(obs.board_mm, obs.image_px, in, "hand-eye board pose");
 }
 }  // namespace
 

@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <poll.h>
+#include <sched.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -20,7 +21,7 @@ extern char** environ;
 namespace arnav::hil {
 
 ChildProcess::ChildProcess(std::vector<std::string> argv, std::vector<std::string> extra_env, std::string log_path,
-                           bool capture_stdout)
+                           bool capture_stdout, int fifo_priority)
     : log_path_(std::move(log_path)) {
   std::map<std::string, std::string> env;
   for (char** e = environ; *e; ++e) {
@@ -45,7 +46,15 @@ ChildProcess::ChildProcess(std::vector<std::string> argv, std::vector<std::strin
   posix_spawnattr_t attr;
   posix_spawnattr_init(&attr);
   // Own process group, so a Ctrl-C on the test does not race the test's own shutdown.
-  posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETPGROUP | POSIX_SPAWN_SETSIGMASK);
+  short flags = POSIX_SPAWN_SETPGROUP | POSIX_SPAWN_SETSIGMASK;
+  if (fifo_priority > 0) {
+    flags |= POSIX_SPAWN_SETSCHEDULER;
+    posix_spawnattr_setschedpolicy(&attr, SCHED_FIFO);
+    sched_param sp{};
+    sp.sched_priority = fifo_priority;
+    posix_spawnattr_setschedparam(&attr, &sp);
+  }
+  posix_spawnattr_setflags(&attr, flags);
   sigset_t none;
   sigemptyset(&none);
   posix_spawnattr_setsigmask(&attr, &none);

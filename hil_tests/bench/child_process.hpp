@@ -15,8 +15,9 @@ class ChildProcess {
  public:
   // argv[0] is the executable path. extra_env entries "NAME=value" are added to (or
   // replace) the test's environment. stdout goes to a pipe if capture_stdout, else to the log.
+  // fifo_priority > 0 starts the child under SCHED_FIFO at that priority (needs root).
   ChildProcess(std::vector<std::string> argv, std::vector<std::string> extra_env, std::string log_path,
-               bool capture_stdout = false);
+               bool capture_stdout = false, int fifo_priority = 0);
   ~ChildProcess();
   ChildProcess(const ChildProcess&) = delete;
   ChildProcess& operator=(const ChildProcess&) = delete;

@@ -6,7 +6,7 @@
 # libserialport with the test-only serial shim preloaded, arnav-host prints status, and
 # LCM udpm stays on the namespace's loopback. Writes logs, the simulator's events and the
 # host's JSON summary to OUT_DIR; with RSS_EVERY_S it samples the appliance's resident
-# memory into OUT_DIR/appliance_rss.csv.
+# memory into OUT_DIR/appliance_rss.csv. Environment: ARNAV_SIM_PRIORITY (see below).
 set -euo pipefail
 if [ "$#" -lt 5 ]; then
   sed -n '2,11p' "$0" >&2
@@ -53,7 +53,11 @@ cleanup() {
 }
 trap cleanup EXIT
 
-"$sim" --pty-link "$out/polaris" --bind-over /dev/ttyS0 --break-socket "$out/break.sock" --control "$out/control.sock" \
+# ARNAV_SIM_PRIORITY=N runs the simulator under SCHED_FIFO N: a real Polaris keeps its
+# own time, a normally scheduled simulator on a loaded machine answers late.
+sim_prefix=()
+if [ "${ARNAV_SIM_PRIORITY:-0}" != "0" ]; then sim_prefix=(chrt --fifo "$ARNAV_SIM_PRIORITY"); fi
+"${sim_prefix[@]}" "$sim" --pty-link "$out/polaris" --bind-over /dev/ttyS0 --break-socket "$out/break.sock" --control "$out/control.sock" \
   --events "$out/sim_events.jsonl" --scenario "$sim_cfg" >"$out/sim.stdout" 2>"$out/sim.log" &
 sim_pid=$!
 pids+=("$sim_pid")

@@ -40,7 +40,7 @@ std::string HilRun::start(const HilRunOptions& o) {
     tool_names_.push_back(name);
   }
   sim_argv.insert(sim_argv.end(), o.sim_args.begin(), o.sim_args.end());
-  sim_ = std::make_unique<ChildProcess>(sim_argv, std::vector<std::string>{}, dir_ + "/sim.log", true);
+  sim_ = std::make_unique<ChildProcess>(sim_argv, std::vector<std::string>{}, dir_ + "/sim.log", true, o.sim_priority);
   const auto ready = sim_->read_line(30.0);
   if (!ready || ready->rfind("READY ", 0) != 0) throw std::runtime_error("simulator did not get ready:\n" + sim_->log_tail());
 
@@ -51,7 +51,7 @@ std::string HilRun::start(const HilRunOptions& o) {
   {
     std::ofstream cfg(dir_ + "/appliance.yaml");
     cfg << "port: /dev/ttyS0\nbaud: 115200\nrate_hz: " << o.rate_hz << "\nlcm_url: \"" << kLcmUrl << "\"\nreply_mode: " << o.reply_mode
-        << "\ntools:\n";
+        << "\nrealtime: {cpu_latency_us: " << o.cpu_latency_us << ", priority: " << o.priority << "}\ntools:\n";
     for (const auto& [name, rom] : o.tools) cfg << "  - name: " << name << "\n    rom: " << roms << rom << "\n";
   }
   appliance_ = std::make_unique<ChildProcess>(

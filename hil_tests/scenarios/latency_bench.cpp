@@ -31,6 +31,12 @@ int main(int argc, char** argv) {
   app.add_option("--rate", o.rate_hz, "device frame rate and polling rate, Hz (default 60)")->check(CLI::Range(1.0, 400.0));
   app.add_option("--tools", tools, "number of tools, 1-6 (default 2)")->check(CLI::Range(1, 6));
   app.add_option("--reply-mode", o.reply_mode, "bx or tx (default bx)")->check(CLI::IsMember({"bx", "tx"}));
+  app.add_option("--cpu-latency-us", o.cpu_latency_us, "appliance realtime.cpu_latency_us (default 0; -1: no request)")
+      ->check(CLI::Range(-1, 100000));
+  app.add_option("--priority", o.priority, "appliance realtime.priority, SCHED_FIFO 1-99 (default 0: normal scheduling)")
+      ->check(CLI::Range(0, 99));
+  app.add_option("--sim-priority", o.sim_priority, "simulator SCHED_FIFO priority (default 0: normal scheduling)")
+      ->check(CLI::Range(0, 99));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -78,6 +84,9 @@ int main(int argc, char** argv) {
     nlohmann::json j{{"bench", "appliance_latency"},
                      {"reply_mode", o.reply_mode},
                      {"rate_hz", o.rate_hz},
+                     {"cpu_latency_us", o.cpu_latency_us},
+                     {"priority", o.priority},
+                     {"sim_priority", o.sim_priority},
                      {"tools", tools},
                      {"seconds", seconds},
                      {"periods", periods.size()},

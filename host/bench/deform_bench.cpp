@@ -147,6 +147,21 @@ std::vector<Setting> settings(bool quick, bool fine, int threads) {
       c.iterations = it;
       add("xpbd s" + std::to_string(sub) + " i" + std::to_string(it), c);
     }
+    // Small steps (Macklin et al. 2019): many substeps of one sweep each, with the
+    // fixed-corotated energy and with the stable Neo-Hookean one ("nh": one sweep per
+    // substep only).
+    if (!quick) {
+      c.iterations = 1;
+      for (int sub : {5, 10, 20, 40}) {
+        c.substeps = sub;
+        add("xpbd s" + std::to_string(sub) + " i1", c);
+      }
+      c.energy = "neo_hookean";
+      for (int sub : {5, 10, 20, 40}) {
+        c.substeps = sub;
+        add("xpbd nh s" + std::to_string(sub) + " i1", c);
+      }
+    }
   }
   if (have("mass_spring") && !quick) {
     ModelConfig c;
@@ -158,6 +173,14 @@ std::vector<Setting> settings(bool quick, bool fine, int threads) {
     c.integrator = "explicit";
     c.substeps = 20;
     add("mass_spring explicit s20", c);
+    // Prefactored backward Euler (local/global): iterations per 1/60 s frame.
+    c.integrator = "local_global";
+    c.substeps = 1;
+    c.tolerance = 0.0;
+    for (int it : {1, 2, 4}) {
+      c.iterations = it;
+      add("mass_spring local_global i" + std::to_string(it), c);
+    }
   }
   if (have("corotational_fem")) {
     ModelConfig c;

@@ -57,6 +57,12 @@ std::vector<ModelVariant> model_variants() {
     c.iterations = 20;
     c.tolerance = 1e-4;
     out.push_back({"mass_spring/semi_implicit", c});
+    // Prefactored backward Euler (docs/sim.md). 20 local/global iterations settle every
+    // case of the stability matrix; the real-time setting is 1 iteration (docs/benchmarks.md).
+    c.integrator = "local_global";
+    c.iterations = 20;
+    c.tolerance = 0.0;
+    out.push_back({"mass_spring/local_global", c});
   }
 #endif
 #ifdef ARNAV_SIM_HAVE_XPBD
@@ -67,6 +73,11 @@ std::vector<ModelVariant> model_variants() {
     c.substeps = 4;
     c.tolerance = 0.0;
     out.push_back({"xpbd", c});
+    // Stable Neo-Hookean in SIMD batches, small steps: one sweep per substep (docs/sim.md).
+    c.energy = "neo_hookean";
+    c.iterations = 1;
+    c.substeps = 10;
+    out.push_back({"xpbd/neo_hookean", c});
   }
 #endif
 #ifdef ARNAV_SIM_HAVE_FEM
@@ -98,8 +109,11 @@ std::unique_ptr<TissueModel> make_tissue_model(const SimProblem& problem, const 
     if (config.integrator == "semi_implicit" || config.integrator.empty()) {
       return std::make_unique<MassSpringModel>(problem, MassSpringModel::Integrator::kSemiImplicit, config);
     }
+    if (config.integrator == "local_global") {
+      return std::make_unique<MassSpringModel>(problem, MassSpringModel::Integrator::kLocalGlobal, config);
+    }
     throw std::invalid_argument("model config: mass_spring integrator '" + config.integrator +
-                                "' is unknown: use explicit or semi_implicit");
+                                "' is unknown: use explicit, semi_implicit or local_global");
   }
 #endif
 #ifdef ARNAV_SIM_HAVE_XPBD

@@ -93,15 +93,6 @@ void scatter_tets_add(int threads, std::vector<Eigen::Matrix3Xd>& buffers, const
   }
 }
 
-// cof(F) = d det(F) / dF: column k is the cross product of the other two columns.
-inline Eigen::Matrix3d cofactor(const Eigen::Matrix3d& F) {
-  Eigen::Matrix3d c;
-  c.col(0) = F.col(1).cross(F.col(2));
-  c.col(1) = F.col(2).cross(F.col(0));
-  c.col(2) = F.col(0).cross(F.col(1));
-  return c;
-}
-
 double dot(int threads, const Eigen::Matrix3Xd& a, const Eigen::Matrix3Xd& b) {
   const int n = static_cast<int>(a.size());
   const double* pa = a.data();
@@ -138,6 +129,7 @@ MassSpringModel::MassSpringModel(const SimProblem& problem, Integrator integrato
   Dm_inv_.resize(tets_.size());
   tet_lame_.resize(tets_.size());
   volume_stiffness_.resize(tets_.size());
+  inv_6v0_.resize(tets_.size());
   for (int t = 0; t < mesh.num_tets(); ++t) {
     const int region = mesh.tet_region.empty() ? 0 : mesh.tet_region[t];
     const Material& mat = problem.region_materials[region];
@@ -146,6 +138,7 @@ MassSpringModel::MassSpringModel(const SimProblem& problem, Integrator integrato
     // Volume term with a fixed modulus kVolumeModulusPerE * E: enough to stop compressed
     // tets from collapsing and inverting, small enough to keep the CG well conditioned.
     volume_stiffness_[t] = kVolumeModulusPerE * mat.youngs_modulus_kPa * signed_volume_mm3(x_, tets_[t]);
+    inv_6v0_[t] = 1.0 / (6.0 * signed_volume_mm3(x_, tets_[t]));
     const double quarter = 0.25 * signed_volume_mm3(x_, tets_[t]) * mat.density_kg_per_mm3;
     for (int v : tets_[t]) mass_damping_[v] += quarter * mat.damping_mass_per_s;
   }
@@ -164,7 +157,12 @@ MassSpringModel::MassSpringModel(const SimProblem& problem, Integrator integrato
 }
 
 std::string MassSpringModel::name() const {
-  return integrator_ == Integrator::kExplicit ? "mass_spring/explicit" : "mass_spring/semi_implicit";
+  switch (integrator_) {
+    case Integrator::kExplicit: return "mass_spring/explicit";
+    case Integrator::kSemiImplicit: return "mass_spring/semi_implicit";
+    case Integrator::kLocalGlobal: return "mass_spring/local_global";
+  }
+  return "mass_spring";
 }
 
 void MassSpringModel::set_fixed_vertices(const std::vector<int>& vertices) {
@@ -176,6 +174,7 @@ void MassSpringModel::set_fixed_vertices(const std::vector<int>& vertices) {
     inv_mass_[v] = 0.0;
     v_.col(v).setZero();
   }
+  system_dirty_ = true;
   update_omega_bound();
 }
 
@@ -230,6 +229,7 @@ AttachmentId MassSpringModel::add_attachment(const AttachmentSpec& spec) {
   double work = 0.0;
   const AttachmentId id = attachments_.add(spec, x_, work);
   ledger_.add_work(work);
+  system_dirty_ = true;
   update_omega_bound();
   return id;
 }
@@ -238,10 +238,12 @@ void MassSpringModel::set_attachment_target(AttachmentId id, const Eigen::Vector
 }
 void MassSpringModel::set_attachment_stiffness(AttachmentId id, double stiffness_mN_per_mm) {
   ledger_.add_work(attachments_.set_stiffness(id, stiffness_mN_per_mm, x_));
+  system_dirty_ = true;
   update_omega_bound();
 }
 void MassSpringModel::remove_attachment(AttachmentId id) {
   ledger_.add_work(attachments_.remove(id, x_));
+  system_dirty_ = true;
   update_omega_bound();
 }
 
@@ -294,14 +296,18 @@ void MassSpringModel::assemble(double h) {
   scatter_tets_add(threads_, thread_buffers_, tets_, out, [&](int t, std::array<Eigen::Vector3d, 4>& c) {
     const double kv = volume_stiffness_[t];
     if (kv <= 0.0) return false;
-    const Eigen::Matrix3d F = edge_matrix(x_, tets_[t]) * Dm_inv_[t];
-    const Eigen::Matrix3d G = cofactor(F) * Dm_inv_[t].transpose();  // columns g_1..g_3
+    // J = V / V0 with 6 V = e1.(e2 x e3); dJ/dx_a = (cross product of the other two
+    // edges) / (6 V0), the same as cof(F) b_a at a fraction of the cost.
+    const auto& v = tets_[t];
+    const Eigen::Vector3d x0 = x_.col(v[0]);
+    const Eigen::Vector3d e1 = x_.col(v[1]) - x0, e2 = x_.col(v[2]) - x0, e3 = x_.col(v[3]) - x0;
+    const double s6 = inv_6v0_[t];
     std::array<Eigen::Vector3d, 4> g;
-    g[1] = G.col(0);
-    g[2] = G.col(1);
-    g[3] = G.col(2);
+    g[1] = s6 * e2.cross(e3);
+    g[2] = s6 * e3.cross(e1);
+    g[3] = s6 * e1.cross(e2);
     g[0] = -(g[1] + g[2] + g[3]);
-    const double f = -kv * (F.determinant() - 1.0);
+    const double f = -kv * (e1.dot(g[1]) - 1.0);
     if (!implicit) {
       for (int a = 0; a < 4; ++a) c[a] = f * g[a];
       return true;
@@ -531,12 +537,24 @@ StepSummary MassSpringModel::step(double dt_s) {
     }
   } else {
     for (int k = 0; k < config_.substeps; ++k) {
-      const StepSummary sub = semi_implicit_substep(h);
+      const StepSummary sub = integrator_ == Integrator::kLocalGlobal ? local_global_substep(h) : semi_implicit_substep(h);
+      if (!sub.healthy) {  // the system could not be factored: state untouched
+        report(summary, sub.warning, true);
+        summary.termination = sub.termination;
+        break;
+      }
       if (k == 0) summary.initial_residual = sub.initial_residual;
       summary.final_residual = sub.final_residual;
       summary.iterations += sub.iterations;
       summary.termination = sub.termination;
     }
+  }
+  if (integrator_ == Integrator::kLocalGlobal && config_.tolerance > 0.0 && summary.final_residual > config_.tolerance &&
+      summary.healthy) {
+    report(summary,
+           "local_global not converged: relative residual " + std::to_string(summary.final_residual) + " after " +
+               std::to_string(config_.iterations) + " iterations (raise iterations)",
+           false);
   }
   if (integrator_ == Integrator::kSemiImplicit && summary.final_residual > kUnconvergedResidual) {
     report(summary,
@@ -548,7 +566,8 @@ StepSummary MassSpringModel::step(double dt_s) {
     report(summary, "vessel tree ignored: this model has no beam coupling (model vessels as a stiff tet region, or use corotational_fem)", false);
   }
   check_state(x_, v_, summary);
-  const int inverted = count_inverted();
+  const StateMeasure measure = measure_state();
+  const int inverted = measure.inverted_tets;
   if (inverted > 0) {
     // Springs have no orientation: inverted tets recover only if their neighbours push them
     // back. Warned at once, unhealthy once they stay inverted beyond the grace time.
@@ -562,40 +581,40 @@ StepSummary MassSpringModel::step(double dt_s) {
     inverted_time_s_ = 0.0;
   }
   summary.kinetic_energy = kinetic_energy(mass_, v_);
-  summary.elastic_energy = elastic_energy();
+  summary.elastic_energy = measure.elastic_energy;
   ledger_.check(summary.kinetic_energy + summary.elastic_energy, gravity_potential(mass_, x_, gravity_), summary);
   summary.wall_time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return summary;
 }
 
-int MassSpringModel::count_inverted() const {
-  const int nt = static_cast<int>(tets_.size());
-  int count = 0;
-#pragma omp parallel for num_threads(threads_) if (threads_ > 1) reduction(+ : count) schedule(static)
-  for (int t = 0; t < nt; ++t) {
-    if (!(edge_matrix(x_, tets_[t]).determinant() > 0.0)) ++count;
-  }
-  return count;
-}
-
-double MassSpringModel::elastic_energy() const {
+MassSpringModel::StateMeasure MassSpringModel::measure_state() const {
+  // One pass over springs and one over tets (parallel): stored energy and inverted tets.
   const auto& ends = springs_.ends;
   const int ns = springs_.size();
+  const double* X = x_.data();
   double e = 0.0;
 #pragma omp parallel for num_threads(threads_) if (threads_ > 1) reduction(+ : e) schedule(static)
   for (int s = 0; s < ns; ++s) {
-    const double stretch = (x_.col(ends[s][1]) - x_.col(ends[s][0])).norm() - springs_.rest_length_mm[s];
+    const int i = ends[s][0], j = ends[s][1];
+    const double dx = X[3 * j] - X[3 * i], dy = X[3 * j + 1] - X[3 * i + 1], dz = X[3 * j + 2] - X[3 * i + 2];
+    const double stretch = std::sqrt(dx * dx + dy * dy + dz * dz) - springs_.rest_length_mm[s];
     e += 0.5 * springs_.stiffness_mN_per_mm[s] * stretch * stretch;
   }
   const int nt = static_cast<int>(tets_.size());
-#pragma omp parallel for num_threads(threads_) if (threads_ > 1) reduction(+ : e) schedule(static)
+  int inverted = 0;
+#pragma omp parallel for num_threads(threads_) if (threads_ > 1) reduction(+ : e, inverted) schedule(static)
   for (int t = 0; t < nt; ++t) {
-    if (volume_stiffness_[t] <= 0.0) continue;
-    const double dJ = (edge_matrix(x_, tets_[t]) * Dm_inv_[t]).determinant() - 1.0;
+    const auto& v = tets_[t];
+    const Eigen::Vector3d x0 = x_.col(v[0]);
+    const double six_v = (x_.col(v[1]) - x0).dot((x_.col(v[2]) - x0).cross(x_.col(v[3]) - x0));
+    if (!(six_v > 0.0)) ++inverted;
+    const double dJ = six_v * inv_6v0_[t] - 1.0;
     e += 0.5 * volume_stiffness_[t] * dJ * dJ;
   }
-  return e + attachments_.energy(x_);
+  return {e + attachments_.energy(x_), inverted};
 }
+
+double MassSpringModel::elastic_energy() const { return measure_state().elastic_energy; }
 
 std::vector<ElementMeasure> MassSpringModel::element_measures() const {
   std::vector<ElementMeasure> out(tets_.size());

@@ -20,6 +20,10 @@
 //    (ModelConfig::iterations, tolerance). The spring tangent drops the compressive part
 //    of the geometric stiffness so the matrix stays SPD: unconditionally stable for any
 //    dt, with numerical damping that grows with dt.
+//  - "local_global": backward Euler solved by `iterations` local/global iterations with a
+//    constant matrix factored once by CHOLMOD (fast mass-spring, Liu et al. 2013; see
+//    local_global_step.cpp). Refactored only when h, the fixed set or the attachments
+//    change (lazily, at the next step).
 // Known limit: springs do not know orientation; an inverted tet whose edges have their rest
 // length feels no force. Inverted tets are counted every step and reported (a warning at
 // once, healthy=false when they stay inverted for more than 1 s of simulated time).
@@ -28,6 +32,7 @@
 #include <vector>
 
 #include "host/sim/attachment_set.hpp"
+#include "host/sim/mass_spring/prefactored_system.hpp"
 #include "host/sim/mass_spring/spring_network.hpp"
 #include "host/sim/model_config.hpp"
 #include "host/sim/step_health.hpp"
@@ -38,7 +43,7 @@ namespace arnav::host {
 
 class MassSpringModel final : public TissueModel {
  public:
-  enum class Integrator { kExplicit, kSemiImplicit };
+  enum class Integrator { kExplicit, kSemiImplicit, kLocalGlobal };
   // Throws std::invalid_argument on an invalid problem or config.
   MassSpringModel(const SimProblem& problem, Integrator integrator, const ModelConfig& config);
 
@@ -61,17 +66,26 @@ class MassSpringModel final : public TissueModel {
   // Elastic energy of springs and attachments at the current state (mN*mm).
   double elastic_energy() const;
   const SpringNetwork& springs() const { return springs_; }
+  // local_global: numeric factorisations so far, and the last one's wall time (ms).
+  int refactorizations() const { return refactorizations_; }
+  double last_factor_ms() const { return system_.last_factor_ms(); }
 
  private:
   void explicit_substep(double h);
   StepSummary semi_implicit_substep(double h);
+  StepSummary local_global_substep(double h);
+  bool build_local_global_system(double h, std::string& error);
   // Accumulates spring (and attachment) forces into f_ (3 x n), gravity and mass damping
   // included; with h > 0 also fills the per-spring tangent data and the CG right-hand side.
   void assemble(double h);
   // out = (M - hC - h^2 K) p (fixed rows zero); returns p.out.
   double apply_system(const Eigen::Matrix3Xd& p, Eigen::Matrix3Xd& out);
   void scatter_springs_to_buffers();
-  int count_inverted() const;
+  struct StateMeasure {
+    double elastic_energy = 0.0;  // springs, volume terms, attachments (mN*mm)
+    int inverted_tets = 0;
+  };
+  StateMeasure measure_state() const;
   void update_omega_bound();
   void reset_ledger();
 
@@ -91,6 +105,7 @@ class MassSpringModel final : public TissueModel {
   std::vector<Eigen::Matrix3d> Dm_inv_;
   std::vector<Lame> tet_lame_;
   std::vector<double> volume_stiffness_;  // kv = 0.5 E V0 per tet, mN*mm
+  std::vector<double> inv_6v0_;           // 1 / (6 V0): J = 6 V / (6 V0)
   std::vector<std::array<Eigen::Vector3d, 4>> vol_grad_;  // semi-implicit: g_a of the substep
   std::vector<double> vol_coef_;                          // semi-implicit: h^2 kv
 
@@ -105,6 +120,15 @@ class MassSpringModel final : public TissueModel {
   Eigen::Matrix3Xd f_, rhs_, dv_, r_, z_, p_, q_, diag_;
   std::vector<Eigen::Vector3d> spring_dir_;  // unit direction per spring (semi-implicit)
   std::vector<double> spring_s1_, spring_s2_;  // tangent block S = s1 n n^T + s2 I
+
+  // local_global: the constant matrix over the free vertices and its factor.
+  PrefactoredSystem system_;
+  bool system_dirty_ = true;
+  double system_h_ = 0.0;
+  int refactorizations_ = 0;
+  std::vector<int> free_index_;  // vertex -> row of the system, -1 for fixed vertices
+  Eigen::Matrix3Xd xn_, vn_;     // state at the start of the substep
+  Eigen::MatrixX3d lg_rhs_, lg_dx_;
 };
 
 }  // namespace arnav::host
