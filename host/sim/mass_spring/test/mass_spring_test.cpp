@@ -331,6 +331,39 @@ TEST(MassSpringLocalGlobal, AttachmentsRefactorLazilyPullAndRelease) {
   EXPECT_LT((lg.positions_World_mm() - p.mesh.rest_positions_World_mm).cwiseAbs().maxCoeff(), 1e-2);
 }
 
+// The semi-implicit CG preconditioned by the prefactored local/global matrix solves the
+// same linear system as with the Jacobi preconditioner, in fewer iterations.
+TEST(MassSpring, LaplacianPreconditionerSolvesTheSameStepInFewerIterations) {
+  Material m;
+  m.youngs_modulus_kPa = 50.0;
+  m.damping_mass_per_s = 20.0;
+  m.damping_stiffness_s = 0.01;
+  const SimProblem p = hanging_bar(m);
+  ModelConfig jacobi = config(500, 1e-10), laplacian = config(500, 1e-10);
+  jacobi.linear_solver = "jacobi";
+  laplacian.linear_solver = "laplacian";
+  MassSpringModel a(p, Integrator::kSemiImplicit, jacobi), b(p, Integrator::kSemiImplicit, laplacian);
+  int iterations_a = 0, iterations_b = 0;
+  for (int k = 0; k < 20; ++k) {
+    const StepSummary sa = a.step(1.0 / 60.0), sb = b.step(1.0 / 60.0);
+    ASSERT_TRUE(sa.healthy && sb.healthy) << sa.warning << sb.warning;
+    ASSERT_EQ(sb.termination, "converged");
+    iterations_a += sa.iterations;
+    iterations_b += sb.iterations;
+  }
+  RecordProperty("cg_iterations_jacobi", std::to_string(iterations_a));
+  RecordProperty("cg_iterations_laplacian", std::to_string(iterations_b));
+  EXPECT_LT((a.positions_World_mm() - b.positions_World_mm()).cwiseAbs().maxCoeff(), 1e-6);
+  // Hanging bar, tolerance 1e-10: 2160 against 1108 iterations over the 20 steps.
+  EXPECT_LT(4 * iterations_b, 3 * iterations_a) << "jacobi " << iterations_a << ", laplacian " << iterations_b;
+  EXPECT_EQ(b.refactorizations(), 1);
+  ModelConfig bad = config();
+  bad.linear_solver = "cholmod";
+  EXPECT_THROW(MassSpringModel(p, Integrator::kSemiImplicit, bad), std::invalid_argument);
+  bad.linear_solver = "laplacian";
+  EXPECT_THROW(MassSpringModel(p, Integrator::kLocalGlobal, bad), std::invalid_argument);
+}
+
 TEST(MassSpring, BadInputIsRejectedWithAReason) {
   const SimProblem p = box_problem(2, 1, 1, {20, 10, 10}, Material{}, true);
   MassSpringModel model(p, Integrator::kSemiImplicit, config());
