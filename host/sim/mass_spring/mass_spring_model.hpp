@@ -42,6 +42,12 @@
 
 namespace arnav::host {
 
+// Volume term of one tet, E(J) = kv/2 (J - 1)^2 + inversion barrier: energy (mN*mm),
+// dE/dJ and the Gauss-Newton curvature d2E/dJ2.
+double volume_energy(double J, double kv);
+double volume_slope(double J, double kv);
+double volume_curvature(double J, double kv);
+
 class MassSpringModel final : public TissueModel {
  public:
   enum class Integrator { kExplicit, kSemiImplicit, kLocalGlobal };
