@@ -33,10 +33,6 @@ ReferenceFrames::ReferenceFrames(Reference reference, std::optional<Eigen::Isome
       X_NdiCam_(std::move(X_NdiCam)),
       reference_tool_(std::move(reference_tool)),
       max_age_us_(static_cast<std::int64_t>(max_reference_age_s * 1e6)) {
-  if (reference_ != Reference::Cam && !X_NdiCam_) {
-    throw std::invalid_argument(std::string("reference frame ") + to_string(reference_) +
-                                " needs the hand-eye calibration (frames.hand_eye: X_CamNdi.yaml from `arnav-calib handeye`)");
-  }
   if (reference_ == Reference::Ref && reference_tool_.empty()) {
     throw std::invalid_argument("reference frame Ref needs frames.reference_tool: the NDI tool on the patient/organ");
   }
@@ -102,6 +98,11 @@ std::optional<Eigen::Isometry3d> ReferenceFrames::reference_at(std::int64_t time
 Converted ReferenceFrames::camera_pose(const Eigen::Isometry3d& X_CamBoard, std::int64_t capture_time_us) const {
   Converted out;
   out.frame_parent = to_string(reference_);
+  if (reference_ != Reference::Cam && !X_NdiCam_) {
+    out.reason = std::string("no hand-eye calibration: camera poses cannot be expressed in ") + to_string(reference_) +
+                 " (frames.hand_eye: X_CamNdi.yaml from `arnav-calib handeye`)";
+    return out;
+  }
   switch (reference_) {
     case Reference::Cam:
       out.X_ParentChild = X_CamBoard;

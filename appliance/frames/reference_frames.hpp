@@ -42,8 +42,9 @@ struct Converted {
 
 class ReferenceFrames {
  public:
-  // X_NdiCam: the hand-eye result, if any. Throws std::invalid_argument when the chosen
-  // reference needs a hand-eye that is missing, or Ref without a reference tool.
+  // X_NdiCam: the hand-eye result, if any (without it, camera poses can only be given in
+  // Cam: camera_pose() refuses Ndi/Ref with the reason). Throws std::invalid_argument for
+  // Ref without a reference tool.
   ReferenceFrames(Reference reference, std::optional<Eigen::Isometry3d> X_NdiCam, std::string reference_tool,
                   double max_reference_age_s);
   // Loads the hand-eye file (its name must be X_CamNdi or X_NdiCam); errors name the file.

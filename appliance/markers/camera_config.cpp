@@ -312,8 +312,12 @@ frames::FramesConfig parse_frames_config(const std::string& yaml_text, const std
   f.reference_tool = r.text(n, "frames", "reference_tool", "");
   if (n["hand_eye"]) f.hand_eye = resolve(base_dir, r.text(n, "frames", "hand_eye", ""));
   f.max_reference_age_s = r.number(n, "frames", "max_reference_age_s", f.max_reference_age_s, 0.001, 10);
-  if (f.reference != frames::Reference::Cam && f.hand_eye.empty()) {
-    r.fail(n, "frames.hand_eye", "missing: reference " + ref + " needs the hand-eye file (X_CamNdi.yaml)");
+  // The hand-eye relates the camera to the tracker: only a camera path needs it to put
+  // its poses into Ndi or Ref. An NDI-only appliance expresses its poses in Ndi or Ref
+  // without one.
+  if (f.reference != frames::Reference::Cam && f.hand_eye.empty() && root["camera"]) {
+    r.fail(n, "frames.hand_eye",
+           "missing: with a camera, reference " + ref + " needs the hand-eye file (X_CamNdi.yaml from `arnav-calib handeye`)");
   }
   if (f.reference == frames::Reference::Ref && f.reference_tool.empty()) {
     r.fail(n, "frames.reference_tool", "missing: the NDI tool that defines frame Ref");

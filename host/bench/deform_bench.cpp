@@ -147,6 +147,21 @@ std::vector<Setting> settings(bool quick, bool fine, int threads) {
       c.iterations = it;
       add("xpbd s" + std::to_string(sub) + " i" + std::to_string(it), c);
     }
+    // Small steps (Macklin et al. 2019): many substeps of one sweep each, with the
+    // fixed-corotated energy and with the stable Neo-Hookean one ("nh": one sweep per
+    // substep only).
+    if (!quick) {
+      c.iterations = 1;
+      for (int sub : {5, 10, 20, 40}) {
+        c.substeps = sub;
+        add("xpbd s" + std::to_string(sub) + " i1", c);
+      }
+      c.energy = "neo_hookean";
+      for (int sub : {5, 10, 20, 40}) {
+        c.substeps = sub;
+        add("xpbd nh s" + std::to_string(sub) + " i1", c);
+      }
+    }
   }
   if (have("mass_spring") && !quick) {
     ModelConfig c;

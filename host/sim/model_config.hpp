@@ -9,6 +9,7 @@ struct ModelConfig {
   std::string kind = "xpbd";          // "mass_spring" | "xpbd" | "corotational_fem"
   std::string integrator;             // mass_spring: "explicit" | "semi_implicit" | "local_global";
                                       // corotational_fem: "implicit_euler" | "quasi_static"
+  std::string energy{};               // xpbd: "corotated" (default when empty) | "neo_hookean"
   std::string linear_solver;          // corotational_fem: "cholmod" | "eigen_ldlt" | "pcg" | "pcg_jacobi";
                                       // mass_spring semi_implicit: "jacobi" (default) | "laplacian"
   int iterations = 10;                // XPBD iterations per substep; PCG max iterations;

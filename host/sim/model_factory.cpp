@@ -73,6 +73,11 @@ std::vector<ModelVariant> model_variants() {
     c.substeps = 4;
     c.tolerance = 0.0;
     out.push_back({"xpbd", c});
+    // Stable Neo-Hookean in SIMD batches, small steps: one sweep per substep (docs/sim.md).
+    c.energy = "neo_hookean";
+    c.iterations = 1;
+    c.substeps = 10;
+    out.push_back({"xpbd/neo_hookean", c});
   }
 #endif
 #ifdef ARNAV_SIM_HAVE_FEM

@@ -69,7 +69,13 @@ TEST(ReferenceFrames, CamAndNdiReferences) {
   ReferenceFrames ndi(Reference::Ndi, X_NdiCam, "", 0.05);
   EXPECT_EQ(ndi.camera_pose(X_CamBoard, 0).frame_parent, "Ndi");
   EXPECT_TRUE(ndi.camera_pose(X_CamBoard, 0).X_ParentChild->isApprox(X_NdiCam * X_CamBoard, 1e-9));
-  EXPECT_THROW(ReferenceFrames(Reference::Ndi, std::nullopt, "", 0.05), std::invalid_argument);
+  // Without a hand-eye, Ndi serves NDI poses as measured and refuses camera poses with the reason.
+  ReferenceFrames ndi_only(Reference::Ndi, std::nullopt, "", 0.05);
+  EXPECT_TRUE(ndi_only.ndi_pose(X_NdiTool, 0).X_ParentChild->isApprox(X_NdiTool));
+  EXPECT_EQ(ndi_only.ndi_pose(X_NdiTool, 0).frame_parent, "Ndi");
+  const Converted refused = ndi_only.camera_pose(X_CamBoard, 0);
+  EXPECT_FALSE(refused.X_ParentChild.has_value());
+  EXPECT_NE(refused.reason.find("frames.hand_eye"), std::string::npos) << refused.reason;
   EXPECT_THROW(ReferenceFrames(Reference::Ref, X_NdiCam, "", 0.05), std::invalid_argument);
   EXPECT_THROW(parse_reference("World"), std::invalid_argument);
 }

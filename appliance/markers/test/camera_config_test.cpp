@@ -83,7 +83,7 @@ TEST(CameraConfig, MistakesNameFileLineAndKey) {
 TEST(FramesConfig, ReferenceNeedsItsCalibration) {
   EXPECT_EQ(parse_frames_config("port: sim\n", "app.yaml", ".").reference, frames::Reference::Cam);
   try {
-    parse_frames_config("frames:\n  reference: Ref\n  reference_tool: ref\n", "app.yaml", ".");
+    parse_frames_config("camera:\n  source: synthetic\nframes:\n  reference: Ref\n  reference_tool: ref\n", "app.yaml", ".");
     FAIL();
   } catch (const CameraConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("frames.hand_eye"), std::string::npos) << e.what();
@@ -94,6 +94,10 @@ TEST(FramesConfig, ReferenceNeedsItsCalibration) {
   } catch (const CameraConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("app.yaml:2"), std::string::npos) << e.what();
   }
+  // NDI only: Ref (or Ndi) needs no hand-eye.
+  const auto ndi_only = parse_frames_config("port: sim\nframes:\n  reference: Ref\n  reference_tool: ref\n", "app.yaml", ".");
+  EXPECT_EQ(ndi_only.reference, frames::Reference::Ref);
+  EXPECT_TRUE(ndi_only.hand_eye.empty());
   const auto f = parse_frames_config("frames:\n  reference: Ref\n  reference_tool: ref\n  hand_eye: calib/X_CamNdi.yaml\n",
                                      "app.yaml", "/etc/arnav");
   EXPECT_EQ(f.hand_eye, std::filesystem::path("/etc/arnav/calib/X_CamNdi.yaml"));

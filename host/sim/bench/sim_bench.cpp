@@ -44,7 +44,7 @@ int main(int argc, char** argv) {
   std::vector<int> threads{1, 2};
   std::vector<std::string> models;
   int iterations = 0, substeps = 0;
-  std::string positions_csv;
+  std::string positions_csv, energy;
   double tolerance = -1.0;
   std::string scene_path;
   double damping_per_s = -1.0;
@@ -58,6 +58,7 @@ int main(int argc, char** argv) {
   app.add_option("--model", models, "variant labels (default: every variant of model_variants())");
   app.add_option("--iterations", iterations, "override iterations (XPBD sweeps per substep, CG max)");
   app.add_option("--substeps", substeps, "override substeps per frame");
+  app.add_option("--energy", energy, "override the XPBD energy (neo_hookean, corotated)");
   app.add_option("--tolerance", tolerance, "override the tolerance (early stop; 0 = run all iterations)");
   app.add_option("--positions-csv", positions_csv,
                  "write the final vertex positions (mm) of the last run to this CSV, to measure the error of a "
@@ -125,6 +126,7 @@ int main(int argc, char** argv) {
       if (substeps > 0) config.substeps = substeps;
       if (tolerance >= 0.0) config.tolerance = tolerance;
       if (!linear_solver.empty()) config.linear_solver = linear_solver;
+      if (!energy.empty() && config.kind == "xpbd") config.energy = energy;
       auto model = make_tissue_model(problem, config);
       const AttachmentId id =
           grasp_stiffness > 0.0
@@ -156,6 +158,7 @@ int main(int argc, char** argv) {
                              {"iterations", config.iterations},
                              {"substeps", config.substeps},
                              {"linear_solver", config.linear_solver},
+                             {"energy", config.energy},
                              {"median_frame_ms", median},
                              {"p90_frame_ms", percentile(ms, 0.9)},
                              {"min_frame_ms", percentile(ms, 0.0)},

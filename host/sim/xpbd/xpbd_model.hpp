@@ -1,40 +1,47 @@
 #pragma once
-// XPBD tissue model (Macklin et al. 2016) with tetrahedral strain-energy constraints of
-// the fixed-corotated hyperelastic energy (Stomakhin et al. 2012)
-//   Psi(F) = mu |F - R|_F^2 + lambda/2 (det F - 1)^2,
-// which equals linear elasticity at small strain, is invariant to rigid motion and pushes
-// inverted tets back. Per tet two constraint blocks, solved one after the other:
-//  - deviatoric: the 9 entries of C = F - R (R the polar rotation, frozen during the
-//    local solve, as in co-rotational FEM), compliance 1/(2 mu V); the 9x9 block is
-//    I3 (x) B with B = sum_a w_a b_a b_a^T, so it costs one 3x3 solve;
-//  - hydrostatic, volume preservation: C_H = det F - 1, compliance 1/(lambda V).
-// Lagrange multipliers per constraint, reset every substep; substepping; Gauss-Seidel
-// over a greedy colouring of the tets so that one colour runs in parallel without locks.
-// R comes from a warm-started rotation extraction (Mueller et al. 2016), re-initialised by
-// SVD whenever the state is set from outside (so a 180 degree rotation is not a saddle).
-// Attachments: compliant vector constraints (compliance 1/stiffness).
+// XPBD tissue model (Macklin et al. 2016) with tetrahedral strain-energy constraints,
+// substeps (small steps, Macklin et al. 2019) and Gauss-Seidel over the tets. Two energies
+// (ModelConfig::energy):
+//  - "neo_hookean": stable Neo-Hookean (Macklin & Mueller 2021), constraints |F| and
+//    det F - gamma solved per tet as one coupled 2x2 block, no polar decomposition; tets
+//    stored in SIMD batches (tet_batches.hpp). One sweep per substep only (small
+//    steps): see the constructor;
+//  - "corotated" (default): fixed-corotated Psi(F) = mu |F - R|_F^2 + lambda/2 (det F - 1)^2
+//    (Stomakhin et al. 2012), two blocks per tet solved in turn: deviatoric C = F - R
+//    (R the polar rotation, frozen during the local solve, as in co-rotational FEM; the
+//    9x9 block is I3 (x) B with B = sum_a w_a b_a b_a^T, one 3x3 solve) and hydrostatic
+//    C_H = det F - 1. R comes from a warm-started rotation extraction (Mueller et al. 2016),
+//    re-initialised by SVD whenever the state is set from outside.
+// Both equal linear elasticity with the region's E and nu at small strain, are invariant
+// to rigid motion and push inverted tets back. Lagrange multipliers per constraint, reset
+// every substep. Both run on the SIMD batches of tet_batches.hpp: the mesh is cut into two
+// halves that share no vertex (swept by two threads at once) and the interface between
+// them. Attachments: compliant vector constraints (compliance 1/stiffness).
 // Damping: Rayleigh beta as XPBD constraint damping, Rayleigh alpha on vertex velocities.
 // Frame World; units mm, kg, s, mN, kPa.
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <array>
 #include <vector>
 
 #include "host/sim/attachment_set.hpp"
-#include "host/sim/graph_coloring.hpp"
 #include "host/sim/model_config.hpp"
 #include "host/sim/step_health.hpp"
 #include "host/sim/tissue_model.hpp"
+#include "host/sim/xpbd/tet_batches.hpp"
 
 namespace arnav::host {
 
 class XpbdModel final : public TissueModel {
  public:
-  // ModelConfig: iterations per substep, substeps per step, tolerance (RMS constraint
-  // residual for an early stop; 0 = always run all iterations), threads.
+  // ModelConfig: energy ("corotated" when empty, or "neo_hookean"), iterations per
+  // substep, substeps per step, tolerance (early stop on the sweep residual, see
+  // step(); 0 = always run all iterations), threads.
   XpbdModel(const SimProblem& problem, const ModelConfig& config);
 
-  std::string name() const override { return "xpbd"; }
+  // The label of its variant in model_variants(): "xpbd" (corotated) or "xpbd/neo_hookean".
+  std::string name() const override { return neo_hookean_ ? "xpbd/neo_hookean" : "xpbd"; }
   StepSummary step(double dt_s) override;
 
   AttachmentId add_attachment(const AttachmentSpec& spec) override;
@@ -50,41 +57,40 @@ class XpbdModel final : public TissueModel {
 
   // Stored elastic energy of tets and attachments at the current state (mN*mm).
   double elastic_energy() const;
-  int num_colors() const { return coloring_.num_colors(); }
+  // Tets in half 0, in half 1 and on the interface between them: two threads sweep the
+  // halves at the same time, then one the interface (tet_batches.hpp).
+  std::array<int, 3> group_tets() const;
+  // The energy in use: "neo_hookean" or "corotated".
+  std::string energy() const { return neo_hookean_ ? "neo_hookean" : "corotated"; }
 
  private:
-  // Per-tet rest data in colour order (so one colour is a contiguous range).
-  struct TetData {
-    std::array<int, 4> v;
-    Eigen::Matrix3d Dm_inv;  // rows b_1..b_3: dF/dx_a = e_i b_a^T; b_0 = -(b_1 + b_2 + b_3)
-    Eigen::Matrix3d B;       // sum_a w_a b_a b_a^T (inverse masses; 0 for fixed vertices)
-    double volume_mm3;
-    double mu_kPa, lambda_kPa, beta_s;
-  };
+  void build_batches(const SimProblem& problem);
   void update_tet_mass_blocks();
+  // One step (substeps, sweeps, attachments) in one parallel region; returns the elastic
+  // energy of the tets and attachments and the inverted tets at its end.
+  void step_batches(double h, StepSummary& summary, bool& converged, double& energy, int& inverted);
   void reset_rotations();
   void reset_ledger();
-  // One Gauss-Seidel sweep over all tets; returns the sum of squared constraint
-  // residuals (each taken before its update).
-  double solve_tets(double h);
   int count_inverted() const;
+  double tet_energy(int* inverted) const;
   void solve_attachments(double h);
 
   ModelConfig config_;
+  bool neo_hookean_ = false;
+  int num_tets_ = 0;
   Eigen::Matrix3Xd x_, v_, x_prev_;
   Eigen::VectorXd mass_, inv_mass_, mass_damping_per_s_;
   std::vector<unsigned char> fixed_;
   Eigen::Vector3d gravity_;
   bool vessels_ignored_ = false;  // the problem declares vessels this model cannot couple
-  std::vector<TetData> tets_;           // colour order
-  std::vector<int> original_index_;     // colour order -> mesh tet index
-  std::vector<Eigen::Matrix3d> lambda_dev_;  // Lagrange multipliers of C = F - R
-  std::vector<double> lambda_vol_;           // Lagrange multipliers of C_H
-  std::vector<Eigen::Quaterniond> rotation_; // warm start of the rotation extraction
-  Coloring coloring_;
+  xpbd::TetBatches batches_;      // tets in SIMD batches: two halves + interface
+  std::array<std::vector<int>, 3> group_vertices_;  // vertices touched only by half 0, only by half 1, by both
+  bool damped_ = false;           // some region has Rayleigh beta > 0
+  std::vector<double> rotation_;  // corotated: warm start of each tet's rotation (4 x kLanes per batch)
+  std::vector<double> lambda_;    // corotated, iterations > 1: multipliers (10 x kLanes per batch)
   AttachmentSet attachments_;
-  double inverted_time_s_ = 0.0;        // how long some tets have stayed inverted
-  int inverted_at_end_ = -1;            // inverted tets after the last step; -1: unknown
+  double inverted_time_s_ = 0.0;  // how long some tets have stayed inverted
+  int inverted_at_end_ = -1;      // inverted tets after the last step; -1: unknown
   EnergyLedger ledger_;
 };
 

@@ -20,9 +20,16 @@ SimProblem box_problem(int nx, int ny, int nz, const Eigen::Vector3d& size_mm, c
   return p;
 }
 
-ModelConfig config(int iterations, int substeps = 1, int threads = 1) {
+// The Neo-Hookean energy runs one sweep per substep (small steps), so for it the same
+// work, substeps x iterations sweeps, is given as substeps.
+ModelConfig config(int iterations, int substeps = 1, int threads = 1, const std::string& energy = "") {
   ModelConfig c;
   c.kind = "xpbd";
+  c.energy = energy;
+  if (energy == "neo_hookean") {
+    substeps *= iterations;
+    iterations = 1;
+  }
   c.iterations = iterations;
   c.substeps = substeps;
   c.tolerance = 0.0;
@@ -30,11 +37,16 @@ ModelConfig config(int iterations, int substeps = 1, int threads = 1) {
   return c;
 }
 
-TEST(Xpbd, RotatedRestStateStaysAtRest) {
+// Every test below runs with both energies (ModelConfig::energy).
+class XpbdEnergy : public ::testing::TestWithParam<std::string> {};
+INSTANTIATE_TEST_SUITE_P(Energies, XpbdEnergy, ::testing::Values("neo_hookean", "corotated"));
+
+TEST_P(XpbdEnergy, RotatedRestStateStaysAtRest) {
   const SimProblem p = box_problem(4, 3, 2, {40, 30, 20}, Material{}, false);
   const Eigen::Matrix3d R = Eigen::AngleAxisd(2.1, Eigen::Vector3d(1, -2, 0.5).normalized()).toRotationMatrix();
   const Eigen::Matrix3Xd x_rot = (R * p.mesh.rest_positions_World_mm).colwise() + Eigen::Vector3d(5, -7, 11);
-  XpbdModel model(p, config(10, 2));
+  XpbdModel model(p, config(10, 2, 1, GetParam()));
+  EXPECT_EQ(model.energy(), GetParam());
   model.set_state(x_rot, Eigen::Matrix3Xd::Zero(3, x_rot.cols()));
   for (int k = 0; k < 10; ++k) {
     const StepSummary s = model.step(1.0 / 60.0);
@@ -42,7 +54,7 @@ TEST(Xpbd, RotatedRestStateStaysAtRest) {
     EXPECT_LT(s.final_residual, 1e-9);
   }
   EXPECT_LT((model.positions_World_mm() - x_rot).cwiseAbs().maxCoeff(), 1e-9);
-  EXPECT_NEAR(model.elastic_energy(), 0.0, 1e-12);
+  EXPECT_NEAR(model.elastic_energy(), 0.0, 1e-10);  // round-off of |F|^2 - 3 times mu V
   for (const ElementMeasure& m : model.element_measures()) {
     EXPECT_NEAR(m.von_mises_stress_kPa, 0.0, 1e-9);
     EXPECT_NEAR(m.volume_ratio, 1.0, 1e-12);
@@ -68,8 +80,8 @@ struct HangingBar {
   }
   // Settled positions after 1.7 s of simulated time at 60 Hz (slowest mode ~20 Hz, damped).
   // `healthy` tells whether every step reported healthy.
-  Eigen::Matrix3Xd settle(int iterations, int substeps, bool* healthy) const {
-    XpbdModel model(problem, config(iterations, substeps));
+  Eigen::Matrix3Xd settle(int iterations, int substeps, bool* healthy, const std::string& energy) const {
+    XpbdModel model(problem, config(iterations, substeps, 1, energy));
     *healthy = true;
     for (int k = 0; k < 100; ++k) *healthy = model.step(1.0 / 60.0).healthy && *healthy;
     return model.positions_World_mm();
@@ -85,10 +97,10 @@ struct HangingBar {
 // The converged static solution matches the analytic sag (discretisation error of the
 // 2x2x8 Kuhn mesh with nu = 0: stated bound 1 %), and the steady state of real-time settings
 // approaches it as the iterations per substep grow (RMS nodal distance, monotone).
-TEST(Xpbd, ConvergesTowardStaticSolutionAsIterationsGrow) {
+TEST_P(XpbdEnergy, ConvergesTowardStaticSolutionAsIterationsGrow) {
   const HangingBar bar;
   bool healthy = false;
-  const Eigen::Matrix3Xd reference = bar.settle(128, 4, &healthy);
+  const Eigen::Matrix3Xd reference = bar.settle(128, 4, &healthy, GetParam());
   EXPECT_TRUE(healthy);
   const double sag = bar.sag(reference);
   RecordProperty("converged_sag_mm", std::to_string(sag));
@@ -96,11 +108,15 @@ TEST(Xpbd, ConvergesTowardStaticSolutionAsIterationsGrow) {
   EXPECT_NEAR(sag, bar.analytic_sag_mm, 0.01 * bar.analytic_sag_mm);
   double previous = 1e9;
   for (int iterations : {2, 8, 32}) {
-    const Eigen::Matrix3Xd x = bar.settle(iterations, 4, &healthy);
+    const Eigen::Matrix3Xd x = bar.settle(iterations, 4, &healthy, GetParam());
     // Too little work settles in a wrong state that stores more energy than gravity put
     // in: the energy ledger must report it.
-    if (iterations == 2) EXPECT_FALSE(healthy);
-    if (iterations == 32) EXPECT_TRUE(healthy);
+    if (iterations == 2) {
+      EXPECT_FALSE(healthy);
+    }
+    if (iterations == 32) {
+      EXPECT_TRUE(healthy);
+    }
     const double rms_mm = std::sqrt((x - reference).colwise().squaredNorm().mean());
     RecordProperty("rms_distance_mm_at_" + std::to_string(iterations), std::to_string(rms_mm));
     EXPECT_LT(rms_mm, previous) << iterations << " iterations";
@@ -109,12 +125,12 @@ TEST(Xpbd, ConvergesTowardStaticSolutionAsIterationsGrow) {
   EXPECT_LT(previous, 0.2 * bar.analytic_sag_mm);
 }
 
-TEST(Xpbd, EnergyIsBoundedUndampedAndDissipatedWithDamping) {
+TEST_P(XpbdEnergy, EnergyIsBoundedUndampedAndDissipatedWithDamping) {
   for (double beta : {0.0, 0.01}) {
     Material m;
     m.damping_stiffness_s = beta;
     const SimProblem p = box_problem(4, 2, 2, {40, 20, 20}, m, false);
-    XpbdModel model(p, config(20, 4));
+    XpbdModel model(p, config(20, 4, 1, GetParam()));
     Eigen::Matrix3Xd x = p.mesh.rest_positions_World_mm;
     x.row(0) *= 1.05;
     model.set_state(x, Eigen::Matrix3Xd::Zero(3, x.cols()));
@@ -127,16 +143,19 @@ TEST(Xpbd, EnergyIsBoundedUndampedAndDissipatedWithDamping) {
       max_e = std::max(max_e, last);
     }
     EXPECT_LE(max_e, 1.001 * e0) << "beta " << beta;  // implicit: never gains energy
-    if (beta > 0.0) EXPECT_LT(last, 0.01 * e0);
+    if (beta > 0.0) {
+      EXPECT_LT(last, 0.01 * e0);
+    }
   }
 }
 
-TEST(Xpbd, InvertedElementsRecover) {
+TEST_P(XpbdEnergy, InvertedElementsRecover) {
   Material m;
   m.damping_mass_per_s = 10.0;
   const SimProblem p = box_problem(2, 2, 2, {20, 20, 20}, m, false);
-  XpbdModel model(p, config(20, 2));
+  XpbdModel model(p, config(20, 2, 1, GetParam()));
   Eigen::Matrix3Xd x = p.mesh.rest_positions_World_mm;
+  ASSERT_EQ(x.cols(), 27);
   x(2, box_vertex_index(2, 2, 1, 1, 1)) = 25.0;  // centre vertex pushed through the top
   model.set_state(x, Eigen::Matrix3Xd::Zero(3, x.cols()));
   const StepSummary first = model.step(1.0 / 60.0);
@@ -148,13 +167,13 @@ TEST(Xpbd, InvertedElementsRecover) {
   for (const ElementMeasure& e : model.element_measures()) EXPECT_GT(e.volume_ratio, 0.9);
 }
 
-TEST(Xpbd, AttachmentPullsAndReleaseReturnsToRest) {
+TEST_P(XpbdEnergy, AttachmentPullsAndReleaseReturnsToRest) {
   Material m;
   m.damping_mass_per_s = 10.0;
   SimProblem p = box_problem(4, 2, 2, {40, 20, 20}, m, false);
   for (int k = 0; k <= 2; ++k)
     for (int j = 0; j <= 2; ++j) p.fixed_vertices.push_back(box_vertex_index(4, 2, 0, j, k));
-  XpbdModel model(p, config(20, 2));
+  XpbdModel model(p, config(20, 2, 1, GetParam()));
   const int tip = box_vertex_index(4, 2, 4, 1, 1);
   const Eigen::Vector3d rest_tip = p.mesh.rest_positions_World_mm.col(tip);
   const AttachmentId id = model.add_attachment(
@@ -170,19 +189,102 @@ TEST(Xpbd, AttachmentPullsAndReleaseReturnsToRest) {
 
 // Colours touch disjoint vertices, so the parallel sweep computes exactly what the serial
 // sweep computes.
-TEST(Xpbd, TwoThreadsGiveTheSameResultAsOne) {
+TEST_P(XpbdEnergy, TwoThreadsGiveTheSameResultAsOne) {
   const SimProblem p = box_problem(3, 3, 3, {30, 30, 30}, Material{}, true);
   SimProblem fixed = p;
   for (int j = 0; j <= 3; ++j)
     for (int i = 0; i <= 3; ++i) fixed.fixed_vertices.push_back(box_vertex_index(3, 3, i, j, 3));
-  XpbdModel serial(fixed, config(5, 2, 1));
-  XpbdModel parallel(fixed, config(5, 2, 2));
-  EXPECT_GT(serial.num_colors(), 1);
+  XpbdModel serial(fixed, config(5, 2, 1, GetParam()));
+  XpbdModel parallel(fixed, config(5, 2, 2, GetParam()));
+  // Both halves hold tets, so the two threads really sweep at the same time.
+  const std::array<int, 3> groups = serial.group_tets();
+  EXPECT_GT(groups[0], 0);
+  EXPECT_GT(groups[1], 0);
+  EXPECT_EQ(groups[0] + groups[1] + groups[2], fixed.mesh.num_tets());
   for (int k = 0; k < 2; ++k) {
     serial.step(1.0 / 60.0);
     parallel.step(1.0 / 60.0);
   }
   EXPECT_EQ((serial.positions_World_mm() - parallel.positions_World_mm()).cwiseAbs().maxCoeff(), 0.0);
+}
+
+// Stable Neo-Hookean against linear elasticity: under a small uniaxial strain eps along x
+// (F = diag(1 + eps, 1, 1)) the energy density is (lambda + 2 mu) eps^2 / 2 and the
+// stress is sigma_xx = (lambda + 2 mu) eps, sigma_yy = sigma_zz = lambda eps, so von Mises
+// = 2 mu eps, with the Lame parameters of the region's E and nu (to first order in eps).
+TEST(XpbdNeoHookean, UniaxialStrainMatchesYoungsModulusAndPoissonRatio) {
+  for (double nu : {0.0, 0.3, 0.45}) {
+    Material m;
+    m.youngs_modulus_kPa = 12.0;
+    m.poisson_ratio = nu;
+    const SimProblem p = box_problem(3, 2, 2, {30, 20, 20}, m, false);
+    XpbdModel model(p, config(1, 1, 1, "neo_hookean"));
+    const double mu = m.youngs_modulus_kPa / (2 * (1 + nu)), lambda = m.youngs_modulus_kPa * nu / ((1 + nu) * (1 - 2 * nu));
+    const double eps = 1e-4, volume = 30.0 * 20.0 * 20.0;
+    Eigen::Matrix3Xd x = p.mesh.rest_positions_World_mm;
+    x.row(0) *= 1.0 + eps;
+    model.set_state(x, Eigen::Matrix3Xd::Zero(3, x.cols()));
+    const double expected = 0.5 * (lambda + 2 * mu) * eps * eps * volume;
+    EXPECT_NEAR(model.elastic_energy(), expected, 1e-3 * expected) << "nu " << nu;
+    for (const ElementMeasure& e : model.element_measures()) {
+      EXPECT_NEAR(e.von_mises_stress_kPa, 2 * mu * eps, 1e-3 * 2 * mu * eps) << "nu " << nu;
+      EXPECT_NEAR(e.volume_ratio, 1.0 + eps, 1e-12);
+    }
+  }
+}
+
+// The coupled 2x2 block leaves any rigid state exactly in place, also with one sweep per
+// substep (no multipliers kept) and with damping, and its correction is zero.
+TEST(XpbdNeoHookean, RotatedRestStateGetsZeroCorrection) {
+  for (double beta : {0.0, 0.02}) {
+    Material m;
+    m.damping_stiffness_s = beta;
+    const SimProblem p = box_problem(3, 3, 2, {30, 30, 20}, m, false);
+    const Eigen::Matrix3d R = Eigen::AngleAxisd(-2.7, Eigen::Vector3d(0.3, 1, -0.4).normalized()).toRotationMatrix();
+    const Eigen::Matrix3Xd x_rot = (R * p.mesh.rest_positions_World_mm).colwise() + Eigen::Vector3d(-3, 2, 40);
+    XpbdModel model(p, config(1, 10, 2, "neo_hookean"));
+    model.set_state(x_rot, Eigen::Matrix3Xd::Zero(3, x_rot.cols()));
+    for (int k = 0; k < 20; ++k) {
+      const StepSummary s = model.step(1.0 / 60.0);
+      ASSERT_TRUE(s.healthy) << s.warning;
+      EXPECT_LT(s.final_residual, 1e-12);
+      EXPECT_TRUE(s.warning.empty()) << s.warning;
+    }
+    EXPECT_LT((model.positions_World_mm() - x_rot).cwiseAbs().maxCoeff(), 1e-10) << "beta " << beta;
+    EXPECT_NEAR(model.elastic_energy(), 0.0, 1e-10);
+  }
+}
+
+// A single tet turned inside out (one vertex mirrored through the opposite face) is
+// pushed back by the hydrostatic constraint and settles at rest.
+TEST(XpbdNeoHookean, InvertedTetRecovers) {
+  SimProblem p;
+  Eigen::Matrix<double, 3, 4> rest;
+  rest << 0, 10, 0, 0, 0, 0, 10, 0, 0, 0, 0, 10;
+  p.mesh.rest_positions_World_mm = rest;
+  p.mesh.tets = {{0, 1, 2, 3}};
+  Material m;
+  m.damping_mass_per_s = 10.0;
+  p.region_materials = {m};
+  p.gravity_World_mm_s2.setZero();
+  p.fixed_vertices = {0, 1, 2};
+  XpbdModel model(p, config(1, 10, 1, "neo_hookean"));
+  Eigen::Matrix<double, 3, 4> inverted = rest;
+  inverted(2, 3) = -6.0;  // apex below the base: det F = -0.6
+  model.set_state(inverted, Eigen::Matrix3Xd::Zero(3, 4));
+  EXPECT_NE(model.step(1.0 / 60.0).warning.find("inverted tets"), std::string::npos);
+  StepSummary s;
+  for (int k = 0; k < 120; ++k) s = model.step(1.0 / 60.0);
+  EXPECT_TRUE(s.healthy) << s.warning;
+  EXPECT_LT((model.positions_World_mm() - rest).cwiseAbs().maxCoeff(), 1e-3);
+}
+
+TEST(Xpbd, UnknownEnergyOrNeoHookeanWithSeveralSweepsIsRejected) {
+  const SimProblem p = box_problem(2, 1, 1, {20, 10, 10}, Material{}, true);
+  EXPECT_THROW(XpbdModel(p, config(1, 1, 1, "neohookean")), std::invalid_argument);
+  ModelConfig c = config(1, 4, 1, "neo_hookean");
+  c.iterations = 2;
+  EXPECT_THROW(XpbdModel(p, c), std::invalid_argument);
 }
 
 TEST(Xpbd, BadInputIsRejectedWithAReason) {
