@@ -170,6 +170,11 @@ std::vector<Setting> settings(bool quick, bool fine, int threads) {
     c.tolerance = 1e-4;
     c.iterations = 20;
     add("mass_spring semi_implicit cg20", c);
+    c.linear_solver = "laplacian";  // CG preconditioned by the prefactored local/global matrix
+    c.iterations = 5;
+    add("mass_spring semi_implicit laplacian cg5", c);
+    c.linear_solver.clear();
+    c.iterations = 20;
     c.integrator = "explicit";
     c.substeps = 20;
     add("mass_spring explicit s20", c);
@@ -177,7 +182,7 @@ std::vector<Setting> settings(bool quick, bool fine, int threads) {
     c.integrator = "local_global";
     c.substeps = 1;
     c.tolerance = 0.0;
-    for (int it : {1, 2, 4}) {
+    for (int it : {1, 2, 4, 20}) {
       c.iterations = it;
       add("mass_spring local_global i" + std::to_string(it), c);
     }

@@ -7,11 +7,13 @@ namespace arnav::host {
 
 struct ModelConfig {
   std::string kind = "xpbd";          // "mass_spring" | "xpbd" | "corotational_fem"
-  std::string integrator;             // mass_spring: "explicit" | "semi_implicit";
+  std::string integrator;             // mass_spring: "explicit" | "semi_implicit" | "local_global";
                                       // corotational_fem: "implicit_euler" | "quasi_static"
   std::string energy{};               // xpbd: "corotated" (default when empty) | "neo_hookean"
-  std::string linear_solver;          // corotational_fem: "cholmod" | "eigen_ldlt" | "pcg" | "pcg_jacobi"
-  int iterations = 10;                // XPBD iterations per substep; PCG max iterations
+  std::string linear_solver;          // corotational_fem: "cholmod" | "eigen_ldlt" | "pcg" | "pcg_jacobi";
+                                      // mass_spring semi_implicit: "jacobi" (default) | "laplacian"
+  int iterations = 10;                // XPBD iterations per substep; PCG max iterations;
+                                      // mass_spring local_global: iterations per substep
   int substeps = 1;                   // substeps per step(dt)
   double tolerance = 1e-6;            // relative residual for iterative solves
   int refactor_every = 1;             // FEM: steps between numeric refactorisations

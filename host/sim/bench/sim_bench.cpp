@@ -49,6 +49,7 @@ int main(int argc, char** argv) {
   std::string scene_path;
   double damping_per_s = -1.0;
   double grasp_stiffness = 200.0;
+  std::string linear_solver;
   app.add_option("--nx", nx, "cells along x (6 tets per cell)")->check(CLI::PositiveNumber);
   app.add_option("--ny", ny, "cells along y")->check(CLI::PositiveNumber);
   app.add_option("--nz", nz, "cells along z")->check(CLI::PositiveNumber);
@@ -69,6 +70,9 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber);
   app.add_option("--grasp-stiffness", grasp_stiffness, "stiffness of the grasp in mN/mm (0: no grasp, gravity only)")
       ->check(CLI::NonNegativeNumber);
+  app.add_option("--linear-solver", linear_solver,
+                 "override the linear solver (corotational_fem: cholmod, pcg, ...; mass_spring/semi_implicit: jacobi, "
+                 "laplacian)");
   CLI11_PARSE(app, argc, argv);
 
   SimProblem problem;
@@ -121,6 +125,7 @@ int main(int argc, char** argv) {
       if (iterations > 0) config.iterations = iterations;
       if (substeps > 0) config.substeps = substeps;
       if (tolerance >= 0.0) config.tolerance = tolerance;
+      if (!linear_solver.empty()) config.linear_solver = linear_solver;
       if (!energy.empty() && config.kind == "xpbd") config.energy = energy;
       auto model = make_tissue_model(problem, config);
       const AttachmentId id =
@@ -152,6 +157,7 @@ int main(int argc, char** argv) {
                              {"threads", t},
                              {"iterations", config.iterations},
                              {"substeps", config.substeps},
+                             {"linear_solver", config.linear_solver},
                              {"energy", config.energy},
                              {"median_frame_ms", median},
                              {"p90_frame_ms", percentile(ms, 0.9)},

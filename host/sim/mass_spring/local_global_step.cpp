@@ -133,7 +133,7 @@ StepSummary MassSpringModel::local_global_substep(double h) {
       break;
     }
     // Global step: one back-substitution pair for the three coordinates.
-    system_.solve(lg_rhs_, lg_dx_);
+    system_.solve(lg_rhs_, lg_dx_, threads_);
 #pragma omp parallel for num_threads(threads_) if (threads_ > 1) schedule(static)
     for (int i = 0; i < n; ++i) {
       const int fi = free_index_[static_cast<std::size_t>(i)];

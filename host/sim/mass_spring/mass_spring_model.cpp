@@ -107,6 +107,38 @@ double dot(int threads, const Eigen::Matrix3Xd& a, const Eigen::Matrix3Xd& b) {
 constexpr double kInversionGrace_s = 1.0;
 // Modulus of the volume term as a fraction of E (see the header).
 constexpr double kVolumeModulusPerE = 0.5;
+// Inversion barrier of the volume term. Below J = kBarrierJ the tet also stores
+// kb/2 (kBarrierJ - J)^2, kb = kBarrierPerVolumeStiffness * kv, continued linearly more
+// than kBarrierDepth below kBarrierJ (the restoring force is capped at kb * depth * |dJ/dx|).
+// Why: springs keep an inverted tet in a local minimum (mirrored through a face it keeps
+// its edge lengths, and the springs around it resist the way back through the flat state
+// more than kv/2 (J - 1)^2 pushes). In the deform bench's lobe_pull 10 tets at the grasp
+// stayed inverted with either implicit integrator; with the barrier 2 (tets held by
+// competing attachments). The cap keeps the local/global integrator stable: its constant
+// matrix does not bound the barrier, and uncapped forces from deeply inverted tets (a
+// vertex pushed two cells through the mesh) made it diverge.
+constexpr double kBarrierJ = 0.1;
+constexpr double kBarrierPerVolumeStiffness = 10.0;
+constexpr double kBarrierDepth = 0.5;
+
+}  // namespace
+
+double volume_energy(double J, double kv) {
+  const double below = std::max(0.0, kBarrierJ - J);
+  const double b = below <= kBarrierDepth ? 0.5 * below * below : kBarrierDepth * (below - 0.5 * kBarrierDepth);
+  return kv * (0.5 * (J - 1.0) * (J - 1.0) + kBarrierPerVolumeStiffness * b);
+}
+double volume_slope(double J, double kv) {
+  const double below = std::max(0.0, kBarrierJ - J);
+  return kv * ((J - 1.0) - kBarrierPerVolumeStiffness * std::min(below, kBarrierDepth));
+}
+double volume_curvature(double J, double kv) {
+  const double below = kBarrierJ - J;
+  return kv * (1.0 + (below > 0.0 && below <= kBarrierDepth ? kBarrierPerVolumeStiffness : 0.0));
+}
+
+namespace {
+
 // Relative CG residual above which a semi-implicit step is reported as not converged.
 constexpr double kUnconvergedResidual = 0.01;
 
@@ -115,6 +147,13 @@ constexpr double kUnconvergedResidual = 0.01;
 MassSpringModel::MassSpringModel(const SimProblem& problem, Integrator integrator, const ModelConfig& config)
     : integrator_(integrator), config_(config), threads_(config.threads) {
   check_iterative_config(config, "mass_spring");  // iterations: CG iterations per substep
+  if (config.linear_solver == "laplacian" && integrator == Integrator::kSemiImplicit) {
+    laplacian_pc_ = true;
+  } else if (!config.linear_solver.empty() && !(config.linear_solver == "jacobi" && integrator == Integrator::kSemiImplicit)) {
+    throw std::invalid_argument("mass_spring: linear_solver '" + config.linear_solver +
+                                "' is unknown for this integrator: semi_implicit takes jacobi (default) or laplacian; "
+                                "explicit and local_global take none");
+  }
   const TetMesh& mesh = problem.mesh;
   mass_ = checked_masses_kg(problem, "mass_spring");
   const int n = mesh.num_vertices();
@@ -307,16 +346,18 @@ void MassSpringModel::assemble(double h) {
     g[2] = s6 * e3.cross(e1);
     g[3] = s6 * e1.cross(e2);
     g[0] = -(g[1] + g[2] + g[3]);
-    const double f = -kv * (e1.dot(g[1]) - 1.0);
+    const double J = e1.dot(g[1]);
+    const double f = -volume_slope(J, kv);
     if (!implicit) {
       for (int a = 0; a < 4; ++a) c[a] = f * g[a];
       return true;
     }
     double gv = 0.0;
     for (int a = 0; a < 4; ++a) gv += g[a].dot(v_.col(tets_[t][a]));
+    const double curvature = volume_curvature(J, kv);
     vol_grad_[t] = g;
-    vol_coef_[t] = h * h * kv;
-    for (int a = 0; a < 4; ++a) c[a] = (h * f - h * h * kv * gv) * g[a];
+    vol_coef_[t] = h * h * curvature;
+    for (int a = 0; a < 4; ++a) c[a] = (h * f - h * h * curvature * gv) * g[a];
     return true;
   });
   const int n = static_cast<int>(x_.cols());
@@ -428,7 +469,38 @@ double MassSpringModel::apply_system(const Eigen::Matrix3Xd& p, Eigen::Matrix3Xd
   return pq;
 }
 
+void MassSpringModel::precondition_with_laplacian(const Eigen::Matrix3Xd& r, Eigen::Matrix3Xd& z, double h) {
+  // The CG matrix is M + hC + h^2 K (velocity form) and the local/global matrix A bounds
+  // M/h^2 + C/h + K from above (docs/sim.md), so z = A^-1 r / h^2 (fixed rows zero).
+  const int n = static_cast<int>(r.cols());
+  for (int i = 0; i < n; ++i) {
+    const int fi = free_index_[static_cast<std::size_t>(i)];
+    if (fi >= 0) lg_rhs_.row(fi) = r.col(i).transpose();
+  }
+  system_.solve(lg_rhs_, lg_dx_, threads_);
+  const double inv_h2 = 1.0 / (h * h);
+  for (int i = 0; i < n; ++i) {
+    const int fi = free_index_[static_cast<std::size_t>(i)];
+    if (fi >= 0) {
+      z.col(i) = inv_h2 * lg_dx_.row(fi).transpose();
+    } else {
+      z.col(i).setZero();
+    }
+  }
+}
+
 StepSummary MassSpringModel::semi_implicit_substep(double h) {
+  if (laplacian_pc_ && (system_dirty_ || h != system_h_)) {
+    std::string error;
+    StepSummary failed;
+    if (!build_local_global_system(h, error)) {
+      failed.healthy = false;
+      failed.termination = "factorization_failed";
+      failed.warning = "semi_implicit (laplacian preconditioner): " + error;
+      return failed;
+    }
+    ++refactorizations_;
+  }
   current_h_ = h;
   assemble(h);
   const int n = static_cast<int>(x_.cols());
@@ -466,7 +538,11 @@ StepSummary MassSpringModel::semi_implicit_substep(double h) {
   if (r_norm <= config_.tolerance * denom) {
     s.termination = "converged";
   } else {
-    z_ = r_.cwiseQuotient(diag_);
+    if (laplacian_pc_) {
+      precondition_with_laplacian(r_, z_, h);
+    } else {
+      z_ = r_.cwiseQuotient(diag_);
+    }
     p_ = z_;
     double rz = dot(threads_, r_, z_);
     const int nc = static_cast<int>(r_.size());
@@ -492,6 +568,10 @@ StepSummary MassSpringModel::semi_implicit_substep(double h) {
         Z[k] = R[k] / D[k];
         rr += R[k] * R[k];
         rz_new += R[k] * Z[k];
+      }
+      if (laplacian_pc_) {
+        precondition_with_laplacian(r_, z_, h);
+        rz_new = dot(threads_, r_, z_);
       }
       ++s.iterations;
       r_norm = std::sqrt(rr);
@@ -608,8 +688,7 @@ MassSpringModel::StateMeasure MassSpringModel::measure_state() const {
     const Eigen::Vector3d x0 = x_.col(v[0]);
     const double six_v = (x_.col(v[1]) - x0).dot((x_.col(v[2]) - x0).cross(x_.col(v[3]) - x0));
     if (!(six_v > 0.0)) ++inverted;
-    const double dJ = six_v * inv_6v0_[t] - 1.0;
-    e += 0.5 * volume_stiffness_[t] * dJ * dJ;
+    e += volume_energy(six_v * inv_6v0_[t], volume_stiffness_[t]);
   }
   return {e + attachments_.energy(x_), inverted};
 }

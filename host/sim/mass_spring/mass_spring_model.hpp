@@ -19,7 +19,8 @@
 //    per substep, (M - hC - h^2 K) dv = h (f + h K v), solved by Jacobi-preconditioned CG
 //    (ModelConfig::iterations, tolerance). The spring tangent drops the compressive part
 //    of the geometric stiffness so the matrix stays SPD: unconditionally stable for any
-//    dt, with numerical damping that grows with dt.
+//    dt, with numerical damping that grows with dt. linear_solver "laplacian" replaces the
+//    Jacobi preconditioner by the prefactored local/global matrix below.
 //  - "local_global": backward Euler solved by `iterations` local/global iterations with a
 //    constant matrix factored once by CHOLMOD (fast mass-spring, Liu et al. 2013; see
 //    local_global_step.cpp). Refactored only when h, the fixed set or the attachments
@@ -40,6 +41,12 @@
 #include "host/sim/tissue_model.hpp"
 
 namespace arnav::host {
+
+// Volume term of one tet, E(J) = kv/2 (J - 1)^2 + inversion barrier: energy (mN*mm),
+// dE/dJ and the Gauss-Newton curvature d2E/dJ2.
+double volume_energy(double J, double kv);
+double volume_slope(double J, double kv);
+double volume_curvature(double J, double kv);
 
 class MassSpringModel final : public TissueModel {
  public:
@@ -74,6 +81,8 @@ class MassSpringModel final : public TissueModel {
   void explicit_substep(double h);
   StepSummary semi_implicit_substep(double h);
   StepSummary local_global_substep(double h);
+  // semi_implicit with linear_solver "laplacian": z = (h^2 A)^-1 r with the local/global matrix.
+  void precondition_with_laplacian(const Eigen::Matrix3Xd& r, Eigen::Matrix3Xd& z, double h);
   bool build_local_global_system(double h, std::string& error);
   // Accumulates spring (and attachment) forces into f_ (3 x n), gravity and mass damping
   // included; with h > 0 also fills the per-spring tangent data and the CG right-hand side.
@@ -91,6 +100,7 @@ class MassSpringModel final : public TissueModel {
 
   Integrator integrator_;
   ModelConfig config_;
+  bool laplacian_pc_ = false;  // semi_implicit: CG preconditioned by the prefactored Laplacian
   int threads_;
   Eigen::Matrix3Xd x_, v_;
   Eigen::VectorXd mass_, inv_mass_, mass_damping_;  // mass_damping_: Rayleigh alpha * m (kg/s)

@@ -24,7 +24,9 @@ class PrefactoredSystem {
   // Returns false (and message()) when A is not positive definite.
   bool factorize(const Matrix& A_lower);
   // x = A^-1 b for the three columns of b (n x 3). Needs a successful factorize().
-  void solve(const Eigen::MatrixX3d& b, Eigen::MatrixX3d& x) const;
+  // With threads >= 2 one thread solves x and y, another z (the factor is shared, read
+  // only; each thread has its own CHOLMOD workspace).
+  void solve(const Eigen::MatrixX3d& b, Eigen::MatrixX3d& x, int threads = 1);
 
   bool ready() const { return ready_; }
   const std::string& message() const { return message_; }
