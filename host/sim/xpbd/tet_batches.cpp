@@ -8,10 +8,14 @@
 
 #include <cstring>
 
+// (Defined empty from the command line, the file builds for the compiler's target only:
+// used to measure what each instruction set buys, docs/benchmarks.md.)
+#ifndef ARNAV_XPBD_CLONES
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
 #define ARNAV_XPBD_CLONES __attribute__((target_clones("default", "arch=x86-64-v3", "arch=x86-64-v4")))
 #else
 #define ARNAV_XPBD_CLONES
+#endif
 #endif
 
 // Helpers are forced inline so that they are compiled into each target clone (a helper

@@ -37,12 +37,13 @@ struct alignas(64) TetBatch {
 
 // The tets of a mesh in batches whose kLanes tets touch distinct vertices, grouped:
 // batches [group_begin[g], group_begin[g+1]) hold group g = 0, 1 (the two halves of the
-// mesh, which share no vertex) and 2 (the interface tets touching both halves).
+// mesh, which share no vertex), 2, 3 (the two sides of the interface between the halves,
+// which share no vertex either) and 4 (the seam: interface tets touching both sides).
 struct TetBatches {
   std::vector<TetBatch> batches;
   std::vector<int> count;         // used lanes per batch
   std::vector<int> tet;           // batch * kLanes + lane -> mesh tet index (-1 unused)
-  std::array<int, 4> group_begin{};
+  std::array<int, 6> group_begin{};
 };
 
 struct SweepParams {

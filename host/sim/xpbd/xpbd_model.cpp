@@ -34,6 +34,48 @@ constexpr double kInversionGrace_s = 1.0;
 // RMS constraint residual (strain units) above which the step is reported as not converged.
 constexpr double kUnconvergedResidual = 0.01;
 
+std::vector<int> all_tets(int nt) {
+  std::vector<int> out(static_cast<std::size_t>(nt));
+  for (int t = 0; t < nt; ++t) out[static_cast<std::size_t>(t)] = t;
+  return out;
+}
+
+// Cuts the tets `set` at the median centroid along the longest axis of their centroids:
+// [0] and [1] the tets of each side that touch only vertices no tet of the other side
+// touches (they share no vertex), [2] the rest (touching the cut). touched[v] receives
+// bit 0 / bit 1 for vertices touched by a tet of side 0 / side 1 (0: not in the set).
+std::array<std::vector<int>, 3> split_tets(const TetMesh& mesh, const std::vector<int>& set,
+                                           std::vector<unsigned char>& touched) {
+  std::array<std::vector<int>, 3> out;
+  touched.assign(static_cast<std::size_t>(mesh.num_vertices()), 0);
+  if (set.empty()) return out;
+  std::vector<Eigen::Vector3d> centroid(set.size(), Eigen::Vector3d::Zero());
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(HUGE_VAL), hi = -lo;
+  for (std::size_t k = 0; k < set.size(); ++k) {
+    for (int v : mesh.tets[static_cast<std::size_t>(set[k])]) centroid[k] += 0.25 * mesh.rest_positions_World_mm.col(v);
+    lo = lo.cwiseMin(centroid[k]);
+    hi = hi.cwiseMax(centroid[k]);
+  }
+  const Eigen::Vector3d extent = hi - lo;
+  const int axis = extent.x() >= extent.y() && extent.x() >= extent.z() ? 0 : (extent.y() >= extent.z() ? 1 : 2);
+  std::vector<double> key(set.size());
+  for (std::size_t k = 0; k < set.size(); ++k) key[k] = centroid[k][axis];
+  std::vector<double> sorted = key;
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(set.size() / 2), sorted.end());
+  const double cut = sorted[set.size() / 2];
+  for (std::size_t k = 0; k < set.size(); ++k) {
+    const unsigned bit = key[k] < cut ? 1u : 2u;
+    for (int v : mesh.tets[static_cast<std::size_t>(set[k])]) touched[static_cast<std::size_t>(v)] |= static_cast<unsigned char>(bit);
+  }
+  for (std::size_t k = 0; k < set.size(); ++k) {
+    std::size_t g = key[k] < cut ? 0 : 1;
+    for (int v : mesh.tets[static_cast<std::size_t>(set[k])])
+      if (touched[static_cast<std::size_t>(v)] == 3) g = 2;
+    out[g].push_back(set[k]);
+  }
+  return out;
+}
+
 }  // namespace
 
 XpbdModel::XpbdModel(const SimProblem& problem, const ModelConfig& config) : config_(config) {
@@ -78,41 +120,16 @@ void XpbdModel::build_batches(const SimProblem& problem) {
   const TetMesh& mesh = problem.mesh;
   using xpbd::kLanes;
   const int n = mesh.num_vertices(), nt = mesh.num_tets();
-  // Two halves split at the median tet centroid along the longest axis of the body; a
-  // tet whose vertices are all touched only by tets of its own half is interior to it,
-  // every other tet belongs to the interface. The halves share no vertex, so two threads
-  // sweep them at the same time without colours or barriers; the interface (a thin layer
-  // along the cut) follows on one thread. The split does not depend on the thread count,
-  // so 1 and 2 threads compute the same positions.
-  std::vector<Eigen::Vector3d> centroid(static_cast<std::size_t>(nt), Eigen::Vector3d::Zero());
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(HUGE_VAL), hi = -lo;
-  for (int t = 0; t < nt; ++t) {
-    Eigen::Vector3d& c = centroid[static_cast<std::size_t>(t)];
-    for (int v : mesh.tets[t]) c += 0.25 * x_.col(v);
-    lo = lo.cwiseMin(c);
-    hi = hi.cwiseMax(c);
-  }
-  const Eigen::Vector3d extent = hi - lo;
-  const int axis = extent.x() >= extent.y() && extent.x() >= extent.z() ? 0 : (extent.y() >= extent.z() ? 1 : 2);
-  std::vector<double> key(static_cast<std::size_t>(nt));
-  for (int t = 0; t < nt; ++t) key[static_cast<std::size_t>(t)] = centroid[static_cast<std::size_t>(t)][axis];
-  std::vector<double> sorted = key;
-  std::nth_element(sorted.begin(), sorted.begin() + nt / 2, sorted.end());
-  const double cut = sorted[static_cast<std::size_t>(nt / 2)];
-  std::vector<unsigned char> half(static_cast<std::size_t>(nt)), touched(static_cast<std::size_t>(n), 0);
-  for (int t = 0; t < nt; ++t) {
-    half[static_cast<std::size_t>(t)] = key[static_cast<std::size_t>(t)] < cut ? 0 : 1;
-    for (int v : mesh.tets[t]) touched[static_cast<std::size_t>(v)] |= static_cast<unsigned char>(1u << half[static_cast<std::size_t>(t)]);
-  }
-  std::array<std::vector<std::array<int, 4>>, 3> group_tets;
-  std::array<std::vector<int>, 3> group_index;
-  for (int t = 0; t < nt; ++t) {
-    int g = half[static_cast<std::size_t>(t)];
-    for (int v : mesh.tets[t])
-      if (touched[static_cast<std::size_t>(v)] == 3) g = 2;
-    group_tets[static_cast<std::size_t>(g)].push_back(mesh.tets[t]);
-    group_index[static_cast<std::size_t>(g)].push_back(t);
-  }
+  // The tets are cut at the median centroid along the longest axis into two halves
+  // whose interiors (tets touching only vertices of their own half) share no vertex, so
+  // two threads sweep them at the same time without colours or barriers. The interface
+  // (tets touching the cut) is cut the same way once more: its two interiors run in
+  // parallel too, and only what touches both (a thin seam) runs on one thread. The cuts
+  // do not depend on the thread count, so 1 and 2 threads compute the same positions.
+  std::vector<unsigned char> touched, unused;
+  const std::array<std::vector<int>, 3> first = split_tets(mesh, all_tets(nt), touched);
+  const std::array<std::vector<int>, 3> second = split_tets(mesh, first[2], unused);
+  const std::array<const std::vector<int>*, 5> groups = {&first[0], &first[1], &second[0], &second[1], &second[2]};
   for (auto& list : group_vertices_) list.clear();
   for (int v = 0; v < n; ++v) group_vertices_[static_cast<std::size_t>(touched[static_cast<std::size_t>(v)] - 1)].push_back(v);
 
@@ -123,8 +140,10 @@ void XpbdModel::build_batches(const SimProblem& problem) {
   nb.count.clear();
   nb.tet.clear();
   nb.group_begin[0] = 0;
-  for (std::size_t g = 0; g < 3; ++g) {
-    const Coloring col = greedy_vertex_coloring(group_tets[g], n);
+  for (std::size_t g = 0; g < groups.size(); ++g) {
+    std::vector<std::array<int, 4>> group_tets;
+    for (int t : *groups[g]) group_tets.push_back(mesh.tets[t]);
+    const Coloring col = greedy_vertex_coloring(group_tets, n);
     for (int c = 0; c < col.num_colors(); ++c) {
       for (int k = col.color_offsets[c]; k < col.color_offsets[c + 1]; ++k) {
         const int slot = k - col.color_offsets[c], l = slot % kLanes;
@@ -134,7 +153,7 @@ void XpbdModel::build_batches(const SimProblem& problem) {
           nb.tet.insert(nb.tet.end(), kLanes, -1);
         }
         const std::size_t bi = nb.batches.size() - 1;
-        const int t = group_index[g][static_cast<std::size_t>(col.order[static_cast<std::size_t>(k)])];
+        const int t = (*groups[g])[static_cast<std::size_t>(col.order[static_cast<std::size_t>(k)])];
         nb.tet[bi * kLanes + static_cast<std::size_t>(l)] = t;
         nb.count[bi] = l + 1;
         const int region = mesh.tet_region.empty() ? 0 : mesh.tet_region[t];
@@ -188,9 +207,9 @@ void XpbdModel::build_batches(const SimProblem& problem) {
   }
 }
 
-std::array<int, 3> XpbdModel::group_tets() const {
-  std::array<int, 3> out{};
-  for (std::size_t g = 0; g < 3; ++g)
+std::array<int, 5> XpbdModel::group_tets() const {
+  std::array<int, 5> out{};
+  for (std::size_t g = 0; g < 5; ++g)
     for (int bi = batches_.group_begin[g]; bi < batches_.group_begin[g + 1]; ++bi)
       out[g] += batches_.count[static_cast<std::size_t>(bi)];
   return out;
@@ -286,7 +305,7 @@ void XpbdModel::step_batches(double h, StepSummary& summary, bool& converged, do
   // Residual normalisation: Neo-Hookean, RMS over tets of |dF|; corotated, RMS over its
   // 10 constraints per tet.
   const double constraints = static_cast<double>(num_tets_) * (neo_hookean_ ? 1.0 : 10.0);
-  const std::array<int, 4> group = batches_.group_begin;
+  const std::array<int, 6> group = batches_.group_begin;
   xpbd::SweepParams params;
   params.h_s = h;
   params.damped = damped_;
@@ -315,10 +334,11 @@ void XpbdModel::step_batches(double h, StepSummary& summary, bool& converged, do
   std::array<double, 16> partial{};
   std::array<int, 32> partial_inverted{};
   bool stop = false;
-  // One parallel region for the whole step. Thread d owns half d: it moves the vertices
-  // only half d touches (prediction, sweep, velocity) with no synchronisation; thread 0
-  // also owns the vertices on the cut and sweeps the interface and the attachments while
-  // the other waits. Two barriers per sweep.
+  // One parallel region for the whole step. Thread d owns half d: it predicts and updates
+  // the velocities of the vertices only half d touches and sweeps the interior of half d
+  // with no synchronisation; thread 0 also owns the vertices on the cut. After a barrier
+  // the two threads sweep the two sides of the interface, after another thread 0 sweeps
+  // the seam and the attachments while the other waits. Three barriers per sweep.
 #pragma omp parallel num_threads(threads) if (threads > 1)
   {
     const int tid = omp_get_thread_num(), nt = omp_get_num_threads();
@@ -346,15 +366,19 @@ void XpbdModel::step_batches(double h, StepSummary& summary, bool& converged, do
       }
       if (tid == 0) {
         predict(group_vertices_[2]);
-        clear_multipliers(2);
+        for (std::size_t k = 2; k < 5; ++k) clear_multipliers(k);
       }
       for (int it = 0; it < config_.iterations; ++it) {
+        // Phase 1: the two halves; phase 2: the two sides of the interface; phase 3:
+        // the seam, the attachments and the residual on thread 0.
         double correction = 0.0;
         for (int d = tid; d < 2; d += nt) correction += solve(group[static_cast<std::size_t>(d)], group[static_cast<std::size_t>(d) + 1]);
+#pragma omp barrier
+        for (int d = tid; d < 2; d += nt) correction += solve(group[static_cast<std::size_t>(d) + 2], group[static_cast<std::size_t>(d) + 3]);
         partial[static_cast<std::size_t>(8 * tid)] = correction;
 #pragma omp barrier
         if (tid == 0) {
-          double sum = solve(group[2], group[3]);
+          double sum = solve(group[4], group[5]);
           if (it == 0)
             for (int id : attachments_.active()) attachments_[id].lambda.setZero();
           solve_attachments(h);
@@ -376,7 +400,7 @@ void XpbdModel::step_batches(double h, StepSummary& summary, bool& converged, do
     }
 #pragma omp barrier
     // Energy and inverted tets at the end of the step, in the same region.
-    const int num_batches = group[3];
+    const int num_batches = group[5];
     const int b0 = static_cast<int>(static_cast<long>(num_batches) * tid / nt);
     const int b1 = static_cast<int>(static_cast<long>(num_batches) * (tid + 1) / nt);
     int bad = 0;
@@ -455,7 +479,7 @@ int XpbdModel::count_inverted() const {
 }
 
 double XpbdModel::tet_energy(int* inverted) const {
-  const int end = batches_.group_begin[3];
+  const int end = batches_.group_begin[5];
   return neo_hookean_ ? xpbd::nh_energy(batches_.batches.data(), batches_.count.data(), 0, end, x_.data(), inverted)
                       : xpbd::corotated_energy(batches_.batches.data(), batches_.count.data(), 0, end, x_.data(),
                                                rotation_.data(), inverted);

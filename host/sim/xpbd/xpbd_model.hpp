@@ -57,9 +57,9 @@ class XpbdModel final : public TissueModel {
 
   // Stored elastic energy of tets and attachments at the current state (mN*mm).
   double elastic_energy() const;
-  // Tets in half 0, in half 1 and on the interface between them: two threads sweep the
-  // halves at the same time, then one the interface (tet_batches.hpp).
-  std::array<int, 3> group_tets() const;
+  // Tets per group of the parallel sweep (tet_batches.hpp): the two halves (swept by two
+  // threads at once), the two sides of their interface (likewise), the seam (one thread).
+  std::array<int, 5> group_tets() const;
   // The energy in use: "neo_hookean" or "corotated".
   std::string energy() const { return neo_hookean_ ? "neo_hookean" : "corotated"; }
 
