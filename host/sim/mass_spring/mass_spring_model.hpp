@@ -134,6 +134,9 @@ class MassSpringModel final : public TissueModel {
 
   // local_global: the constant matrix over the free vertices and its factor.
   PrefactoredSystem system_;
+  PrefactoredSystem::Matrix base_;  // masses, springs, volume terms (lower), for base_h_
+  bool base_valid_ = false;         // false after set_fixed_vertices
+  double base_h_ = 0.0;
   bool system_dirty_ = true;
   double system_h_ = 0.0;
   int refactorizations_ = 0;
