@@ -45,6 +45,8 @@ AppConfig parse_config(const std::string& text, const std::string& source, const
   if (!root["port"] && root["camera"] && !root["tools"]) {  // camera-only appliance
     c.ndi_enabled = false;
     if (root["lcm_url"]) c.lcm_url = r.get<std::string>(root["lcm_url"], "lcm_url", "a string");
+    if (root["realtime"])
+      r.fail(root["realtime"], "realtime", "applies to the NDI polling thread, and this configuration has no NDI 'port' (camera only)");
     return c;
   }
   if (!root["port"]) r.fail(root, "port", "missing: give a serial port path (e.g. /dev/ttyUSB0) or 'sim'");

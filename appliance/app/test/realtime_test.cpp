@@ -95,6 +95,8 @@ TEST(Realtime, ConfigErrorsNameKeyAndLine) {
   EXPECT_NE(error_of(kBase + "realtime: {cpu_latency_us: -5}\n").find("key 'realtime.cpu_latency_us'"), std::string::npos);
   EXPECT_NE(error_of(kBase + "realtime:\n  nice: 3\n").find("cfg.yaml:5: key 'realtime.nice': unknown key"), std::string::npos);
   EXPECT_NE(error_of(kBase + "realtime: fast\n").find("key 'realtime'"), std::string::npos);
+  EXPECT_NE(error_of("camera:\n  source: synthetic\nrealtime: {priority: 50}\n").find("cfg.yaml:3: key 'realtime': applies to the NDI"),
+            std::string::npos);
 }
 
 }  // namespace

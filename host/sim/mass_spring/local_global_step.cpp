@@ -34,53 +34,74 @@ constexpr double kLocalGlobalVolumeWeight = 1.5;
 
 bool MassSpringModel::build_local_global_system(double h, std::string& error) {
   const int n = static_cast<int>(x_.cols());
-  free_index_.assign(static_cast<std::size_t>(n), -1);
-  int nf = 0;
-  for (int i = 0; i < n; ++i)
-    if (!fixed_[static_cast<std::size_t>(i)]) free_index_[static_cast<std::size_t>(i)] = nf++;
+  // The part from masses, springs and volume terms changes only with h and the fixed set;
+  // attachments are added to it here (a grasp costs a sparse sum and a numeric
+  // factorisation, not a new assembly).
+  if (!base_valid_ || h != base_h_) {
+    free_index_.assign(static_cast<std::size_t>(n), -1);
+    int nf = 0;
+    for (int i = 0; i < n; ++i)
+      if (!fixed_[static_cast<std::size_t>(i)]) free_index_[static_cast<std::size_t>(i)] = nf++;
+    std::vector<Eigen::Triplet<double>> trip;
+    trip.reserve(static_cast<std::size_t>(nf + 3 * springs_.size() + 10 * static_cast<int>(tets_.size())));
+    auto add = [&](int a, int b, double w) {  // lower triangle, free vertices only
+      const int fa = free_index_[static_cast<std::size_t>(a)], fb = free_index_[static_cast<std::size_t>(b)];
+      if (fa < 0 || fb < 0) return;
+      trip.emplace_back(std::max(fa, fb), std::min(fa, fb), w);
+    };
+    for (int i = 0; i < n; ++i) add(i, i, mass_[i] / (h * h) + mass_damping_[i] / h);
+    for (int s = 0; s < springs_.size(); ++s) {
+      const int i = springs_.ends[s][0], j = springs_.ends[s][1];
+      const double w = springs_.stiffness_mN_per_mm[s] + springs_.damping_mN_s_per_mm[s] / h;
+      add(i, i, w);
+      add(j, j, w);
+      add(i, j, -w);  // also keeps every spring pair in the pattern
+    }
+    for (std::size_t t = 0; t < tets_.size(); ++t) {
+      const double kv = kLocalGlobalVolumeWeight * volume_stiffness_[t];
+      if (kv <= 0.0) continue;
+      std::array<Eigen::Vector3d, 4> b;
+      for (int a = 1; a < 4; ++a) b[a] = Dm_inv_[t].row(a - 1).transpose();
+      b[0] = -(b[1] + b[2] + b[3]);
+      for (int a = 0; a < 4; ++a)
+        for (int c = 0; c <= a; ++c) add(tets_[t][a], tets_[t][c], kv * b[a].dot(b[c]));
+    }
+    base_.resize(nf, nf);
+    base_.setFromTriplets(trip.begin(), trip.end());
+    base_h_ = h;
+    base_valid_ = true;
+    lg_rhs_.resize(nf, 3);
+    lg_dx_.resize(nf, 3);
+  }
   std::vector<Eigen::Triplet<double>> trip;
-  trip.reserve(static_cast<std::size_t>(nf + 2 * springs_.size() + 10 * static_cast<int>(tets_.size())));
-  auto add = [&](int a, int b, double w) {  // lower triangle, free vertices only
-    const int fa = free_index_[static_cast<std::size_t>(a)], fb = free_index_[static_cast<std::size_t>(b)];
-    if (fa < 0 || fb < 0) return;
-    trip.emplace_back(std::max(fa, fb), std::min(fa, fb), w);
-  };
-  for (int i = 0; i < n; ++i) add(i, i, mass_[i] / (h * h) + mass_damping_[i] / h);
-  for (int s = 0; s < springs_.size(); ++s) {
-    const int i = springs_.ends[s][0], j = springs_.ends[s][1];
-    const double w = springs_.stiffness_mN_per_mm[s] + springs_.damping_mN_s_per_mm[s] / h;
-    add(i, i, w);
-    add(j, j, w);
-    add(i, j, -w);  // also keeps every spring pair in the pattern
-  }
-  for (std::size_t t = 0; t < tets_.size(); ++t) {
-    const double kv = kLocalGlobalVolumeWeight * volume_stiffness_[t];
-    if (kv <= 0.0) continue;
-    std::array<Eigen::Vector3d, 4> b;
-    for (int a = 1; a < 4; ++a) b[a] = Dm_inv_[t].row(a - 1).transpose();
-    b[0] = -(b[1] + b[2] + b[3]);
-    for (int a = 0; a < 4; ++a)
-      for (int c = 0; c <= a; ++c) add(tets_[t][a], tets_[t][c], kv * b[a].dot(b[c]));
-  }
   for (int id : attachments_.active()) {
     const Attachment& at = attachments_[id];
     for (int a = 0; a < at.count; ++a)
       for (int c = 0; c <= a; ++c) {
+        const int fa = free_index_[static_cast<std::size_t>(at.vertices[a])];
+        const int fc = free_index_[static_cast<std::size_t>(at.vertices[c])];
+        if (fa < 0 || fc < 0) continue;
         // An off-diagonal pair on one vertex stands for both (a, c) and (c, a).
-        const double twice = (c < a && at.vertices[a] == at.vertices[c]) ? 2.0 : 1.0;
-        add(at.vertices[a], at.vertices[c], twice * at.stiffness_mN_per_mm * at.weights[a] * at.weights[c]);
+        const double twice = (c < a && fa == fc) ? 2.0 : 1.0;
+        trip.emplace_back(std::max(fa, fc), std::min(fa, fc),
+                          twice * at.stiffness_mN_per_mm * at.weights[a] * at.weights[c]);
       }
   }
-  PrefactoredSystem::Matrix A(nf, nf);
-  A.setFromTriplets(trip.begin(), trip.end());
-  if (!system_.factorize(A)) {
+  bool ok = false;
+  if (trip.empty()) {
+    ok = system_.factorize(base_);
+  } else {
+    PrefactoredSystem::Matrix attached(base_.rows(), base_.cols());
+    attached.setFromTriplets(trip.begin(), trip.end());
+    const PrefactoredSystem::Matrix A = base_ + attached;
+    ok = system_.factorize(A);
+  }
+  if (!ok) {
     error = system_.message();
     return false;
   }
   system_h_ = h;
   system_dirty_ = false;
-  lg_rhs_.resize(nf, 3);
-  lg_dx_.resize(nf, 3);
   return true;
 }
 

@@ -214,6 +214,7 @@ void MassSpringModel::set_fixed_vertices(const std::vector<int>& vertices) {
     v_.col(v).setZero();
   }
   system_dirty_ = true;
+  base_valid_ = false;
   update_omega_bound();
 }
 

@@ -25,8 +25,9 @@
 //    constant matrix factored once by CHOLMOD (fast mass-spring, Liu et al. 2013; see
 //    local_global_step.cpp). Refactored only when h, the fixed set or the attachments
 //    change (lazily, at the next step).
-// Known limit: springs do not know orientation; an inverted tet whose edges have their rest
-// length feels no force. Inverted tets are counted every step and reported (a warning at
+// Springs do not know orientation: an inverted tet whose edges have their rest length
+// feels no spring force, so the volume term carries an inversion barrier below J = 0.1
+// (volume_energy). Inverted tets are still counted every step and reported (a warning at
 // once, healthy=false when they stay inverted for more than 1 s of simulated time).
 #include <Eigen/Core>
 
@@ -133,6 +134,9 @@ class MassSpringModel final : public TissueModel {
 
   // local_global: the constant matrix over the free vertices and its factor.
   PrefactoredSystem system_;
+  PrefactoredSystem::Matrix base_;  // masses, springs, volume terms (lower), for base_h_
+  bool base_valid_ = false;         // false after set_fixed_vertices
+  double base_h_ = 0.0;
   bool system_dirty_ = true;
   double system_h_ = 0.0;
   int refactorizations_ = 0;

@@ -86,6 +86,14 @@ bool PrefactoredSystem::factorize(const Matrix& A) {
   Impl& m = *impl_;
   const int cols = static_cast<int>(A.cols());
   const int nnz = static_cast<int>(A.nonZeros());
+  empty_ = cols == 0;
+  if (empty_) {  // every vertex fixed: nothing to solve (CHOLMOD does not take 0 x 0)
+    ready_ = true;
+    message_.clear();
+    factor_ms_ = 0.0;
+    analysed_now_ = false;
+    return true;
+  }
   const bool same = m.analysed && static_cast<int>(m.outer.size()) == cols + 1 && static_cast<int>(m.inner.size()) == nnz &&
                     std::equal(m.outer.begin(), m.outer.end(), A.outerIndexPtr()) &&
                     std::equal(m.inner.begin(), m.inner.end(), A.innerIndexPtr());
@@ -104,8 +112,9 @@ bool PrefactoredSystem::factorize(const Matrix& A) {
 }
 
 void PrefactoredSystem::solve(const Eigen::MatrixX3d& b, Eigen::MatrixX3d& x, int threads) {
-  cholmod_factor* L = const_cast<cholmod_factor*>(impl_->llt.factor());
   x.resize(b.rows(), 3);
+  if (empty_) return;
+  cholmod_factor* L = const_cast<cholmod_factor*>(impl_->llt.factor());
   if (threads < 2) {
     impl_->workers[0].solve(L, b, x, 0, 3);
     return;
@@ -119,7 +128,7 @@ void PrefactoredSystem::solve(const Eigen::MatrixX3d& b, Eigen::MatrixX3d& x, in
 }
 
 long PrefactoredSystem::factor_nonzeros() const {
-  if (!ready_) return 0;
+  if (!ready_ || empty_) return 0;
   const cholmod_factor* L = impl_->llt.factor();
   if (L == nullptr) return 0;
   return static_cast<long>(L->is_super ? L->xsize : L->nzmax);

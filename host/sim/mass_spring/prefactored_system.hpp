@@ -38,6 +38,7 @@ class PrefactoredSystem {
   struct Impl;
   std::unique_ptr<Impl> impl_;
   bool ready_ = false;
+  bool empty_ = false;  // 0 x 0 system (every vertex fixed)
   bool analysed_now_ = false;
   double factor_ms_ = 0.0;
   std::string message_;

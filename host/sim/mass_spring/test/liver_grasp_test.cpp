@@ -2,7 +2,7 @@
 // surface patch at the tip of the hanging lobe, 200 mN/mm in all, pulled 25 mm along +x
 // over 0.25 s, under gravity with the top fixed; 45 frames of 1/60 s. Before the volume
 // term had its inversion barrier, 10 tets at the grasp stayed inverted with the
-// local/global integrator (9-10 with the semi-implicit one).
+// local/global integrator (9 with the semi-implicit one).
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>

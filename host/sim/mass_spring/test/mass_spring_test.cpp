@@ -387,6 +387,20 @@ TEST(MassSpring, VolumeTermBarrierIsConsistent) {
   EXPECT_DOUBLE_EQ(volume_slope(-1.0, kv), kv * (-2.0 - 10.0 * 0.5));  // capped below
 }
 
+// Every vertex fixed: the prefactored system is empty (0 x 0); the step is a no-op.
+TEST(MassSpringLocalGlobal, EveryVertexFixedStaysPut) {
+  SimProblem p = box_problem(1, 1, 1, {10, 10, 10}, Material{}, true);
+  for (int i = 0; i < p.mesh.num_vertices(); ++i) p.fixed_vertices.push_back(i);
+  ModelConfig laplacian = config();
+  laplacian.linear_solver = "laplacian";
+  MassSpringModel lg(p, Integrator::kLocalGlobal, config(1, 0.0)), semi(p, Integrator::kSemiImplicit, laplacian);
+  for (MassSpringModel* m : {&lg, &semi}) {
+    const StepSummary s = m->step(0.01);
+    EXPECT_TRUE(s.healthy) << m->name() << ": " << s.warning;
+    EXPECT_EQ((m->positions_World_mm() - p.mesh.rest_positions_World_mm).cwiseAbs().maxCoeff(), 0.0);
+  }
+}
+
 TEST(MassSpring, BadInputIsRejectedWithAReason) {
   const SimProblem p = box_problem(2, 1, 1, {20, 10, 10}, Material{}, true);
   MassSpringModel model(p, Integrator::kSemiImplicit, config());
