@@ -22,6 +22,8 @@ struct ModelConfig {
                                         // the last factor (docs/sim-fem.md); false = inline, deterministic
   int blas_threads = 0;               // FEM: OpenBLAS threads for CHOLMOD (0 = leave the process
                                       // setting, e.g. OPENBLAS_NUM_THREADS); needs OpenBLAS when > 1
+  bool single_precision_preconditioner = false;  // FEM pcg: apply the factor in float (half the
+                                                 // memory traffic; PCG corrects the rounding)
 };
 
 }  // namespace arnav::host

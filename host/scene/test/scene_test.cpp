@@ -93,7 +93,7 @@ TEST(SceneFile, RegionsMaterialsFixedSetsTumourAndVessels) {
       "time_step_s: 0.01\n"
       "frames: 5\n"
       "model: {kind: corotational_fem, integrator: implicit_euler, linear_solver: cholmod, tolerance: 1e-8,\n"
-      "        refactor_in_background: true, blas_threads: 1}\n";
+      "        refactor_in_background: true, blas_threads: 1, single_precision_preconditioner: true}\n";
   const Scene s = load_scene(write_file(dir, "full.scene.yaml", text));
   const TetMesh& m = s.problem.mesh;
   EXPECT_EQ(m.region_names, (std::vector<std::string>{"default", "left", "lesion"}));
@@ -135,6 +135,7 @@ TEST(SceneFile, RegionsMaterialsFixedSetsTumourAndVessels) {
   EXPECT_DOUBLE_EQ(s.model.tolerance, 1e-8);
   EXPECT_TRUE(s.model.refactor_in_background);
   EXPECT_EQ(s.model.blas_threads, 1);
+  EXPECT_TRUE(s.model.single_precision_preconditioner);
 }
 
 TEST(SceneFile, XpbdEnergyIsRead) {

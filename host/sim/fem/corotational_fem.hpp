@@ -126,18 +126,17 @@ class CorotationalFem final : public TissueModel {
   Eigen::Vector3d gravity_;
   Eigen::Matrix3Xd X_, x_, v_;
   Eigen::VectorXd mass_, mass_alpha_, mass_damped_;  // lumped m, alpha m, m + dt alpha m
-  std::vector<Tet> tets_;
+  std::vector<Tet> tets_;                  // in tet_order_ (spatial order), not mesh order
+  std::vector<int> tet_order_;             // stored tet i is mesh tet tet_order_[i]
   std::vector<Beam> beams_;
   std::optional<VesselEmbedding> embedding_;
   std::vector<Eigen::Quaterniond> q_;      // per-tet rotation (warm start)
-  std::vector<Eigen::Matrix3d> F_;         // per-tet deformation gradient of this step
-  std::vector<Eigen::Matrix3d> R_;         // per-tet rotation of this step
   std::vector<Eigen::Matrix3d> R_beam_;
   std::vector<std::optional<Attachment>> attachments_;
   std::vector<char> fixed_;               // per vertex
   std::vector<int> fixed_entries_;        // nonzeros in rows/cols of fixed DOFs (off-diagonal)
   std::unique_ptr<SymmetricPattern> pattern_;
-  std::vector<int> tet_map_;                   // 90 nonzero indices per tet (10 blocks)
+  std::vector<int> tet_map_;                   // 30 run starts per tet (10 blocks, compact_block_map)
   std::vector<std::vector<int>> beam_maps_;
   ElementPartition partition_;            // element ids: tets [0, T), beams [T, T+B)
   SparseMatrixLower A_;

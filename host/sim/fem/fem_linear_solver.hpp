@@ -78,12 +78,16 @@ class FemLinearSolver {
   // with which PCG ends its iterations above it, is refactorised at once and the solve
   // repeated ("direct_refreshed" / PCG restarted): lagging must not turn into divergence.
   void set_refresh_residual(double r) { refresh_residual_ = r; }
+  // PcgFactor: precondition with a single-precision copy of the factor
+  // (single_precision_factor.hpp): half the memory traffic per application; PCG corrects
+  // the rounding. Takes effect at the next factorisation.
+  void set_single_precision_preconditioner(bool on) { single_precision_ = on; }
 
  private:
   bool factorize(const SparseMatrixLower& A, LinearSolveSummary& s);
   void apply_factor(const Eigen::VectorXd& r, Eigen::VectorXd& z) const;
   void poll_background(LinearSolveSummary& s);
-  void start_background(const SparseMatrixLower& A, LinearSolveSummary& s, bool analysis_only = false);
+  void start_background(const SparseMatrixLower& A, LinearSolveSummary& s);
   void discard_background();
 
   Kind kind_;
@@ -96,6 +100,7 @@ class FemLinearSolver {
   bool have_factor_ = false;
   int steps_since_factor_ = 0;
   bool background_ = false;
+  bool single_precision_ = false;
   bool refresh_requested_ = false;  // background mode: force_refactor() asked for a new factor
   long solves_ = 0;                 // solve() calls so far
   long factor_stamp_ = 0;           // solves_ when the active factor's matrix was taken

@@ -26,6 +26,7 @@
 #include "host/scene/scene.hpp"
 #include "host/sim/fem/blas_threads.hpp"
 #include "host/sim/fem/corotational_fem.hpp"
+#include "host/sim/fem/single_precision_factor.hpp"
 
 namespace {
 
@@ -147,7 +148,7 @@ double thread_cpu_ms_now() {
   return static_cast<double>(t.tv_sec) * 1e3 + static_cast<double>(t.tv_nsec) * 1e-6;
 }
 
-RunResult run(const Scenario& sc, const ModelConfig& config, int frames, const FemOptions& options = {}) {
+RunResult run(const Scenario& sc, const ModelConfig& config, int frames, const FemOptions& options = {}, bool trace = false) {
   const double dt = 1.0 / 60.0;
   CorotationalFem model(sc.problem, config, options);
   model.set_state(sc.x0, Eigen::Matrix3Xd::Zero(3, sc.x0.cols()));
@@ -170,6 +171,14 @@ RunResult run(const Scenario& sc, const ModelConfig& config, int frames, const F
     r.factor_age.push_back(model.last_linear_solve().factor_age);
     r.inline_factorizations += model.last_linear_solve().factorized;
     r.background_factorizations += model.last_linear_solve().background_started;
+    if (trace) {
+      const LinearSolveSummary& ls = model.last_linear_solve();
+      std::cerr << "frame " << f << ": wall " << sum.wall_time_ms << " ms, thread CPU " << r.step_thread_cpu_ms.back()
+                << " ms, assemble " << model.last_timing().assemble_ms << " ms, iterations " << ls.iterations
+                << ", residual " << ls.final_residual << ", factor age " << ls.factor_age
+                << (ls.factorized ? ", INLINE FACTORISATION" : "") << (ls.background_started ? ", bg started" : "")
+                << (ls.background_swapped ? ", bg swapped" : "") << (ls.message.empty() ? "" : ", " + ls.message) << '\n';
+    }
     if (!sum.healthy) ++r.unhealthy, r.last_warning = sum.warning;
     r.step_ms.push_back(sum.wall_time_ms);
     r.assemble_ms.push_back(model.last_timing().assemble_ms);
@@ -187,7 +196,7 @@ RunResult run(const Scenario& sc, const ModelConfig& config, int frames, const F
 }
 
 int realtime(int nx, int ny, int nz, int frames, int threads, bool csv, bool with_ldlt, const std::string& scene_file,
-             bool settle_scene, const std::vector<std::string>& only, int blas_threads) {
+             bool settle_scene, const std::vector<std::string>& only, int blas_threads, const std::string& trace) {
   std::optional<Scene> scene;
   Scenario sc;
   if (scene_file.empty()) {
@@ -202,13 +211,16 @@ int realtime(int nx, int ny, int nz, int frames, int threads, bool csv, bool wit
     FemOptions options{};
   };
 
-  auto cfg = [&](const std::string& solver, int refactor, int iters, double tol, bool background = false) {
+
+  auto cfg = [&](const std::string& solver, int refactor, int iters, double tol, bool background = false,
+                 bool single = false) {
     ModelConfig c{.kind = "corotational_fem", .integrator = "implicit_euler", .linear_solver = solver};
     c.refactor_every = refactor;
     c.iterations = iters;
     c.tolerance = tol;
     c.threads = threads;
     c.refactor_in_background = background;
+    c.single_precision_preconditioner = single;
     c.blas_threads = blas_threads;
     return c;
   };
@@ -230,6 +242,11 @@ int realtime(int nx, int ny, int nz, int frames, int threads, bool csv, bool wit
       {"pcg_bg_r1_i2", cfg("pcg", 1, 2, 1e-4, true)},
       {"pcg_bg_r1_i3", cfg("pcg", 1, 3, 1e-4, true)},
       {"pcg_bg_r10_i2", cfg("pcg", 10, 2, 1e-4, true)},
+      // The factor applied in single precision.
+      {"pcg_bg_r1_i1_float", cfg("pcg", 1, 1, 1e-4, true, true)},
+      {"pcg_bg_r1_i2_float", cfg("pcg", 1, 2, 1e-4, true, true)},
+      {"pcg_bg_r1_i3_float", cfg("pcg", 1, 3, 1e-4, true, true)},
+      {"pcg_factor_r30_i3_float", cfg("pcg", 30, 3, 1e-4, false, true)},
   };
   if (with_ldlt) variants.push_back({"eigen_ldlt_every_step", cfg("eigen_ldlt", 1, 1, 1e-6)});
   if (!only.empty()) {
@@ -261,7 +278,7 @@ int realtime(int nx, int ny, int nz, int frames, int threads, bool csv, bool wit
   out["reference_tumour_motion_mm"] = ref_motion;
   json rows = json::array();
   for (const Variant& v : variants) {
-    const RunResult r = v.label == "direct_every_step" ? ref : run(sc, v.c, frames, v.options);
+    const RunResult r = v.label == "direct_every_step" ? ref : run(sc, v.c, frames, v.options, v.label == trace);
     double err = 0;
     for (std::size_t f = 0; f < r.centroid.size(); ++f) err = std::max(err, (r.centroid[f] - ref.centroid[f]).norm());
     const double vertex_err = (r.final_x - ref.final_x).colwise().norm().maxCoeff();
@@ -272,6 +289,7 @@ int realtime(int nx, int ny, int nz, int frames, int threads, bool csv, bool wit
                     {"tolerance", v.c.tolerance},
                     {"median_step_ms", median(r.step_ms)},
                     {"refactor_in_background", v.c.refactor_in_background},
+                    {"single_precision_preconditioner", v.c.single_precision_preconditioner},
                     {"median_initial_residual", median(r.initial_residual)},
                     {"median_step_cpu_ms", median(r.step_cpu_ms)},
                     {"median_step_thread_cpu_ms", median(r.step_thread_cpu_ms)},
@@ -485,7 +503,28 @@ int factor(const std::string& scene_file, int repeats, int threads, bool cholmod
           cholmod_free_dense(&x, &cm);
         }
       }
+      // Single-precision copy of the supernodal factor (the PCG preconditioner option).
+      double float_solve_ms = 0, float_rel_error = 0;
+      if (super) {
+        SinglePrecisionFactor single;
+        single.assign(*L);
+        const Eigen::VectorXd ones = Eigen::VectorXd::Ones(n);
+        Eigen::VectorXd xf;
+        std::vector<double> fw;
+        for (int k = 0; k < 5 * repeats; ++k) {
+          t0 = std::chrono::steady_clock::now();
+          single.solve(ones, xf);
+          fw.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+        }
+        float_solve_ms = median(fw);
+        cholmod_dense* x = cholmod_solve(CHOLMOD_A, L, b, &cm);
+        const Eigen::Map<const Eigen::VectorXd> xd(static_cast<double*>(x->x), n);
+        float_rel_error = (xf - xd).norm() / xd.norm();
+        cholmod_free_dense(&x, &cm);
+      }
       rows.push_back({{"ordering", ord.name},
+                      {"median_float_solve_ms", float_solve_ms},
+                      {"float_solve_relative_error", float_rel_error},
                       {"factor", super ? "supernodal_llt" : "simplicial_ldlt"},
                       {"factor_ok", L->minor == L->n},
                       {"nnz_L", lnz},
@@ -533,6 +572,8 @@ int main(int argc, char** argv) {
   rt->add_flag("--with-eigen-ldlt", with_ldlt, "also time Eigen's simplicial LDLT every step (slow)");
   std::vector<std::string> only;
   int blas_threads = 0;
+  std::string trace;
+  rt->add_option("--trace", trace, "print every frame of this variant to stderr (times, iterations, factor age, refactorisations)");
   rt->add_option("--only", only, "run only these variants (labels as in the output; the reference always runs)");
   rt->add_option("--blas-threads", blas_threads, "OpenBLAS threads (model key blas_threads; 0 = as the environment sets)")
       ->check(CLI::NonNegativeNumber);
@@ -559,7 +600,7 @@ int main(int argc, char** argv) {
     return e.get_exit_code() == 0 ? 0 : (code == 0 ? 0 : 2);
   }
   try {
-    if (*rt) return realtime(nx, ny, nz, frames, threads, csv, with_ldlt, scene_file, settle_scene, only, blas_threads);
+    if (*rt) return realtime(nx, ny, nz, frames, threads, csv, with_ldlt, scene_file, settle_scene, only, blas_threads, trace);
     if (*cond) return conditioning(contrasts, nx, ny, nz, threads);
     if (*fac) return factor(scene_file, repeats, threads, cholmod_openmp);
     return cantilever(max_n, threads);

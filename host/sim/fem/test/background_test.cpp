@@ -171,6 +171,10 @@ TEST(FemBackgroundRefactor, OnlyForPcgAndBadBlasThreadsAreRejected) {
   ModelConfig c = pcg(4, 10, 1e-6, false);
   c.blas_threads = -1;
   EXPECT_THROW(CorotationalFem(problem, c), std::invalid_argument);
+  ModelConfig f = pcg(4, 10, 1e-6, false);
+  f.linear_solver = "cholmod";
+  f.single_precision_preconditioner = true;
+  EXPECT_THROW(CorotationalFem(problem, f), std::invalid_argument);
 }
 
 TEST(FemBlas, ThreadSettingIsAppliedOrReported) {
