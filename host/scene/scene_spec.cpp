@@ -342,12 +342,18 @@ SceneSpec parse_scene_spec(const std::string& yaml_text, const std::string& sour
   if (root["frames"]) s.frames = static_cast<int>(r.integer(root["frames"], "frames", 1, 1000000));
 
   const YAML::Node model = r.require(root, "model", "the scene");
-  r.keys(model, {"kind", "integrator", "linear_solver", "iterations", "substeps", "tolerance", "refactor_every", "threads"}, "model");
+  r.keys(model, {"kind", "integrator", "energy", "linear_solver", "iterations", "substeps", "tolerance", "refactor_every", "threads"}, "model");
   s.model_line = model.Mark().line + 1;
   s.model.kind = r.string(r.require(model, "kind", "model"), "model.kind");
   if (s.model.kind != "mass_spring" && s.model.kind != "xpbd" && s.model.kind != "corotational_fem")
     r.fail(model["kind"], "unknown model kind '" + s.model.kind + "'", "use mass_spring, xpbd or corotational_fem");
   if (model["integrator"]) s.model.integrator = r.string(model["integrator"], "model.integrator");
+  if (model["energy"]) {
+    s.model.energy = r.string(model["energy"], "model.energy");
+    if (s.model.kind != "xpbd") r.fail(model["energy"], "model.energy applies to kind xpbd only", "remove it or use kind: xpbd");
+    if (s.model.energy != "corotated" && s.model.energy != "neo_hookean")
+      r.fail(model["energy"], "unknown model.energy '" + s.model.energy + "'", "use corotated or neo_hookean (one sweep per substep: iterations: 1)");
+  }
   if (model["linear_solver"]) s.model.linear_solver = r.string(model["linear_solver"], "model.linear_solver");
   if (model["iterations"]) s.model.iterations = static_cast<int>(r.integer(model["iterations"], "model.iterations", 1, 100000));
   if (model["substeps"]) s.model.substeps = static_cast<int>(r.integer(model["substeps"], "model.substeps", 1, 10000));

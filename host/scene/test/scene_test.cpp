@@ -134,6 +134,13 @@ TEST(SceneFile, RegionsMaterialsFixedSetsTumourAndVessels) {
   EXPECT_DOUBLE_EQ(s.model.tolerance, 1e-8);
 }
 
+TEST(SceneFile, XpbdEnergyIsRead) {
+  const std::string dir = make_box_files(scratch("energy"));
+  const Scene s = load_scene(write_file(dir, "nh.scene.yaml", kBase + "  energy: neo_hookean\n  iterations: 1\n"));
+  EXPECT_EQ(s.model.energy, "neo_hookean");
+  EXPECT_EQ(load_scene(write_file(dir, "default.scene.yaml", kBase)).model.energy, "");
+}
+
 TEST(SceneFile, VesselsForDisplayOnlyAreNotGivenToTheModel) {
   const std::string dir = make_box_files(scratch("display"));
   const std::string text = kBase + "structures:\n  vessels:\n    nodes_mm: [[2, 10, 10], [20, 10, 10]]\n    radius_mm: [2, 1]\n"
@@ -167,6 +174,7 @@ TEST(SceneFile, SchemaErrorsNameFileAndLine) {
        "density_kg_per_mm3: 1e-6}\n  liver: {youngs_modulus_kPa: 5, poisson_ratio: 0.45, density_kg_per_mm3: 1e-6}\nmodel: {kind: xpbd}\n",
        5, "unknown region 'liver'"},
       {kBase + "  iterations: 0\n", 9, "model.iterations"},
+      {kBase + "  energy: neohookean\n", 9, "unknown model.energy"},
       {"organ: {surface: block.obj}\nvolume: {file: block.vtk}\nmaterials:\n  default: {youngs_modulus_kPa: 5, poisson_ratio: 0.45, "
        "density_kg_per_mm3: 1e-6}\nmodel: {kind: fem}\n",
        5, "unknown model kind 'fem'"},

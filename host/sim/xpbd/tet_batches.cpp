@@ -106,7 +106,8 @@ ARNAV_INLINE void apply_update(const TetBatch& b, int count, double* X, const do
 }
 
 template <bool kDamped>
-ARNAV_INLINE double solve_batch(const TetBatch& b, int count, double* X, const double* XP, const double* W, double h) {
+ARNAV_INLINE double solve_batch(const TetBatch& b, int count, double* X, const double* XP, const double* W, double h,
+                                bool residual) {
   Corners c = gather(b, X);
   vd F[3][3], cof[3][3];
   deformation_gradient(b, c, F);
@@ -179,8 +180,10 @@ ARNAV_INLINE double solve_batch(const TetBatch& b, int count, double* X, const d
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) {
       M[i][j] = md * F[i][j] + dl_h * cof[i][j];
-      const vd d = md * FB[i][j] + dl_h * CB[i][j];
-      dF2 += d * d;
+      if (residual) {
+        const vd d = md * FB[i][j] + dl_h * CB[i][j];
+        dF2 += d * d;
+      }
     }
   apply_update(b, count, X, W, M, c);
   double correction = 0.0;
@@ -190,9 +193,9 @@ ARNAV_INLINE double solve_batch(const TetBatch& b, int count, double* X, const d
 
 template <bool kDamped>
 ARNAV_INLINE double solve_range(const TetBatch* batches, const int* count, int begin, int end, double* X, const double* XP,
-                                const double* W, double h) {
+                                const double* W, double h, bool residual) {
   double sum = 0.0;
-  for (int k = begin; k < end; ++k) sum += solve_batch<kDamped>(batches[k], count[k], X, XP, W, h);
+  for (int k = begin; k < end; ++k) sum += solve_batch<kDamped>(batches[k], count[k], X, XP, W, h, residual);
   return sum;
 }
 
@@ -251,7 +254,7 @@ ARNAV_INLINE void refine_rotation_lanes(const vd F[3][3], vd q[4], vd R[3][3]) {
 // (w, x, y, z), lambda: 10 x kLanes (9 deviatoric row-major, 1 hydrostatic).
 template <bool kDamped, bool kMultipliers>
 ARNAV_INLINE double solve_corotated_batch(const TetBatch& b, int count, double* X, const double* XP, const double* W,
-                                          double* rotation, double* lambda, double h) {
+                                          double* rotation, double* lambda, double h, bool residual) {
   Corners c = gather(b, X);
   vd F[3][3];
   deformation_gradient(b, c, F);
@@ -274,12 +277,10 @@ ARNAV_INLINE double solve_corotated_batch(const TetBatch& b, int count, double* 
   }
   // Deviatoric: dLambda ((1 + g) B + alpha I) = -(F - R + alpha Lambda) - g dF, row by row.
   vd r[3][3];
-  vd residual = vd{};
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) {
       r[i][j] = R[i][j] - F[i][j];
       if constexpr (kMultipliers) r[i][j] -= alpha_d * load(lambda + (3 * i + j) * kLanes);
-      residual += r[i][j] * r[i][j];
       if constexpr (kDamped) r[i][j] -= damp * dF[i][j];
     }
   const vd s = 1.0 + damp;
@@ -321,7 +322,6 @@ ARNAV_INLINE double solve_corotated_batch(const TetBatch& b, int count, double* 
   }
   vd r_vol = 1.0 - J;
   if constexpr (kMultipliers) r_vol -= alpha_h * load(lambda + 9 * kLanes);
-  residual += vol_on * r_vol * r_vol;
   if constexpr (kDamped) r_vol -= damp * rate;
   const vd dl = vol_on * r_vol / (s * a_vol + alpha_h);
   if constexpr (kMultipliers) {
@@ -331,18 +331,27 @@ ARNAV_INLINE double solve_corotated_batch(const TetBatch& b, int count, double* 
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) M[i][j] += dl * cof[i][j];
   apply_update(b, count, X, W, M, c);
+  if (!residual) return 0.0;
+  // The change of F this solve made: M B.
+  vd dF2 = vd{};
+  for (int i = 0; i < 3; ++i) {
+    const vd m0 = M[i][0], m1 = M[i][1], m2 = M[i][2];
+    const vd d0 = m0 * Bxx + m1 * Bxy + m2 * Bxz, d1 = m0 * Bxy + m1 * Byy + m2 * Byz, d2 = m0 * Bxz + m1 * Byz + m2 * Bzz;
+    dF2 += d0 * d0 + d1 * d1 + d2 * d2;
+  }
   double sum = 0.0;
-  for (int l = 0; l < count; ++l) sum += residual[l];
+  for (int l = 0; l < count; ++l) sum += dF2[l];
   return sum;
 }
 
 template <bool kDamped, bool kMultipliers>
 ARNAV_INLINE double solve_corotated_range(const TetBatch* batches, const int* count, int begin, int end, double* X,
-                                          const double* XP, const double* W, double* rotation, double* lambda, double h) {
+                                          const double* XP, const double* W, double* rotation, double* lambda, double h,
+                                          bool residual) {
   double sum = 0.0;
   for (int k = begin; k < end; ++k)
     sum += solve_corotated_batch<kDamped, kMultipliers>(batches[k], count[k], X, XP, W, rotation + 4L * kLanes * k,
-                                                        lambda + 10L * kLanes * k, h);
+                                                        lambda + 10L * kLanes * k, h, residual);
   return sum;
 }
 
@@ -351,20 +360,21 @@ ARNAV_INLINE double solve_corotated_range(const TetBatch* batches, const int* co
 ARNAV_XPBD_CLONES
 double solve_nh_batches(const TetBatch* batches, const int* count, int begin, int end, double* X, const double* XP,
                         const double* W, const SweepParams& params) {
-  return params.damped ? solve_range<true>(batches, count, begin, end, X, XP, W, params.h_s)
-                       : solve_range<false>(batches, count, begin, end, X, XP, W, params.h_s);
+  return params.damped ? solve_range<true>(batches, count, begin, end, X, XP, W, params.h_s, params.residual)
+                       : solve_range<false>(batches, count, begin, end, X, XP, W, params.h_s, params.residual);
 }
 
 ARNAV_XPBD_CLONES
 double solve_corotated_batches(const TetBatch* batches, const int* count, int begin, int end, double* X, const double* XP,
                                const double* W, double* rotation, double* lambda, const SweepParams& params) {
   const double h = params.h_s;
+  const bool r = params.residual;
   if (params.damped)
     return params.multipliers
-               ? solve_corotated_range<true, true>(batches, count, begin, end, X, XP, W, rotation, lambda, h)
-               : solve_corotated_range<true, false>(batches, count, begin, end, X, XP, W, rotation, lambda, h);
-  return params.multipliers ? solve_corotated_range<false, true>(batches, count, begin, end, X, XP, W, rotation, lambda, h)
-                            : solve_corotated_range<false, false>(batches, count, begin, end, X, XP, W, rotation, lambda, h);
+               ? solve_corotated_range<true, true>(batches, count, begin, end, X, XP, W, rotation, lambda, h, r)
+               : solve_corotated_range<true, false>(batches, count, begin, end, X, XP, W, rotation, lambda, h, r);
+  return params.multipliers ? solve_corotated_range<false, true>(batches, count, begin, end, X, XP, W, rotation, lambda, h, r)
+                            : solve_corotated_range<false, false>(batches, count, begin, end, X, XP, W, rotation, lambda, h, r);
 }
 
 ARNAV_XPBD_CLONES

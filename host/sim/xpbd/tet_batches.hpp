@@ -50,6 +50,7 @@ struct SweepParams {
   double h_s = 0.0;           // substep
   bool damped = false;        // some tet has beta > 0
   bool multipliers = false;   // corotated: keep Lagrange multipliers (iterations > 1)
+  bool residual = true;       // compute the sweep's correction (else the solves return 0)
 };
 
 // Solves the blocks of batches [begin, end) once, in order (Gauss-Seidel from batch to
@@ -57,15 +58,15 @@ struct SweepParams {
 // multipliers start and stay at zero and are not stored. X: positions (3 x n, column
 // major), XP: positions at the substep start (read only when damped), W: inverse masses.
 // Returns the sum over tets of |dF|^2, the squared Frobenius norm of the change of F
-// this solve made (strain units): the sweep's correction.
+// this solve made (strain units): the sweep's correction (0 unless params.residual).
 double solve_nh_batches(const TetBatch* batches, const int* count, int begin, int end, double* X, const double* XP,
                         const double* W, const SweepParams& params);
 
 // Fixed-corotated blocks (see xpbd_model.hpp) of batches [begin, end), once, in order.
 // rotation: warm start of each tet's polar rotation, 4 x kLanes per batch (quaternion
 // w, x, y, z), refined once per solve and stored back; lambda: multipliers, 10 x kLanes
-// per batch (read and written when params.multipliers). Returns the sum of squared
-// constraint residuals (10 per tet), each taken before its update.
+// per batch (read and written when params.multipliers). Returns the sum over tets of
+// |dF|^2 (as solve_nh_batches) when params.residual, else 0.
 double solve_corotated_batches(const TetBatch* batches, const int* count, int begin, int end, double* X, const double* XP,
                                const double* W, double* rotation, double* lambda, const SweepParams& params);
 
