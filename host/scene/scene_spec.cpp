@@ -342,7 +342,8 @@ SceneSpec parse_scene_spec(const std::string& yaml_text, const std::string& sour
   if (root["frames"]) s.frames = static_cast<int>(r.integer(root["frames"], "frames", 1, 1000000));
 
   const YAML::Node model = r.require(root, "model", "the scene");
-  r.keys(model, {"kind", "integrator", "energy", "linear_solver", "iterations", "substeps", "tolerance", "refactor_every", "threads"}, "model");
+  r.keys(model, {"kind", "integrator", "energy", "linear_solver", "iterations", "substeps", "tolerance", "refactor_every", "threads",
+                  "refactor_in_background", "blas_threads"}, "model");
   s.model_line = model.Mark().line + 1;
   s.model.kind = r.string(r.require(model, "kind", "model"), "model.kind");
   if (s.model.kind != "mass_spring" && s.model.kind != "xpbd" && s.model.kind != "corotational_fem")
@@ -363,6 +364,8 @@ SceneSpec parse_scene_spec(const std::string& yaml_text, const std::string& sour
   }
   if (model["threads"]) s.model.threads = static_cast<int>(r.integer(model["threads"], "model.threads", 1, 256));
   if (model["refactor_every"]) s.model.refactor_every = static_cast<int>(r.integer(model["refactor_every"], "model.refactor_every", 1, 100000));
+  if (model["refactor_in_background"]) s.model.refactor_in_background = r.boolean(model["refactor_in_background"], "model.refactor_in_background");
+  if (model["blas_threads"]) s.model.blas_threads = static_cast<int>(r.integer(model["blas_threads"], "model.blas_threads", 0, 256));
   return s;
 }
 

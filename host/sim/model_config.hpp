@@ -18,6 +18,10 @@ struct ModelConfig {
   double tolerance = 1e-6;            // relative residual for iterative solves
   int refactor_every = 1;             // FEM: steps between numeric refactorisations
   int threads = 1;                    // worker threads for the model's parallel loops
+  bool refactor_in_background = false;  // FEM pcg: refactorise on a worker thread while PCG keeps
+                                        // the last factor (docs/sim-fem.md); false = inline, deterministic
+  int blas_threads = 0;               // FEM: OpenBLAS threads for CHOLMOD (0 = leave the process
+                                      // setting, e.g. OPENBLAS_NUM_THREADS); needs OpenBLAS when > 1
 };
 
 }  // namespace arnav::host

@@ -92,7 +92,8 @@ TEST(SceneFile, RegionsMaterialsFixedSetsTumourAndVessels) {
       "gravity_mm_s2: [0, -9810, 0]\n"
       "time_step_s: 0.01\n"
       "frames: 5\n"
-      "model: {kind: corotational_fem, integrator: implicit_euler, linear_solver: cholmod, tolerance: 1e-8}\n";
+      "model: {kind: corotational_fem, integrator: implicit_euler, linear_solver: cholmod, tolerance: 1e-8,\n"
+      "        refactor_in_background: true, blas_threads: 1}\n";
   const Scene s = load_scene(write_file(dir, "full.scene.yaml", text));
   const TetMesh& m = s.problem.mesh;
   EXPECT_EQ(m.region_names, (std::vector<std::string>{"default", "left", "lesion"}));
@@ -132,6 +133,8 @@ TEST(SceneFile, RegionsMaterialsFixedSetsTumourAndVessels) {
   EXPECT_EQ(s.model.kind, "corotational_fem");
   EXPECT_EQ(s.model.linear_solver, "cholmod");
   EXPECT_DOUBLE_EQ(s.model.tolerance, 1e-8);
+  EXPECT_TRUE(s.model.refactor_in_background);
+  EXPECT_EQ(s.model.blas_threads, 1);
 }
 
 TEST(SceneFile, XpbdEnergyIsRead) {
@@ -174,6 +177,8 @@ TEST(SceneFile, SchemaErrorsNameFileAndLine) {
        "density_kg_per_mm3: 1e-6}\n  liver: {youngs_modulus_kPa: 5, poisson_ratio: 0.45, density_kg_per_mm3: 1e-6}\nmodel: {kind: xpbd}\n",
        5, "unknown region 'liver'"},
       {kBase + "  iterations: 0\n", 9, "model.iterations"},
+      {kBase + "  refactor_in_background: sometimes\n", 9, "model.refactor_in_background"},
+      {kBase + "  blas_threads: -1\n", 9, "model.blas_threads"},
       {kBase + "  energy: neohookean\n", 9, "unknown model.energy"},
       {"organ: {surface: block.obj}\nvolume: {file: block.vtk}\nmaterials:\n  default: {youngs_modulus_kPa: 5, poisson_ratio: 0.45, "
        "density_kg_per_mm3: 1e-6}\nmodel: {kind: fem}\n",

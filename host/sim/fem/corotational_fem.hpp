@@ -73,12 +73,18 @@ class CorotationalFem final : public TissueModel {
   // Where the last (sub-)step's time went, ms: rotations + forces + scatter, linear solve
   // (including any factorisation); wall time and process CPU time (all threads). On a
   // shared machine the CPU time is what the work costs when it gets a core.
+  // The *_thread_cpu_ms are the calling thread's CPU time only: with a background
+  // factorisation running, the process CPU time also counts the worker.
   struct Timing {
     double assemble_ms = 0, solve_ms = 0;
     double assemble_cpu_ms = 0, solve_cpu_ms = 0;
+    double assemble_thread_cpu_ms = 0, solve_thread_cpu_ms = 0;
   };
   const Timing& last_timing() const { return timing_; }
   void set_estimate_condition(bool on) { solver_.set_estimate_condition(on); }
+  // refactor_in_background: blocks until the running background factorisation is done
+  // (tests use it to make the background path deterministic).
+  void wait_for_background() { solver_.wait_for_background(); }
 
  private:
   struct Tet {
@@ -141,6 +147,7 @@ class CorotationalFem final : public TissueModel {
   Timing timing_;
   int inverted_streak_ = 0;
   double last_dt_ = -1.0;
+  std::string note_;  // said once in the next step's warning (e.g. blas_threads not honoured)
 };
 
 // Factory entry (used by host/sim/model_factory when arnav_sim_fem is built).

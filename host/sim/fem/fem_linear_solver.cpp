@@ -3,18 +3,58 @@
 #include <Eigen/CholmodSupport>
 #include <Eigen/Eigenvalues>
 #include <Eigen/SparseCholesky>
-#include <vector>
+#include <omp.h>
 #include <algorithm>
+#include <utility>
+#include <vector>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
 
 namespace arnav::host {
 
+namespace {
+using Cholmod = Eigen::CholmodSupernodalLLT<SparseMatrixLower, Eigen::Lower>;
+
+// Debian's CHOLMOD parallelises the scatter of supernode updates with OpenMP at a
+// compiled-in 4 threads (CHOLMOD_OMP_NUM_THREADS): thousands of tiny parallel regions per
+// factorisation, whose spin-waits cost more than they save on 2 cores (bundled liver, METIS
+// ordering, OpenBLAS 1 thread: 121 ms CPU per factorisation with them, 73 ms without;
+// `arnav-fem-bench factor`, docs/benchmarks.md). This guard makes OpenMP regions opened by
+// the calling thread serial while it lives; the setting is per thread (OpenMP 5.0
+// max-active-levels ICV, GCC >= 11), so the assembly's own threads are not affected.
+class SerialOpenMpRegions {
+ public:
+  SerialOpenMpRegions() : saved_(omp_get_max_active_levels()) { omp_set_max_active_levels(0); }
+  ~SerialOpenMpRegions() { omp_set_max_active_levels(saved_); }
+  SerialOpenMpRegions(const SerialOpenMpRegions&) = delete;
+  SerialOpenMpRegions& operator=(const SerialOpenMpRegions&) = delete;
+
+ private:
+  int saved_;
+};
+
+// What a background job did.
+constexpr int kJobFailed = 0;        // factorisation failed: the matrix was not positive definite
+constexpr int kJobFactor = 1;        // a new factor is ready
+constexpr int kJobAnalysisOnly = 2;  // symbolic analysis of the spare factor only
+
+std::unique_ptr<Cholmod> make_cholmod() {
+  auto c = std::make_unique<Cholmod>();
+  // A failed factorisation is reported in the summary; CHOLMOD need not print it too.
+  c->cholmod().print = 0;
+  return c;
+}
+}  // namespace
+
 struct FemLinearSolver::Factors {
-  Eigen::CholmodSupernodalLLT<SparseMatrixLower, Eigen::Lower> cholmod;
+  std::unique_ptr<Cholmod> cholmod = make_cholmod();  // the factor in use
   Eigen::SimplicialLDLT<SparseMatrixLower, Eigen::Lower> ldlt;
   Eigen::VectorXd inv_diag;
+  // Background refactorisation: the worker owns `pending` and `snapshot` while a job runs.
+  std::unique_ptr<Cholmod> pending;
+  bool pending_analyzed = false;
+  SparseMatrixLower snapshot;
 };
 
 FemLinearSolver::Kind FemLinearSolver::parse(const std::string& name) {
@@ -29,21 +69,90 @@ FemLinearSolver::Kind FemLinearSolver::parse(const std::string& name) {
 FemLinearSolver::FemLinearSolver(Kind kind, int refactor_every, int max_iterations, double tolerance)
     : kind_(kind), refactor_every_(refactor_every), max_iterations_(max_iterations), tolerance_(tolerance),
       f_(std::make_unique<Factors>()) {
-  // A failed factorisation is reported in the summary; CHOLMOD need not print it too.
-  f_->cholmod.cholmod().print = 0;
   if (refactor_every < 0) throw std::invalid_argument("corotational_fem: refactor_every must be >= 0");
   if (max_iterations < 1) throw std::invalid_argument("corotational_fem: iterations must be >= 1");
   if (!(tolerance > 0.0)) throw std::invalid_argument("corotational_fem: tolerance must be > 0");
 }
 
-FemLinearSolver::~FemLinearSolver() = default;
+FemLinearSolver::~FemLinearSolver() { discard_background(); }  // the job uses f_
 
-void FemLinearSolver::pattern_changed() {
-  analyzed_ = false;
-  have_factor_ = false;
+void FemLinearSolver::set_background_refactor(bool on) {
+  if (on && kind_ != Kind::PcgFactor) {
+    throw std::invalid_argument(
+        "corotational_fem: refactor_in_background needs linear_solver pcg (a lagged direct solve would depend on "
+        "when the worker finishes; PCG converges on the current matrix with any factor)");
+  }
+  if (!on) discard_background();
+  if (on && !f_->pending) f_->pending = make_cholmod();
+  background_ = on;
 }
 
-void FemLinearSolver::force_refactor() { have_factor_ = false; }
+void FemLinearSolver::wait_for_background() {
+  if (job_.valid()) job_.wait();
+}
+
+void FemLinearSolver::discard_background() {
+  if (job_.valid()) job_.wait();
+  job_ = {};
+}
+
+void FemLinearSolver::pattern_changed() {
+  discard_background();  // its snapshot has the old pattern
+  analyzed_ = false;
+  have_factor_ = false;
+  f_->pending_analyzed = false;
+  f_->snapshot = SparseMatrixLower();
+}
+
+void FemLinearSolver::force_refactor() {
+  // Background mode keeps the old factor as preconditioner until the new one is ready.
+  if (background_ && have_factor_) {
+    refresh_requested_ = true;
+  } else {
+    have_factor_ = false;
+  }
+}
+
+void FemLinearSolver::poll_background(LinearSolveSummary& s) {
+  if (!job_.valid() || job_.wait_for(std::chrono::seconds(0)) != std::future_status::ready) return;
+  const int done = job_.get();
+  if (done == kJobAnalysisOnly) return;
+  if (done == kJobFailed) {
+    s.message = "background factorisation failed (matrix not positive definite); the previous factor is kept";
+    return;
+  }
+  // An inline refresh after the snapshot was taken is newer: keep it.
+  if (have_factor_ && pending_stamp_ > factor_stamp_) {
+    std::swap(f_->cholmod, f_->pending);
+    std::swap(analyzed_, f_->pending_analyzed);
+    factor_stamp_ = pending_stamp_;
+    s.background_swapped = true;
+  }
+}
+
+void FemLinearSolver::start_background(const SparseMatrixLower& A, LinearSolveSummary& s, bool analysis_only) {
+  if (f_->snapshot.rows() == A.rows() && f_->snapshot.nonZeros() == A.nonZeros()) {
+    std::copy(A.valuePtr(), A.valuePtr() + A.nonZeros(), f_->snapshot.valuePtr());  // same pattern: values only
+  } else {
+    f_->snapshot = A;
+  }
+  if (!analysis_only) {
+    pending_stamp_ = started_stamp_ = solves_;
+    refresh_requested_ = false;
+    s.background_started = true;
+  }
+  const bool analyze = !f_->pending_analyzed;
+  f_->pending_analyzed = true;
+  Cholmod* L = f_->pending.get();
+  const SparseMatrixLower* M = &f_->snapshot;
+  job_ = std::async(std::launch::async, [L, M, analyze, analysis_only] {
+    const SerialOpenMpRegions serial;
+    if (analyze) L->analyzePattern(*M);
+    if (analysis_only) return kJobAnalysisOnly;
+    L->factorize(*M);
+    return L->info() == Eigen::Success ? kJobFactor : kJobFailed;
+  });
+}
 
 bool FemLinearSolver::factorize(const SparseMatrixLower& A, LinearSolveSummary& s) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -56,11 +165,13 @@ bool FemLinearSolver::factorize(const SparseMatrixLower& A, LinearSolveSummary& 
     f_->inv_diag = A.diagonal().cwiseInverse();
     ok = (A.diagonal().array() > 0.0).all();
   } else {
-    if (!analyzed_) f_->cholmod.analyzePattern(A);
-    f_->cholmod.factorize(A);
-    ok = f_->cholmod.info() == Eigen::Success;
+    const SerialOpenMpRegions serial;
+    if (!analyzed_) f_->cholmod->analyzePattern(A);
+    f_->cholmod->factorize(A);
+    ok = f_->cholmod->info() == Eigen::Success;
   }
   analyzed_ = true;
+  factor_stamp_ = started_stamp_ = solves_;
   s.factorized = true;
   s.factor_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   have_factor_ = ok;
@@ -77,17 +188,31 @@ void FemLinearSolver::apply_factor(const Eigen::VectorXd& r, Eigen::VectorXd& z)
   switch (kind_) {
     case Kind::EigenLdlt: z = f_->ldlt.solve(r); break;
     case Kind::PcgJacobi: z = f_->inv_diag.cwiseProduct(r); break;
-    default: z = f_->cholmod.solve(r); break;
+    default: z = f_->cholmod->solve(r); break;
   }
 }
 
 LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
                                           double load_scale) {
   LinearSolveSummary s;
-  const bool due = !have_factor_ || kind_ == Kind::PcgJacobi ||
-                   (refactor_every_ > 0 && steps_since_factor_ + 1 >= refactor_every_);
-  if (due && !factorize(A, s)) return s;
-  if (!s.factorized) ++steps_since_factor_;
+  ++solves_;
+  if (background_) {
+    poll_background(s);
+    if (!have_factor_) {
+      if (!factorize(A, s)) return s;  // nothing to precondition with yet: inline
+      // The spare factor's symbolic analysis (METIS, ~70 ms on the liver) runs now, so
+      // that the first background refactorisation is a numeric one only.
+      if (!f_->pending_analyzed && !job_.valid()) start_background(A, s, true);
+    } else if (!job_.valid() && (refresh_requested_ || (refactor_every_ > 0 && solves_ - started_stamp_ >= refactor_every_))) {
+      start_background(A, s);
+    }
+  } else {
+    const bool due = !have_factor_ || kind_ == Kind::PcgJacobi ||
+                     (refactor_every_ > 0 && steps_since_factor_ + 1 >= refactor_every_);
+    if (due && !factorize(A, s)) return s;
+    if (!s.factorized) ++steps_since_factor_;
+  }
+  s.factor_age = static_cast<int>(solves_ - factor_stamp_);
   const auto Asym = A.selfadjointView<Eigen::Lower>();
   const double b_norm = std::max(b.norm(), load_scale);
   if (b_norm == 0.0) {
@@ -118,20 +243,34 @@ LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eige
   double res = s.initial_residual;
   int it = 0;
   int cap = max_iterations_;
+  bool extended = false;
   std::vector<double> alphas, betas;  // CG coefficients: the Lanczos tridiagonal, for kappa
+  // Refactorise inline and restart CG (the preconditioner changed).
+  auto refresh = [&](const std::string& why) {
+    if (!factorize(A, s)) return false;
+    s.message = "preconditioner refreshed after " + std::to_string(it) + " iterations: " + why;
+    cap = it + max_iterations_;
+    rz = 0;
+    alphas.clear();
+    betas.clear();
+    p.resize(0);
+    return true;
+  };
   for (;;) {
     if (res <= tolerance_) break;
     if (it >= cap) {
       // Cap reached far from the solution with a lagged factor: refresh it and give CG
-      // another `iterations` (restarted: the preconditioner changed).
+      // another `iterations`.
       if (kind_ != Kind::PcgFactor || s.factorized || res <= refresh_residual_) break;
-      if (!factorize(A, s)) return s;
-      s.message = "preconditioner refreshed after " + std::to_string(it) + " iterations at residual " + std::to_string(res);
-      cap = it + max_iterations_;
-      rz = 0;
-      alphas.clear();
-      betas.clear();
-      p.resize(0);
+      if (background_ && !extended) {
+        // Background mode: a fresher factor is on its way; another `iterations` with this
+        // one cost far less than refactorising inline (which stays the last resort).
+        extended = true;
+        cap = it + max_iterations_;
+        s.message = "PCG extended after " + std::to_string(it) + " iterations at residual " + std::to_string(res);
+        continue;
+      }
+      if (!refresh("residual " + std::to_string(res))) return s;
       continue;
     }
     apply_factor(r, z);
@@ -145,7 +284,13 @@ LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eige
     rz = rz_new;
     q = Asym * p;
     const double pq = p.dot(q);
-    if (!(pq > 0.0)) {  // not positive definite along p: stop with what we have
+    if (!(pq > 0.0)) {
+      // The preconditioner is SPD, so A is not positive definite along p. With a lagged
+      // factor, a fresh factorisation tells whether A itself is (and fails if not).
+      if (kind_ == Kind::PcgFactor && !s.factorized) {
+        if (!refresh("direction of non-positive curvature")) return s;
+        continue;
+      }
       s.message = "CG found a direction of non-positive curvature";
       break;
     }
@@ -172,6 +317,10 @@ LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eige
     }
   }
   s.termination = res <= tolerance_ ? "converged" : "max_iterations";
+  // Background mode: a factor that no longer gets PCG to the tolerance within its cap is
+  // replaced as soon as the worker is free, before the fixed cadence says so.
+  if (background_ && res > tolerance_) refresh_requested_ = true;
+  s.factor_age = static_cast<int>(solves_ - factor_stamp_);
   return s;
 }
 

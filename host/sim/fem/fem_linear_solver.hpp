@@ -8,8 +8,12 @@
 //                as preconditioner (refreshed every refactor_every steps; 0 = never after
 //                the first), warm started from the caller's x.
 //   PcgJacobi    CG with the diagonal as preconditioner, warm started.
+// PcgFactor can refactorise in the background (set_background_refactor): a worker thread
+// factorises a snapshot of the matrix while PCG keeps preconditioning with the last
+// factor; the new factor replaces it at the first solve after the worker is done.
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
+#include <future>
 #include <memory>
 #include <string>
 
@@ -29,6 +33,9 @@ struct LinearSolveSummary {
   double condition_estimate = 0; // CG kinds with estimate_condition: Lanczos estimate of
                                  // lambda_max/lambda_min of the preconditioned matrix (lower bound)
   std::string message;
+  int factor_age = 0;             // solves since the matrix of the factor used was taken (0: this one)
+  bool background_started = false;  // a background factorisation of this matrix was started
+  bool background_swapped = false;  // a background factor was swapped in before this solve
 };
 
 class FemLinearSolver {
@@ -38,7 +45,20 @@ class FemLinearSolver {
   static Kind parse(const std::string& name);
 
   FemLinearSolver(Kind kind, int refactor_every, int max_iterations, double tolerance);
-  ~FemLinearSolver();
+  ~FemLinearSolver();  // waits for a background factorisation
+  FemLinearSolver(const FemLinearSolver&) = delete;
+  FemLinearSolver& operator=(const FemLinearSolver&) = delete;
+
+  // PcgFactor only (std::invalid_argument otherwise). On: a refactorisation that is due
+  // (refactor_every solves since the last one was started, or requested by
+  // force_refactor) runs on a worker thread on a copy of the matrix while this and the
+  // following solves keep the last factor; the first factor, one after pattern_changed()
+  // and the residual safeguard's refresh stay inline. Results then depend on how fast the
+  // worker is (not bit-reproducible); off (default) is deterministic.
+  void set_background_refactor(bool on);
+  bool background_refactor() const { return background_; }
+  // Waits until a running background factorisation is done (for tests).
+  void wait_for_background();
 
   // The pattern changed (symbolic analysis again) or values changed in a way the lagged
   // factor must not survive (fixed set, time step).
@@ -62,6 +82,9 @@ class FemLinearSolver {
  private:
   bool factorize(const SparseMatrixLower& A, LinearSolveSummary& s);
   void apply_factor(const Eigen::VectorXd& r, Eigen::VectorXd& z) const;
+  void poll_background(LinearSolveSummary& s);
+  void start_background(const SparseMatrixLower& A, LinearSolveSummary& s, bool analysis_only = false);
+  void discard_background();
 
   Kind kind_;
   int refactor_every_;
@@ -72,6 +95,13 @@ class FemLinearSolver {
   bool analyzed_ = false;
   bool have_factor_ = false;
   int steps_since_factor_ = 0;
+  bool background_ = false;
+  bool refresh_requested_ = false;  // background mode: force_refactor() asked for a new factor
+  long solves_ = 0;                 // solve() calls so far
+  long factor_stamp_ = 0;           // solves_ when the active factor's matrix was taken
+  long started_stamp_ = 0;          // solves_ when the last background job was started
+  long pending_stamp_ = 0;          // solves_ of the running job's snapshot
+  std::future<int> job_;            // the running background job (JobResult in the .cpp)
   struct Factors;
   std::unique_ptr<Factors> f_;
 };

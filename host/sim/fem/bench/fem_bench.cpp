@@ -6,7 +6,9 @@
 //   arnav-fem-bench realtime      --scene data/liver/liver.scene.yaml
 //   arnav-fem-bench conditioning  [--contrasts 1,10,100,1000,10000]
 //   arnav-fem-bench cantilever    [--max-n 8]
+//   arnav-fem-bench factor        --scene data/liver/liver.scene.yaml [--repeats 5]
 #include <CLI/CLI.hpp>
+#include <cholmod.h>
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <chrono>
@@ -14,6 +16,7 @@
 #include <ctime>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <omp.h>
 #include <numbers>
 #include <optional>
 #include <string>
@@ -21,6 +24,7 @@
 
 #include "host/scene/box_mesh.hpp"
 #include "host/scene/scene.hpp"
+#include "host/sim/fem/blas_threads.hpp"
 #include "host/sim/fem/corotational_fem.hpp"
 
 namespace {
@@ -129,20 +133,29 @@ Scenario make_scenario(int nx, int ny, int nz, int threads) {
 struct RunResult {
   std::vector<Eigen::Vector3d> centroid;
   Eigen::Matrix3Xd final_x;
-  std::vector<double> step_ms, step_cpu_ms, assemble_ms, solve_ms, assemble_cpu_ms, solve_cpu_ms;
-  std::vector<double> iterations, residual;
+  std::vector<double> step_ms, step_cpu_ms, step_thread_cpu_ms, assemble_ms, solve_ms, assemble_cpu_ms, solve_cpu_ms;
+  std::vector<double> iterations, residual, initial_residual, factor_age;
+  double cpu_ms_per_frame_all_threads = 0;  // process CPU of the whole run / frames (background work included)
+  int inline_factorizations = 0, background_factorizations = 0;
   int unhealthy = 0;
   std::string last_warning;
 };
 
-RunResult run(const Scenario& sc, const ModelConfig& config, int frames) {
+double thread_cpu_ms_now() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) * 1e3 + static_cast<double>(t.tv_nsec) * 1e-6;
+}
+
+RunResult run(const Scenario& sc, const ModelConfig& config, int frames, const FemOptions& options = {}) {
   const double dt = 1.0 / 60.0;
-  CorotationalFem model(sc.problem, config);
+  CorotationalFem model(sc.problem, config, options);
   model.set_state(sc.x0, Eigen::Matrix3Xd::Zero(3, sc.x0.cols()));
   std::vector<AttachmentId> tool;
   for (int v : sc.grasp)
     tool.push_back(model.add_attachment({.point = {{v}, {1.0}}, .target_World_mm = sc.x0.col(v), .stiffness_mN_per_mm = 50.0}));
   RunResult r;
+  const std::clock_t run_c0 = std::clock();
   for (int f = 0; f < frames; ++f) {
     const double t = std::min(1.0, (f + 1) * dt);
     const double s = 0.5 - 0.5 * std::cos(std::numbers::pi * t);  // smooth 0 -> 1 over 1 s
@@ -150,8 +163,13 @@ RunResult run(const Scenario& sc, const ModelConfig& config, int frames) {
     // CPU time next to wall time: on a shared machine the wall time includes waiting for a
     // core; with one thread the CPU time is what the step costs on an idle core.
     const std::clock_t c0 = std::clock();
+    const double t0 = thread_cpu_ms_now();
     const StepSummary sum = model.step(dt);
+    r.step_thread_cpu_ms.push_back(thread_cpu_ms_now() - t0);
     r.step_cpu_ms.push_back(1000.0 * static_cast<double>(std::clock() - c0) / CLOCKS_PER_SEC);
+    r.factor_age.push_back(model.last_linear_solve().factor_age);
+    r.inline_factorizations += model.last_linear_solve().factorized;
+    r.background_factorizations += model.last_linear_solve().background_started;
     if (!sum.healthy) ++r.unhealthy, r.last_warning = sum.warning;
     r.step_ms.push_back(sum.wall_time_ms);
     r.assemble_ms.push_back(model.last_timing().assemble_ms);
@@ -160,14 +178,16 @@ RunResult run(const Scenario& sc, const ModelConfig& config, int frames) {
     r.solve_cpu_ms.push_back(model.last_timing().solve_cpu_ms);
     r.iterations.push_back(sum.iterations);
     r.residual.push_back(sum.final_residual);
+    r.initial_residual.push_back(sum.initial_residual);
     r.centroid.push_back(tumour_centroid(sc, model.positions_World_mm()));
   }
   r.final_x = model.positions_World_mm();
+  r.cpu_ms_per_frame_all_threads = 1000.0 * static_cast<double>(std::clock() - run_c0) / CLOCKS_PER_SEC / frames;
   return r;
 }
 
 int realtime(int nx, int ny, int nz, int frames, int threads, bool csv, bool with_ldlt, const std::string& scene_file,
-             bool settle_scene) {
+             bool settle_scene, const std::vector<std::string>& only, int blas_threads) {
   std::optional<Scene> scene;
   Scenario sc;
   if (scene_file.empty()) {
@@ -179,13 +199,17 @@ int realtime(int nx, int ny, int nz, int frames, int threads, bool csv, bool wit
   struct Variant {
     std::string label;
     ModelConfig c;
+    FemOptions options{};
   };
-  auto cfg = [&](const std::string& solver, int refactor, int iters, double tol) {
+
+  auto cfg = [&](const std::string& solver, int refactor, int iters, double tol, bool background = false) {
     ModelConfig c{.kind = "corotational_fem", .integrator = "implicit_euler", .linear_solver = solver};
     c.refactor_every = refactor;
     c.iterations = iters;
     c.tolerance = tol;
     c.threads = threads;
+    c.refactor_in_background = background;
+    c.blas_threads = blas_threads;
     return c;
   };
   std::vector<Variant> variants = {
@@ -200,8 +224,25 @@ int realtime(int nx, int ny, int nz, int frames, int threads, bool csv, bool wit
       {"pcg_jacobi_i25", cfg("pcg_jacobi", 1, 25, 1e-4)},
       {"pcg_jacobi_i100", cfg("pcg_jacobi", 1, 100, 1e-4)},
       {"pcg_jacobi_i400_tol1e-6", cfg("pcg_jacobi", 1, 400, 1e-6)},
+      // Refactorised on a worker thread; refactor 1 = a new factorisation starts as soon
+      // as the last one is done.
+      {"pcg_bg_r1_i1", cfg("pcg", 1, 1, 1e-4, true)},
+      {"pcg_bg_r1_i2", cfg("pcg", 1, 2, 1e-4, true)},
+      {"pcg_bg_r1_i3", cfg("pcg", 1, 3, 1e-4, true)},
+      {"pcg_bg_r10_i2", cfg("pcg", 10, 2, 1e-4, true)},
   };
   if (with_ldlt) variants.push_back({"eigen_ldlt_every_step", cfg("eigen_ldlt", 1, 1, 1e-6)});
+  if (!only.empty()) {
+    std::string names;
+    for (const Variant& v : variants) names += " " + v.label;
+    for (const std::string& name : only)
+      if (std::none_of(variants.begin(), variants.end(), [&](const Variant& v) { return v.label == name; }))
+        throw std::invalid_argument("--only: unknown variant '" + name + "'; known:" + names);
+    std::vector<Variant> kept{variants[0]};  // the reference always runs
+    for (std::size_t k = 1; k < variants.size(); ++k)
+      if (std::find(only.begin(), only.end(), variants[k].label) != only.end()) kept.push_back(variants[k]);
+    variants = kept;
+  }
   const RunResult ref = run(sc, variants[0].c, frames);
   json out;
   out["mesh"] = {{"tets", sc.problem.mesh.num_tets()},
@@ -212,12 +253,15 @@ int realtime(int nx, int ny, int nz, int frames, int threads, bool csv, bool wit
   out["beam_elements"] = sc.problem.vessels ? static_cast<int>(sc.problem.vessels->segments.size()) : 0;
   out["frames"] = frames;
   out["threads"] = threads;
+  const BlasInfo blas = blas_info();
+  out["blas"] = blas.openblas ? blas.config + " (threads " + std::to_string(blas.threads) + ")"
+                              : std::string("not OpenBLAS (reference BLAS: single-threaded)");
   double ref_motion = 0;
   for (const auto& c : ref.centroid) ref_motion = std::max(ref_motion, (c - ref.centroid.front()).norm());
   out["reference_tumour_motion_mm"] = ref_motion;
   json rows = json::array();
   for (const Variant& v : variants) {
-    const RunResult r = v.label == "direct_every_step" ? ref : run(sc, v.c, frames);
+    const RunResult r = v.label == "direct_every_step" ? ref : run(sc, v.c, frames, v.options);
     double err = 0;
     for (std::size_t f = 0; f < r.centroid.size(); ++f) err = std::max(err, (r.centroid[f] - ref.centroid[f]).norm());
     const double vertex_err = (r.final_x - ref.final_x).colwise().norm().maxCoeff();
@@ -227,7 +271,15 @@ int realtime(int nx, int ny, int nz, int frames, int threads, bool csv, bool wit
                     {"max_iterations", v.c.iterations},
                     {"tolerance", v.c.tolerance},
                     {"median_step_ms", median(r.step_ms)},
+                    {"refactor_in_background", v.c.refactor_in_background},
+                    {"median_initial_residual", median(r.initial_residual)},
                     {"median_step_cpu_ms", median(r.step_cpu_ms)},
+                    {"median_step_thread_cpu_ms", median(r.step_thread_cpu_ms)},
+                    {"p90_step_thread_cpu_ms", percentile(r.step_thread_cpu_ms, 0.9)},
+                    {"cpu_ms_per_frame_all_threads", r.cpu_ms_per_frame_all_threads},
+                    {"median_factor_age", median(r.factor_age)},
+                    {"inline_factorizations", r.inline_factorizations},
+                    {"background_factorizations", r.background_factorizations},
                     {"p90_step_cpu_ms", percentile(r.step_cpu_ms, 0.9)},
                     {"p90_step_ms", percentile(r.step_ms, 0.9)},
                     {"max_step_ms", *std::max_element(r.step_ms.begin(), r.step_ms.end())},
@@ -245,12 +297,16 @@ int realtime(int nx, int ny, int nz, int frames, int threads, bool csv, bool wit
   }
   out["results"] = rows;
   if (csv) {
-    std::cout << "label,median_step_ms,median_step_cpu_ms,p90_step_ms,median_assemble_ms,median_solve_ms,median_iterations,"
-                 "max_tumour_centroid_error_mm,final_max_vertex_error_mm,unhealthy_steps\n";
+    std::cout << "label,median_step_ms,p90_step_ms,median_step_cpu_ms,median_step_thread_cpu_ms,p90_step_thread_cpu_ms,"
+                 "cpu_ms_per_frame_all_threads,median_assemble_ms,median_solve_ms,median_iterations,median_factor_age,"
+                 "inline_factorizations,background_factorizations,max_tumour_centroid_error_mm,final_max_vertex_error_mm,"
+                 "unhealthy_steps\n";
     for (const auto& r : rows) {
-      std::cout << r["label"].get<std::string>() << ',' << r["median_step_ms"] << ',' << r["median_step_cpu_ms"] << ','
-                << r["p90_step_ms"] << ','
-                << r["median_assemble_ms"] << ',' << r["median_solve_ms"] << ',' << r["median_iterations"] << ','
+      std::cout << r["label"].get<std::string>() << ',' << r["median_step_ms"] << ',' << r["p90_step_ms"] << ','
+                << r["median_step_cpu_ms"] << ',' << r["median_step_thread_cpu_ms"] << ',' << r["p90_step_thread_cpu_ms"]
+                << ',' << r["cpu_ms_per_frame_all_threads"] << ',' << r["median_assemble_ms"] << ','
+                << r["median_solve_ms"] << ',' << r["median_iterations"] << ',' << r["median_factor_age"] << ','
+                << r["inline_factorizations"] << ',' << r["background_factorizations"] << ','
                 << r["max_tumour_centroid_error_mm"] << ',' << r["final_max_vertex_error_mm"] << ','
                 << r["unhealthy_steps"] << '\n';
     }
@@ -357,6 +413,105 @@ int cantilever(int max_n, int threads) {
   return 0;
 }
 
+// ---------------------------------------------------------------- factor
+// CHOLMOD on the implicit-Euler matrix of the scene after one step from rest: symbolic
+// analysis, numeric factorisation and one solve, per ordering (AMD, METIS, CHOLMOD's
+// nested dissection) and factor kind (supernodal LL^T, simplicial LDL^T). Reports the
+// factor's nonzeros and flop count, wall and process CPU time (the BLAS may use threads).
+double process_cpu_ms_now() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) * 1e3 + static_cast<double>(t.tv_nsec) * 1e-6;
+}
+
+int factor(const std::string& scene_file, int repeats, int threads, bool cholmod_openmp) {
+  const Scene scene = load_scene(scene_file);
+  // As FemLinearSolver does (fem_linear_solver.cpp): CHOLMOD's own OpenMP regions serial.
+  if (!cholmod_openmp) omp_set_max_active_levels(0);
+  ModelConfig c{.kind = "corotational_fem", .integrator = "implicit_euler", .linear_solver = "cholmod"};
+  c.threads = threads;
+  CorotationalFem model(scene.problem, c);
+  model.step(1.0 / 60.0);
+  SparseMatrixLower A = model.system_matrix();
+  A.makeCompressed();
+  const int n = static_cast<int>(A.rows());
+  json rows = json::array();
+  struct Ord {
+    const char* name;
+    int ordering;
+  };
+  for (const Ord ord : {Ord{"amd", CHOLMOD_AMD}, Ord{"metis", CHOLMOD_METIS}, Ord{"nesdis", CHOLMOD_NESDIS}}) {
+    for (const bool super : {true, false}) {
+      cholmod_common cm;
+      cholmod_start(&cm);
+      cm.print = 0;
+      cm.nmethods = 1;
+      cm.method[0].ordering = ord.ordering;
+      cm.postorder = 1;
+      cm.supernodal = super ? CHOLMOD_SUPERNODAL : CHOLMOD_SIMPLICIAL;
+      cholmod_sparse As{};
+      As.nrow = As.ncol = static_cast<std::size_t>(n);
+      As.nzmax = static_cast<std::size_t>(A.nonZeros());
+      As.p = A.outerIndexPtr();
+      As.i = A.innerIndexPtr();
+      As.x = A.valuePtr();
+      As.stype = -1;  // lower triangle stored
+      As.itype = CHOLMOD_INT;
+      As.xtype = CHOLMOD_REAL;
+      As.dtype = CHOLMOD_DOUBLE;
+      As.sorted = 1;
+      As.packed = 1;
+      auto t0 = std::chrono::steady_clock::now();
+      cholmod_factor* L = cholmod_analyze(&As, &cm);
+      const double analyze_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      const double lnz = cm.lnz, flops = cm.fl;
+      std::vector<double> fwall, fcpu, swall, scpu;
+      cholmod_dense* b = cholmod_ones(As.nrow, 1, CHOLMOD_REAL, &cm);
+      double residual = 0;
+      for (int r = 0; r < repeats; ++r) {
+        t0 = std::chrono::steady_clock::now();
+        double c0 = process_cpu_ms_now();
+        cholmod_factorize(&As, L, &cm);
+        fwall.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+        fcpu.push_back(process_cpu_ms_now() - c0);
+        for (int k = 0; k < 5; ++k) {
+          t0 = std::chrono::steady_clock::now();
+          c0 = process_cpu_ms_now();
+          cholmod_dense* x = cholmod_solve(CHOLMOD_A, L, b, &cm);
+          swall.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+          scpu.push_back(process_cpu_ms_now() - c0);
+          const Eigen::Map<const Eigen::VectorXd> xv(static_cast<double*>(x->x), n);
+          residual = (Eigen::VectorXd::Ones(n) - A.selfadjointView<Eigen::Lower>() * xv).norm() / std::sqrt(double(n));
+          cholmod_free_dense(&x, &cm);
+        }
+      }
+      rows.push_back({{"ordering", ord.name},
+                      {"factor", super ? "supernodal_llt" : "simplicial_ldlt"},
+                      {"factor_ok", L->minor == L->n},
+                      {"nnz_L", lnz},
+                      {"flops_factor", flops},
+                      {"analyze_ms", analyze_ms},
+                      {"median_factor_ms", median(fwall)},
+                      {"median_factor_cpu_ms", median(fcpu)},
+                      {"median_solve_ms", median(swall)},
+                      {"median_solve_cpu_ms", median(scpu)},
+                      {"solve_residual_rms", residual}});
+      cholmod_free_dense(&b, &cm);
+      cholmod_free_factor(&L, &cm);
+      cholmod_finish(&cm);
+      std::cerr << ord.name << (super ? " supernodal" : " simplicial") << " done\n";
+    }
+  }
+  const BlasInfo blas = blas_info();
+  std::cout << json{{"matrix", {{"dof", n}, {"nnz_lower", A.nonZeros()}, {"scene", scene_file}}},
+                    {"blas", blas.openblas ? blas.config + " (threads " + std::to_string(blas.threads) + ")" : "not OpenBLAS"},
+                    {"cholmod_openmp", cholmod_openmp},
+                    {"factor", rows}}
+                   .dump(2)
+            << '\n';
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -376,6 +531,11 @@ int main(int argc, char** argv) {
   rt->add_flag("--settle", settle_scene, "with --scene: start from the gravity equilibrium instead of the rest shape");
   rt->add_option("--scene", scene_file, "scene file (e.g. data/liver/liver.scene.yaml) instead of the box")->check(CLI::ExistingFile);
   rt->add_flag("--with-eigen-ldlt", with_ldlt, "also time Eigen's simplicial LDLT every step (slow)");
+  std::vector<std::string> only;
+  int blas_threads = 0;
+  rt->add_option("--only", only, "run only these variants (labels as in the output; the reference always runs)");
+  rt->add_option("--blas-threads", blas_threads, "OpenBLAS threads (model key blas_threads; 0 = as the environment sets)")
+      ->check(CLI::NonNegativeNumber);
   auto* cond = app.add_subcommand("conditioning", "PCG iterations and kappa vs vessel/parenchyma stiffness contrast");
   cond->add_option("--contrasts", contrasts, "E_vessel / E_parenchyma values")->delimiter(',');
   cond->add_option("--nx", nx)->check(CLI::PositiveNumber);
@@ -385,6 +545,13 @@ int main(int argc, char** argv) {
   auto* cant = app.add_subcommand("cantilever", "tip deflection / Timoshenko for n x n x 10n cells, n = 1..max-n");
   cant->add_option("--max-n", max_n, "largest n")->check(CLI::Range(1, 12));
   cant->add_option("--threads", threads)->check(CLI::PositiveNumber);
+  int repeats = 5;
+  auto* fac = app.add_subcommand("factor", "CHOLMOD ordering / factor kind: factor size, factorisation and solve time");
+  fac->add_option("--scene", scene_file, "scene file")->required()->check(CLI::ExistingFile);
+  fac->add_option("--repeats", repeats, "numeric factorisations per variant (5 solves each)")->check(CLI::PositiveNumber);
+  fac->add_option("--threads", threads)->check(CLI::PositiveNumber);
+  bool cholmod_openmp = false;
+  fac->add_flag("--cholmod-openmp", cholmod_openmp, "leave CHOLMOD's internal OpenMP regions on (FemLinearSolver turns them off)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -392,8 +559,9 @@ int main(int argc, char** argv) {
     return e.get_exit_code() == 0 ? 0 : (code == 0 ? 0 : 2);
   }
   try {
-    if (*rt) return realtime(nx, ny, nz, frames, threads, csv, with_ldlt, scene_file, settle_scene);
+    if (*rt) return realtime(nx, ny, nz, frames, threads, csv, with_ldlt, scene_file, settle_scene, only, blas_threads);
     if (*cond) return conditioning(contrasts, nx, ny, nz, threads);
+    if (*fac) return factor(scene_file, repeats, threads, cholmod_openmp);
     return cantilever(max_n, threads);
   } catch (const std::exception& e) {
     std::cerr << "arnav-fem-bench: " << e.what() << '\n';
