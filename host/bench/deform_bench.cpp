@@ -182,7 +182,7 @@ std::vector<Setting> settings(bool quick, bool fine, int threads) {
     c.integrator = "local_global";
     c.substeps = 1;
     c.tolerance = 0.0;
-    for (int it : {1, 2, 4, 20}) {
+    for (int it : {1, 2, 4, 10}) {
       c.iterations = it;
       add("mass_spring local_global i" + std::to_string(it), c);
     }
