@@ -152,7 +152,7 @@ std::vector<Setting> settings(bool quick, bool fine, int threads) {
     // substep only).
     if (!quick) {
       c.iterations = 1;
-      for (int sub : {5, 10, 20, 40}) {
+      for (int sub : {5, 10, 16, 20, 40}) {
         c.substeps = sub;
         add("xpbd s" + std::to_string(sub) + " i1", c);
       }
