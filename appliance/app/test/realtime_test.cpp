@@ -76,7 +76,7 @@ const std::string kBase = "port: sim\ntools:\n  - {name: pointer, rom: 8700340.r
 TEST(Realtime, ConfigDefaultsAndValues) {
   const AppConfig d = parse(kBase);
   EXPECT_EQ(d.realtime.cpu_latency_us, 0);
-  EXPECT_EQ(d.realtime.priority, 0);
+  EXPECT_EQ(d.realtime.priority, 50);
   const AppConfig c = parse(kBase + "realtime: {cpu_latency_us: -1, priority: 40}\n");
   EXPECT_EQ(c.realtime.cpu_latency_us, -1);
   EXPECT_EQ(c.realtime.priority, 40);
