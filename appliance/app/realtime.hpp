@@ -14,8 +14,9 @@ namespace arnav::app {
 struct RealtimeConfig {
   // PM QoS request in microseconds held while running; negative: leave the CPU idle policy alone.
   int cpu_latency_us = 0;
-  // SCHED_FIFO priority (1-99) of the polling thread; 0: normal scheduling.
-  int priority = 0;
+  // SCHED_FIFO priority (1-99) of the polling thread; 0: normal scheduling. On by default:
+  // the appliance is a dedicated box and the latency target needs it (docs/benchmarks.md).
+  int priority = 50;
 };
 
 // Holds a PM QoS CPU-latency request for its lifetime (the kernel drops it when the file

@@ -23,6 +23,8 @@
 #include <optional>
 #include <string>
 
+#include "appliance/frames/pi_mutex.hpp"
+
 namespace arnav::frames {
 
 enum class Reference { Cam, Ndi, Ref };
@@ -68,7 +70,7 @@ class ReferenceFrames {
   std::optional<Eigen::Isometry3d> X_NdiCam_;
   std::string reference_tool_;
   std::int64_t max_age_us_;
-  mutable std::mutex mutex_;
+  mutable PiMutex mutex_;  // the NDI thread may be real-time, the camera thread is not
   struct Sample {
     std::int64_t time_us;
     std::optional<Eigen::Isometry3d> X_NdiRef;  // empty: the tool was not seen

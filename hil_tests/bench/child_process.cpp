@@ -66,7 +66,11 @@ ChildProcess::ChildProcess(std::vector<std::string> argv, std::vector<std::strin
     ::close(out_pipe[1]);
     stdout_fd_ = out_pipe[0];
   }
-  if (rc != 0) throw std::runtime_error("cannot start " + argv[0] + ": " + std::strerror(rc));
+  if (rc != 0)
+    throw std::runtime_error("cannot start " + argv[0] + ": " + std::strerror(rc) +
+                             (fifo_priority > 0 ? " (it was to run SCHED_FIFO " + std::to_string(fifo_priority) +
+                                                      ": needs root/CAP_SYS_NICE and a real-time budget; use priority 0)"
+                                                : std::string()));
 }
 
 ChildProcess::~ChildProcess() {

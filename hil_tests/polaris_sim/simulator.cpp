@@ -371,6 +371,12 @@ void Simulator::run(const std::atomic<bool>& stop) {
     double wait = kMaxPollWaitS;
     if (!output_.empty()) wait = std::min(wait, std::max(0.0, std::max(output_.front().due_s, options_.wire_timing ? wire_free_s_ : 0.0) - now));
     if (reset_due_s_ >= 0.0) wait = std::min(wait, std::max(0.0, reset_due_s_ - now));
+    // A reply that is due but could not be written (pty full: the host is not reading;
+    // port unplugged) is retried every millisecond, not in a busy loop: the simulator may
+    // run SCHED_FIFO, above the appliance.
+    const bool output_blocked =
+        !output_.empty() && output_.front().due_s <= now && !(options_.wire_timing && now < wire_free_s_);
+    if (output_blocked) wait = std::max(wait, 0.001);
     pollfd fds[3];
     nfds_t nfds = 0;
     const int master = link_.plugged() ? link_.master_fd() : -1;

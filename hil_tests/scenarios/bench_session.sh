@@ -55,8 +55,18 @@ trap cleanup EXIT
 
 # ARNAV_SIM_PRIORITY=N runs the simulator under SCHED_FIFO N: a real Polaris keeps its
 # own time, a normally scheduled simulator on a loaded machine answers late.
+# (With sudo, put it after sudo: `sudo ARNAV_SIM_PRIORITY=60 ...`; sudo drops the caller's
+# environment.) Where SCHED_FIFO is refused, the simulator runs normally and says so.
 sim_prefix=()
-if [ "${ARNAV_SIM_PRIORITY:-0}" != "0" ]; then sim_prefix=(chrt --fifo "$ARNAV_SIM_PRIORITY"); fi
+sim_sched="normal scheduling"
+if [ "${ARNAV_SIM_PRIORITY:-0}" != "0" ]; then
+  if chrt --fifo "$ARNAV_SIM_PRIORITY" true 2>/dev/null; then
+    sim_prefix=(chrt --fifo "$ARNAV_SIM_PRIORITY")
+    sim_sched="SCHED_FIFO $ARNAV_SIM_PRIORITY"
+  else
+    sim_sched="normal scheduling (SCHED_FIFO $ARNAV_SIM_PRIORITY refused here: no CAP_SYS_NICE or no real-time budget)"
+  fi
+fi
 "${sim_prefix[@]}" "$sim" --pty-link "$out/polaris" --bind-over /dev/ttyS0 --break-socket "$out/break.sock" --control "$out/control.sock" \
   --events "$out/sim_events.jsonl" --scenario "$sim_cfg" >"$out/sim.stdout" 2>"$out/sim.log" &
 sim_pid=$!
@@ -67,7 +77,7 @@ for _ in $(seq 1 300); do
   sleep 0.1
 done
 grep -q '^READY ' "$out/sim.stdout" || { echo "simulator not ready after 30 s" >&2; exit 1; }
-echo "simulated Polaris: $(cat "$out/sim.stdout") bound over /dev/ttyS0 (scenario $sim_cfg)"
+echo "simulated Polaris: $(cat "$out/sim.stdout") bound over /dev/ttyS0 (scenario $sim_cfg, $sim_sched)"
 
 LD_PRELOAD=$shim ARNAV_HIL_BREAK_SOCKET=$out/break.sock "$appliance" "$app_cfg" 2>"$out/appliance.log" &
 app_pid=$!

@@ -18,8 +18,10 @@ struct HilRunOptions {
   std::string reply_mode = "bx";  // appliance: bx | tx
   std::vector<std::pair<std::string, std::string>> tools = {{"pointer", "8700340.rom"}, {"reference", "8700339.rom"}};
   std::vector<std::string> sim_args;  // extra simulator arguments
-  int cpu_latency_us = 0;             // appliance realtime.cpu_latency_us (-1: no request)
-  int priority = 0;                   // appliance realtime.priority (0: normal scheduling)
+  // The appliance's realtime: section; the defaults are the production defaults, so the
+  // end-to-end tests run the appliance as it is shipped.
+  int cpu_latency_us = 0;             // realtime.cpu_latency_us (-1: no request)
+  int priority = 50;                  // realtime.priority (0: normal scheduling)
   // SCHED_FIFO priority of the simulator (0: normal). A real Polaris is hardware with its own
   // clock; on a loaded bench machine a normally scheduled simulator answers late.
   int sim_priority = 0;

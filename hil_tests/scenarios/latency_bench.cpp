@@ -33,7 +33,7 @@ int main(int argc, char** argv) {
   app.add_option("--reply-mode", o.reply_mode, "bx or tx (default bx)")->check(CLI::IsMember({"bx", "tx"}));
   app.add_option("--cpu-latency-us", o.cpu_latency_us, "appliance realtime.cpu_latency_us (default 0; -1: no request)")
       ->check(CLI::Range(-1, 100000));
-  app.add_option("--priority", o.priority, "appliance realtime.priority, SCHED_FIFO 1-99 (default 0: normal scheduling)")
+  app.add_option("--priority", o.priority, "appliance realtime.priority, SCHED_FIFO 1-99, 0: normal scheduling (default 50, as shipped)")
       ->check(CLI::Range(0, 99));
   app.add_option("--sim-priority", o.sim_priority, "simulator SCHED_FIFO priority (default 0: normal scheduling)")
       ->check(CLI::Range(0, 99));

@@ -9,11 +9,16 @@ master, slave = pty.openpty()
 tty.setraw(slave); tty.setraw(master)
 pid = os.fork()
 if pid == 0:
+    os.close(slave)  # so the echo side sees EIO and exits when the prober goes away
     os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(60))
     while True:
-        b = os.read(master, 64)
-        if b == b'q': os._exit(0)
+        try:
+            b = os.read(master, 64)
+        except OSError:
+            os._exit(0)
+        if b == b'q' or not b: os._exit(0)
         os.write(master, b'r'*64)
+os.close(master)
 os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))
 n = int(sys.argv[1]) if len(sys.argv) > 1 else 4000; rtts = []
 for i in range(n):

@@ -18,14 +18,17 @@ sed -e "s|^frame_rate_hz: .*|frame_rate_hz: ${rate}|" -e "s|\.\./\.\./\.\./share
 sed -e "s|^rate_hz: .*|rate_hz: ${rate}|" -e "s|\.\./\.\./\.\./shared|${shared}|" "$here/soak_appliance.yaml" >"$out/soak_appliance.yaml"
 # The appliance runs its polling thread SCHED_FIFO (soak_appliance.yaml, realtime:); the
 # simulator, standing in for the device's own clock, runs SCHED_FIFO too.
-ARNAV_SIM_PRIORITY=${ARNAV_SIM_PRIORITY:-60} "$here/bench_session.sh" "$build" "$out/soak_sim.yaml" "$out/soak_appliance.yaml" "$seconds" "$out" 10
+session_rc=0
+ARNAV_SIM_PRIORITY=${ARNAV_SIM_PRIORITY:-60} "$here/bench_session.sh" "$build" "$out/soak_sim.yaml" "$out/soak_appliance.yaml" "$seconds" "$out" 10 ||
+  session_rc=$?
+# The verdict is printed whatever happened above (missing lines count as failures).
 echo "== soak verdict =="
-grep -E '^tool [^ ]+ +[0-9]+ valid' "$out/host.log"
-bad=$(grep -cE "^tool .* ([1-9][0-9]*) duplicate frames|, ([1-9][0-9]*) frame gaps|STALE at exit" "$out/host.log" || true)
-dropped=$(grep -oE "dropped frames [0-9]+" "$out/host.log" | tail -1 | awk '{print $3}')
-growth=$(awk -F, 'NR > 1 { if ($1 >= 60 && at60 == "") at60 = $2; last = $2 } END { print (at60 == "" ? 0 : last - at60) }' "$out/appliance_rss.csv")
-echo "tools with lost/repeated frames: $bad; appliance dropped_frames: ${dropped:-?}; RSS growth after 60 s: ${growth} KiB"
-if [ "$bad" = "0" ] && [ "${dropped:-1}" = "0" ] && [ "$growth" -le 1024 ]; then
+grep -E '^tool [^ ]+ +[0-9]+ valid' "$out/host.log" 2>/dev/null || echo "no per-tool summary in $out/host.log"
+bad=$(grep -cE "^tool .* ([1-9][0-9]*) duplicate frames|, ([1-9][0-9]*) frame gaps|STALE at exit" "$out/host.log" 2>/dev/null || true)
+dropped=$( (grep -oE "dropped frames [0-9]+" "$out/host.log" 2>/dev/null || true) | tail -1 | awk '{print $3}')
+growth=$(awk -F, 'NR > 1 { if ($1 >= 60 && at60 == "") at60 = $2; last = $2 } END { print (at60 == "" ? 0 : last - at60) }' "$out/appliance_rss.csv" 2>/dev/null || echo 0)
+echo "session exit code: $session_rc; tools with lost/repeated frames: ${bad:-?}; appliance dropped_frames: ${dropped:-?}; RSS growth after 60 s: ${growth} KiB"
+if [ "$session_rc" = "0" ] && [ "${bad:-1}" = "0" ] && [ "${dropped:-1}" = "0" ] && [ "$growth" -le 1024 ]; then
   echo "SOAK PASSED"
 else
   echo "SOAK FAILED"

@@ -152,7 +152,7 @@ std::vector<Setting> settings(bool quick, bool fine, int threads) {
     // substep only).
     if (!quick) {
       c.iterations = 1;
-      for (int sub : {5, 10, 20, 40}) {
+      for (int sub : {5, 10, 16, 20, 40}) {
         c.substeps = sub;
         add("xpbd s" + std::to_string(sub) + " i1", c);
       }
@@ -182,7 +182,7 @@ std::vector<Setting> settings(bool quick, bool fine, int threads) {
     c.integrator = "local_global";
     c.substeps = 1;
     c.tolerance = 0.0;
-    for (int it : {1, 2, 4, 20}) {
+    for (int it : {1, 2, 4, 10}) {
       c.iterations = it;
       add("mass_spring local_global i" + std::to_string(it), c);
     }

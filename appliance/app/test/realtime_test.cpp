@@ -56,6 +56,10 @@ TEST(Realtime, FifoOnTheCallingThreadOnlyOrAClearRefusal) {
     const std::string error = make_this_thread_realtime(10);
     if (error.empty()) {
       EXPECT_EQ(sched_getscheduler(0) & ~SCHED_RESET_ON_FORK, SCHED_FIFO);
+      // Reset-on-fork: threads and processes it starts run normally.
+      int child_policy = -1;
+      std::thread([&] { child_policy = sched_getscheduler(0); }).join();
+      EXPECT_EQ(child_policy, SCHED_OTHER);
     } else {  // not root / no CAP_SYS_NICE: the message says what to do
       EXPECT_NE(error.find("realtime.priority"), std::string::npos) << error;
       EXPECT_EQ(sched_getscheduler(0), SCHED_OTHER);
@@ -76,7 +80,7 @@ const std::string kBase = "port: sim\ntools:\n  - {name: pointer, rom: 8700340.r
 TEST(Realtime, ConfigDefaultsAndValues) {
   const AppConfig d = parse(kBase);
   EXPECT_EQ(d.realtime.cpu_latency_us, 0);
-  EXPECT_EQ(d.realtime.priority, 0);
+  EXPECT_EQ(d.realtime.priority, 50);
   const AppConfig c = parse(kBase + "realtime: {cpu_latency_us: -1, priority: 40}\n");
   EXPECT_EQ(c.realtime.cpu_latency_us, -1);
   EXPECT_EQ(c.realtime.priority, 40);

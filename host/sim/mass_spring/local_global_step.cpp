@@ -18,7 +18,9 @@
 // iterate); w = kLocalGlobalVolumeWeight bounds the volume term near rest
 // ((tr grad u)^2 <= 3 |grad u|^2). A converged iteration is the exact backward-Euler step;
 // a truncated one (the real-time setting) is a damped approximation to it whose fixed
-// point over frames is still the exact static equilibrium f(x) = 0.
+// point over frames is still the exact static equilibrium f(x) = 0. The Laplacian is
+// stiffer than the network across the springs, so bending/shear modes converge slowly;
+// from the third iteration on the iterates are Chebyshev-accelerated.
 #include <algorithm>
 #include <cmath>
 
@@ -30,6 +32,14 @@ namespace {
 // Weight of the volume term in the constant matrix (see above): 3 bounds it at rest;
 // smaller converges faster where the springs already carry the volume mode.
 constexpr double kLocalGlobalVolumeWeight = 1.5;
+// Chebyshev semi-iterative acceleration (Wang 2015) of iterations kChebyshevStart, ...
+// (0-based): spectral radius estimate rho and under-relaxation gamma, tuned on the liver
+// (45 frames of gravity sag, distance from the equilibrium: 4 iterations 0.18 -> 0.04 mm
+// RMS, 1.8 -> 0.38 mm max; rho 0.99 diverged, starting at the second iteration diverged
+// with 2 and 3 iterations). One and two iterations per step are not accelerated.
+constexpr int kChebyshevStart = 2;
+constexpr double kChebyshevRho = 0.9;
+constexpr double kChebyshevGamma = 0.9;
 }  // namespace
 
 bool MassSpringModel::build_local_global_system(double h, std::string& error) {
@@ -124,6 +134,8 @@ StepSummary MassSpringModel::local_global_substep(double h) {
   x_ += h * v_;
   const double inv_h = 1.0 / h, inv_h2 = inv_h * inv_h;
   double denom = 0.0;
+  double omega = 1.0;  // Chebyshev weight
+  if (x_prev_.cols() != n) x_prev_ = x_;
   for (int k = 0; k < config_.iterations; ++k) {
     // Local step: forces at the iterate (springs along their current directions, dashpots
     // on the current relative velocities, volume term, attachments, gravity, damping).
@@ -155,10 +167,24 @@ StepSummary MassSpringModel::local_global_substep(double h) {
     }
     // Global step: one back-substitution pair for the three coordinates.
     system_.solve(lg_rhs_, lg_dx_, threads_);
+    // Chebyshev semi-iterative acceleration from the third iteration on (see above):
+    // x^{k+1} = w (gamma (xhat - x^k) + x^k - x^{k-1}) + x^{k-1}, xhat the plain update.
+    if (k == kChebyshevStart) {
+      omega = 2.0 / (2.0 - kChebyshevRho * kChebyshevRho);
+    } else if (k > kChebyshevStart) {
+      omega = 4.0 / (4.0 - kChebyshevRho * kChebyshevRho * omega);
+    }
+    const bool accelerate = k >= kChebyshevStart;
 #pragma omp parallel for num_threads(threads_) if (threads_ > 1) schedule(static)
     for (int i = 0; i < n; ++i) {
       const int fi = free_index_[static_cast<std::size_t>(i)];
-      if (fi >= 0) x_.col(i) += lg_dx_.row(fi).transpose();
+      if (fi < 0) continue;
+      const Eigen::Vector3d xk = x_.col(i);
+      const Eigen::Vector3d xhat = xk + lg_dx_.row(fi).transpose();
+      x_.col(i) = accelerate ? Eigen::Vector3d(omega * (kChebyshevGamma * (xhat - xk) + xk - x_prev_.col(i)) +
+                                               x_prev_.col(i))
+                             : xhat;
+      x_prev_.col(i) = xk;
     }
     ++s.iterations;
   }

@@ -633,8 +633,8 @@ StepSummary MassSpringModel::step(double dt_s) {
   if (integrator_ == Integrator::kLocalGlobal && config_.tolerance > 0.0 && summary.final_residual > config_.tolerance &&
       summary.healthy) {
     report(summary,
-           "local_global not converged: relative residual " + std::to_string(summary.final_residual) + " after " +
-               std::to_string(config_.iterations) + " iterations (raise iterations)",
+           "local_global not converged: relative residual " + std::to_string(summary.final_residual) +
+               " before the last of " + std::to_string(config_.iterations) + " iterations (raise iterations)",
            false);
   }
   if (integrator_ == Integrator::kSemiImplicit && summary.final_residual > kUnconvergedResidual) {

@@ -143,6 +143,7 @@ class MassSpringModel final : public TissueModel {
   std::vector<int> free_index_;  // vertex -> row of the system, -1 for fixed vertices
   Eigen::Matrix3Xd xn_, vn_;     // state at the start of the substep
   Eigen::MatrixX3d lg_rhs_, lg_dx_;
+  Eigen::Matrix3Xd x_prev_;      // previous local/global iterate (Chebyshev acceleration)
 };
 
 }  // namespace arnav::host

@@ -59,12 +59,12 @@ const std::map<std::pair<std::string, std::string>, std::string>& known_limits()
   const std::string explicit_bound =
       "explicit bound 2/omega ~ sqrt(m/k) shrinks with stiffness: step refused, warning names the substeps needed";
   const std::string xpbd_contrast =
-      "4 substeps x 4 iterations do not converge in the stiff vessel: it behaves softer and stores more energy than "
-      "was put in (energy ledger); 16 x 16 passes";
+      "16 substeps x 1 sweep do not converge in the stiff vessel: it behaves softer and stores more energy than "
+      "was put in (energy ledger); 16 x 16 passes 10^3, not 10^4 (checked by hand)";
   const std::string nh_small_steps =
-      "stable Neo-Hookean, 10 substeps x 1 sweep: its shear stiffness is explicit-like (it lives in the |F| "
-      "multiplier), so a substep beyond ~2/omega of the stiffest shear mode (vessel 10^2+ stiffer, or 10 ms "
-      "substeps) blows up; the energy ledger reports it. The corotated energy (xpbd) passes dt_100ms";
+      "stable Neo-Hookean, 40 substeps x 1 sweep: its shear stiffness is explicit-like (it lives in the |F| "
+      "multiplier), so a substep beyond ~2/omega of the stiffest shear mode (vessel 10^3+ stiffer) blows up; "
+      "the energy ledger reports it. The corotated energy does not blow up (its own limit is convergence)";
   const std::string cg_contrast =
       "20 Jacobi-PCG iterations do not converge with 10^3+ contrast (truncated linear solve gains energy, "
       "energy ledger reports it); a 200-iteration cap converges in ~100 and passes";
@@ -76,13 +76,10 @@ const std::map<std::pair<std::string, std::string>, std::string>& known_limits()
       {{"mass_spring/explicit", "contrast_1e4"}, explicit_bound},
       {{"mass_spring/explicit", "dt_100ms"}, explicit_bound},
       {{"mass_spring/explicit", "attachment_100x"}, explicit_bound},
-      {{"xpbd", "contrast_1e2"}, xpbd_contrast},
       {{"xpbd", "contrast_1e3"}, xpbd_contrast},
       {{"xpbd", "contrast_1e4"}, xpbd_contrast},
-      {{"xpbd/neo_hookean", "contrast_1e2"}, nh_small_steps},
       {{"xpbd/neo_hookean", "contrast_1e3"}, nh_small_steps},
       {{"xpbd/neo_hookean", "contrast_1e4"}, nh_small_steps},
-      {{"xpbd/neo_hookean", "dt_100ms"}, nh_small_steps},
   };
   return limits;
 }

@@ -2,7 +2,7 @@
 // XPBD tet constraints stored and solved in batches of kLanes tets that touch distinct
 // vertices (structure of arrays inside a batch), so that one batch is solved with SIMD
 // arithmetic across its tets. Two energies: fixed-corotated (see xpbd_model.hpp) and
-// stable Neo-Hookean (Macklin & Mueller 2021):
+// stable Neo-Hookean (Macklin & Mueller 2021), as follows.
 //
 // Energy per unit rest volume: Psi = mu/2 (|F|^2 - 3) + lambda/2 (det F - gamma)^2 with
 // gamma = 1 + mu/lambda (rest is stress free). Linearised it is linear elasticity with

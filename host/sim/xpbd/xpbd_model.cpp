@@ -5,8 +5,8 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
-#include <omp.h>
 #include <cmath>
+#include <omp.h>
 #include <stdexcept>
 #include <string>
 
@@ -301,7 +301,7 @@ void XpbdModel::set_state(const Eigen::Matrix3Xd& positions_World_mm, const Eige
 }
 
 void XpbdModel::step_batches(double h, StepSummary& summary, bool& converged, double& energy, int& inverted) {
-  // At most two threads: one per half of the mesh (build_neo_hookean_batches).
+  // At most two threads: one per half of the mesh (build_batches).
   const int threads = std::min(config_.threads, 2);
   // Residual: RMS over the tets of |dF|, the change of F made by a sweep (strain units).
   // It measures convergence with several sweeps per substep and, with one, how much the

@@ -3,9 +3,8 @@
 // substeps (small steps, Macklin et al. 2019) and Gauss-Seidel over the tets. Two energies
 // (ModelConfig::energy):
 //  - "neo_hookean": stable Neo-Hookean (Macklin & Mueller 2021), constraints |F| and
-//    det F - gamma solved per tet as one coupled 2x2 block, no polar decomposition; tets
-//    stored in SIMD batches (tet_batches.hpp). One sweep per substep only (small
-//    steps): see the constructor;
+//    det F - gamma solved per tet as one coupled 2x2 block, no polar decomposition. One
+//    sweep per substep only (small steps): see the constructor;
 //  - "corotated" (default): fixed-corotated Psi(F) = mu |F - R|_F^2 + lambda/2 (det F - 1)^2
 //    (Stomakhin et al. 2012), two blocks per tet solved in turn: deviatoric C = F - R
 //    (R the polar rotation, frozen during the local solve, as in co-rotational FEM; the
@@ -14,9 +13,9 @@
 //    re-initialised by SVD whenever the state is set from outside.
 // Both equal linear elasticity with the region's E and nu at small strain, are invariant
 // to rigid motion and push inverted tets back. Lagrange multipliers per constraint, reset
-// every substep. Both run on the SIMD batches of tet_batches.hpp: the mesh is cut into two
-// halves that share no vertex (swept by two threads at once) and the interface between
-// them. Attachments: compliant vector constraints (compliance 1/stiffness).
+// every substep. Both run on the SIMD batches of tet_batches.hpp, in groups that let two
+// threads sweep without colours (build_batches). Attachments: compliant vector
+// constraints (compliance 1/stiffness).
 // Damping: Rayleigh beta as XPBD constraint damping, Rayleigh alpha on vertex velocities.
 // Frame World; units mm, kg, s, mN, kPa.
 #include <Eigen/Core>

@@ -51,16 +51,17 @@ int inverted_after_lobe_pull(MassSpringModel::Integrator integrator, int iterati
   return inverted;
 }
 
-TEST(MassSpringLiver, GraspedLobeLeavesAtMostTwoTetsInverted) {
+TEST(MassSpringLiver, GraspedLobeLeavesFewTetsInverted) {
   const int local_global = inverted_after_lobe_pull(MassSpringModel::Integrator::kLocalGlobal, 1, 0.0);
   const int semi_implicit = inverted_after_lobe_pull(MassSpringModel::Integrator::kSemiImplicit, 20, 1e-4);
   RecordProperty("inverted_local_global", std::to_string(local_global));
   RecordProperty("inverted_semi_implicit", std::to_string(semi_implicit));
   // 2 remain in both: tets with 3-4 grasped vertices squeezed between attachments that
   // pull their material points to a rigidly translated patch (the FEM reference inverts
-  // tets at this grasp too, docs/benchmarks.md).
-  EXPECT_LE(local_global, 2);
-  EXPECT_LE(semi_implicit, 2);
+  // tets at this grasp too, docs/benchmarks.md). Bound 4: margin for another compiler's
+  // rounding, still far below the 9-10 without the barrier.
+  EXPECT_LE(local_global, 4);
+  EXPECT_LE(semi_implicit, 4);
 }
 
 }  // namespace
