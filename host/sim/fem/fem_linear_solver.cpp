@@ -364,9 +364,10 @@ LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eige
     }
   }
   s.termination = res <= tolerance_ ? "converged" : "max_iterations";
-  // Background mode: a factor that no longer gets PCG to the tolerance within its cap is
-  // replaced as soon as the worker is free, before the fixed cadence says so.
-  if (background_ && res > tolerance_) refresh_requested_ = true;
+  // Background mode: a factor with which PCG needed the extension (above the safeguard
+  // residual after `iterations`) is replaced as soon as the worker is free, before the
+  // fixed cadence says so. (Ending above `tolerance` alone is normal with a small cap.)
+  if (background_ && extended) refresh_requested_ = true;
   s.factor_age = static_cast<int>(solves_ - factor_stamp_);
   return s;
 }

@@ -247,6 +247,9 @@ int realtime(int nx, int ny, int nz, int frames, int threads, bool csv, bool wit
       {"pcg_bg_r1_i2_float", cfg("pcg", 1, 2, 1e-4, true, true)},
       {"pcg_bg_r1_i3_float", cfg("pcg", 1, 3, 1e-4, true, true)},
       {"pcg_factor_r30_i3_float", cfg("pcg", 30, 3, 1e-4, false, true)},
+      {"pcg_bg_r10_i2_float", cfg("pcg", 10, 2, 1e-4, true, true)},
+      {"pcg_bg_r10_i3_float", cfg("pcg", 10, 3, 1e-4, true, true)},
+      {"pcg_bg_r30_i3_float", cfg("pcg", 30, 3, 1e-4, true, true)},
   };
   if (with_ldlt) variants.push_back({"eigen_ldlt_every_step", cfg("eigen_ldlt", 1, 1, 1e-6)});
   if (!only.empty()) {
@@ -293,6 +296,9 @@ int realtime(int nx, int ny, int nz, int frames, int threads, bool csv, bool wit
                     {"median_initial_residual", median(r.initial_residual)},
                     {"median_step_cpu_ms", median(r.step_cpu_ms)},
                     {"median_step_thread_cpu_ms", median(r.step_thread_cpu_ms)},
+                    {"frames_within_60hz_wall", std::count_if(r.step_ms.begin(), r.step_ms.end(),
+                                                              [](double ms) { return ms <= 1000.0 / 60.0; })},
+                    {"max_step_ms_after_first", r.step_ms.size() > 1 ? *std::max_element(r.step_ms.begin() + 1, r.step_ms.end()) : 0.0},
                     {"p90_step_thread_cpu_ms", percentile(r.step_thread_cpu_ms, 0.9)},
                     {"cpu_ms_per_frame_all_threads", r.cpu_ms_per_frame_all_threads},
                     {"median_factor_age", median(r.factor_age)},
