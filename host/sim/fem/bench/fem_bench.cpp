@@ -3,10 +3,11 @@
 // and cantilever refinement beyond what the unit tests run. Prints JSON (or CSV).
 //
 //   arnav-fem-bench realtime      [--nx 20 --ny 15 --nz 13 --frames 90 --threads 2]
-//   arnav-fem-bench realtime      --scene data/liver/liver.scene.yaml
+//   arnav-fem-bench realtime      --scene data/liver/liver.scene.yaml [--settle] [--blas-threads 1]
+//                                 [--only LABEL ...] [--trace LABEL] [--csv]
 //   arnav-fem-bench conditioning  [--contrasts 1,10,100,1000,10000]
 //   arnav-fem-bench cantilever    [--max-n 8]
-//   arnav-fem-bench factor        --scene data/liver/liver.scene.yaml [--repeats 5]
+//   arnav-fem-bench factor        --scene data/liver/liver.scene.yaml [--repeats 5] [--cholmod-openmp]
 #include <CLI/CLI.hpp>
 #include <cholmod.h>
 #include <Eigen/Geometry>
@@ -614,6 +615,9 @@ int main(int argc, char** argv) {
     if (*cond) return conditioning(contrasts, nx, ny, nz, threads);
     if (*fac) return factor(scene_file, repeats, threads, cholmod_openmp);
     return cantilever(max_n, threads);
+  } catch (const std::invalid_argument& e) {  // bad option value or model setting: usage error
+    std::cerr << "arnav-fem-bench: " << e.what() << '\n';
+    return 2;
   } catch (const std::exception& e) {
     std::cerr << "arnav-fem-bench: " << e.what() << '\n';
     return 1;
