@@ -107,6 +107,13 @@ void FemLinearSolver::set_background_refactor(bool on) {
   background_ = on;
 }
 
+void FemLinearSolver::set_single_precision_preconditioner(bool on) {
+  if (solves_ > 0 && on != single_precision_) {
+    throw std::logic_error("FemLinearSolver: set the preconditioner precision before the first solve");
+  }
+  single_precision_ = on;
+}
+
 void FemLinearSolver::wait_for_background() {
   if (job_.valid()) job_.wait();
 }
@@ -210,7 +217,7 @@ void FemLinearSolver::apply_factor(const Eigen::VectorXd& r, Eigen::VectorXd& z)
     case Kind::EigenLdlt: z = f_->ldlt.solve(r); break;
     case Kind::PcgJacobi: z = f_->inv_diag.cwiseProduct(r); break;
     default:
-      if (single_precision_ && kind_ == Kind::PcgFactor) {
+      if (single_precision_ && kind_ == Kind::PcgFactor && !f_->single.empty()) {
         f_->single.solve(r, z);
       } else {
         z = f_->cholmod->solve(r);

@@ -80,8 +80,9 @@ class FemLinearSolver {
   void set_refresh_residual(double r) { refresh_residual_ = r; }
   // PcgFactor: precondition with a single-precision copy of the factor
   // (single_precision_factor.hpp): half the memory traffic per application; PCG corrects
-  // the rounding. Takes effect at the next factorisation.
-  void set_single_precision_preconditioner(bool on) { single_precision_ = on; }
+  // the rounding. Set before the first solve (std::logic_error afterwards: factors already
+  // made, in the background too, would not match the setting).
+  void set_single_precision_preconditioner(bool on);
 
  private:
   bool factorize(const SparseMatrixLower& A, LinearSolveSummary& s);
