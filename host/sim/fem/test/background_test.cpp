@@ -11,17 +11,8 @@
 namespace arnav::host {
 namespace {
 
-using fem_test::box_problem;
-using fem_test::vertices_where;
 
-SimProblem hanging_block() {
-  // 40 x 20 x 20 mm block of soft tissue clamped on its x = 0 face, swinging down under
-  // gravity from rest: large rotations, so a lagged factor goes stale quickly.
-  SimProblem p = box_problem(8, 4, 4, Eigen::Vector3d(40, 20, 20), 5.0, 0.45);
-  p.gravity_World_mm_s2 = Eigen::Vector3d(0, 0, -9810.0);
-  p.fixed_vertices = vertices_where(p.mesh, [](const Eigen::Vector3d& q) { return q.x() == 0.0; });
-  return p;
-}
+using fem_test::hanging_block;
 
 ModelConfig pcg(int refactor_every, int iterations, double tolerance, bool background) {
   ModelConfig c{.kind = "corotational_fem", .integrator = "implicit_euler", .linear_solver = "pcg",

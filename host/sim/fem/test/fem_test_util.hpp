@@ -62,4 +62,13 @@ inline ModelConfig quasi_static_cholmod() {
   return {.kind = "corotational_fem", .integrator = "quasi_static", .linear_solver = "cholmod"};
 }
 
+// 40 x 20 x 20 mm block of soft tissue clamped on its x = 0 face, under gravity from rest:
+// it swings down through large rotations, so a lagged factor goes stale quickly.
+inline SimProblem hanging_block() {
+  SimProblem p = box_problem(8, 4, 4, Eigen::Vector3d(40, 20, 20), 5.0, 0.45);
+  p.gravity_World_mm_s2 = Eigen::Vector3d(0, 0, -9810.0);
+  p.fixed_vertices = vertices_where(p.mesh, [](const Eigen::Vector3d& q) { return q.x() == 0.0; });
+  return p;
+}
+
 }  // namespace arnav::host::fem_test
