@@ -65,6 +65,12 @@ ARNAV_INLINE void deformation_gradient(const TetBatch& b, const Corners& c, vd F
   }
 }
 
+// det F, expanded along the first column (the first column of cof(F) below).
+ARNAV_INLINE vd determinant(const vd F[3][3]) {
+  return F[0][0] * (F[1][1] * F[2][2] - F[2][1] * F[1][2]) + F[1][0] * (F[2][1] * F[0][2] - F[0][1] * F[2][2]) +
+         F[2][0] * (F[0][1] * F[1][2] - F[1][1] * F[0][2]);
+}
+
 // cof(F) = d det F / dF (columns: cross products of the other two columns of F).
 ARNAV_INLINE void cofactor(const vd F[3][3], vd C[3][3]) {
   C[0][0] = F[1][1] * F[2][2] - F[2][1] * F[1][2];
@@ -394,8 +400,7 @@ double corotated_energy(const TetBatch* batches, const int* count, int begin, in
     vd dev = vd{};
     for (int i = 0; i < 3; ++i)
       for (int j = 0; j < 3; ++j) dev += (F[i][j] - R[i][j]) * (F[i][j] - R[i][j]);
-    const vd J = F[0][0] * (F[1][1] * F[2][2] - F[2][1] * F[1][2]) + F[1][0] * (F[2][1] * F[0][2] - F[0][1] * F[2][2]) +
-                 F[2][0] * (F[0][1] * F[1][2] - F[1][1] * F[0][2]);
+    const vd J = determinant(F);
     const vd e = load(b.mu_V) * dev + 0.5 * load(b.lambda_V) * (J - 1.0) * (J - 1.0);
     for (int l = 0; l < count[k]; ++l) {
       energy += e[l];
@@ -415,8 +420,7 @@ double nh_energy(const TetBatch* batches, const int* count, int begin, int end, 
     const Corners c = gather(b, X);
     vd F[3][3];
     deformation_gradient(b, c, F);
-    const vd J = F[0][0] * (F[1][1] * F[2][2] - F[2][1] * F[1][2]) + F[1][0] * (F[2][1] * F[0][2] - F[0][1] * F[2][2]) +
-                 F[2][0] * (F[0][1] * F[1][2] - F[1][1] * F[0][2]);
+    const vd J = determinant(F);
     vd Ic = vd{};
     for (int i = 0; i < 3; ++i)
       for (int j = 0; j < 3; ++j) Ic += F[i][j] * F[i][j];
