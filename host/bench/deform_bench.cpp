@@ -37,16 +37,7 @@ struct Setup {
 // the lowest surface point (the tip of the hanging lobe), sharing the grasp stiffness.
 // Same points in every bundled scene (same surface file). A single grasped vertex would
 // invert its tets under a 25 mm pull.
-std::vector<int> grasp_patch(const Scene& s) {
-  const Eigen::Matrix3Xd& p = s.organ_surface.positions_World_mm;
-  int lowest = 0;
-  for (int i = 1; i < p.cols(); ++i)
-    if (p(2, i) < p(2, lowest)) lowest = i;
-  std::vector<int> patch;
-  for (int i = 0; i < p.cols(); ++i)
-    if ((p.col(i) - p.col(lowest)).norm() <= kGraspRadius_mm) patch.push_back(i);
-  return patch;
-}
+std::vector<int> grasp_patch(const Scene& s) { return lowest_surface_patch(s, kGraspRadius_mm); }
 
 Setup make_setup(const Scene& s, const std::string& scenario) {
   Setup out;

@@ -224,4 +224,15 @@ Eigen::Vector3d tumour_centroid_World_mm(const Scene& scene, int tumour, const E
   return surface_centroid(moved);
 }
 
+std::vector<int> lowest_surface_patch(const Scene& scene, double radius_mm) {
+  const Eigen::Matrix3Xd& p = scene.organ_surface.positions_World_mm;
+  int lowest = 0;
+  for (int i = 1; i < p.cols(); ++i)
+    if (p(2, i) < p(2, lowest)) lowest = i;
+  std::vector<int> patch;
+  for (int i = 0; i < p.cols(); ++i)
+    if ((p.col(i) - p.col(lowest)).norm() <= radius_mm) patch.push_back(i);
+  return patch;
+}
+
 }  // namespace arnav::host

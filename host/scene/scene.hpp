@@ -54,4 +54,8 @@ void check_scene_text(const std::string& yaml_text, const std::string& source);
 // Positions of the embedded structures for the current volume positions.
 Eigen::Vector3d tumour_centroid_World_mm(const Scene& scene, int tumour, const Eigen::Matrix3Xd& x_World_mm);
 
+// Organ-surface vertices within radius_mm of the lowest one (smallest z in World: the tip
+// of a hanging lobe): where the benchmarks' tool grasps the organ.
+std::vector<int> lowest_surface_patch(const Scene& scene, double radius_mm);
+
 }  // namespace arnav::host

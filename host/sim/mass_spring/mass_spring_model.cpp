@@ -25,16 +25,17 @@ template <class Fn>
 void scatter(int threads, std::vector<Eigen::Matrix3Xd>& buffers, const std::vector<std::array<int, 2>>& ends,
              double sign1, Eigen::Matrix3Xd& out, Fn fn) {
   const int n = static_cast<int>(ends.size());
+  // Element s adds its contribution c to its first vertex and sign1 * c to its second.
+  auto add = [&](double* o, int s) {
+    const Eigen::Vector3d c = fn(s);
+    double* oi = o + 3 * ends[s][0];
+    double* oj = o + 3 * ends[s][1];
+    oi[0] += c.x(), oi[1] += c.y(), oi[2] += c.z();
+    oj[0] += sign1 * c.x(), oj[1] += sign1 * c.y(), oj[2] += sign1 * c.z();
+  };
   if (threads == 1) {
     out.setZero();
-    double* o = out.data();
-    for (int s = 0; s < n; ++s) {
-      const Eigen::Vector3d c = fn(s);
-      double* oi = o + 3 * ends[s][0];
-      double* oj = o + 3 * ends[s][1];
-      oi[0] += c.x(), oi[1] += c.y(), oi[2] += c.z();
-      oj[0] += sign1 * c.x(), oj[1] += sign1 * c.y(), oj[2] += sign1 * c.z();
-    }
+    for (int s = 0; s < n; ++s) add(out.data(), s);
     return;
   }
   const int nv = static_cast<int>(out.cols());
@@ -44,13 +45,7 @@ void scatter(int threads, std::vector<Eigen::Matrix3Xd>& buffers, const std::vec
     buf.setZero();
     double* o = buf.data();
 #pragma omp for schedule(static)
-    for (int s = 0; s < n; ++s) {
-      const Eigen::Vector3d c = fn(s);
-      double* oi = o + 3 * ends[s][0];
-      double* oj = o + 3 * ends[s][1];
-      oi[0] += c.x(), oi[1] += c.y(), oi[2] += c.z();
-      oj[0] += sign1 * c.x(), oj[1] += sign1 * c.y(), oj[2] += sign1 * c.z();
-    }
+    for (int s = 0; s < n; ++s) add(o, s);
 #pragma omp for schedule(static)
     for (int i = 0; i < nv; ++i) {
       Eigen::Vector3d sum = buffers[0].col(i);

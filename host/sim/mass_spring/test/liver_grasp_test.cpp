@@ -24,12 +24,7 @@ int inverted_after_lobe_pull(MassSpringModel::Integrator integrator, int iterati
   c.tolerance = tolerance;
   MassSpringModel model(s.problem, integrator, c);
   const Eigen::Matrix3Xd& p = s.organ_surface.positions_World_mm;
-  int lowest = 0;
-  for (int i = 1; i < p.cols(); ++i)
-    if (p(2, i) < p(2, lowest)) lowest = i;
-  std::vector<int> patch;
-  for (int i = 0; i < p.cols(); ++i)
-    if ((p.col(i) - p.col(lowest)).norm() <= 10.0) patch.push_back(i);
+  const std::vector<int> patch = lowest_surface_patch(s, 10.0);
   const Eigen::Vector3d pull(25, 0, 0);
   std::vector<AttachmentId> ids;
   for (int g : patch)
