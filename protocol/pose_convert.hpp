@@ -1,6 +1,6 @@
 #pragma once
 // Conversions between Eigen rigid transforms and the pose fields of tool_pose_t.
-// X_AB maps frame-B coordinates into frame A (see ../shared/docs/conventions.md).
+// X_AB maps frame-B coordinates into frame A (see docs/conventions.md).
 #include <Eigen/Geometry>
 
 #include "arnav/tool_pose_t.hpp"

@@ -1,5 +1,5 @@
 #pragma once
-// Names of the ERRORxx codes of the NDI Combined API (../shared/docs/ndi-capi.md).
+// Names of the ERRORxx codes of the NDI Combined API (docs/ndi-capi.md).
 #include <cstdint>
 #include <string_view>
 

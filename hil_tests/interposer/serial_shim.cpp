@@ -1,5 +1,5 @@
 // Test-only LD_PRELOAD shim that lets the production libserialport path run on a
-// pseudo-terminal (see ../shared/docs/machine-notes.md and docs/hil.md):
+// pseudo-terminal (see docs/machine-notes.md and docs/hil.md):
 // - a pty rejects the modem-line ioctls (TIOCMGET/TIOCMSET/TIOCMBIS/TIOCMBIC) with ENOTTY,
 //   which makes sp_open fail: the shim keeps per-fd modem bits and answers them;
 // - a pty swallows a serial break: the shim reports TIOCSBRK ("on"), TIOCCBRK ("off") and

@@ -127,7 +127,7 @@ std::vector<std::uint8_t> read_rom(const std::filesystem::path& file) {
 void add_tool_spec(Scenario& scenario, const std::string& spec) {
   const auto eq = spec.find('=');
   if (eq == std::string::npos || eq == 0 || eq + 1 == spec.size())
-    throw ScenarioError("--tool '" + spec + "': expected NAME=ROM_PATH, e.g. pointer=../shared/data/ndi_roms/8700340.rom");
+    throw ScenarioError("--tool '" + spec + "': expected NAME=ROM_PATH, e.g. pointer=data/ndi_roms/8700340.rom");
   SimTool t;
   t.name = spec.substr(0, eq);
   t.rom_path = spec.substr(eq + 1);

@@ -27,7 +27,7 @@ std::string HilRun::start(const HilRunOptions& o) {
   if (!fs::exists("/sys/class/tty/ttyS0") || !fs::exists("/dev/ttyS0"))
     return "no /dev/ttyS0 with a sysfs entry on this machine: nothing to bind the pty over";
   dir_ = make_temp_dir("arnav-hil");
-  const std::string roms = env_or("ARNAV_SHARED_DIR", ARNAV_DEFAULT_SHARED_DIR) + "/data/ndi_roms/";
+  const std::string roms = env_or("ARNAV_DATA_DIR", ARNAV_DEFAULT_DATA_DIR) + "/ndi_roms/";
 
   // Simulator: the scenario's tools (same ROMs as the appliance loads), ground truth.
   std::vector<std::string> sim_argv = {polaris_sim_exe(), "--pty-link", dir_ + "/polaris", "--bind-over", "/dev/ttyS0",

@@ -13,9 +13,9 @@ rate=${3:-400}
 out=$(mktemp -d /tmp/arnav-soak-XXXXXX)
 echo "soak: ${seconds} s, 6 tools at ${rate} Hz; output in $out"
 # The configs with the rate set and the ROM paths made absolute (they move to $out).
-shared=$(cd "$here/../../../shared" && pwd)
-sed -e "s|^frame_rate_hz: .*|frame_rate_hz: ${rate}|" -e "s|\.\./\.\./\.\./shared|${shared}|" "$here/soak_sim.yaml" >"$out/soak_sim.yaml"
-sed -e "s|^rate_hz: .*|rate_hz: ${rate}|" -e "s|\.\./\.\./\.\./shared|${shared}|" "$here/soak_appliance.yaml" >"$out/soak_appliance.yaml"
+data=$(cd "$here/../../data" && pwd)
+sed -e "s|^frame_rate_hz: .*|frame_rate_hz: ${rate}|" -e "s|\.\./\.\./data|${data}|" "$here/soak_sim.yaml" >"$out/soak_sim.yaml"
+sed -e "s|^rate_hz: .*|rate_hz: ${rate}|" -e "s|\.\./\.\./data|${data}|" "$here/soak_appliance.yaml" >"$out/soak_appliance.yaml"
 # The appliance runs its polling thread SCHED_FIFO (soak_appliance.yaml, realtime:); the
 # simulator, standing in for the device's own clock, runs SCHED_FIFO too.
 session_rc=0

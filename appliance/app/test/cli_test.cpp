@@ -37,9 +37,9 @@ std::string bin(const std::string& rel) {
   return std::string(dir) + "/" + rel;
 }
 
-std::string shared() {
-  const char* dir = std::getenv("ARNAV_SHARED_DIR");
-  if (!dir) throw std::runtime_error("ARNAV_SHARED_DIR is not set (run the test through ctest)");
+std::string data_dir() {
+  const char* dir = std::getenv("ARNAV_DATA_DIR");
+  if (!dir) throw std::runtime_error("ARNAV_DATA_DIR is not set (run the test through ctest)");
   return dir;
 }
 
@@ -51,8 +51,8 @@ std::filesystem::path temp_file(const std::string& name, const std::string& cont
 
 
 TEST(ApplianceCli, ConfigErrorExits2WithKeyAndLine) {
-  const auto cfg = temp_file("bad.yaml", "port: sim\nbaud: 12345\ntools:\n  - name: p\n    rom: " + shared() +
-                                             "/data/ndi_roms/8700340.rom\n");
+  const auto cfg = temp_file("bad.yaml", "port: sim\nbaud: 12345\ntools:\n  - name: p\n    rom: " + data_dir() +
+                                             "/ndi_roms/8700340.rom\n");
   const Result r = run(bin("appliance/app/arnav-appliance") + " " + cfg.string());
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find(cfg.string() + ":2: key 'baud'"), std::string::npos) << r.output;
@@ -60,8 +60,8 @@ TEST(ApplianceCli, ConfigErrorExits2WithKeyAndLine) {
 }
 
 TEST(ApplianceCli, UnknownPortListsPortsAndExits2) {
-  const auto cfg = temp_file("port.yaml", "port: /dev/arnav-no-such-port\ntools:\n  - name: p\n    rom: " + shared() +
-                                              "/data/ndi_roms/8700340.rom\n");
+  const auto cfg = temp_file("port.yaml", "port: /dev/arnav-no-such-port\ntools:\n  - name: p\n    rom: " + data_dir() +
+                                              "/ndi_roms/8700340.rom\n");
   const Result r = run(bin("appliance/app/arnav-appliance") + " " + cfg.string());
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find(":1: key 'port': no serial port '/dev/arnav-no-such-port'"), std::string::npos) << r.output;

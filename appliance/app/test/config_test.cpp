@@ -9,9 +9,9 @@ namespace arnav::app {
 namespace {
 
 std::filesystem::path roms() {
-  const char* shared = std::getenv("ARNAV_SHARED_DIR");
-  if (!shared) throw std::runtime_error("ARNAV_SHARED_DIR is not set (run the test through ctest)");
-  return std::filesystem::path(shared) / "data" / "ndi_roms";
+  const char* data = std::getenv("ARNAV_DATA_DIR");
+  if (!data) throw std::runtime_error("ARNAV_DATA_DIR is not set (run the test through ctest)");
+  return std::filesystem::path(data) / "ndi_roms";
 }
 
 AppConfig parse(const std::string& text) { return parse_config(text, "cfg.yaml", roms()); }

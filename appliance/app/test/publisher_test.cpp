@@ -13,9 +13,9 @@ namespace {
 using namespace std::chrono_literals;
 
 std::filesystem::path rom(const std::string& name) {
-  const char* shared = std::getenv("ARNAV_SHARED_DIR");
-  if (!shared) throw std::runtime_error("ARNAV_SHARED_DIR is not set (run the test through ctest)");
-  return std::filesystem::path(shared) / "data" / "ndi_roms" / name;
+  const char* data = std::getenv("ARNAV_DATA_DIR");
+  if (!data) throw std::runtime_error("ARNAV_DATA_DIR is not set (run the test through ctest)");
+  return std::filesystem::path(data) / "ndi_roms" / name;
 }
 
 struct Sink {

@@ -70,9 +70,9 @@ TEST(Realtime, FifoOnTheCallingThreadOnlyOrAClearRefusal) {
 }
 
 AppConfig parse(const std::string& text) {
-  const char* shared = std::getenv("ARNAV_SHARED_DIR");
-  if (!shared) throw std::runtime_error("ARNAV_SHARED_DIR is not set (run the test through ctest)");
-  return parse_config(text, "cfg.yaml", std::filesystem::path(shared) / "data" / "ndi_roms");
+  const char* data = std::getenv("ARNAV_DATA_DIR");
+  if (!data) throw std::runtime_error("ARNAV_DATA_DIR is not set (run the test through ctest)");
+  return parse_config(text, "cfg.yaml", std::filesystem::path(data) / "ndi_roms");
 }
 
 const std::string kBase = "port: sim\ntools:\n  - {name: pointer, rom: 8700340.rom}\n";

@@ -1,5 +1,5 @@
 #pragma once
-// Test helper: the real Polaris session recorded by IGSTK (../shared/data/ndi_captures).
+// Test helper: the real Polaris session recorded by IGSTK (data/ndi_captures, see data/README.md).
 #include <filesystem>
 #include <vector>
 
@@ -7,7 +7,7 @@
 
 namespace arnav::ndi::test {
 
-std::filesystem::path shared_dir();
+std::filesystem::path data_dir();
 std::vector<TranscriptRecord> load_capture();  // polaris_classic_stream.txt as records
 
 }  // namespace arnav::ndi::test

@@ -9,7 +9,7 @@ namespace {
 
 TEST(Crc16, CheckValue) { EXPECT_EQ(crc16("123456789"), 0xBB3D); }
 
-// Pairs seen in real Polaris traffic (../shared/docs/ndi-capi.md).
+// Pairs seen in real Polaris traffic (docs/ndi-capi.md).
 TEST(Crc16, KnownCommandAndReplyPairs) {
   EXPECT_EQ(crc16("INIT:"), 0xE3A5);
   EXPECT_EQ(crc16("OKAY"), 0xA896);

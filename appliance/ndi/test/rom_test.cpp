@@ -11,9 +11,9 @@ namespace arnav::ndi {
 namespace {
 
 std::filesystem::path rom_dir() {
-  const char* shared = std::getenv("ARNAV_SHARED_DIR");
-  if (!shared) throw std::runtime_error("ARNAV_SHARED_DIR is not set (run the test through ctest)");
-  return std::filesystem::path(shared) / "data" / "ndi_roms";
+  const char* data = std::getenv("ARNAV_DATA_DIR");
+  if (!data) throw std::runtime_error("ARNAV_DATA_DIR is not set (run the test through ctest)");
+  return std::filesystem::path(data) / "ndi_roms";
 }
 
 std::filesystem::path write_temp(const std::string& name, const std::string& content) {

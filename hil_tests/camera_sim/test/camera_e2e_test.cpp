@@ -223,9 +223,10 @@ camera:
 TEST(CameraEndToEnd, CameraPosesInTheReferenceToolFrameWithTheSimulatedPolaris) {
   const std::string why = enter_private_network();
   if (!why.empty()) GTEST_SKIP() << why;
-  const char* src = std::getenv("ARNAV_SOURCE_DIR");
-  const std::string rom = std::string(src ? src : ".") + "/../shared/data/ndi_roms/8700339.rom";
-  if (!std::filesystem::exists(rom)) GTEST_SKIP() << "no NDI ROM at " << rom;
+  const char* data = std::getenv("ARNAV_DATA_DIR");
+  ASSERT_NE(data, nullptr) << "ARNAV_DATA_DIR is not set (run the test through ctest)";
+  const std::string rom = std::string(data) + "/ndi_roms/8700339.rom";
+  ASSERT_TRUE(std::filesystem::exists(rom)) << "no NDI ROM at " << rom;
   const auto dir = std::filesystem::temp_directory_path() / ("arnav_camera_ref_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
   Eigen::Isometry3d X_CamNdi = Eigen::Isometry3d::Identity();

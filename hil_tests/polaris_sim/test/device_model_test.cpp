@@ -10,7 +10,7 @@
 namespace arnav::hil {
 namespace {
 
-std::string rom_dir() { return std::string(std::getenv("ARNAV_SHARED_DIR")) + "/data/ndi_roms/"; }
+std::string rom_dir() { return std::string(std::getenv("ARNAV_DATA_DIR")) + "/ndi_roms/"; }
 
 std::string cmd(const std::string& c) { return c + hex_field(ndi::crc16(c), 4) + "\r"; }
 

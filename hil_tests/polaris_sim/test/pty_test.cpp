@@ -27,7 +27,7 @@ namespace {
 
 namespace fs = std::filesystem;
 const std::string kSim = ARNAV_POLARIS_SIM_EXE;
-std::string rom(const std::string& name) { return std::string(std::getenv("ARNAV_SHARED_DIR")) + "/data/ndi_roms/" + name; }
+std::string rom(const std::string& name) { return std::string(std::getenv("ARNAV_DATA_DIR")) + "/ndi_roms/" + name; }
 
 speed_t speed_of(int baud) {
   switch (baud) {
@@ -273,7 +273,7 @@ TEST_F(SimPty, CablePullAndReset) {
 // Replay mode through the executable: the real IGSTK capture acted out on the pty.
 TEST(SimReplay, ActsOutTheRealCaptureOnThePty) {
   const std::string dir = make_temp_dir("arnav-sim-replay");
-  const std::string capture = std::string(std::getenv("ARNAV_SHARED_DIR")) + "/data/ndi_captures/polaris_classic_stream.txt";
+  const std::string capture = std::string(std::getenv("ARNAV_DATA_DIR")) + "/ndi_captures/polaris_classic_stream.txt";
   ChildProcess sim({kSim, "--pty-link", dir + "/polaris", "--replay", capture, "--control", dir + "/control.sock"}, {}, dir + "/sim.log", true);
   ASSERT_TRUE(sim.read_line(20.0).value_or("").rfind("READY ", 0) == 0) << sim.log_tail();
   {

@@ -10,7 +10,7 @@
 namespace arnav::hil {
 namespace {
 
-std::string capture() { return std::string(std::getenv("ARNAV_SHARED_DIR")) + "/data/ndi_captures/polaris_classic_stream.txt"; }
+std::string capture() { return std::string(std::getenv("ARNAV_DATA_DIR")) + "/ndi_captures/polaris_classic_stream.txt"; }
 
 std::string say(ReplayDevice& d, const std::string& command, int* baud_after = nullptr) {
   auto r = d.receive(std::span(reinterpret_cast<const std::uint8_t*>(command.data()), command.size()), 1.0);

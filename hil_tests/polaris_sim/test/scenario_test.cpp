@@ -5,7 +5,8 @@
 namespace arnav::hil {
 namespace {
 
-std::string shared() { return std::string(std::getenv("ARNAV_SHARED_DIR")); }
+std::string source_dir() { return std::string(std::getenv("ARNAV_SOURCE_DIR")); }
+std::string data_dir() { return std::string(std::getenv("ARNAV_DATA_DIR")); }
 
 TEST(Scenario, ParsesToolsMotionAndFaults) {
   const std::string yaml = R"(
@@ -21,7 +22,7 @@ faults:
   - {at_s: 2.5, do: "cable_pull 1.5"}
   - {at_s: 4, do: "missing reference 0.5"}
 )";
-  const Scenario s = parse_scenario(yaml, "test.yaml", shared());
+  const Scenario s = parse_scenario(yaml, "test.yaml", source_dir());
   EXPECT_EQ(s.frame_rate_hz, 400.0);
   EXPECT_EQ(s.first_frame, 7u);
   ASSERT_EQ(s.tools.size(), 2u);
@@ -70,8 +71,8 @@ TEST(Scenario, FaultCommands) {
 }
 
 TEST(Scenario, RomFilesAreChecked) {
-  EXPECT_EQ(read_rom(shared() + "/data/ndi_roms/8700248.rom").size(), 752u);
-  EXPECT_THROW(read_rom(shared() + "/data/ndi_captures/polaris_classic_stream.txt"), ScenarioError);
+  EXPECT_EQ(read_rom(data_dir() + "/ndi_roms/8700248.rom").size(), 752u);
+  EXPECT_THROW(read_rom(data_dir() + "/ndi_captures/polaris_classic_stream.txt"), ScenarioError);
   Scenario s;
   EXPECT_THROW(add_tool_spec(s, "pointer"), ScenarioError);
   EXPECT_THROW(add_tool_spec(s, "pointer=/nonexistent.rom"), ScenarioError);

@@ -17,7 +17,7 @@ namespace arnav::host {
 namespace {
 
 using test::scratch;
-using test::shared_meshes;
+using test::data_meshes;
 using test::write_file;
 
 // A unit tetrahedron's surface, outward, plus a trailing unused vertex.
@@ -95,7 +95,7 @@ TEST(SurfaceLoaders, BinaryVtkPolydataRoundTrip) {
 
 TEST(SurfaceLoaders, RealSofaLiverSurfaces) {
   SurfaceCheck check;
-  const TriMesh vtk = load_surface(shared_meshes() + "liver.vtk", &check);
+  const TriMesh vtk = load_surface(data_meshes() + "liver.vtk", &check);
   EXPECT_EQ(vtk.positions_World_mm.cols(), 5008);
   EXPECT_EQ(vtk.tris.size(), 10000u);
   EXPECT_TRUE(check.flipped);                      // stored with inward normals
@@ -104,15 +104,15 @@ TEST(SurfaceLoaders, RealSofaLiverSurfaces) {
   TriMesh largest = vtk;
   EXPECT_EQ(keep_largest_component(largest), 12);
   EXPECT_EQ(largest.positions_World_mm.cols(), 4996);
-  const TriMesh smooth = load_surface(shared_meshes() + "liver-smooth.obj");
+  const TriMesh smooth = load_surface(data_meshes() + "liver-smooth.obj");
   EXPECT_EQ(smooth.positions_World_mm.cols(), 2194);
-  const TriMesh coarse = load_surface(shared_meshes() + "liver.obj", &check);
+  const TriMesh coarse = load_surface(data_meshes() + "liver.obj", &check);
   EXPECT_EQ(check.removed_unused_vertices, 42);    // 181 vertices, 139 used by faces
-  EXPECT_EQ(load_surface(shared_meshes() + "liver2.obj").positions_World_mm.cols(), 1170);
+  EXPECT_EQ(load_surface(data_meshes() + "liver2.obj").positions_World_mm.cols(), 1170);
 }
 
 TEST(SurfaceLoaders, BrokenSofaVtkIsRejectedWithLocationAndFix) {
-  const std::string path = shared_meshes() + "liver_for_test_broken.vtk";
+  const std::string path = data_meshes() + "liver_for_test_broken.vtk";
   const std::string e = error_of([&] { load_surface(path); });
   SCOPED_TRACE(e);
   EXPECT_NE(e.find("liver_for_test_broken.vtk"), std::string::npos);
@@ -154,11 +154,11 @@ TEST(SurfaceValidation, EachErrorNamesLineAndFix) {
 
 TEST(VolumeLoaders, RealGmshV1Livers) {
   TetMeshCheck check;
-  const TetMesh a = load_volume(shared_meshes() + "liver.msh", &check);
+  const TetMesh a = load_volume(data_meshes() + "liver.msh", &check);
   EXPECT_EQ(a.num_vertices(), 181);
   EXPECT_EQ(a.num_tets(), 596);
   EXPECT_GT(check.min_quality, 0.0);
-  const TetMesh b = load_volume(shared_meshes() + "liver2.msh", &check);
+  const TetMesh b = load_volume(data_meshes() + "liver2.msh", &check);
   EXPECT_EQ(b.num_vertices(), 507);  // node numbers are not contiguous in this file
   EXPECT_EQ(b.num_tets(), 1493);
   EXPECT_FALSE(b.surface_tris.empty());
@@ -234,7 +234,7 @@ TEST(VolumeLoaders, VtkUnstructuredRoundTrip) {
   EXPECT_EQ(back.tets, box.tets);
   EXPECT_TRUE(back.rest_positions_World_mm.isApprox(box.rest_positions_World_mm));
   // A surface given as a volume (and the reverse) is refused clearly.
-  EXPECT_NE(error_of([&] { load_volume(shared_meshes() + "liver.vtk"); }).find("POLYDATA"), std::string::npos);
+  EXPECT_NE(error_of([&] { load_volume(data_meshes() + "liver.vtk"); }).find("POLYDATA"), std::string::npos);
   EXPECT_NE(error_of([&] { load_surface(path); }).find("UNSTRUCTURED_GRID"), std::string::npos);
 }
 

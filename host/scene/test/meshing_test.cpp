@@ -50,7 +50,7 @@ TEST(TetGen, MeshesEllipsoidKeepingItsSurface) {
 
 TEST(TetGen, SelfIntersectingSofaSurfaceIsRejected) {
   // liver-smooth.obj is closed and manifold but 16 face pairs intersect.
-  const TriMesh s = load_surface(test::shared_meshes() + "liver-smooth.obj");
+  const TriMesh s = load_surface(test::data_meshes() + "liver-smooth.obj");
   try {
     tetrahedralize_surface(s, {}, "liver-smooth.obj");
     FAIL() << "expected a LoadError";
@@ -63,7 +63,7 @@ TEST(TetGen, SelfIntersectingSofaSurfaceIsRejected) {
 }
 
 TEST(TetGen, RealLiverAtPaperSize) {
-  const TriMesh s = load_surface(test::shared_meshes() + "liver.vtk");
+  const TriMesh s = load_surface(test::data_meshes() + "liver.vtk");
   const TetMesh m = tetrahedralize_surface(s, {.max_radius_edge_ratio = 1.8}, "liver.vtk");
   // Paper 000: 6,510 vertices / 24,398 tetrahedra.
   EXPECT_NEAR(m.num_vertices(), 6500, 400);
@@ -85,7 +85,7 @@ TEST(Decimation, KeepsClosedManifoldAndShape) {
 }
 
 TEST(Decimation, RealLiverCoarseVariantMeshes) {
-  TriMesh s = load_surface(test::shared_meshes() + "liver.vtk");
+  TriMesh s = load_surface(test::data_meshes() + "liver.vtk");
   const DecimationReport r = decimate_surface(s, 1000);
   EXPECT_EQ(r.output_vertices, 1000);
   const SurfaceCheck c = validate_closed_surface(s, "decimated liver");

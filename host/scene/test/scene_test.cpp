@@ -220,7 +220,7 @@ TEST(SceneFile, BuildErrorsNameTheCause) {
   e = err("missing.scene.yaml", "organ: {surface: nothere.obj}\nvolume: {file: block.vtk}\nmaterials:\n  default: {youngs_modulus_kPa: 5, "
                                 "poisson_ratio: 0.45, density_kg_per_mm3: 1e-6}\nmodel: {kind: xpbd}\n");
   EXPECT_NE(e.find("nothere.obj: cannot open"), std::string::npos) << e;
-  e = err("broken.scene.yaml", "organ: {surface: " + test::shared_meshes() + "liver_for_test_broken.vtk}\nvolume: {file: block.vtk}\n"
+  e = err("broken.scene.yaml", "organ: {surface: " + test::data_meshes() + "liver_for_test_broken.vtk}\nvolume: {file: block.vtk}\n"
                                "materials:\n  default: {youngs_modulus_kPa: 5, poisson_ratio: 0.45, density_kg_per_mm3: 1e-6}\nmodel: {kind: xpbd}\n");
   EXPECT_NE(e.find("liver_for_test_broken.vtk: byte offset"), std::string::npos) << e;
   // Two closed components: refused unless the scene asks to keep the largest.

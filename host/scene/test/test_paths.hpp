@@ -1,5 +1,5 @@
 #pragma once
-// Paths of the source tree, the shared data and a scratch folder for scene tests
+// Paths of the source tree, the bundled data (data/) and a scratch folder for scene tests
 // (set by arnav_add_test through the environment).
 #include <cstdlib>
 #include <filesystem>
@@ -14,7 +14,7 @@ inline std::string env_or(const char* name, const char* fallback) {
   return v ? v : fallback;
 }
 inline std::string source_dir() { return env_or("ARNAV_SOURCE_DIR", "."); }
-inline std::string shared_meshes() { return env_or("ARNAV_SHARED_DIR", "../shared") + "/data/meshes/"; }
+inline std::string data_meshes() { return env_or("ARNAV_DATA_DIR", "data") + "/meshes/"; }
 
 // A fresh scratch folder per test binary.
 inline std::string scratch(const std::string& name) {

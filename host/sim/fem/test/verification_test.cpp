@@ -1,5 +1,5 @@
 // Verification of the co-rotational FEM against analytic references
-// (../shared/docs/reference-figures.md): patch test, uniaxial traction, rigid-motion
+// (docs/reference-figures.md): patch test, uniaxial traction, rigid-motion
 // invariance, cantilever convergence under end load and gravity.
 #include <gtest/gtest.h>
 
