@@ -21,6 +21,7 @@
 #include "appliance/ndi/posix_transport.hpp"
 #include "appliance/ndi/serial_transport.hpp"
 #include "protocol/clock.hpp"
+#include "protocol/guarded_main.hpp"
 
 namespace {
 
@@ -53,7 +54,7 @@ const char* severity_name(arnav::ndi::Severity s) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+static int main_body(int argc, char** argv) {
   using namespace arnav;
   CLI::App cli{"arnav-appliance: NDI Polaris -> LCM (poses, health, events). Configuration format: docs/appliance.md"};
   std::string config_path;
@@ -295,4 +296,8 @@ int main(int argc, char** argv) {
   session.reset();
   sim.reset();
   return 0;
+}
+
+int main(int argc, char** argv) {
+  return arnav::guarded_main("arnav-appliance", [&] { return main_body(argc, argv); });
 }

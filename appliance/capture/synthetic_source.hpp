@@ -1,7 +1,7 @@
 #pragma once
 // The synthetic camera of the bench as a capture source (config `camera: {source:
 // synthetic}`): boards move along scripted trajectories and are rendered through the
-// calibrated (or a generated) camera model by hil_tests/camera_sim. Frame k shows the
+// calibrated (or a generated) camera model by appliance/synthetic_camera. Frame k shows the
 // scene at t = k / fps. Ground truth (X_CamBoard per frame and board) is written to a CSV
 // beside the frames, and the frames themselves optionally as PNG files.
 //
@@ -17,9 +17,9 @@
 #include "appliance/capture/frame_source.hpp"
 #include "appliance/markers/camera_model.hpp"
 #include "appliance/markers/tag_board.hpp"
-#include "hil_tests/camera_sim/ground_truth.hpp"
-#include "hil_tests/camera_sim/synthetic_renderer.hpp"
-#include "hil_tests/camera_sim/trajectory.hpp"
+#include "appliance/synthetic_camera/ground_truth.hpp"
+#include "appliance/synthetic_camera/synthetic_renderer.hpp"
+#include "appliance/synthetic_camera/trajectory.hpp"
 
 namespace arnav::capture {
 

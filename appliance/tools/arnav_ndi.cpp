@@ -22,6 +22,7 @@
 #include "appliance/ndi/session.hpp"
 #include "appliance/tools/decode.hpp"
 #include "protocol/clock.hpp"
+#include "protocol/guarded_main.hpp"
 
 namespace {
 
@@ -169,7 +170,7 @@ int cmd_decode(const std::string& path) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+static int main_body(int argc, char** argv) {
   CLI::App cli{"arnav-ndi: NDI Polaris tool for technicians (docs/appliance.md)"};
   cli.require_subcommand(1);
   int baud = 115200;
@@ -221,4 +222,8 @@ int main(int argc, char** argv) {
     return 1;
   }
   return 2;
+}
+
+int main(int argc, char** argv) {
+  return arnav::guarded_main("arnav-ndi", [&] { return main_body(argc, argv); });
 }

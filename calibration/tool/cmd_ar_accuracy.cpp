@@ -7,7 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "calibration/lib/ar_accuracy.hpp"
-#include "calibration/lib/ar_chain_sim.hpp"
+#include "calibration/vision/ar_chain_sim.hpp"
 #include "calibration/lib/calib_error.hpp"
 #include "calibration/tool/commands.hpp"
 #include "calibration/tool/report.hpp"

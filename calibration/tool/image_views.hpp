@@ -8,7 +8,7 @@
 #include <opencv2/core.hpp>
 
 #include "calibration/lib/board_layout.hpp"
-#include "calibration/lib/target_detection.hpp"
+#include "calibration/vision/target_detection.hpp"
 
 namespace arnav::calib::tool {
 

@@ -8,8 +8,9 @@
 
 #include "calibration/lib/calib_error.hpp"
 #include "calibration/tool/commands.hpp"
+#include "protocol/guarded_main.hpp"
 
-int main(int argc, char** argv) {
+static int main_body(int argc, char** argv) {
   using namespace arnav::calib;
   CLI::App app{"arnav-calib: ARNav calibration (boards, intrinsics, pivot, hand-eye, registration, AR accuracy).\n"
                "Units: mm and degrees on the command line; files in mm/radians. See docs/calibration.md."};
@@ -40,4 +41,8 @@ int main(int argc, char** argv) {
     return 2;
   }
   return 0;
+}
+
+int main(int argc, char** argv) {
+  return arnav::guarded_main("arnav-calib", [&] { return main_body(argc, argv); });
 }

@@ -18,6 +18,7 @@
 #include "hil_tests/polaris_sim/device_model.hpp"
 #include "hil_tests/polaris_sim/replay_device.hpp"
 #include "hil_tests/polaris_sim/simulator.hpp"
+#include "protocol/guarded_main.hpp"
 
 namespace {
 
@@ -58,7 +59,7 @@ int send_control(const std::string& socket_path, const std::string& command) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+static int main_body(int argc, char** argv) {
   using namespace arnav::hil;
   CLI::App app{"Simulated NDI Polaris (Combined API) on a pseudo-terminal, with scripted tool motion, "
                "ground truth and fault injection. Fault commands: cable_pull S, reset, drop_bytes [N], garble [N], "
@@ -158,4 +159,8 @@ int main(int argc, char** argv) {
     return 1;
   }
   return 0;
+}
+
+int main(int argc, char** argv) {
+  return arnav::guarded_main("arnav-polaris-sim", [&] { return main_body(argc, argv); });
 }

@@ -13,6 +13,7 @@
 
 #include "hil_tests/scenarios/hil_run.hpp"
 #include "protocol/clock.hpp"
+#include "protocol/guarded_main.hpp"
 
 namespace {
 double median(std::vector<double> v) {
@@ -22,7 +23,7 @@ double median(std::vector<double> v) {
 }
 }  // namespace
 
-int main(int argc, char** argv) {
+static int main_body(int argc, char** argv) {
   CLI::App app{"Appliance latency on the HIL bench (JSON on stdout). Needs root: private mount and network namespaces."};
   double seconds = 30.0;
   arnav::hil::HilRunOptions o;
@@ -105,4 +106,8 @@ int main(int argc, char** argv) {
     std::cerr << "arnav-hil-latency: " << e.what() << "\n" << run.logs();
     return 1;
   }
+}
+
+int main(int argc, char** argv) {
+  return arnav::guarded_main("arnav-hil-latency", [&] { return main_body(argc, argv); });
 }

@@ -15,6 +15,7 @@
 #include "host/app/status_report.hpp"
 #include "protocol/channels.hpp"
 #include "protocol/clock.hpp"
+#include "protocol/guarded_main.hpp"
 
 namespace {
 
@@ -66,7 +67,7 @@ nlohmann::json summary(const arnav::host::ToolFreshnessTracker& tracker, double 
 
 }  // namespace
 
-int main(int argc, char** argv) {
+static int main_body(int argc, char** argv) {
   CLI::App app{"arnav-host (minimal): subscribes to poses, health and events, tracks per-tool freshness, prints a status table"};
   std::string lcm_url = "udpm://239.255.76.67:7667?ttl=0";
   double stale_after_ms = 250.0, print_period_s = 1.0, duration_s = 0.0;
@@ -129,4 +130,8 @@ int main(int argc, char** argv) {
     }
   }
   return 0;
+}
+
+int main(int argc, char** argv) {
+  return arnav::guarded_main("arnav-host", [&] { return main_body(argc, argv); });
 }

@@ -2,7 +2,8 @@
 //   arnav-bench deform [--quick] [--out DIR]   tissue models on the bundled liver
 //   arnav-bench plot deform.csv out.png          redraw the plot from a CSV
 // Writes DIR/deform.csv and DIR/deform_pareto.png and prints the CSV rows' summary as
-// JSON on stdout. Exit 2 on usage or scene errors.
+// JSON on stdout. Exit 0 done, 1 nothing measured (every scenario skipped: the reasons are
+// printed, no plot written), 2 usage or scene errors, 3 internal error.
 #include <CLI/CLI.hpp>
 
 #include <filesystem>
@@ -11,8 +12,9 @@
 #include "host/bench/deform_bench.hpp"
 #include "host/bench/pareto_plot.hpp"
 #include "host/scene/load_error.hpp"
+#include "protocol/guarded_main.hpp"
 
-int main(int argc, char** argv) {
+static int main_body(int argc, char** argv) {
   using namespace arnav::host;
   CLI::App app{"arnav-bench: error against run time (docs/benchmarks.md)"};
   app.require_subcommand(1);
@@ -62,6 +64,18 @@ int main(int argc, char** argv) {
   }
   std::filesystem::create_directories(out_dir);
   write_deform_csv(out_dir + "/deform.csv", result);
+  if (result.rows.empty()) {
+    // Nothing was measured: say why (each skipped scenario's reason), write no plot, exit 1.
+    std::cerr << "arnav-bench deform: no benchmark rows:\n";
+    if (result.references.empty()) std::cerr << "  no scenario was run (--scenario)\n";
+    for (const auto& r : result.references) {
+      if (r.tets == 0) std::cerr << "  " << r.scenario << ": skipped: " << r.scene << "\n";
+      else std::cerr << "  " << r.scenario << ": reference solved, but no setting matched --setting/--mesh\n";
+    }
+    std::cerr << "arnav-bench deform: fix the scene (docs/scene.md) or pick other --scenario/--setting/--mesh values; "
+              << out_dir << "/deform.csv holds the header only\n";
+    return 1;
+  }
   write_pareto_png(out_dir + "/deform_pareto.png", result);
   std::cout << "{\"csv\":\"" << out_dir << "/deform.csv\",\"png\":\"" << out_dir << "/deform_pareto.png\",\"rows\":" << result.rows.size()
             << ",\"references\":[";
@@ -73,4 +87,8 @@ int main(int argc, char** argv) {
   }
   std::cout << "]}\n";
   return 0;
+}
+
+int main(int argc, char** argv) {
+  return arnav::guarded_main("arnav-bench", [&] { return main_body(argc, argv); });
 }

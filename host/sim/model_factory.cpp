@@ -1,5 +1,6 @@
 #include "host/sim/model_factory.hpp"
 
+#include <algorithm>
 #include <stdexcept>
 
 #ifdef ARNAV_SIM_HAVE_MASS_SPRING
@@ -102,6 +103,35 @@ std::vector<ModelVariant> model_variants() {
   }
 #endif
   return out;
+}
+
+ModelConfig recommended_model_config(const std::string& kind) {
+  ModelConfig c;
+  c.kind = kind;
+  if (kind == "mass_spring") {
+    c.integrator = "local_global";
+    c.iterations = 10;
+    c.tolerance = 0.0;
+  } else if (kind == "xpbd") {
+    c.iterations = 1;
+    c.substeps = 16;
+    c.tolerance = 0.0;
+  } else if (kind == "corotational_fem") {
+    c.integrator = "implicit_euler";
+    c.linear_solver = "pcg";
+    c.iterations = 3;
+    c.tolerance = 1e-4;
+    c.refactor_every = 30;
+    c.refactor_in_background = true;
+    c.single_precision_preconditioner = true;
+    c.blas_threads = 1;
+  } else {
+    throw std::invalid_argument("model kind '" + kind + "' is unknown: this build offers " + join(available_model_kinds()));
+  }
+  const auto kinds = available_model_kinds();
+  if (std::find(kinds.begin(), kinds.end(), kind) == kinds.end())
+    throw std::invalid_argument("model kind '" + kind + "' is not built in: this build offers " + join(kinds));
+  return c;
 }
 
 std::unique_ptr<TissueModel> make_tissue_model(const SimProblem& problem, const ModelConfig& config) {

@@ -24,6 +24,14 @@ struct ModelVariant {
 };
 std::vector<ModelVariant> model_variants();
 
+// The recommended real-time configuration of one model kind (docs/sim.md, "Choosing a
+// model"): what a scene gets when it names only the kind, and what `arnav-sim --model KIND`
+// starts from. mass_spring: local_global, 10 iterations; xpbd: 16 substeps x 1 sweep;
+// corotational_fem: implicit Euler, PCG 3 on a background-refactorised (every 30 steps)
+// single-precision CHOLMOD factor, the 60 Hz setting of docs/benchmarks.md.
+// Throws std::invalid_argument for a kind this build does not offer (naming those it does).
+ModelConfig recommended_model_config(const std::string& kind);
+
 // Kinds compiled into this build, e.g. {"mass_spring", "xpbd"}.
 std::vector<std::string> available_model_kinds();
 

@@ -13,8 +13,9 @@
 #include "host/scene/scene.hpp"
 #include "host/sim/model_factory.hpp"
 #include "host/tools/sim_run.hpp"
+#include "protocol/guarded_main.hpp"
 
-int main(int argc, char** argv) {
+static int main_body(int argc, char** argv) {
   using namespace arnav::host;
   CLI::App app{"arnav-sim: run a patient scene (YAML, see docs/scene.md) headless and write the results"};
   std::string scene_path;
@@ -28,7 +29,9 @@ int main(int argc, char** argv) {
   app.add_option("-f,--format", options.format, "position files: vtk (volume, organ, tumours, vessels) or obj (surfaces)")
       ->check(CLI::IsMember({"vtk", "obj"}));
   app.add_option("--every", options.write_every, "write positions every N frames")->check(CLI::PositiveNumber);
-  app.add_option("--model", model_kind, "override the scene's model kind (mass_spring, xpbd, corotational_fem)");
+  app.add_option("--model", model_kind,
+                 "run this model kind instead of the scene's (mass_spring, xpbd, corotational_fem), with that kind's "
+                 "recommended settings (docs/sim.md); --iterations/--substeps override them");
   app.add_option("--iterations", iterations, "override model.iterations")->check(CLI::PositiveNumber);
   app.add_option("--substeps", substeps, "override model.substeps")->check(CLI::PositiveNumber);
   try {
@@ -45,7 +48,16 @@ int main(int argc, char** argv) {
     return 2;
   }
   for (const auto& note : scene.notes) std::cerr << "arnav-sim: " << note << "\n";
-  if (!model_kind.empty()) scene.model.kind = model_kind;
+  if (!model_kind.empty() && model_kind != scene.model.kind) {
+    // The scene's solver settings belong to its own kind (an FEM integrator means nothing
+    // to XPBD): start from the new kind's recommended settings.
+    try {
+      scene.model = recommended_model_config(model_kind);
+    } catch (const std::invalid_argument& e) {
+      std::cerr << "arnav-sim: --model: " << e.what() << "\n";
+      return 2;
+    }
+  }
   if (iterations > 0) scene.model.iterations = iterations;
   if (substeps > 0) scene.model.substeps = substeps;
   options.frames = frames >= 0 ? frames : scene.frames;
@@ -80,4 +92,8 @@ int main(int argc, char** argv) {
     return 1;
   }
   return 0;
+}
+
+int main(int argc, char** argv) {
+  return arnav::guarded_main("arnav-sim", [&] { return main_body(argc, argv); });
 }

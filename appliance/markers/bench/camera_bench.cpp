@@ -4,7 +4,7 @@
 //   sweep    translation and rotation error against ground truth, and run time, over
 //            distance, viewing angle, noise and blur, for decimation 1/2/4 and 1/2
 //            threads: CSV (one row per setting) + PNG chart.
-// Frames come from the synthetic camera (hil_tests/camera_sim); the board layout from the
+// Frames come from the synthetic camera (appliance/synthetic_camera); the board layout from the
 // calibration library's marker-board generator (what arnav-calib prints).
 #include <CLI/CLI.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -23,9 +23,10 @@
 #include "appliance/markers/board_pose.hpp"
 #include "appliance/markers/calibration_files.hpp"
 #include "appliance/markers/tag_detector.hpp"
-#include "hil_tests/camera_sim/synthetic_renderer.hpp"
-#include "hil_tests/camera_sim/trajectory.hpp"
+#include "appliance/synthetic_camera/synthetic_renderer.hpp"
+#include "appliance/synthetic_camera/trajectory.hpp"
 #include "plot.hpp"
+#include "protocol/guarded_main.hpp"
 
 namespace {
 
@@ -286,7 +287,7 @@ int run_sweep(int frames_per_point, const std::string& csv_path, const std::stri
 
 }  // namespace
 
-int main(int argc, char** argv) {
+static int main_body(int argc, char** argv) {
   CLI::App app{"arnav-camera-bench: camera path speed (latency) and accuracy against run time (sweep) on synthetic frames"};
   app.require_subcommand(1);
   int frames = 200;
@@ -312,4 +313,8 @@ int main(int argc, char** argv) {
   }
   if (*lat) return run_latency(frames, noise, blur, quad_sigma);
   return run_sweep(per_point, csv, png);
+}
+
+int main(int argc, char** argv) {
+  return arnav::guarded_main("arnav-camera-bench", [&] { return main_body(argc, argv); });
 }

@@ -7,7 +7,7 @@
 
 #include "appliance/markers/board_pose.hpp"
 #include "appliance/markers/calibration_files.hpp"
-#include "hil_tests/camera_sim/synthetic_renderer.hpp"
+#include "appliance/synthetic_camera/synthetic_renderer.hpp"
 
 namespace arnav::markers {
 namespace {

@@ -18,8 +18,8 @@
 #include "calibration/lib/camera_intrinsics.hpp"
 #include "calibration/lib/pose_file.hpp"
 #include "calibration/lib/rigid_transform_file.hpp"
-#include "calibration/lib/test/sim_board.hpp"
-#include "hil_tests/camera_sim/synthetic_renderer.hpp"
+#include "calibration/vision/test/sim_board.hpp"
+#include "appliance/synthetic_camera/synthetic_renderer.hpp"
 
 namespace fs = std::filesystem;
 using namespace arnav::calib;

@@ -32,7 +32,7 @@
 #include "arnav/tool_pose_t.hpp"
 #include "calibration/lib/board_layout.hpp"
 #include "calibration/lib/rigid_transform_file.hpp"
-#include "hil_tests/camera_sim/ground_truth.hpp"
+#include "appliance/synthetic_camera/ground_truth.hpp"
 #include "protocol/pose_convert.hpp"
 
 extern char** environ;

@@ -30,3 +30,17 @@ execute_process(COMMAND ${EXE} deform --frames 0 RESULT_VARIABLE rc OUTPUT_QUIET
 if(NOT rc EQUAL 2)
   message(FATAL_ERROR "arnav-bench deform --frames 0: expected exit 2, got ${rc}")
 endif()
+# A data folder whose scene cannot give a reference (vessel_stiffened on a scene without
+# vessels): no rows, exit 1 with the reason, no crash (exit 3 or a signal would fail here).
+file(READ ${SRC}/data/liver/liver_coarse.scene.yaml scene)
+string(REPLACE "../meshes/liver.vtk" "${SRC}/data/meshes/liver.vtk" scene "${scene}")
+string(REGEX REPLACE "  vessels:\n    file: vessels.yaml\n    mechanics: display[^\n]*\n" "" scene "${scene}")
+file(WRITE ${OUT}/novessels/liver/liver_coarse.scene.yaml "${scene}")
+execute_process(COMMAND ${EXE} deform --quick --data ${OUT}/novessels --scenario vessel_stiffened --out ${OUT}/norows
+                RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+if(NOT rc EQUAL 1 OR NOT err MATCHES "no benchmark rows" OR NOT err MATCHES "vessel_stiffened: skipped: .*needs a scene with vessels")
+  message(FATAL_ERROR "reference that cannot be solved: expected exit 1 with the reason, got ${rc}: ${out} ${err}")
+endif()
+if(EXISTS ${OUT}/norows/deform_pareto.png)
+  message(FATAL_ERROR "a plot was written without rows")
+endif()

@@ -271,6 +271,24 @@ TEST(BundledScenes, LiverAtPaperSizeWithTumourAndVessels) {
   for (int i = 0; i < s.tumours[0].rest.positions_World_mm.cols(); ++i) EXPECT_GT(depth(s.tumours[0].rest.positions_World_mm.col(i)), 5.0);
 }
 
+// The bundled scene is what users copy: it ships the real-time (60 Hz) FEM setting, and
+// liver_accurate.scene.yaml the accurate one on the same organ.
+TEST(BundledScenes, RealTimeDefaultAndAccurateVariant) {
+  const Scene rt = load_scene(test::source_dir() + "/data/liver/liver.scene.yaml");
+  EXPECT_EQ(rt.model.kind, "corotational_fem");
+  EXPECT_EQ(rt.model.linear_solver, "pcg");
+  EXPECT_EQ(rt.model.iterations, 3);
+  EXPECT_EQ(rt.model.refactor_every, 30);
+  EXPECT_TRUE(rt.model.refactor_in_background);
+  EXPECT_TRUE(rt.model.single_precision_preconditioner);
+  const Scene acc = load_scene(test::source_dir() + "/data/liver/liver_accurate.scene.yaml");
+  EXPECT_EQ(acc.model.kind, "corotational_fem");
+  EXPECT_EQ(acc.model.iterations, 20);
+  EXPECT_FALSE(acc.model.refactor_in_background);
+  EXPECT_EQ(acc.problem.mesh.num_tets(), rt.problem.mesh.num_tets());
+  EXPECT_EQ(acc.organ_surface.positions_World_mm.cols(), rt.organ_surface.positions_World_mm.cols());
+}
+
 TEST(BundledScenes, CoarseVariant) {
   const Scene s = load_scene(test::source_dir() + "/data/liver/liver_coarse.scene.yaml");
   EXPECT_LT(s.problem.mesh.num_tets(), 8000);

@@ -16,6 +16,7 @@
 #include "host/scene/load_error.hpp"
 #include "host/scene/scene.hpp"
 #include "host/sim/model_factory.hpp"
+#include "protocol/guarded_main.hpp"
 
 namespace {
 
@@ -38,7 +39,7 @@ double process_cpu_ms() {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+static int main_body(int argc, char** argv) {
   CLI::App app{"Frame time of the tissue models (mass-spring, XPBD, ...) on a synthetic ~24k-tet box; JSON to stdout"};
   int nx = 20, ny = 20, nz = 10, frames = 120;
   std::vector<int> threads{1, 2};
@@ -184,4 +185,8 @@ int main(int argc, char** argv) {
   }
   std::cout << out.dump(2) << "\n";
   return 0;
+}
+
+int main(int argc, char** argv) {
+  return arnav::guarded_main("arnav-sim-bench", [&] { return main_body(argc, argv); });
 }

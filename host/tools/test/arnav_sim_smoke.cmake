@@ -28,3 +28,22 @@ execute_process(COMMAND ${EXE} RESULT_VARIABLE rc OUTPUT_QUIET ERROR_QUIET)
 if(NOT rc EQUAL 2)
   message(FATAL_ERROR "arnav-sim without a scene: expected exit 2, got ${rc}")
 endif()
+# --model KIND runs that kind with its own recommended settings (the scene's FEM integrator
+# must not leak into mass-spring or XPBD), and --iterations/--substeps still override them.
+foreach(kind xpbd mass_spring)
+  execute_process(COMMAND ${EXE} ${SRC}/data/liver/liver_coarse.scene.yaml --frames 2 --model ${kind} --out ${OUT}/${kind}
+                  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  if(NOT rc EQUAL 0 OR NOT out MATCHES "\"model\":\"${kind}\"" OR NOT out MATCHES "\"healthy\":true")
+    message(FATAL_ERROR "arnav-sim --model ${kind}: expected a healthy ${kind} run, got ${rc}: ${out} ${err}")
+  endif()
+endforeach()
+execute_process(COMMAND ${EXE} ${SRC}/data/liver/liver_coarse.scene.yaml --frames 1 --model xpbd --substeps 2 --iterations 1
+                RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "arnav-sim --model xpbd --substeps 2: expected exit 0, got ${rc}: ${err}")
+endif()
+execute_process(COMMAND ${EXE} ${SRC}/data/liver/liver_coarse.scene.yaml --frames 1 --model jelly
+                RESULT_VARIABLE rc OUTPUT_QUIET ERROR_VARIABLE err)
+if(NOT rc EQUAL 2 OR NOT err MATCHES "model kind 'jelly' is unknown")
+  message(FATAL_ERROR "arnav-sim --model jelly: expected exit 2 naming the kind, got ${rc}: ${err}")
+endif()

@@ -28,6 +28,7 @@
 #include "host/sim/fem/blas_threads.hpp"
 #include "host/sim/fem/corotational_fem.hpp"
 #include "host/sim/fem/single_precision_factor.hpp"
+#include "protocol/guarded_main.hpp"
 
 namespace {
 
@@ -564,7 +565,7 @@ int factor(const std::string& scene_file, int repeats, int threads, bool cholmod
 
 }  // namespace
 
-int main(int argc, char** argv) {
+static int main_body(int argc, char** argv) {
   CLI::App app{"Co-rotational FEM benchmarks: solver error vs run time, vessel conditioning, cantilever refinement"};
   app.require_subcommand(1);
   int nx = 20, ny = 15, nz = 13, frames = 90, threads = 2, max_n = 8;
@@ -622,4 +623,8 @@ int main(int argc, char** argv) {
     std::cerr << "arnav-fem-bench: " << e.what() << '\n';
     return 1;
   }
+}
+
+int main(int argc, char** argv) {
+  return arnav::guarded_main("arnav-fem-bench", [&] { return main_body(argc, argv); });
 }

@@ -1,5 +1,5 @@
 // Intrinsics from images: AprilTag grids rendered by the synthetic camera
-// (hil_tests/camera_sim) through a distorted camera, chessboards from the printed board
+// (appliance/synthetic_camera) through a distorted camera, chessboards from the printed board
 // image warped into a pinhole view; known answers within tolerance, outlier views
 // rejected with the reason, too few views rejected.
 #include <gtest/gtest.h>
@@ -10,9 +10,9 @@
 #include "calibration/lib/board_render.hpp"
 #include "calibration/lib/calib_error.hpp"
 #include "calibration/lib/intrinsics_calibration.hpp"
-#include "calibration/lib/target_detection.hpp"
-#include "calibration/lib/test/sim_board.hpp"
-#include "hil_tests/camera_sim/synthetic_renderer.hpp"
+#include "calibration/vision/target_detection.hpp"
+#include "calibration/vision/test/sim_board.hpp"
+#include "appliance/synthetic_camera/synthetic_renderer.hpp"
 
 using namespace arnav::calib;
 using arnav::calib::test::board_facing_camera;

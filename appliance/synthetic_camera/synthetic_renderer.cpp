@@ -1,4 +1,4 @@
-#include "hil_tests/camera_sim/synthetic_renderer.hpp"
+#include "appliance/synthetic_camera/synthetic_renderer.hpp"
 
 #include <opencv2/imgproc.hpp>
 

@@ -3,7 +3,7 @@
 #include <cstdint>
 #include <string>
 
-#include "hil_tests/camera_sim/ground_truth.hpp"
+#include "appliance/synthetic_camera/ground_truth.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   try {

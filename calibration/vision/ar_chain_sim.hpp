@@ -13,7 +13,7 @@
 //    the synthetic camera's projection) plus Gaussian pixel noise (corner_noise_px per
 //    axis); no blur, rolling shutter, or detector failures.
 //  - Camera, render = true: every view is rendered by the synthetic camera
-//    (hil_tests/camera_sim: anti-aliased tags, blur, sensor noise) and the corners come
+//    (appliance/synthetic_camera: anti-aliased tags, blur, sensor noise) and the corners come
 //    from the appliance's AprilTag detector; corner_noise_px is then unused and the
 //    detector's real corner error is measured against the renderer's ground truth.
 //  - Calibrations from simulated data: intrinsics (AprilTag grid views, calibrateCamera),

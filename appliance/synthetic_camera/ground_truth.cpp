@@ -1,4 +1,4 @@
-#include "hil_tests/camera_sim/ground_truth.hpp"
+#include "appliance/synthetic_camera/ground_truth.hpp"
 
 #include <charconv>
 #include <cmath>

@@ -3,8 +3,8 @@
 #include <cmath>
 #include <numbers>
 
-#include "hil_tests/camera_sim/ground_truth.hpp"
-#include "hil_tests/camera_sim/trajectory.hpp"
+#include "appliance/synthetic_camera/ground_truth.hpp"
+#include "appliance/synthetic_camera/trajectory.hpp"
 
 namespace arnav::camera_sim {
 namespace {

@@ -7,7 +7,7 @@
 #include <numbers>
 
 #include "appliance/markers/tag_family.hpp"
-#include "hil_tests/camera_sim/synthetic_renderer.hpp"
+#include "appliance/synthetic_camera/synthetic_renderer.hpp"
 
 namespace arnav::camera_sim {
 namespace {

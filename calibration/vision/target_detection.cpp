@@ -1,4 +1,4 @@
-#include "calibration/lib/target_detection.hpp"
+#include "calibration/vision/target_detection.hpp"
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>

@@ -6,7 +6,7 @@
 #include <gtest/gtest.h>
 
 #include "calibration/lib/ar_accuracy.hpp"
-#include "calibration/lib/ar_chain_sim.hpp"
+#include "calibration/vision/ar_chain_sim.hpp"
 #include "calibration/lib/calib_error.hpp"
 
 using namespace arnav::calib;

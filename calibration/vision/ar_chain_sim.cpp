@@ -1,4 +1,4 @@
-#include "calibration/lib/ar_chain_sim.hpp"
+#include "calibration/vision/ar_chain_sim.hpp"
 
 #include <chrono>
 #include <memory>
@@ -15,8 +15,8 @@
 #include "calibration/lib/intrinsics_calibration.hpp"
 #include "calibration/lib/pivot_calibration.hpp"
 #include "calibration/lib/point_registration.hpp"
-#include "calibration/lib/target_detection.hpp"
-#include "hil_tests/camera_sim/synthetic_renderer.hpp"
+#include "calibration/vision/target_detection.hpp"
+#include "appliance/synthetic_camera/synthetic_renderer.hpp"
 
 namespace arnav::calib {
 namespace {

@@ -1,4 +1,4 @@
-#include "hil_tests/camera_sim/trajectory.hpp"
+#include "appliance/synthetic_camera/trajectory.hpp"
 
 #include <cmath>
 #include <numbers>
