@@ -116,7 +116,10 @@ void CanService::on_node(const NodeChange& c) {
   const std::string what = n.liveness == NodeConfig::Liveness::Heartbeat
                                ? "heartbeat " + hex_id(n.id, false) + " (CANopen node " + std::to_string(n.node_id) + ")"
                                : "frame " + hex_id(n.id, n.extended);
-  if (c.state == NodeState::Lost) {
+  if (c.state == NodeState::Lost && !transport_) {
+    if (!closing_)
+      event(appliance_event_t::SEVERITY_WARNING, "CAN_DEVICE_LOST", "device '" + n.name + "': " + config_.interface + " is closed; its inputs are released");
+  } else if (c.state == NodeState::Lost) {
     last_fault_ = "device " + n.name + " lost";
     event(appliance_event_t::SEVERITY_ERROR, "CAN_DEVICE_LOST",
           "device '" + n.name + "' on " + config_.interface + ": no " + what + " for " + std::to_string(c.silent_us / 1000) +
@@ -286,7 +289,9 @@ void CanService::publish_health(std::int64_t now) {
 
 void CanService::shutdown() {
   const std::int64_t now = monotonic_us();
+  closing_ = true;
   transport_.reset();
+  event(appliance_event_t::SEVERITY_INFO, "CAN_CLOSED", config_.interface + " closed (appliance stopping); every input released");
   decoder_.link_lost(now, *this);
   publish_health(now);
 }

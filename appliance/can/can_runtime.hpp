@@ -71,6 +71,7 @@ class CanService final : private DecoderSink {
   bool unavailable_forever_ = false;  // no AF_CAN
   bool open_failure_reported_ = false;
   bool ever_open_ = false;
+  bool closing_ = false;
   std::string last_fault_;
   std::int64_t reconnects_ = 0;
   std::int64_t event_sequence_ = 0;
