@@ -56,7 +56,7 @@ std::vector<std::pair<std::uint32_t, bool>> CanConfig::ids() const {
 
 CanConfig parse_can_section(const YAML::Node& can, const std::string& source) {
   Reader r(source);
-  r.only(can, "can", {"interface", "bitrate", "serial_baud", "status_poll_ms", "nodes", "inputs"});
+  r.only(can, "can", {"interface", "bitrate", "serial_baud", "status_poll_ms", "priority", "nodes", "inputs"});
   CanConfig c;
   c.source = source;
   if (!can["interface"]) r.fail(can, "can.interface", "missing: a SocketCAN interface (can0, vcan0) or slcan:/dev/ttyUSB0");
@@ -80,6 +80,7 @@ CanConfig parse_can_section(const YAML::Node& can, const std::string& source) {
   }
   c.serial_baud = r.integer(can, "can", "serial_baud", c.serial_baud, 9600, 4000000);
   c.status_poll_ms = r.integer(can, "can", "status_poll_ms", c.status_poll_ms, 10, 60000);
+  c.priority = r.integer(can, "can", "priority", c.priority, 0, 99);
   if (!c.slcan && can["serial_baud"]) r.fail(can["serial_baud"], "can.serial_baud", "only for an slcan adapter (interface: slcan:PORT)");
 
   const YAML::Node nodes = can["nodes"];

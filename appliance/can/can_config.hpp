@@ -57,6 +57,9 @@ struct CanConfig {
   int bitrate = 500000;   // slcan: sent to the adapter (S0-S8); SocketCAN: set with `ip link`
   int serial_baud = 115200;
   int status_poll_ms = 500;  // slcan: how often the adapter's F flags are read
+  // SCHED_FIFO priority of the CAN thread (1-99), 0: normal scheduling. On by default, as
+  // the NDI polling thread: a pedal press must not wait behind other work.
+  int priority = 50;
   std::vector<NodeConfig> nodes;
   std::vector<InputConfig> inputs;
   std::string source;     // file read

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <iostream>
 
+#include "appliance/app/realtime.hpp"
 #include "appliance/can/slcan_transport.hpp"
 #include "appliance/can/socketcan_transport.hpp"
 #include "appliance/ndi/posix_transport.hpp"
@@ -315,6 +316,8 @@ void CanRuntime::start(const std::string& lcm_url, double health_rate_hz) {
   service_ = std::make_unique<CanService>(config_, *lcm_, [cfg] { return open_transport(cfg); }, health_rate_hz);
   stop_ = false;
   thread_ = std::thread([this] {
+    if (const std::string error = app::make_this_thread_realtime(config_.priority); !error.empty())
+      service_->event(appliance_event_t::SEVERITY_WARNING, "CAN_REALTIME_DENIED", "CAN thread: " + error);
     while (!stop_) service_->step(std::chrono::milliseconds(50));
     service_->shutdown();
   });

@@ -47,12 +47,13 @@ class CanService final : private DecoderSink {
   bool open() const { return transport_ != nullptr; }
   device_health_t health() const;  // what publish_health would send now (no window reset)
   std::int64_t events_published() const { return event_sequence_; }
+  // An appliance_event_t from the CAN path (source "can").
+  void event(std::int8_t severity, const std::string& code, const std::string& text);
 
  private:
   void on_input(const InputChange& c) override;
   void on_node(const NodeChange& c) override;
   void on_bus(const BusChange& c) override;
-  void event(std::int8_t severity, const std::string& code, const std::string& text);
   void try_open(std::int64_t now);
   void publish_health(std::int64_t now);
   device_health_t fill_health(const app::LatencySummary& l, double rate) const;

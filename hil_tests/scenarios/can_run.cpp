@@ -13,6 +13,7 @@
 
 #include "hil_tests/bench/namespaces.hpp"
 #include "protocol/channels.hpp"
+#include "protocol/clock.hpp"
 
 namespace arnav::hil {
 namespace {
@@ -45,8 +46,10 @@ CanCapture::~CanCapture() {
 }
 
 void CanCapture::on_input(const lcm::ReceiveBuffer*, const std::string&, const input_event_t* m) {
+  const std::int64_t now = monotonic_us();
   std::lock_guard lock(mutex_);
   inputs_.push_back(*m);
+  input_arrivals_.push_back(now);
 }
 void CanCapture::on_event(const lcm::ReceiveBuffer*, const std::string&, const appliance_event_t* m) {
   std::lock_guard lock(mutex_);
@@ -59,6 +62,10 @@ void CanCapture::on_health(const lcm::ReceiveBuffer*, const std::string&, const 
 std::vector<input_event_t> CanCapture::inputs() const {
   std::lock_guard lock(mutex_);
   return inputs_;
+}
+std::vector<std::int64_t> CanCapture::input_arrivals() const {
+  std::lock_guard lock(mutex_);
+  return input_arrivals_;
 }
 std::vector<appliance_event_t> CanCapture::events() const {
   std::lock_guard lock(mutex_);
@@ -116,7 +123,7 @@ std::string CanRun::start(const CanRunOptions& o) {
   {
     std::ofstream cfg(config_path_);
     cfg << "lcm_url: \"" << kLcmUrl << "\"\nhealth_rate_hz: 5\n"
-        << "can:\n  interface: " << bus_name() << "\n";
+        << "can:\n  interface: " << bus_name() << "\n  priority: " << o.appliance_priority << "\n";
     if (o.path == CanPath::Slcan) cfg << "  bitrate: 500000\n  status_poll_ms: " << o.status_poll_ms << "\n";
     cfg << "  nodes:\n"
         << "    - {name: pedal, heartbeat: 0x10, timeout_ms: " << o.pedal_timeout_ms << "}\n"

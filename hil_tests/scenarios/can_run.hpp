@@ -33,7 +33,7 @@ struct CanRunOptions {
   int status_poll_ms = 100;          // slcan F polling
   std::vector<std::string> sim_args;
   std::vector<std::string> appliance_env;
-  int appliance_priority = 0;        // the appliance's realtime.priority (0: normal)
+  int appliance_priority = 50;       // can.priority of the appliance (50 as shipped; 0: normal)
   int sim_priority = 0;              // SCHED_FIFO for the simulator (0: normal)
 };
 
@@ -47,6 +47,8 @@ class CanCapture {
   ~CanCapture();
   bool good() const { return good_; }
   std::vector<input_event_t> inputs() const;
+  // Arrival times (this process's monotonic clock) of inputs(), index for index.
+  std::vector<std::int64_t> input_arrivals() const;
   std::vector<appliance_event_t> events() const;
   std::vector<device_health_t> health() const;
   std::size_t count_inputs(const std::string& name, std::int8_t state) const;
@@ -63,6 +65,7 @@ class CanCapture {
   std::atomic<bool> stop_{false};
   mutable std::mutex mutex_;
   std::vector<input_event_t> inputs_;
+  std::vector<std::int64_t> input_arrivals_;
   std::vector<appliance_event_t> events_;
   std::vector<device_health_t> health_;
   std::thread thread_;

@@ -22,6 +22,8 @@ TEST(CanConfig, ParsesTheExample) {
   EXPECT_EQ(c->inputs[2].size, 2);
   EXPECT_EQ(c->inputs[3].node, 1u);
   EXPECT_EQ(c->ids().size(), 4u);  // 0x710, 0x185, 0x190, 0x191
+  EXPECT_EQ(c->priority, 50);
+  EXPECT_EQ(c->status_poll_ms, 500);
 }
 
 TEST(CanConfig, NoSectionIsNotAnError) { EXPECT_FALSE(parse_can_config("port: sim\n", "a.yaml")); }
@@ -75,6 +77,7 @@ TEST(CanConfig, ErrorsNameFileLineAndKey) {
   expect_error(with("name: pedal_accept", "name: pedal_cut"), "duplicate input name 'pedal_cut'");
   expect_error(with("debounce_ms: 10", "debounce_ms: -1"), "key 'can.inputs[3].debounce_ms': must be between 0 and 10000");
   expect_error(with("debounce_ms: 10", "debounce: 10"), "key 'can.inputs[3].debounce': unknown key");
+  expect_error(with("interface: vcan0", "interface: vcan0\n  priority: 100"), "cfg.yaml:3: key 'can.priority': must be between 0 and 99");
   expect_error("can:\n  interface: can0\n  nodes: []\n", "key 'can.nodes': expected a non-empty list");
   expect_error("can:\n  nodes: []\n", "cfg.yaml:2: key 'can.interface': missing");
   expect_error("can: [1\n", "YAML syntax error");
