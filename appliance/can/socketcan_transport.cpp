@@ -9,6 +9,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 
@@ -81,8 +82,10 @@ SocketCanTransport::~SocketCanTransport() {
 
 bool SocketCanTransport::receive(Received& out, std::chrono::microseconds timeout) {
   pollfd p{fd_, POLLIN, 0};
-  const int wait_ms = static_cast<int>((timeout.count() + 999) / 1000);
-  const int rc = ::poll(&p, 1, wait_ms < 0 ? 0 : wait_ms);
+  // Microsecond timeout: a debounce deadline must not wait for the next millisecond.
+  const std::int64_t us = std::max<std::int64_t>(0, timeout.count());
+  const timespec wait{static_cast<time_t>(us / 1'000'000), static_cast<long>((us % 1'000'000) * 1000)};
+  const int rc = ::ppoll(&p, 1, &wait, nullptr);
   if (rc < 0) {
     if (errno == EINTR) return false;
     throw CanLinkLost(interface_ + ": poll failed: " + errno_text(errno));
