@@ -13,6 +13,7 @@
 
 #include "hil_tests/bench/child_process.hpp"
 #include "hil_tests/scenarios/can_run.hpp"
+#include "hil_tests/scenarios/hil_run.hpp"
 #include "protocol/clock.hpp"
 
 namespace arnav::hil {
@@ -218,6 +219,33 @@ TEST(CanE2eNoAfCan, SaidOnceAndTheApplianceKeepsRunning) {
   const auto h = run.lcm().health().back();
   EXPECT_EQ(h.link_state, +device_health_t::LINK_DOWN);
   EXPECT_NE(h.detail.find("unavailable"), std::string::npos) << h.detail;
+  EXPECT_EQ(run.stop_appliance(), 0) << run.logs();
+}
+
+// NDI and CAN in one appliance on a kernel without AF_CAN: the CAN path says so once and
+// the NDI path tracks as if it were not there.
+TEST(CanE2eNoAfCan, NdiKeepsTracking) {
+  HilRun run;
+  HilRunOptions o;
+  o.extra_config = "can:\n  interface: vcan0\n  nodes: [{name: pedal, heartbeat: 0x10, timeout_ms: 300}]\n"
+                   "  inputs: [{name: pedal_cut, node: pedal, id: 0x190, bit: 0}]\n";
+  const std::int64_t t0 = monotonic_us();
+  const std::string why = run.start(o);
+  if (!why.empty()) GTEST_SKIP() << "HIL bench not available: " << why;
+  ASSERT_TRUE(run.wait_all_valid(120, t0, 90.0)) << "no tracking within 90 s\n" << run.lcm().event_log() << run.logs();
+  const std::size_t unavailable = run.lcm().events_after("CAN_UNAVAILABLE", t0);
+  if (unavailable == 0 && run.lcm().events_after("CAN_OPEN_FAILED", t0) > 0)
+    GTEST_SKIP() << "this kernel has AF_CAN (no vcan0 interface here)";
+  EXPECT_EQ(unavailable, 1u) << run.lcm().event_log();
+  bool can_health = false;
+  for (const auto& h : run.lcm().health())
+    if (h.msg.device == "can") {
+      can_health = true;
+      EXPECT_EQ(h.msg.link_state, +device_health_t::LINK_DOWN);
+    }
+  EXPECT_TRUE(can_health) << "no ARNAV_HEALTH_can";
+  const std::int64_t t1 = monotonic_us();
+  ASSERT_TRUE(run.wait_all_valid(60, t1, 30.0)) << "NDI stopped tracking";
   EXPECT_EQ(run.stop_appliance(), 0) << run.logs();
 }
 
