@@ -1,6 +1,7 @@
 #include "hil_tests/scenarios/can_run.hpp"
 
 #include <poll.h>
+#include <sys/mount.h>
 #include <sys/socket.h>
 #include <sys/un.h>
 #include <unistd.h>
@@ -118,6 +119,13 @@ std::string CanRun::start(const CanRunOptions& o) {
   if (const std::string why = enter_bench_namespaces(); !why.empty()) return why;
   if (o.path == CanPath::Slcan && (!std::filesystem::exists("/sys/class/tty/ttyS0") || !std::filesystem::exists("/dev/ttyS0")))
     return "no /dev/ttyS0 with a sysfs entry on this machine: nothing to bind the slcan pty over";
+  if (o.path == CanPath::Slcan) {
+    // A simulator killed earlier in this test process (private mount namespace) may have
+    // left its mounts over /dev/ttyS0, the top one a pty that no longer exists: take them
+    // down so this run's simulator mounts over the real node again.
+    while (::umount2("/dev/ttyS0", MNT_DETACH) == 0) {
+    }
+  }
   dir_ = make_temp_dir("arnav-can");
   config_path_ = dir_ + "/appliance.yaml";
   {

@@ -247,6 +247,7 @@ TEST(CanE2eNoAfCan, NdiKeepsTracking) {
   const std::int64_t t1 = monotonic_us();
   ASSERT_TRUE(run.wait_all_valid(60, t1, 30.0)) << "NDI stopped tracking";
   EXPECT_EQ(run.stop_appliance(), 0) << run.logs();
+  EXPECT_EQ(run.stop_simulator(), 0) << run.logs();  // SIGTERM: it takes its mounts over /dev/ttyS0 down
 }
 
 // A candump capture replayed onto the bench bus with arnav-can reaches the appliance, and
