@@ -76,7 +76,12 @@ TEST_P(CanE2e, EachPressGivesExactlyOneEvent) {
 }
 
 TEST_P(CanE2e, ContactBounceIsFiltered) {
-  start();
+  // Debounce works on the appliance's receive clock: a delivery stall longer than the
+  // debounce time in the middle of the chatter would split it (slcan frames carry no
+  // timestamps). 12 ms of chatter against 60 ms of debounce leaves a loaded bench room.
+  CanRunOptions o;
+  o.pedal_debounce_ms = 60;
+  start(o);
   inject("bounce pedal_cut 6 2");  // 13 edges 2 ms apart, settles pressed
   ASSERT_TRUE(wait_inputs("pedal_cut", kPressed, 1)) << run.lcm().event_log() << run.logs();
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
