@@ -285,7 +285,7 @@ std::size_t CanSim::node_index(const std::string& name) const {
   return SIZE_MAX;
 }
 
-std::string CanSim::command(const std::string& text) {
+std::string CanSim::command(const std::string& text, bool dry_run) {
   const auto w = words(text);
   if (w.empty()) return "ERROR empty command";
   const std::string& c = w[0];
@@ -300,6 +300,7 @@ std::string CanSim::command(const std::string& text) {
     const auto key = std::make_pair(in.id, in.extended);
     if (c == "press" || c == "release") {
       if (!need(2)) return "ERROR usage: " + c + " INPUT";
+      if (dry_run) return "OK";
       set_input(i, c == "press", c == "press" ? in.press_at : in.release_at);
       send_image(key.first, key.second);
       return "OK";
@@ -307,6 +308,7 @@ std::string CanSim::command(const std::string& text) {
     if (c == "value") {
       double v = 0;
       if (!need(3) || !num(2, v) || !in.analog || v < 0 || v > (in.size == 1 ? 255 : 65535)) return "ERROR usage: value ANALOGUE_INPUT RAW";
+      if (dry_run) return "OK";
       set_input(i, v >= in.press_at, v);
       send_image(key.first, key.second);
       return "OK";
@@ -315,6 +317,7 @@ std::string CanSim::command(const std::string& text) {
     if (!need(4) || !num(2, n) || !num(3, ms) || n < 1 || n > 1e6 || ms <= 0) return "ERROR usage: " + c + " INPUT N MS";
     if (c == "bounce") {
       // Chatter: the contact toggles n times, ms apart, and settles opposite to where it was.
+      if (dry_run) return "OK";
       const bool target = !pressed_[i];
       const int toggles = static_cast<int>(n) * 2 + 1;
       for (int k = 0; k < toggles; ++k) {
@@ -326,6 +329,7 @@ std::string CanSim::command(const std::string& text) {
       }
       return "OK";
     }
+    if (dry_run) return "OK";
     for (int k = 0; k < static_cast<int>(n); ++k) {
       const std::int64_t t = now + static_cast<std::int64_t>(k * ms * 1000);
       at(t, [this, i, key] {
@@ -343,12 +347,14 @@ std::string CanSim::command(const std::string& text) {
     if (!need(3) || (w[2] != "on" && w[2] != "off")) return "ERROR usage: " + c + " DEVICE on|off";
     const std::size_t n = node_index(w[1]);
     if (n == SIZE_MAX) return "ERROR no device '" + w[1] + "' in the configuration";
+    if (dry_run) return "OK";
     (c == "node" ? node_on_ : heartbeat_on_)[n] = w[2] == "on";
     return "OK";
   }
   if (c == "bus_off") {
     double s = 0;
     if (!need(2) || !num(1, s) || s <= 0 || s > 3600) return "ERROR usage: bus_off SECONDS";
+    if (dry_run) return "OK";
     send_error(can::err::kBusOff, 0);
     bus_off_until_us_ = now + static_cast<std::int64_t>(s * 1e6);
     slcan_flags_ |= can::slcan::status::kBusError;
@@ -361,6 +367,7 @@ std::string CanSim::command(const std::string& text) {
   if (c == "error_frames") {
     double n = 0;
     if (!need(2) || !num(1, n) || n < 1 || n > 100000) return "ERROR usage: error_frames N";
+    if (dry_run) return "OK";
     for (int k = 0; k < static_cast<int>(n); ++k) send_error(0x008 | 0x080, 0);  // protocol violation, bus error
     send_error(can::err::kCrtl, can::err::kCrtlRxPassive | can::err::kCrtlTxPassive);
     slcan_flags_ |= can::slcan::status::kErrorPassive;
@@ -374,6 +381,7 @@ std::string CanSim::command(const std::string& text) {
     double n = 0;
     if (!need(2) || !num(1, n) || n < 1 || n > 1e6) return "ERROR usage: " + c + " N";
     if (!pty_) return "ERROR " + c + " is for the slcan path (the SocketCAN bus carries whole frames)";
+    if (dry_run) return "OK";
     if (c == "drop_chars") {
       drop_chars_ += static_cast<int>(n);
     } else {
@@ -386,6 +394,7 @@ std::string CanSim::command(const std::string& text) {
   if (c == "flood") {
     double rate = 0, s = 0;
     if (!need(3) || !num(1, rate) || !num(2, s) || rate <= 0 || rate > 100000 || s <= 0 || s > 3600) return "ERROR usage: flood RATE SECONDS";
+    if (dry_run) return "OK";
     const auto total = static_cast<std::int64_t>(rate * s);
     const double step_us = 1e6 / rate;
     // In 1 ms batches: the timer queue stays small.
@@ -407,6 +416,7 @@ std::string CanSim::command(const std::string& text) {
   if (c == "frame") {
     can::CanFrame f;
     if (!need(2) || can::parse_frame_text(w[1], f) != can::LogError::None) return "ERROR usage: frame ID#DATA (candump notation)";
+    if (dry_run) return "OK";
     send(f);
     return "OK";
   }

@@ -50,8 +50,8 @@ class CanSim {
   ~CanSim();
   // Creates the bus or the pty; returns the READY line's argument (socket or slave path).
   std::string start();
-  // Checks and runs (or schedules) a command; "OK" or "ERROR <why>".
-  std::string command(const std::string& text);
+  // Checks and runs (or schedules) a command; "OK" or "ERROR <why>". dry_run: check only.
+  std::string command(const std::string& text, bool dry_run = false);
   void schedule(double at_s_from_start, const std::string& command);
   // Serves until stop is set.
   void run(const volatile bool& stop);

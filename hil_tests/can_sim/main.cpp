@@ -125,9 +125,9 @@ int main(int argc, char** argv) {
     const std::string where = sim.start();
     // Check every step now: a typo must fail before the run, not half way through it.
     for (const auto& st : plan) {
-      const std::string first = st.command.substr(0, st.command.find(' '));
-      if (first.empty()) {
-        std::cerr << "arnav-can-sim: empty step at " << st.at_s << " s\n";
+      const std::string check = sim.command(st.command, true);
+      if (check != "OK") {
+        std::cerr << "arnav-can-sim: step at " << st.at_s << " s '" << st.command << "': " << check << "\n";
         return 2;
       }
       sim.schedule(st.at_s, st.command);

@@ -48,6 +48,16 @@ TEST(CanSimScenario, ErrorsNameFileAndLine) {
   }
 }
 
+TEST(CanSimCommands, DryRunChecksWithoutActing) {
+  CanSim sim({}, *can::parse_can_config(can::test::kPedalConfig, "t.yaml"));
+  EXPECT_EQ(sim.command("train pedal_cut 5 10", true), "OK");
+  EXPECT_EQ(sim.command("frame 123#00", true), "OK");
+  EXPECT_EQ(sim.frames_sent(), 0);
+  EXPECT_EQ(sim.command("train pedal_cut five 10", true).rfind("ERROR usage", 0), 0u);
+  EXPECT_EQ(sim.command("frame 123#00"), "OK");
+  EXPECT_EQ(sim.frames_sent(), 1);
+}
+
 TEST(CanSimCommands, CheckedBeforeTheyRun) {
   CanSim sim({}, *can::parse_can_config(can::test::kPedalConfig, "t.yaml"));
   EXPECT_EQ(sim.command("press pedal_cut"), "OK");
