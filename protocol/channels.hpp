@@ -10,6 +10,7 @@ inline constexpr std::string_view kPosePrefix = "ARNAV_POSE_";      // + tool na
 inline constexpr std::string_view kHealthPrefix = "ARNAV_HEALTH_";  // + device ("ndi", "camera")
 inline constexpr std::string_view kEvents = "ARNAV_EVENT";
 inline constexpr std::string_view kFramePrefix = "ARNAV_FRAME_";    // + camera name
+inline constexpr std::string_view kInput = "ARNAV_INPUT";           // input_event_t (CAN pedal, buttons)
 inline constexpr std::string_view kPoseRegex = "ARNAV_POSE_.*";
 inline constexpr std::string_view kHealthRegex = "ARNAV_HEALTH_.*";
 

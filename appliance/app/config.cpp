@@ -18,7 +18,7 @@ using Reader = yaml::YamlReader<ConfigError>;
 
 const std::set<std::string> kKeys = {"camera", "frames", "port", "baud", "rate_hz", "device_rate_hz", "lcm_url", "reply_mode",
                                      "tx_firmware", "bx_failures_before_tx", "tracking_timeout_ms",
-                                     "setup_timeout_ms", "reset_wait_ms", "health_rate_hz", "tools", "sim_command", "sim_args", "realtime"};
+                                     "setup_timeout_ms", "reset_wait_ms", "health_rate_hz", "tools", "sim_command", "sim_args", "realtime", "can"};
 
 }  // namespace
 
@@ -41,12 +41,17 @@ AppConfig parse_config(const std::string& text, const std::string& source, const
   r.only(root, "", kKeys);
   AppConfig c;
   c.source = source;
-  // camera: and frames: are read by appliance/markers/camera_config (docs/camera.md).
-  if (!root["port"] && root["camera"] && !root["tools"]) {  // camera-only appliance
+  // camera: and frames: are read by appliance/markers/camera_config (docs/camera.md),
+  // can: by appliance/can/can_config (docs/can.md).
+  if (!root["port"] && (root["camera"] || root["can"]) && !root["tools"]) {  // camera and/or CAN, no NDI
     c.ndi_enabled = false;
     if (root["lcm_url"]) c.lcm_url = r.get<std::string>(root["lcm_url"], "lcm_url", "a string");
+    if (root["health_rate_hz"]) {  // the CAN path's health rate
+      c.health_rate_hz = r.get<double>(root["health_rate_hz"], "health_rate_hz", "a number");
+      if (!(c.health_rate_hz > 0.0) || c.health_rate_hz > 10000.0) r.fail(root["health_rate_hz"], "health_rate_hz", "must be > 0 and <= 10000");
+    }
     if (root["realtime"])
-      r.fail(root["realtime"], "realtime", "applies to the NDI polling thread, and this configuration has no NDI 'port' (camera only)");
+      r.fail(root["realtime"], "realtime", "applies to the NDI polling thread, and this configuration has no NDI 'port' (camera or CAN only)");
     return c;
   }
   if (!root["port"]) r.fail(root, "port", "missing: give a serial port path (e.g. /dev/ttyUSB0) or 'sim'");

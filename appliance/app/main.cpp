@@ -17,6 +17,7 @@
 #include "appliance/app/publisher.hpp"
 #include "appliance/app/realtime.hpp"
 #include "appliance/app/sim_process.hpp"
+#include "appliance/can/can_runtime.hpp"
 #include "appliance/markers/camera_runtime.hpp"
 #include "appliance/ndi/posix_transport.hpp"
 #include "appliance/ndi/serial_transport.hpp"
@@ -85,21 +86,45 @@ static int main_body(int argc, char** argv) {
     std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
     return 2;
   }
+  // CAN path (docs/can.md): runs on its own thread when the config has `can:`.
+  std::unique_ptr<can::CanRuntime> can_bus;
+  try {
+    can_bus = can::CanRuntime::load(config_path);
+  } catch (const can::CanConfigError& e) {
+    std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
+    return 2;
+  }
+  auto start_can = [&]() -> bool {
+    if (!can_bus) return true;
+    try {
+      can_bus->start(cfg.lcm_url, cfg.health_rate_hz);
+    } catch (const can::CanConfigError& e) {
+      std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
+      return false;
+    }
+    std::cerr << "arnav-appliance: " << can_bus->summary() << "\n";
+    return true;
+  };
   if (!cfg.ndi_enabled) {
     if (check_only) {
-      std::cout << "configuration OK: " << cam->summary() << ", no NDI\n";
+      std::cout << "configuration OK: " << (cam ? cam->summary() : std::string()) << (cam && can_bus ? "; " : "")
+                << (can_bus ? can_bus->summary() : std::string()) << ", no NDI\n";
       return 0;
     }
     install_signals();
-    try {
-      cam->start(cfg.lcm_url);
-    } catch (const camera::CameraConfigError& e) {
-      std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
-      return 2;
+    if (cam) {
+      try {
+        cam->start(cfg.lcm_url);
+      } catch (const camera::CameraConfigError& e) {
+        std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
+        return 2;
+      }
+      std::cerr << "arnav-appliance: " << cam->summary() << "\n";
     }
-    std::cerr << "arnav-appliance: " << cam->summary() << "\n";
-    while (!g_stop && !cam->finished()) std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    cam->stop();
+    if (!start_can()) return 2;
+    while (!g_stop && !(cam && cam->finished())) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    if (cam) cam->stop();
+    if (can_bus) can_bus->stop();
     std::cerr << "arnav-appliance: stopping (" << (g_stop ? "signal" : "camera source ended") << ")\n";
     return 0;
   }
@@ -151,7 +176,7 @@ static int main_body(int argc, char** argv) {
   }
   if (check_only) {
     std::cout << "configuration OK: " << cfg.tools.size() << " tool(s), port " << cfg.port
-              << (cam ? "; " + cam->summary() : std::string()) << "\n";
+              << (cam ? "; " + cam->summary() : std::string()) << (can_bus ? "; " + can_bus->summary() : std::string()) << "\n";
     return 0;
   }
 
@@ -203,6 +228,7 @@ static int main_body(int argc, char** argv) {
     }
     std::cerr << "arnav-appliance: " << cam->summary() << "\n";
   }
+  if (!start_can()) return 2;
   // NDI poses are published in the reference frame too; the reference tool's pose of
   // each frame is fed in before that frame's poses are published (one device frame).
   publisher.set_reference_frames(reference_frames);
@@ -291,6 +317,7 @@ static int main_body(int argc, char** argv) {
 
   std::cerr << "arnav-appliance: stopping (signal)\n";
   if (cam) cam->stop();
+  if (can_bus) can_bus->stop();
   session->stop();
   publisher.publish_health(*session, port_label, 0.0);
   session.reset();

@@ -53,6 +53,7 @@ std::string HilRun::start(const HilRunOptions& o) {
     cfg << "port: /dev/ttyS0\nbaud: 115200\nrate_hz: " << o.rate_hz << "\nlcm_url: \"" << kLcmUrl << "\"\nreply_mode: " << o.reply_mode
         << "\nrealtime: {cpu_latency_us: " << o.cpu_latency_us << ", priority: " << o.priority << "}\ntools:\n";
     for (const auto& [name, rom] : o.tools) cfg << "  - name: " << name << "\n    rom: " << roms << rom << "\n";
+    cfg << o.extra_config;
   }
   appliance_ = std::make_unique<ChildProcess>(
       std::vector<std::string>{appliance_exe(), dir_ + "/appliance.yaml"},

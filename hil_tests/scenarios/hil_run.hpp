@@ -25,6 +25,8 @@ struct HilRunOptions {
   // SCHED_FIFO priority of the simulator (0: normal). A real Polaris is hardware with its own
   // clock; on a loaded bench machine a normally scheduled simulator answers late.
   int sim_priority = 0;
+  // Appended to the appliance configuration (e.g. a `can:` section, docs/can.md).
+  std::string extra_config;
 };
 
 // Paths of the executables under test (compile definitions or environment overrides).

@@ -1,0 +1,66 @@
+// The per-frame path (slcan reader + input decoder) must not allocate once warmed up:
+// counted with a replacement global operator new in this test binary only.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cstdlib>
+#include <new>
+
+#include "appliance/can/input_decoder.hpp"
+#include "appliance/can/slcan.hpp"
+#include "appliance/can/test/test_config.hpp"
+
+namespace {
+std::atomic<long> g_allocations{0};
+}
+
+void* operator new(std::size_t n) {
+  ++g_allocations;
+  if (void* p = std::malloc(n ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+
+namespace arnav::can {
+namespace {
+
+struct Counter : DecoderSink {
+  long inputs = 0, nodes = 0, bus = 0;
+  void on_input(const InputChange&) override { ++inputs; }
+  void on_node(const NodeChange&) override { ++nodes; }
+  void on_bus(const BusChange&) override { ++bus; }
+};
+
+TEST(HotPath, SlcanReaderAndDecoderDoNotAllocatePerFrame) {
+  InputDecoder decoder(*parse_can_config(test::kPedalConfig, "t.yaml"));
+  slcan::Reader reader;
+  Counter sink;
+  // One second of traffic: heartbeat, grasper frames, pedal presses, bounce, garbage, a lost CR.
+  const std::string wire =
+      "t710105\rt185100\rt190100\rt190102\rt1913002003\rt1913000100\r\x01\x02zzt185180t185100\rt1901" "03\r";
+  slcan::Message m;
+  std::int64_t t = 0;
+  auto run = [&](int rounds) {
+    for (int k = 0; k < rounds; ++k) {
+      for (std::size_t pos = 0; pos < wire.size(); pos += 5) {
+        reader.feed(std::string_view(wire).substr(pos, 5));
+        while (reader.next(m)) {
+          t += 3000;
+          decoder.tick(t, sink);
+          if (m.kind == slcan::Message::Kind::Frame) decoder.on_frame(m.frame, t, sink);
+        }
+      }
+      decoder.tick(t += 30000, sink);
+    }
+  };
+  run(5);  // warm-up: buffers reach their size
+  const long before = g_allocations.load();
+  run(200);
+  EXPECT_EQ(g_allocations.load() - before, 0);
+  EXPECT_GT(sink.inputs, 200);
+  EXPECT_GT(decoder.counters().frames, 1000);
+}
+
+}  // namespace
+}  // namespace arnav::can
