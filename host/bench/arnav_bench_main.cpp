@@ -1,6 +1,7 @@
 // arnav-bench: benchmarks that print error against run time.
 //   arnav-bench deform [--quick] [--out DIR]   tissue models on the bundled liver
 //   arnav-bench plot deform.csv out.png          redraw the plot from a CSV
+//   arnav-bench register [--quick] [--out DIR]  in-silico registration (TRE vs run time)
 // Writes DIR/deform.csv and DIR/deform_pareto.png and prints the CSV rows' summary as
 // JSON on stdout. Exit 2 on usage or scene errors.
 #include <CLI/CLI.hpp>
@@ -10,6 +11,7 @@
 
 #include "host/bench/deform_bench.hpp"
 #include "host/bench/pareto_plot.hpp"
+#include "host/bench/register_bench.hpp"
 #include "host/scene/load_error.hpp"
 
 int main(int argc, char** argv) {
@@ -34,6 +36,20 @@ int main(int argc, char** argv) {
   CLI::App* plot = app.add_subcommand("plot", "redraw the Pareto PNG from a deform.csv");
   plot->add_option("csv", csv_in, "deform.csv written by 'arnav-bench deform'")->required()->check(CLI::ExistingFile);
   plot->add_option("png", png_out, "PNG to write")->required();
+  RegisterBenchOptions reg_options;
+  reg_options.data_dir = ARNAV_DEFAULT_DATA_DIR;
+  CLI::App* reg = app.add_subcommand("register", "in-silico registration: TRE (mean/median/p90/max) against run time");
+  reg->add_flag("--quick", reg_options.quick, "CI smoke run: one state, 30 % coverage, 1 mm noise");
+  reg->add_option("-o,--out", out_dir, "output folder for register.csv and the PNG plots");
+  reg->add_option("--data", reg_options.data_dir, "data folder with liver/*.scene.yaml");
+  reg->add_option("--states", reg_options.states, "deformed states (1-3)")->check(CLI::Range(1, 3));
+  reg->add_option("--coverage", reg_options.coverages, "surface coverages (fractions)")->check(CLI::Range(0.05, 0.9));
+  reg->add_option("--noise", reg_options.noises_mm, "point noise, per-axis sigma in mm")->check(CLI::Range(0.0, 10.0));
+  reg->add_option("--model", reg_options.model_kind, "registering tissue model kind (default: the registration scene's)");
+  reg->add_option("--schedule", reg_options.schedule, "data-weight schedule, stiff to flexible")->check(CLI::PositiveNumber);
+  reg->add_option("--scene", reg_options.registration_scene, "registration scene in data/liver");
+  reg->add_flag("!--free", reg_options.scene_boundary, "register without the scene's fixed vertices");
+  reg->add_option("--seed", reg_options.seed, "random seed");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -46,6 +62,45 @@ int main(int argc, char** argv) {
     } catch (const std::runtime_error& e) {
       std::cerr << "arnav-bench: " << e.what() << "\n";
       return 2;
+    }
+    return 0;
+  }
+
+  if (reg->parsed()) {
+    try {
+      const std::vector<RegisterBenchRow> rows = run_register_bench(reg_options);
+      std::filesystem::create_directories(out_dir);
+      write_register_csv(out_dir + "/register.csv", rows);
+      write_register_plots(out_dir, rows);
+      // Summary: mean over cases of each statistic, per method.
+      std::cout << "{\"csv\":\"" << out_dir << "/register.csv\",\"cases\":" << rows.size() / 4 << ",\"methods\":{";
+      bool first = true;
+      for (const std::string m : {"optimal_rigid", "landmark_rigid", "surface_rigid", "nonrigid"}) {
+        double mean = 0, median = 0, p90 = 0, max = 0, wall = 0, worst_mean = 0;
+        int n = 0;
+        for (const auto& r : rows)
+          if (r.method == m) {
+            mean += r.tre.mean;
+            median += r.tre.median;
+            p90 += r.tre.p90;
+            max += r.tre.max;
+            wall += r.wall_s;
+            worst_mean = std::max(worst_mean, r.tre.mean);
+            ++n;
+          }
+        if (n == 0) continue;
+        std::cout << (first ? "" : ",") << "\"" << m << "\":{\"tre_mean_mm\":" << mean / n << ",\"tre_median_mm\":" << median / n
+                  << ",\"tre_p90_mm\":" << p90 / n << ",\"tre_max_mm\":" << max / n << ",\"worst_case_mean_mm\":" << worst_mean
+                  << ",\"wall_s\":" << wall / n << "}";
+        first = false;
+      }
+      std::cout << "}}\n";
+    } catch (const LoadError& e) {
+      std::cerr << "arnav-bench: " << e.what() << "\n";
+      return 2;
+    } catch (const std::exception& e) {
+      std::cerr << "arnav-bench: " << e.what() << "\n";
+      return 1;
     }
     return 0;
   }

@@ -79,6 +79,7 @@ IcpResult icp_point_to_plane(const Eigen::Matrix3Xd& model_positions_mm, const s
   const double extent = (data_Intraop_mm.rowwise().maxCoeff() - data_Intraop_mm.rowwise().minCoeff()).norm();
   res.summary.termination = "max_iterations";
   for (int it = 0; it < o.max_iterations; ++it) {
+#pragma omp parallel for schedule(static)
     for (int i = 0; i < n; ++i) {
       const Eigen::Vector3d q = T * data_Intraop_mm.col(i);
       hit[static_cast<std::size_t>(i)] = index.closest(q);
