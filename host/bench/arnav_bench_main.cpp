@@ -50,6 +50,8 @@ int main(int argc, char** argv) {
   reg->add_option("--scene", reg_options.registration_scene, "registration scene in data/liver");
   reg->add_flag("!--free", reg_options.scene_boundary, "register without the scene's fixed vertices");
   reg->add_option("--seed", reg_options.seed, "random seed");
+  reg->add_option("--updates", reg_options.updates_per_level, "correspondence updates per level")->check(CLI::PositiveNumber);
+  reg->add_option("--steps", reg_options.steps_per_update, "model steps per correspondence update")->check(CLI::PositiveNumber);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -289,14 +289,19 @@ std::vector<RegisterBenchRow> run_register_bench(const RegisterBenchOptions& o) 
         rq.landmarks = landmarks;
         rq.nonrigid.model_kind = o.model_kind;
         rq.nonrigid.scene_boundary = o.scene_boundary;
-        rq.nonrigid.noise_mm = std::max(0.5, noise * std::sqrt(3.0) * 0.8);
+        rq.nonrigid.noise_mm = std::max(0.3, 0.8 * noise);  // trimmed RMS of the normal noise component
         if (!o.schedule.empty()) rq.nonrigid.data_weight_schedule = o.schedule;
+        if (o.updates_per_level > 0) rq.nonrigid.max_updates_per_level = o.updates_per_level;
+        if (o.steps_per_update > 0) rq.nonrigid.steps_per_update = o.steps_per_update;
         const RegistrationResult res = register_patient(reg, rq);
         row("landmark_rigid", res.landmarks->X_IntraopModel * targets_rest, 0.0, 0.0, "");
         row("surface_rigid", res.icp.X_IntraopModel * targets_rest, res.icp.summary.final_rms_mm, res.icp.summary.wall_time_s,
             res.icp.summary.termination);
         std::string note = res.nonrigid->message;
-        if (!res.nonrigid->levels.empty()) note += "; levels " + std::to_string(res.nonrigid->levels.size());
+        for (const auto& l : res.nonrigid->levels)
+          note += "; w" + std::to_string(static_cast<int>(l.data_weight)) + ": " + std::to_string(l.updates) + " updates " +
+                  std::to_string(l.rms_mm).substr(0, 5) + " mm " + std::to_string(l.wall_time_s).substr(0, 4) + " s (model " + std::to_string(l.model_time_s).substr(0, 4) + ")";
+        note += "; rigid rms " + std::to_string(res.nonrigid->rigid_rms_mm).substr(0, 5);
         row("nonrigid", carry_to_intraop(reg, reg_targets, res), res.nonrigid->final_rms_mm, res.wall_time_s, note);
       }
     }

@@ -24,6 +24,8 @@ struct RegisterBenchOptions {
   std::string model_kind;                               // registering model (empty: the scene's)
   std::vector<double> schedule;                         // data-weight schedule (empty: default)
   bool scene_boundary = true;
+  int updates_per_level = 0;                            // 0: the library default
+  int steps_per_update = 0;
   unsigned seed = 1;
 };
 

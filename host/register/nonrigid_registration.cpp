@@ -197,6 +197,7 @@ NonrigidResult register_nonrigid(const Scene& scene, const Eigen::Matrix3Xd& dat
       const double area_per_point = covered_mm2 / c.used;
       const double sigma = std::max(o.min_sigma_mm, 1.4826 * kth_value(abs_r, 0.5));
       const double huber = o.huber_sigmas * sigma;
+      const auto tm = Clock::now();
       for (AttachmentId id : attached) model->remove_attachment(id);
       attached.clear();
       double k_sum = 0.0;
@@ -233,6 +234,7 @@ NonrigidResult register_nonrigid(const Scene& scene, const Eigen::Matrix3Xd& dat
         model->set_state(model->positions_World_mm(), zero_v);
       }
       level.updates = u + 1;
+      level.model_time_s += seconds_since(tm);
       if (!healthy) {
         level.termination = "model unhealthy";
         stop = true;

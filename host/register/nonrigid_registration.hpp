@@ -52,6 +52,7 @@ struct NonrigidLevel {
   int points_trimmed = 0;
   double max_displacement_mm = 0.0;     // largest vertex displacement from rest
   double wall_time_s = 0.0;
+  double model_time_s = 0.0;            // of which in the tissue model (steps, attachments, state resets)
   std::string termination;
 };
 
