@@ -48,8 +48,9 @@ int main(int argc, char** argv) {
   reg->add_option("--model", reg_options.model_kind, "registering tissue model kind (default: the registration scene's)");
   reg->add_option("--schedule", reg_options.schedule, "data-weight schedule, stiff to flexible")->check(CLI::PositiveNumber);
   reg->add_option("--scene", reg_options.registration_scene, "registration scene in data/liver");
-  reg->add_flag("!--free", reg_options.scene_boundary, "register without the scene's fixed vertices");
+  reg->add_flag("--scene-boundary", reg_options.scene_boundary, "hold the scene's fixed vertices during the non-rigid stage");
   reg->add_option("--seed", reg_options.seed, "random seed");
+  reg->add_option("--export", reg_options.export_dir, "write the first case's inputs for arnav-register (surface.xyz, landmarks.csv, targets.csv, truth_targets.csv)");
   reg->add_option("--updates", reg_options.updates_per_level, "correspondence updates per level")->check(CLI::PositiveNumber);
   reg->add_option("--steps", reg_options.steps_per_update, "model steps per correspondence update")->check(CLI::PositiveNumber);
   try {

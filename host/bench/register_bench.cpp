@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <map>
@@ -81,7 +82,7 @@ TruthState solve_state(const Scene& truth, const SimProblem& het, int state, con
   SimProblem p = het;
   // Gravity change: the patient is tilted; the preoperative shape already carries the
   // old gravity, so the load is the difference of the two gravity vectors.
-  const double tilt_deg = state == 1 ? 25.0 : 30.0;
+  const double tilt_deg = state == 1 ? 25.0 : (state == 2 ? 20.0 : 30.0);
   const Eigen::Vector3d axis = state == 1 ? Eigen::Vector3d(0, 1, 0) : Eigen::Vector3d(state == 2 ? -1 : 1, 0, 0);
   const Eigen::Vector3d g0 = truth.problem.gravity_World_mm_s2;
   p.gravity_World_mm_s2 = Eigen::AngleAxisd(tilt_deg * std::numbers::pi / 180.0, axis) * g0 - g0;
@@ -101,7 +102,7 @@ TruthState solve_state(const Scene& truth, const SimProblem& het, int state, con
   std::vector<Ramp> ramps;
   if (state != 1) {  // lobe pull
     const std::vector<int> patch = lowest_surface_patch(truth, 15.0);
-    const Eigen::Vector3d pull = state == 0 ? Eigen::Vector3d(15, 0, 0) : Eigen::Vector3d(0, -12, 4);
+    const Eigen::Vector3d pull = state == 0 ? Eigen::Vector3d(15, 0, 0) : Eigen::Vector3d(-10, 0, 0);
     for (int g : patch) {
       const Eigen::Vector3d p0 = truth.organ_surface.positions_World_mm.col(g);
       ramps.push_back({model->add_attachment({truth.organ_embedding.material_point(truth.problem.mesh, g), p0, 200.0 / static_cast<double>(patch.size())}),
@@ -283,6 +284,28 @@ std::vector<RegisterBenchRow> run_register_bench(const RegisterBenchOptions& o) 
           }
           const auto fit = calib::register_paired_points(a, b);
           row("optimal_rigid", fit.X_AB * targets_rest, 0.0, 0.0, "");
+        }
+        if (!o.export_dir.empty() && rows.size() == 1) {
+          // The case as arnav-register reads it, plus the truth (targets in Intraop).
+          std::filesystem::create_directories(o.export_dir);
+          std::ofstream pts(o.export_dir + "/surface.xyz");
+          pts.precision(10);
+          pts << "# arnav-bench register case: state " << s << ", coverage " << coverage << ", noise " << noise << " mm (Intraop, mm)\n";
+          for (int i = 0; i < data_Intraop.cols(); ++i) pts << data_Intraop(0, i) << ' ' << data_Intraop(1, i) << ' ' << data_Intraop(2, i) << '\n';
+          std::ofstream lm(o.export_dir + "/landmarks.csv");
+          lm.precision(10);
+          lm << "name,model_x,model_y,model_z,intraop_x,intraop_y,intraop_z\n";
+          for (const auto& l : landmarks)
+            lm << l.name << ',' << l.p_Model_mm.x() << ',' << l.p_Model_mm.y() << ',' << l.p_Model_mm.z() << ',' << l.p_Intraop_mm.x() << ','
+               << l.p_Intraop_mm.y() << ',' << l.p_Intraop_mm.z() << '\n';
+          std::vector<NamedPoint> rest, tru;
+          for (int k = 0; k < 60; ++k) {
+            const std::string name = (interior[static_cast<std::size_t>(k)] ? "interior" : "surface") + std::to_string(k);
+            rest.push_back({name, targets_rest.col(k), 0});
+            tru.push_back({name, truth_Intraop.col(k), 0});
+          }
+          write_targets(o.export_dir + "/targets.csv", rest);
+          write_targets(o.export_dir + "/truth_targets.csv", tru);
         }
         RegistrationRequest rq;
         rq.points_Intraop_mm = data_Intraop;

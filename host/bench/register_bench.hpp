@@ -23,10 +23,11 @@ struct RegisterBenchOptions {
   std::string truth_scene = "liver.scene.yaml";
   std::string model_kind;                               // registering model (empty: the scene's)
   std::vector<double> schedule;                         // data-weight schedule (empty: default)
-  bool scene_boundary = true;
+  bool scene_boundary = false;
   int updates_per_level = 0;                            // 0: the library default
   int steps_per_update = 0;
   unsigned seed = 1;
+  std::string export_dir;                               // non-empty: write the first case's input files here
 };
 
 struct TreStats {

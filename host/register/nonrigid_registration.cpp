@@ -47,17 +47,17 @@ Correspondences correspond(const SurfaceIndex& index, const Eigen::Matrix3Xd& q,
   if (n == 0) return c;
 #pragma omp parallel for schedule(static)
   for (int i = 0; i < n; ++i) {
-    const SurfaceHit h = index.closest(q.col(i));
+    const SurfaceHit h = index.closest(q.col(i), max_distance_mm);
     c.hit[static_cast<std::size_t>(i)] = h;
     c.distance[static_cast<std::size_t>(i)] = h.distance_mm;
-    c.plane[static_cast<std::size_t>(i)] = h.normal.dot(q.col(i) - h.point);
+    c.plane[static_cast<std::size_t>(i)] = h.tri >= 0 ? h.normal.dot(q.col(i) - h.point) : 0.0;
   }
   const double d_keep = kth_value(c.distance, keep_fraction);
-  const double d_max = std::max(max_distance_mm, 3.0 * kth_value(c.distance, 0.5));
+  const double d_max = max_distance_mm;  // after the rigid stage a point further away is an outlier
   double ss = 0.0;
   for (int i = 0; i < n; ++i) {
     const double d = c.distance[static_cast<std::size_t>(i)];
-    if (d <= d_keep && d <= d_max) {
+    if (d <= d_keep && d <= d_max && c.hit[static_cast<std::size_t>(i)].tri >= 0) {
       c.keep[static_cast<std::size_t>(i)] = 1;
       ++c.used;
       ss += d * d;
@@ -73,17 +73,22 @@ ModelConfig registration_config(const Scene& scene, const std::string& kind) {
   if (!kind.empty() && kind != c.kind) {
     bool found = false;
     for (const ModelVariant& v : model_variants())
-      if (v.config.kind == kind) {
+      if (v.config.kind == kind && !found) {
         c = v.config;
         c.threads = scene.model.threads;
         found = true;
-        break;
       }
     if (!found) {
       std::string known;
       for (const auto& k : available_model_kinds()) known += (known.empty() ? "" : ", ") + k;
       throw std::invalid_argument("unknown or unavailable tissue model '" + kind + "' (this build has: " + known + ")");
     }
+  }
+  if (c.kind == "mass_spring" && c.integrator == "explicit") {
+    // Explicit steps would need tiny substeps; the semi-implicit (CG) integrator takes the
+    // scene's frame. (local_global refactors its matrix whenever attachments change:
+    // every correspondence update, far too slow here.)
+    c.integrator = "semi_implicit";
   }
   if (c.kind == "corotational_fem") {
     // Quasi-static relaxation with large steps: exact solves (a lagged factor would need
@@ -110,6 +115,7 @@ NonrigidResult register_nonrigid(const Scene& scene, const Eigen::Matrix3Xd& dat
                                  const NonrigidOptions& o) {
   const auto t0 = Clock::now();
   const TetMesh& mesh = scene.problem.mesh;
+  const ModelConfig config = registration_config(scene, o.model_kind);  // a bad kind throws before anything runs
   NonrigidResult res;
   res.x_Model_mm = mesh.rest_positions_World_mm;
   {
@@ -140,7 +146,6 @@ NonrigidResult register_nonrigid(const Scene& scene, const Eigen::Matrix3Xd& dat
     m.damping_mass_per_s = 0.0;  // velocities are zeroed after every step (quasi-static)
     m.damping_stiffness_s = 0.0;
   }
-  const ModelConfig config = registration_config(scene, o.model_kind);
   std::unique_ptr<TissueModel> model = make_tissue_model(problem, config);
   res.model = config.kind + (config.integrator.empty() ? "" : "/" + config.integrator);
   const double dt = o.step_s > 0 ? o.step_s : (config.kind == "corotational_fem" ? 1.0 : scene.time_step_s);
@@ -157,7 +162,32 @@ NonrigidResult register_nonrigid(const Scene& scene, const Eigen::Matrix3Xd& dat
     for (int i = 0; i < e.size(); ++i) landmark_points.push_back(e.material_point(mesh, i));
   }
 
-  std::vector<AttachmentId> attached;
+  // The data term acts on the surface vertices: one attachment per vertex, made once;
+  // each update sets its target and stiffness (the correspondences' springs lumped onto
+  // the vertices of their triangles by the barycentric weights). A vertex no point pulls
+  // keeps a negligible spring to where it is (the models need a positive stiffness).
+  constexpr double kIdle_mN_per_mm = 1e-9;
+  std::vector<int> surface_vertices;
+  {
+    std::vector<char> on(static_cast<std::size_t>(mesh.num_vertices()), 0);
+    for (const auto& f : mesh.surface_tris)
+      for (int v : f) on[static_cast<std::size_t>(v)] = 1;
+    for (int v = 0; v < mesh.num_vertices(); ++v)
+      if (on[static_cast<std::size_t>(v)]) surface_vertices.push_back(v);
+  }
+  std::vector<int> slot(static_cast<std::size_t>(mesh.num_vertices()), -1);
+  std::vector<AttachmentId> vertex_attachment;
+  for (std::size_t i = 0; i < surface_vertices.size(); ++i) {
+    const int v = surface_vertices[i];
+    slot[static_cast<std::size_t>(v)] = static_cast<int>(i);
+    MaterialPoint mp;
+    mp.vertices = {v};
+    mp.weights = {1.0};
+    vertex_attachment.push_back(model->add_attachment({mp, mesh.rest_positions_World_mm.col(v), kIdle_mN_per_mm}));
+  }
+  std::vector<AttachmentId> landmark_attachment;
+  for (std::size_t i = 0; i < landmark_points.size(); ++i)
+    landmark_attachment.push_back(model->add_attachment({landmark_points[i], landmarks[i].target_Model_mm, kIdle_mN_per_mm}));
   Eigen::Matrix3Xd x = mesh.rest_positions_World_mm;
   const Eigen::Matrix3Xd zero_v = Eigen::Matrix3Xd::Zero(3, x.cols());
   double prev_rms = res.rigid_rms_mm;
@@ -198,8 +228,10 @@ NonrigidResult register_nonrigid(const Scene& scene, const Eigen::Matrix3Xd& dat
       const double sigma = std::max(o.min_sigma_mm, 1.4826 * kth_value(abs_r, 0.5));
       const double huber = o.huber_sigmas * sigma;
       const auto tm = Clock::now();
-      for (AttachmentId id : attached) model->remove_attachment(id);
-      attached.clear();
+      // Lump: vertex j gets K_j = sum_i k_i w_ij and the weighted mean of the pulls
+      // d_i = r_i n_i (towards the data point's tangent plane).
+      std::vector<double> K(surface_vertices.size(), 0.0);
+      Eigen::Matrix3Xd pull = Eigen::Matrix3Xd::Zero(3, static_cast<Eigen::Index>(surface_vertices.size()));
       double k_sum = 0.0;
       for (std::size_t i = 0; i < c.keep.size(); ++i) {
         if (!c.keep[i]) continue;
@@ -207,16 +239,22 @@ NonrigidResult register_nonrigid(const Scene& scene, const Eigen::Matrix3Xd& dat
         const auto& f = mesh.surface_tris[static_cast<std::size_t>(h.tri)];
         const double r = c.plane[i];
         const double w = std::abs(r) <= huber ? 1.0 : huber / std::abs(r);
-        AttachmentSpec spec;
-        spec.point.vertices = {f[0], f[1], f[2]};
-        spec.point.weights = {h.barycentric[0], h.barycentric[1], h.barycentric[2]};
-        spec.target_World_mm = h.point + r * h.normal;  // projection onto the data point's tangent plane
-        spec.stiffness_mN_per_mm = weight * k_unit * area_per_point * w;
-        k_sum += spec.stiffness_mN_per_mm;
-        attached.push_back(model->add_attachment(spec));
+        const double k = weight * k_unit * area_per_point * w;
+        k_sum += k;
+        for (int a = 0; a < 3; ++a) {
+          const int j = slot[static_cast<std::size_t>(f[static_cast<std::size_t>(a)])];
+          const double kw = k * h.barycentric[a];
+          K[static_cast<std::size_t>(j)] += kw;
+          pull.col(j) += kw * r * h.normal;
+        }
       }
-      for (std::size_t i = 0; i < landmark_points.size(); ++i)
-        attached.push_back(model->add_attachment({landmark_points[i], landmarks[i].target_Model_mm, o.landmark_weight * weight}));
+      for (std::size_t j = 0; j < surface_vertices.size(); ++j) {
+        const Eigen::Vector3d xj = x.col(surface_vertices[j]);
+        const bool pulled = K[j] > kIdle_mN_per_mm;
+        model->set_attachment_target(vertex_attachment[j], pulled ? Eigen::Vector3d(xj + pull.col(static_cast<Eigen::Index>(j)) / K[j]) : xj);
+        model->set_attachment_stiffness(vertex_attachment[j], pulled ? K[j] : kIdle_mN_per_mm);
+      }
+      for (AttachmentId id : landmark_attachment) model->set_attachment_stiffness(id, o.landmark_weight * weight);
       level.stiffness_per_point_mN_per_mm = k_sum / c.used;
       level.points_used = c.used;
       level.points_trimmed = static_cast<int>(data.cols()) - c.used;

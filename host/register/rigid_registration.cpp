@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 
@@ -78,13 +79,15 @@ IcpResult icp_point_to_plane(const Eigen::Matrix3Xd& model_positions_mm, const s
   std::vector<char> keep(static_cast<std::size_t>(n));
   const double extent = (data_Intraop_mm.rowwise().maxCoeff() - data_Intraop_mm.rowwise().minCoeff()).norm();
   res.summary.termination = "max_iterations";
+  double search_mm = std::numeric_limits<double>::infinity();  // first pass: every point finds the surface
   for (int it = 0; it < o.max_iterations; ++it) {
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; ++i) {
       const Eigen::Vector3d q = T * data_Intraop_mm.col(i);
-      hit[static_cast<std::size_t>(i)] = index.closest(q);
+      hit[static_cast<std::size_t>(i)] = index.closest(q, search_mm);
       dist[static_cast<std::size_t>(i)] = hit[static_cast<std::size_t>(i)].distance_mm;
-      r[static_cast<std::size_t>(i)] = hit[static_cast<std::size_t>(i)].normal.dot(q - hit[static_cast<std::size_t>(i)].point);
+      r[static_cast<std::size_t>(i)] =
+          hit[static_cast<std::size_t>(i)].tri >= 0 ? hit[static_cast<std::size_t>(i)].normal.dot(q - hit[static_cast<std::size_t>(i)].point) : 0.0;
     }
     // Trimming: the closest keep_fraction, within max_distance (and within 3x the median
     // distance, so a far-off start is not cut to nothing).
@@ -94,9 +97,10 @@ IcpResult icp_point_to_plane(const Eigen::Matrix3Xd& model_positions_mm, const s
     std::nth_element(sorted.begin(), kth, sorted.end());
     const double d_keep = *kth;
     const double d_max = std::max(o.max_distance_mm, 3.0 * median_of(dist));
+    search_mm = d_max;  // later passes need not look further than a kept pair could be
     int used = 0;
     for (int i = 0; i < n; ++i) {
-      bool k = dist[static_cast<std::size_t>(i)] <= d_keep && dist[static_cast<std::size_t>(i)] <= d_max;
+      bool k = hit[static_cast<std::size_t>(i)].tri >= 0 && dist[static_cast<std::size_t>(i)] <= d_keep && dist[static_cast<std::size_t>(i)] <= d_max;
       if (k && normals) {
         const Eigen::Vector3d nd = T.linear() * data_normals_Intraop.col(i);
         k = std::abs(nd.dot(hit[static_cast<std::size_t>(i)].normal)) >= cos_max;
@@ -152,6 +156,12 @@ IcpResult icp_point_to_plane(const Eigen::Matrix3Xd& model_positions_mm, const s
     }
     if (step_mm < o.step_tolerance_mm) {
       res.summary.termination = "converged";
+      break;
+    }
+    // No progress over 10 iterations (the pose wanders on data it cannot explain).
+    const auto& h = res.summary.history;
+    if (h.size() > 10 && h[h.size() - 11].rms_mm - rms < 1e-3 * h[h.size() - 11].rms_mm) {
+      res.summary.termination = "stalled: no residual decrease in 10 iterations";
       break;
     }
   }

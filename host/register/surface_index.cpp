@@ -60,9 +60,9 @@ SurfaceIndex::SurfaceIndex(const Eigen::Matrix3Xd& positions, const std::vector<
   const double mean_edge = edge_sum / (3.0 * static_cast<double>(tris_.size()));
   cell_ = std::max(2.0 * mean_edge, 1e-6);
   origin_ = lo;
-  // at most ~64^3 cells
+  // at most ~32^3 cells (far queries visit every shell)
   const Eigen::Vector3d ext = hi - lo;
-  cell_ = std::max(cell_, ext.maxCoeff() / 64.0);
+  cell_ = std::max(cell_, ext.maxCoeff() / 32.0);
   for (int k = 0; k < 3; ++k) dims_[static_cast<std::size_t>(k)] = std::max(1, static_cast<int>(std::floor(ext[k] / cell_)) + 1);
   const int ncell = dims_[0] * dims_[1] * dims_[2];
   std::vector<int> count(static_cast<std::size_t>(ncell) + 1, 0);
@@ -93,7 +93,7 @@ SurfaceIndex::SurfaceIndex(const Eigen::Matrix3Xd& positions, const std::vector<
   }
 }
 
-SurfaceHit SurfaceIndex::closest(const Eigen::Vector3d& q) const {
+SurfaceHit SurfaceIndex::closest(const Eigen::Vector3d& q, double max_distance_mm) const {
   SurfaceHit best;
   if (tris_.empty()) return best;
   double best_d2 = std::numeric_limits<double>::infinity();
@@ -105,6 +105,11 @@ SurfaceHit SurfaceIndex::closest(const Eigen::Vector3d& q) const {
   const int max_ring = std::max({dims_[0], dims_[1], dims_[2]});
   auto test_cell = [&](int i, int j, int k) {
     const int cell = cell_index(i, j, k);
+    if (cell_start_[static_cast<std::size_t>(cell)] == cell_start_[static_cast<std::size_t>(cell) + 1]) return;
+    // skip a cell whose box is further than the best so far (its triangles lie inside it)
+    const Eigen::Vector3d lo = origin_ + cell_ * Eigen::Vector3d(i, j, k);
+    const double box_d2 = (lo - q).cwiseMax(q - lo - Eigen::Vector3d::Constant(cell_)).cwiseMax(0.0).squaredNorm();
+    if (box_d2 >= best_d2) return;
     for (int s = cell_start_[static_cast<std::size_t>(cell)]; s < cell_start_[static_cast<std::size_t>(cell) + 1]; ++s) {
       const int ti = cell_tris_[static_cast<std::size_t>(s)];
       const auto& t = tris_[static_cast<std::size_t>(ti)];
@@ -137,6 +142,12 @@ SurfaceHit SurfaceIndex::closest(const Eigen::Vector3d& q) const {
     // and at least as far as q is outside the grid
     const double reach = std::max(outside, static_cast<double>(ring) * cell_);
     if (best.tri >= 0 && best_d2 <= reach * reach) break;
+    if (reach > max_distance_mm) break;  // anything further is of no interest
+  }
+  if (best.tri < 0 || best_d2 > max_distance_mm * max_distance_mm) {
+    SurfaceHit none;
+    none.distance_mm = std::numeric_limits<double>::infinity();
+    return none;
   }
   const auto& t = tris_[static_cast<std::size_t>(best.tri)];
   best.distance_mm = std::sqrt(best_d2);

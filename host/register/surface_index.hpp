@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 
 #include <array>
+#include <limits>
 #include <vector>
 
 namespace arnav::host {
@@ -24,7 +25,8 @@ class SurfaceIndex {
   // Triangles must reference columns of positions; normals point to the side the
   // triangles' counter-clockwise order faces.
   SurfaceIndex(const Eigen::Matrix3Xd& positions, const std::vector<std::array<int, 3>>& tris);
-  SurfaceHit closest(const Eigen::Vector3d& q) const;
+  // Nothing within max_distance_mm: tri = -1 and distance_mm = +inf (cheap for outliers).
+  SurfaceHit closest(const Eigen::Vector3d& q, double max_distance_mm = std::numeric_limits<double>::infinity()) const;
   bool empty() const { return tris_.empty(); }
   const Eigen::Matrix3Xd& vertex_normals() const { return vertex_normals_; }
   const Eigen::Matrix3Xd& positions() const { return x_; }
