@@ -2,11 +2,14 @@
 //   arnav-bench deform [--quick] [--out DIR]   tissue models on the bundled liver
 //   arnav-bench plot deform.csv out.png          redraw the plot from a CSV
 //   arnav-bench register [--quick] [--out DIR]  in-silico registration (TRE vs run time)
+//   arnav-bench track [--frames N] [--out DIR]  per-frame tracking (TRE and frame time)
 // Writes DIR/deform.csv and DIR/deform_pareto.png and prints the CSV rows' summary as
 // JSON on stdout. Exit 2 on usage or scene errors.
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 
 #include "host/bench/deform_bench.hpp"
@@ -53,6 +56,13 @@ int main(int argc, char** argv) {
   reg->add_option("--export", reg_options.export_dir, "write the first case's inputs for arnav-register (surface.xyz, landmarks.csv, targets.csv, truth_targets.csv)");
   reg->add_option("--updates", reg_options.updates_per_level, "correspondence updates per level")->check(CLI::PositiveNumber);
   reg->add_option("--steps", reg_options.steps_per_update, "model steps per correspondence update")->check(CLI::PositiveNumber);
+  RegisterBenchOptions track_options;
+  track_options.data_dir = ARNAV_DEFAULT_DATA_DIR;
+  int track_frames = 600;
+  CLI::App* track = app.add_subcommand("track", "per-frame tracking over a 10 s deforming sequence: TRE and frame time");
+  track->add_option("-o,--out", out_dir, "output folder for track.csv and track.png");
+  track->add_option("--data", track_options.data_dir, "data folder with liver/*.scene.yaml");
+  track->add_option("--frames", track_frames, "frames at 60 Hz (default 600 = 10 s)")->check(CLI::PositiveNumber);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -69,6 +79,47 @@ int main(int argc, char** argv) {
     return 0;
   }
 
+  if (track->parsed()) {
+    try {
+      std::string model;
+      const std::vector<TrackBenchRow> rows = run_track_bench(track_options, track_frames, model);
+      std::filesystem::create_directories(out_dir);
+      std::ofstream csv(out_dir + "/track.csv");
+      csv << "frame,t_s,tre_tracked_mm,tre_max_tracked_mm,tre_static_mm,frame_ms,model_ms,tracked,healthy\n";
+      std::vector<double> ft, tre, tre_static;
+      int unhealthy = 0;
+      for (const auto& r : rows) {
+        csv << r.frame << ',' << r.t_s << ',' << r.tre_tracked_mm << ',' << r.tre_max_tracked_mm << ',' << r.tre_static_mm << ',' << r.frame_ms
+            << ',' << r.model_ms << ',' << r.tracked << ',' << (r.healthy ? 1 : 0) << '\n';
+        ft.push_back(r.frame_ms);
+        tre.push_back(r.tre_tracked_mm);
+        tre_static.push_back(r.tre_static_mm);
+        unhealthy += r.healthy ? 0 : 1;
+      }
+      auto q = [](std::vector<double> v, double p) {
+        std::sort(v.begin(), v.end());
+        return v[std::min(v.size() - 1, static_cast<std::size_t>(p * static_cast<double>(v.size())))];
+      };
+      auto mean = [](const std::vector<double>& v) {
+        double s = 0;
+        for (double x : v) s += x;
+        return s / static_cast<double>(v.size());
+      };
+      write_track_plot(out_dir + "/track.png", rows);
+      std::cout << "{\"csv\":\"" << out_dir << "/track.csv\",\"model\":\"" << model << "\",\"frames\":" << rows.size()
+                << ",\"tre_mean_tracked_mm\":" << mean(tre) << ",\"tre_max_frame_mean_tracked_mm\":" << q(tre, 1.0)
+                << ",\"tre_mean_static_mm\":" << mean(tre_static) << ",\"tre_max_frame_mean_static_mm\":" << q(tre_static, 1.0)
+                << ",\"frame_ms_median\":" << q(ft, 0.5) << ",\"frame_ms_p90\":" << q(ft, 0.9) << ",\"frame_ms_max\":" << q(ft, 1.0)
+                << ",\"unhealthy_frames\":" << unhealthy << "}\n";
+    } catch (const LoadError& e) {
+      std::cerr << "arnav-bench: " << e.what() << "\n";
+      return 2;
+    } catch (const std::exception& e) {
+      std::cerr << "arnav-bench: " << e.what() << "\n";
+      return 1;
+    }
+    return 0;
+  }
   if (reg->parsed()) {
     try {
       const std::vector<RegisterBenchRow> rows = run_register_bench(reg_options);

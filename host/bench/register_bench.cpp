@@ -19,6 +19,7 @@
 #include "host/register/registration.hpp"
 #include "host/register/surface_index.hpp"
 #include "host/register/synthetic_data.hpp"
+#include "host/register/tracking.hpp"
 #include "host/scene/scene.hpp"
 #include "host/sim/model_factory.hpp"
 
@@ -332,6 +333,83 @@ std::vector<RegisterBenchRow> run_register_bench(const RegisterBenchOptions& o) 
   return rows;
 }
 
+std::vector<TrackBenchRow> run_track_bench(const RegisterBenchOptions& o, int frames, std::string& model_name) {
+  const Scene truth = load_scene(o.data_dir + "/liver/" + o.truth_scene);
+  const Scene reg = load_scene(o.data_dir + "/liver/" + o.registration_scene);
+  std::mt19937 rng(o.seed);
+  std::mt19937 het_rng(o.seed + 100);
+  const SimProblem het = heterogeneous_problem(truth, het_rng);
+  Eigen::Index seed_v = 0;
+  (truth.organ_surface.positions_World_mm.transpose() * kViewDir).maxCoeff(&seed_v);
+  const TruthState state = solve_state(truth, het, 1, truth.organ_surface.positions_World_mm.col(seed_v));
+  const Eigen::Matrix3Xd& rest = truth.problem.mesh.rest_positions_World_mm;
+  // targets: 45 interior tet points of the truth mesh at least 5 mm deep, as in 'register'
+  const SurfaceIndex rest_surface(truth.organ_surface.positions_World_mm, truth.organ_surface.tris);
+  std::uniform_int_distribution<int> pick_tet(0, truth.problem.mesh.num_tets() - 1);
+  std::vector<std::array<int, 4>> tt;
+  Eigen::Matrix3Xd t_rest(3, 45), t_def(3, 45);
+  for (int k = 0; k < 45;) {
+    const auto& t = truth.problem.mesh.tets[static_cast<std::size_t>(pick_tet(rng))];
+    const Eigen::Vector3d c = (rest.col(t[0]) + rest.col(t[1]) + rest.col(t[2]) + rest.col(t[3])) / 4.0;
+    if (rest_surface.closest(c).distance_mm < 5.0) continue;
+    t_rest.col(k) = c;
+    t_def.col(k) = (state.x.col(t[0]) + state.x.col(t[1]) + state.x.col(t[2]) + state.x.col(t[3])) / 4.0;
+    ++k;
+  }
+  const Embedding reg_targets = embed_points(reg.problem.mesh, t_rest, 5.0, "tracking target");
+  // features: 60 organ-surface vertices of the visible 30 % patch
+  const Eigen::Matrix3Xd s_rest = truth.organ_surface.positions_World_mm;
+  const Eigen::Matrix3Xd s_def = truth.organ_embedding.apply(truth.problem.mesh, state.x);
+  const SampledPatch patch = sample_patch(s_rest, truth.organ_surface.tris, s_rest.col(seed_v), kViewDir, 0.3, 50.0, rng);
+  std::vector<int> candidates;
+  for (int t : patch.tris)
+    for (int v : truth.organ_surface.tris[static_cast<std::size_t>(t)]) candidates.push_back(v);
+  std::sort(candidates.begin(), candidates.end());
+  candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+  std::shuffle(candidates.begin(), candidates.end(), rng);
+  candidates.resize(std::min<std::size_t>(60, candidates.size()));
+  const Eigen::Isometry3d X_true = random_rigid(25.0, 100.0, rng);
+  SurfaceTracker tracker(reg, reg.problem.mesh.rest_positions_World_mm, X_true);
+  model_name = tracker.model_name();
+  std::normal_distribution<double> noise(0.0, 0.5);
+  std::vector<long long> ids(candidates.begin(), candidates.end());
+  std::vector<TrackBenchRow> rows;
+  const double dt = 1.0 / 60.0;
+  for (int f = 0; f < frames; ++f) {
+    const double t = f * dt;
+    const double sfac = 0.5 * (1.0 - std::cos(2.0 * std::numbers::pi * t / 4.0));
+    Eigen::Matrix3Xd pts(3, static_cast<Eigen::Index>(candidates.size()));
+    for (std::size_t i = 0; i < candidates.size(); ++i) {
+      const int v = candidates[i];
+      pts.col(static_cast<Eigen::Index>(i)) =
+          X_true * (s_rest.col(v) + sfac * (s_def.col(v) - s_rest.col(v))) + Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+    }
+    const TrackingFrame tf = tracker.update(pts, ids, dt);
+    const Eigen::Matrix3Xd truth_t = X_true * (t_rest + sfac * (t_def - t_rest));
+    const Eigen::Matrix3Xd tracked = X_true * reg_targets.apply(reg.problem.mesh, tracker.positions_Model_mm());
+    const Eigen::Matrix3Xd still = X_true * t_rest;
+    TrackBenchRow r;
+    r.frame = f;
+    r.t_s = t;
+    double sum = 0, mx = 0, sum_still = 0;
+    for (int k = 0; k < truth_t.cols(); ++k) {
+      const double d = (tracked.col(k) - truth_t.col(k)).norm();
+      sum += d;
+      mx = std::max(mx, d);
+      sum_still += (still.col(k) - truth_t.col(k)).norm();
+    }
+    r.tre_tracked_mm = sum / static_cast<double>(truth_t.cols());
+    r.tre_max_tracked_mm = mx;
+    r.tre_static_mm = sum_still / static_cast<double>(truth_t.cols());
+    r.frame_ms = tf.frame_ms;
+    r.model_ms = tf.model_ms;
+    r.tracked = tf.tracked;
+    r.healthy = tf.healthy;
+    rows.push_back(r);
+  }
+  return rows;
+}
+
 void write_register_csv(const std::string& path, const std::vector<RegisterBenchRow>& rows) {
   std::ofstream out(path);
   if (!out) throw std::runtime_error(path + ": cannot open for writing");
@@ -393,6 +471,26 @@ void write_register_plots(const std::string& dir, const std::vector<RegisterBenc
     cov.series.push_back(s);
   }
   calib::write_chart(dir + "/register_tre_coverage.png", cov);
+}
+
+void write_track_plot(const std::string& png, const std::vector<TrackBenchRow>& rows) {
+  calib::Chart c;
+  c.title = "tracking: mean target error per frame";
+  c.x_label = "time (s)";
+  c.y_label = "mean TRE (mm)";
+  calib::PlotSeries tracked, still;
+  tracked.name = "tracked";
+  tracked.color = cv::Scalar(40, 160, 40);
+  still.name = "static model (no tracking)";
+  still.color = cv::Scalar(60, 60, 200);
+  for (const auto& r : rows) {
+    tracked.x.push_back(r.t_s);
+    tracked.y.push_back(r.tre_tracked_mm);
+    still.x.push_back(r.t_s);
+    still.y.push_back(r.tre_static_mm);
+  }
+  c.series = {still, tracked};
+  calib::write_chart(png, c);
 }
 
 }  // namespace arnav::host

@@ -47,7 +47,21 @@ struct RegisterBenchRow {
 };
 
 std::vector<RegisterBenchRow> run_register_bench(const RegisterBenchOptions& options);
+
+// Tracking (arnav-bench track): a 10 s deforming sequence at 60 Hz (the truth state 1
+// deformation - gravity tilt and tool press - breathed in and out with a 4 s period, as a
+// quasi-static interpolation of the two equilibria), 60 surface features with IDs on the
+// visible side (0.5 mm noise) driving the registration scene's real-time model from the
+// true initial pose. Per frame: target TRE tracked and untracked (static model), frame time.
+struct TrackBenchRow {
+  int frame = 0;
+  double t_s = 0, tre_tracked_mm = 0, tre_static_mm = 0, tre_max_tracked_mm = 0, frame_ms = 0, model_ms = 0;
+  int tracked = 0;
+  bool healthy = true;
+};
+std::vector<TrackBenchRow> run_track_bench(const RegisterBenchOptions& options, int frames, std::string& model_name);
 void write_register_csv(const std::string& path, const std::vector<RegisterBenchRow>& rows);
 void write_register_plots(const std::string& dir, const std::vector<RegisterBenchRow>& rows);
+void write_track_plot(const std::string& png, const std::vector<TrackBenchRow>& rows);
 
 }  // namespace arnav::host
