@@ -464,6 +464,11 @@ PointCloud from_surface(std::string_view content, const std::string& source, con
   for (int i = 0; i < c.points_mm.cols(); ++i)
     if (!c.points_mm.col(i).allFinite())
       throw_load_error(source, 0, "vertex " + std::to_string(i) + " is not finite", "remove invalid vertices");
+  for (std::size_t t = 0; t < m.tris.size(); ++t)
+    for (int v : m.tris[t])
+      if (v < 0 || v >= c.points_mm.cols())
+        throw_load_error(source, 0, "triangle " + std::to_string(t) + " uses vertex " + std::to_string(v) + " of " + std::to_string(c.points_mm.cols()),
+                         "fix the face indices (or export the points only)");
   if (!m.tris.empty()) {
     Eigen::Matrix3Xd n = Eigen::Matrix3Xd::Zero(3, c.points_mm.cols());
     for (const auto& t : m.tris) {

@@ -121,6 +121,11 @@ TEST(PointCloud, SurfacesGiveVerticesAndNormals) {
   EXPECT_NEAR(c.normals(2, 0), 1.0, 1e-12);
 }
 
+// Found by the fuzzer: the surface parsers do not validate face indices.
+TEST(PointCloud, SurfaceWithBadFaceIndexIsRefused) {
+  EXPECT_NE(error_of("v 0 0 0\nv 1 0 0\nf 1 2 3\n", "obj").find("uses vertex"), std::string::npos);
+}
+
 TEST(PointCloud, BundledMeshesReadAsClouds) {
   const char* d = std::getenv("ARNAV_DATA_DIR");
   ASSERT_NE(d, nullptr);
