@@ -1,16 +1,21 @@
 // arnav-bench: benchmarks that print error against run time.
 //   arnav-bench deform [--quick] [--out DIR]   tissue models on the bundled liver
 //   arnav-bench plot deform.csv out.png          redraw the plot from a CSV
+//   arnav-bench register [--quick] [--out DIR]  in-silico registration (TRE vs run time)
+//   arnav-bench track [--frames N] [--out DIR]  per-frame tracking (TRE and frame time)
 // Writes DIR/deform.csv and DIR/deform_pareto.png and prints the CSV rows' summary as
 // JSON on stdout. Exit 0 done, 1 nothing measured (every scenario skipped: the reasons are
 // printed, no plot written), 2 usage or scene errors, 3 internal error.
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 
 #include "host/bench/deform_bench.hpp"
 #include "host/bench/pareto_plot.hpp"
+#include "host/bench/register_bench.hpp"
 #include "host/scene/load_error.hpp"
 #include "protocol/guarded_main.hpp"
 
@@ -36,6 +41,30 @@ static int main_body(int argc, char** argv) {
   CLI::App* plot = app.add_subcommand("plot", "redraw the Pareto PNG from a deform.csv");
   plot->add_option("csv", csv_in, "deform.csv written by 'arnav-bench deform'")->required()->check(CLI::ExistingFile);
   plot->add_option("png", png_out, "PNG to write")->required();
+  RegisterBenchOptions reg_options;
+  reg_options.data_dir = ARNAV_DEFAULT_DATA_DIR;
+  CLI::App* reg = app.add_subcommand("register", "in-silico registration: TRE (mean/median/p90/max) against run time");
+  reg->add_flag("--quick", reg_options.quick, "CI smoke run: one state, 30 % coverage, 1 mm noise");
+  reg->add_option("-o,--out", out_dir, "output folder for register.csv and the PNG plots");
+  reg->add_option("--data", reg_options.data_dir, "data folder with liver/*.scene.yaml");
+  reg->add_option("--states", reg_options.states, "deformed states (1-3)")->check(CLI::Range(1, 3));
+  reg->add_option("--coverage", reg_options.coverages, "surface coverages (fractions)")->check(CLI::Range(0.05, 0.9));
+  reg->add_option("--noise", reg_options.noises_mm, "point noise, per-axis sigma in mm")->check(CLI::Range(0.0, 10.0));
+  reg->add_option("--model", reg_options.model_kind, "registering tissue model kind (default: the registration scene's)");
+  reg->add_option("--schedule", reg_options.schedule, "data-weight schedule, stiff to flexible")->check(CLI::PositiveNumber);
+  reg->add_option("--scene", reg_options.registration_scene, "registration scene in data/liver");
+  reg->add_flag("--scene-boundary", reg_options.scene_boundary, "hold the scene's fixed vertices during the non-rigid stage");
+  reg->add_option("--seed", reg_options.seed, "random seed");
+  reg->add_option("--export", reg_options.export_dir, "write the first case's inputs for arnav-register (surface.xyz, landmarks.csv, targets.csv, truth_targets.csv)");
+  reg->add_option("--updates", reg_options.updates_per_level, "correspondence updates per level")->check(CLI::PositiveNumber);
+  reg->add_option("--steps", reg_options.steps_per_update, "model steps per correspondence update")->check(CLI::PositiveNumber);
+  RegisterBenchOptions track_options;
+  track_options.data_dir = ARNAV_DEFAULT_DATA_DIR;
+  int track_frames = 600;
+  CLI::App* track = app.add_subcommand("track", "per-frame tracking over a 10 s deforming sequence: TRE and frame time");
+  track->add_option("-o,--out", out_dir, "output folder for track.csv and track.png");
+  track->add_option("--data", track_options.data_dir, "data folder with liver/*.scene.yaml");
+  track->add_option("--frames", track_frames, "frames at 60 Hz (default 600 = 10 s)")->check(CLI::PositiveNumber);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -48,6 +77,86 @@ static int main_body(int argc, char** argv) {
     } catch (const std::runtime_error& e) {
       std::cerr << "arnav-bench: " << e.what() << "\n";
       return 2;
+    }
+    return 0;
+  }
+
+  if (track->parsed()) {
+    try {
+      std::string model;
+      const std::vector<TrackBenchRow> rows = run_track_bench(track_options, track_frames, model);
+      std::filesystem::create_directories(out_dir);
+      std::ofstream csv(out_dir + "/track.csv");
+      csv << "frame,t_s,tre_tracked_mm,tre_max_tracked_mm,tre_static_mm,frame_ms,model_ms,tracked,healthy\n";
+      std::vector<double> ft, tre, tre_static;
+      int unhealthy = 0;
+      for (const auto& r : rows) {
+        csv << r.frame << ',' << r.t_s << ',' << r.tre_tracked_mm << ',' << r.tre_max_tracked_mm << ',' << r.tre_static_mm << ',' << r.frame_ms
+            << ',' << r.model_ms << ',' << r.tracked << ',' << (r.healthy ? 1 : 0) << '\n';
+        ft.push_back(r.frame_ms);
+        tre.push_back(r.tre_tracked_mm);
+        tre_static.push_back(r.tre_static_mm);
+        unhealthy += r.healthy ? 0 : 1;
+      }
+      auto q = [](std::vector<double> v, double p) {
+        std::sort(v.begin(), v.end());
+        return v[std::min(v.size() - 1, static_cast<std::size_t>(p * static_cast<double>(v.size())))];
+      };
+      auto mean = [](const std::vector<double>& v) {
+        double s = 0;
+        for (double x : v) s += x;
+        return s / static_cast<double>(v.size());
+      };
+      write_track_plot(out_dir + "/track.png", rows);
+      std::cout << "{\"csv\":\"" << out_dir << "/track.csv\",\"model\":\"" << model << "\",\"frames\":" << rows.size()
+                << ",\"tre_mean_tracked_mm\":" << mean(tre) << ",\"tre_max_frame_mean_tracked_mm\":" << q(tre, 1.0)
+                << ",\"tre_mean_static_mm\":" << mean(tre_static) << ",\"tre_max_frame_mean_static_mm\":" << q(tre_static, 1.0)
+                << ",\"frame_ms_median\":" << q(ft, 0.5) << ",\"frame_ms_p90\":" << q(ft, 0.9) << ",\"frame_ms_max\":" << q(ft, 1.0)
+                << ",\"unhealthy_frames\":" << unhealthy << "}\n";
+    } catch (const LoadError& e) {
+      std::cerr << "arnav-bench: " << e.what() << "\n";
+      return 2;
+    } catch (const std::exception& e) {
+      std::cerr << "arnav-bench: " << e.what() << "\n";
+      return 1;
+    }
+    return 0;
+  }
+  if (reg->parsed()) {
+    try {
+      const std::vector<RegisterBenchRow> rows = run_register_bench(reg_options);
+      std::filesystem::create_directories(out_dir);
+      write_register_csv(out_dir + "/register.csv", rows);
+      write_register_plots(out_dir, rows);
+      // Summary: mean over cases of each statistic, per method.
+      std::cout << "{\"csv\":\"" << out_dir << "/register.csv\",\"cases\":" << rows.size() / 4 << ",\"methods\":{";
+      bool first = true;
+      for (const std::string m : {"optimal_rigid", "landmark_rigid", "surface_rigid", "nonrigid"}) {
+        double mean = 0, median = 0, p90 = 0, max = 0, wall = 0, worst_mean = 0;
+        int n = 0;
+        for (const auto& r : rows)
+          if (r.method == m) {
+            mean += r.tre.mean;
+            median += r.tre.median;
+            p90 += r.tre.p90;
+            max += r.tre.max;
+            wall += r.wall_s;
+            worst_mean = std::max(worst_mean, r.tre.mean);
+            ++n;
+          }
+        if (n == 0) continue;
+        std::cout << (first ? "" : ",") << "\"" << m << "\":{\"tre_mean_mm\":" << mean / n << ",\"tre_median_mm\":" << median / n
+                  << ",\"tre_p90_mm\":" << p90 / n << ",\"tre_max_mm\":" << max / n << ",\"worst_case_mean_mm\":" << worst_mean
+                  << ",\"wall_s\":" << wall / n << "}";
+        first = false;
+      }
+      std::cout << "}}\n";
+    } catch (const LoadError& e) {
+      std::cerr << "arnav-bench: " << e.what() << "\n";
+      return 2;
+    } catch (const std::exception& e) {
+      std::cerr << "arnav-bench: " << e.what() << "\n";
+      return 1;
     }
     return 0;
   }

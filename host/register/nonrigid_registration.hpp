@@ -1,0 +1,91 @@
+#pragma once
+// Non-rigid initial registration (after paper 002): the tissue model's mechanical energy
+// plus a point-to-plane data term from the intraoperative points to the model surface
+// (plus an optional landmark term), minimised by quasi-static steps of the scene's tissue
+// model. The data term acts through the model's attachments (paper 001's spring forces):
+// each kept correspondence is a zero-rest-length spring from the material point on the
+// volume's surface triangle to the point's projection on the tangent plane (so the surface
+// may slide), recomputed after every relaxation, trimmed and robustly weighted (Huber), so
+// partial coverage and outliers are tolerated. Stiff-to-flexible: the data weight rises
+// level by level; the schedule stops once the residual reaches the expected noise
+// (discrepancy principle) or stops improving.
+// Everything here is in the Model frame (the scene frame World) in mm; the caller
+// transforms the data with the rigid result first.
+#include <Eigen/Core>
+
+#include <string>
+#include <vector>
+
+#include "host/scene/scene.hpp"
+
+namespace arnav::host {
+
+struct NonrigidOptions {
+  std::string model_kind;                 // empty: the scene's model kind (its solver settings kept)
+  // Data weight per level: spring stiffness per mm^2 of covered surface, in units of
+  // E_default / organ extent (E of the scene's default material). Stiff to flexible.
+  std::vector<double> data_weight_schedule = {4.0, 16.0, 64.0, 256.0, 1024.0, 4096.0};
+  int max_updates_per_level = 4;          // correspondence updates per level
+  int steps_per_update = 1;               // model steps (velocity zeroed after each) per update
+  double step_s = 0.0;                    // model step; 0: 1 s for corotational_fem, the scene's time step otherwise
+  double keep_fraction = 0.9;             // trimming: closest fraction of the points
+  double max_distance_mm = 15.0;          // and no pair further apart than this (after the rigid stage)
+  double huber_sigmas = 1.345;
+  double min_sigma_mm = 0.3;
+  double noise_mm = 1.0;                  // expected point noise (RMS distance); the schedule stops here
+  double min_improvement = 0.02;          // a level must lower the RMS by this fraction to go on
+  // Hold the scene's fixed vertices (ligaments) at their Model-frame rest positions. Off by
+  // default: after a rigid fit those positions carry the rigid error, and holding them
+  // there biased every benchmark case (docs/register.md); the data springs hold the
+  // rigid modes of the free model.
+  bool scene_boundary = false;
+  double landmark_weight = 0.0;           // 0: landmarks not used; else stiffness in mN/mm per landmark, per level
+  double time_budget_s = 0.0;             // 0: none; else stop starting new levels past it
+};
+
+struct NonrigidLevel {
+  double data_weight = 0.0;
+  double stiffness_per_point_mN_per_mm = 0.0;  // mean over kept points
+  int updates = 0;
+  int model_steps = 0;
+  double elastic_energy = 0.0;          // mN*mm, from the model's last step summary
+  double data_energy = 0.0;             // mN*mm, sum of 0.5 k d^2 over kept pairs
+  double rms_mm = 0.0;                  // point-to-surface distance over kept points
+  double max_mm = 0.0;
+  int points_used = 0;
+  int points_trimmed = 0;
+  double max_displacement_mm = 0.0;     // largest vertex displacement from rest
+  double wall_time_s = 0.0;
+  double model_time_s = 0.0;            // of which in the tissue model (steps, attachments, state resets)
+  std::string termination;
+};
+
+struct NonrigidResult {
+  Eigen::Matrix3Xd x_Model_mm;          // volume positions (Model frame); rest when not accepted
+  bool accepted = false;                // false: the rigid result is kept
+  std::string message;                  // why not accepted, or what limited it
+  double rigid_rms_mm = 0.0;            // same measure at rest, for "never worse than rigid"
+  double final_rms_mm = 0.0;
+  int inverted_elements = 0;
+  std::vector<NonrigidLevel> levels;
+  double wall_time_s = 0.0;
+  std::string model;                    // the model that ran
+};
+
+struct LandmarkPair {
+  Eigen::Vector3d p_Model_mm;           // on or in the model at rest
+  Eigen::Vector3d target_Model_mm;      // measured, mapped into Model by the rigid result
+};
+
+// data_Model_mm: the intraoperative points mapped into Model by the rigid result.
+// Throws std::invalid_argument for a bad model kind (names it).
+NonrigidResult register_nonrigid(const Scene& scene, const Eigen::Matrix3Xd& data_Model_mm, const std::vector<LandmarkPair>& landmarks,
+                                 const NonrigidOptions& options);
+
+// Distance of each point to the surface of the volume at positions x (mm), trimmed set
+// as the registration uses it: returns RMS over the kept fraction; fills per-point
+// distances when asked.
+double surface_rms_mm(const TetMesh& mesh, const Eigen::Matrix3Xd& x_mm, const Eigen::Matrix3Xd& points_mm, double keep_fraction,
+                      double max_distance_mm, std::vector<double>* distances = nullptr);
+
+}  // namespace arnav::host

@@ -1,0 +1,524 @@
+#include "host/register/point_cloud.hpp"
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <optional>
+
+#include "host/scene/load_error.hpp"
+#include "host/scene/mesh_io.hpp"
+
+namespace arnav::host {
+namespace {
+
+std::string lower(std::string_view s) {
+  std::string out(s);
+  for (char& c : out) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return out;
+}
+
+std::string_view trim(std::string_view s) {
+  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.front()))) s.remove_prefix(1);
+  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.remove_suffix(1);
+  return s;
+}
+
+// Splits on commas, semicolons, spaces and tabs (runs of spaces count once; a comma
+// between spaces too).
+std::vector<std::string_view> split_fields(std::string_view line) {
+  std::vector<std::string_view> out;
+  std::size_t i = 0;
+  auto is_sep = [](char c) { return c == ',' || c == ';' || c == ' ' || c == '\t' || c == '\r'; };
+  while (i < line.size()) {
+    while (i < line.size() && (line[i] == ' ' || line[i] == '\t' || line[i] == '\r')) ++i;
+    if (i >= line.size()) break;
+    std::size_t j = i;
+    while (j < line.size() && !is_sep(line[j])) ++j;
+    out.push_back(line.substr(i, j - i));
+    // skip trailing blanks and at most one explicit separator
+    while (j < line.size() && (line[j] == ' ' || line[j] == '\t' || line[j] == '\r')) ++j;
+    if (j < line.size() && (line[j] == ',' || line[j] == ';')) {
+      ++j;
+      // an empty field between two separators ("1,,2") is an error the caller sees as ""
+      std::size_t k = j;
+      while (k < line.size() && (line[k] == ' ' || line[k] == '\t' || line[k] == '\r')) ++k;
+      if (k >= line.size() || line[k] == ',' || line[k] == ';') out.push_back(std::string_view());
+    }
+    i = j;
+  }
+  return out;
+}
+
+std::optional<double> to_double(std::string_view s) {
+  if (s.empty()) return std::nullopt;
+  if (s.front() == '+') s.remove_prefix(1);
+  double v = 0.0;
+  const auto r = std::from_chars(s.data(), s.data() + s.size(), v);
+  if (r.ec != std::errc() || r.ptr != s.data() + s.size()) return std::nullopt;
+  return v;
+}
+
+void normalise_normals(PointCloud& c, const std::vector<int>& lines_or_empty) {
+  for (int i = 0; i < c.normals.cols(); ++i) {
+    const double n = c.normals.col(i).norm();
+    if (!(n > 1e-12)) {
+      const int line = lines_or_empty.empty() ? 0 : lines_or_empty[static_cast<std::size_t>(i)];
+      throw_load_error(c.source, line, "point " + std::to_string(i) + " has a zero-length normal",
+                       "write unit normals, or drop the normal columns");
+    }
+    c.normals.col(i) /= n;
+  }
+}
+
+PointCloud from_columns(std::vector<double>& xs, int width, const std::string& source) {
+  PointCloud c;
+  c.source = source;
+  const int n = static_cast<int>(xs.size() / static_cast<std::size_t>(width));
+  c.points_mm.resize(3, n);
+  for (int i = 0; i < n; ++i)
+    for (int k = 0; k < 3; ++k) c.points_mm(k, i) = xs[static_cast<std::size_t>(i * width + k)];
+  return c;
+}
+
+// ---- .xyz / .txt / .csv ----
+PointCloud parse_table(std::string_view content, const std::string& source) {
+  // Column roles: 0..2 xyz, 3..5 normal, 6 id, -1 ignored.
+  std::vector<int> roles;
+  bool have_header = false;
+  int width = 0;
+  std::vector<double> xyz, nrm;
+  std::vector<long long> ids;
+  std::vector<int> lines;
+  int line_no = 0;
+  std::size_t pos = 0;
+  while (pos <= content.size()) {
+    std::size_t end = content.find('\n', pos);
+    if (end == std::string_view::npos) end = content.size();
+    std::string_view line = trim(content.substr(pos, end - pos));
+    ++line_no;
+    pos = end + 1;
+    if (line.empty() || line.front() == '#' || line.rfind("//", 0) == 0) {
+      if (end == content.size()) break;
+      continue;
+    }
+    const std::vector<std::string_view> f = split_fields(line);
+    if (roles.empty()) {
+      // First data line: a header when its first field is not a number.
+      if (!to_double(f.empty() ? std::string_view() : f[0])) {
+        have_header = true;
+        int found = 0;
+        for (const auto& name : f) {
+          const std::string n = lower(trim(name));
+          int role = -1;
+          static const char* names[] = {"x", "y", "z", "nx", "ny", "nz", "id"};
+          for (int r = 0; r < 7; ++r)
+            if (n == names[r] || n == std::string(names[r]) + "_mm") role = r;
+          if (role >= 0 && std::find(roles.begin(), roles.end(), role) != roles.end())
+            throw_load_error(source, line_no, "column '" + n + "' appears twice in the header", "name each column once");
+          if (role >= 0) ++found;
+          roles.push_back(role);
+        }
+        auto has = [&](int r) { return std::find(roles.begin(), roles.end(), r) != roles.end(); };
+        if (!has(0) || !has(1) || !has(2))
+          throw_load_error(source, line_no, "the header '" + std::string(line) + "' does not name the columns x, y and z",
+                           "start the file with a header like 'x,y,z' or 'x,y,z,nx,ny,nz', or with no header and 3 or 6 numbers per line");
+        const int nn = static_cast<int>(has(3)) + static_cast<int>(has(4)) + static_cast<int>(has(5));
+        if (nn != 0 && nn != 3)
+          throw_load_error(source, line_no, "the header names only part of the normal (nx, ny, nz)", "name all three normal columns or none");
+        width = static_cast<int>(roles.size());
+        if (end == content.size()) break;
+        continue;
+      }
+      width = static_cast<int>(f.size());
+      if (width != 3 && width != 6)
+        throw_load_error(source, line_no,
+                         "expected 3 numbers (x y z) or 6 (x y z nx ny nz) per line, found " + std::to_string(width),
+                         "write one point per line, or add a header line naming the columns (x,y,z,nx,ny,nz,id)");
+      for (int k = 0; k < width; ++k) roles.push_back(k);
+    }
+    if (static_cast<int>(f.size()) != width)
+      throw_load_error(source, line_no,
+                       "expected " + std::to_string(width) + " fields as on the first " + (have_header ? "header" : "data") +
+                           " line, found " + std::to_string(f.size()),
+                       "give every line the same columns");
+    double p[3] = {0, 0, 0}, n[3] = {0, 0, 0};
+    bool has_n = false;
+    for (int k = 0; k < width; ++k) {
+      const int role = roles[static_cast<std::size_t>(k)];
+      if (role < 0) continue;
+      if (role == 6) {
+        long long id = 0;
+        const auto r = std::from_chars(f[static_cast<std::size_t>(k)].data(),
+                                       f[static_cast<std::size_t>(k)].data() + f[static_cast<std::size_t>(k)].size(), id);
+        if (r.ec != std::errc() || r.ptr != f[static_cast<std::size_t>(k)].data() + f[static_cast<std::size_t>(k)].size())
+          throw_load_error(source, line_no, "id '" + std::string(f[static_cast<std::size_t>(k)]) + "' is not an integer",
+                           "write integer point ids");
+        ids.push_back(id);
+        continue;
+      }
+      const auto v = to_double(f[static_cast<std::size_t>(k)]);
+      if (!v)
+        throw_load_error(source, line_no, "field " + std::to_string(k + 1) + " '" + std::string(f[static_cast<std::size_t>(k)]) + "' is not a number",
+                         "write plain decimal numbers (mm)");
+      if (!std::isfinite(*v))
+        throw_load_error(source, line_no, "field " + std::to_string(k + 1) + " is not finite (" + std::string(f[static_cast<std::size_t>(k)]) + ")",
+                         "remove the point or fix the exporter (NaN/Inf usually marks a missing depth sample)");
+      if (role < 3) {
+        p[role] = *v;
+      } else {
+        n[role - 3] = *v;
+        has_n = true;
+      }
+    }
+    xyz.insert(xyz.end(), p, p + 3);
+    if (has_n) nrm.insert(nrm.end(), n, n + 3);
+    lines.push_back(line_no);
+    if (end == content.size()) break;
+  }
+  PointCloud c = from_columns(xyz, 3, source);
+  if (!nrm.empty()) {
+    c.normals = Eigen::Map<Eigen::Matrix3Xd>(nrm.data(), 3, static_cast<Eigen::Index>(nrm.size() / 3));
+    normalise_normals(c, lines);
+  }
+  c.ids = std::move(ids);
+  c.lines = std::move(lines);
+  return c;
+}
+
+// ---- .ply ----
+enum class PlyType { Int8, UInt8, Int16, UInt16, Int32, UInt32, Float32, Float64 };
+
+std::optional<PlyType> ply_type(std::string_view s) {
+  const std::string t = lower(s);
+  if (t == "char" || t == "int8") return PlyType::Int8;
+  if (t == "uchar" || t == "uint8") return PlyType::UInt8;
+  if (t == "short" || t == "int16") return PlyType::Int16;
+  if (t == "ushort" || t == "uint16") return PlyType::UInt16;
+  if (t == "int" || t == "int32") return PlyType::Int32;
+  if (t == "uint" || t == "uint32") return PlyType::UInt32;
+  if (t == "float" || t == "float32") return PlyType::Float32;
+  if (t == "double" || t == "float64") return PlyType::Float64;
+  return std::nullopt;
+}
+
+std::size_t ply_size(PlyType t) {
+  switch (t) {
+    case PlyType::Int8: case PlyType::UInt8: return 1;
+    case PlyType::Int16: case PlyType::UInt16: return 2;
+    case PlyType::Int32: case PlyType::UInt32: case PlyType::Float32: return 4;
+    case PlyType::Float64: return 8;
+  }
+  return 1;
+}
+
+struct PlyProperty {
+  std::string name;
+  PlyType type = PlyType::Float32;
+  bool is_list = false;
+  PlyType count_type = PlyType::UInt8;
+};
+
+struct PlyElement {
+  std::string name;
+  long long count = 0;
+  int line = 0;
+  std::vector<PlyProperty> props;
+};
+
+template <typename T>
+T read_le(const unsigned char* p) {
+  T v;
+  std::memcpy(&v, p, sizeof(T));  // the host is little-endian (x86-64, arm64)
+  return v;
+}
+
+double decode(PlyType t, const unsigned char* p) {
+  switch (t) {
+    case PlyType::Int8: return static_cast<double>(read_le<std::int8_t>(p));
+    case PlyType::UInt8: return static_cast<double>(read_le<std::uint8_t>(p));
+    case PlyType::Int16: return static_cast<double>(read_le<std::int16_t>(p));
+    case PlyType::UInt16: return static_cast<double>(read_le<std::uint16_t>(p));
+    case PlyType::Int32: return static_cast<double>(read_le<std::int32_t>(p));
+    case PlyType::UInt32: return static_cast<double>(read_le<std::uint32_t>(p));
+    case PlyType::Float32: return static_cast<double>(read_le<float>(p));
+    case PlyType::Float64: return read_le<double>(p);
+  }
+  return 0.0;
+}
+
+PointCloud parse_ply(std::string_view content, const std::string& source) {
+  std::size_t pos = 0;
+  int line_no = 0;
+  auto next_line = [&](std::string_view& out) {
+    if (pos >= content.size()) return false;
+    std::size_t end = content.find('\n', pos);
+    if (end == std::string_view::npos) end = content.size();
+    out = content.substr(pos, end - pos);
+    if (!out.empty() && out.back() == '\r') out.remove_suffix(1);
+    pos = std::min(end + 1, content.size() + 1);
+    ++line_no;
+    return true;
+  };
+  std::string_view line;
+  if (!next_line(line) || trim(line) != "ply")
+    throw_load_error(source, 1, "not a PLY file (the first line must be 'ply')", "export the cloud as PLY, or use .xyz/.csv");
+  enum class Fmt { Ascii, BinaryLE } fmt = Fmt::Ascii;
+  bool have_format = false;
+  std::vector<PlyElement> elements;
+  bool header_done = false;
+  while (next_line(line)) {
+    const std::vector<std::string_view> t = split_fields(trim(line));
+    if (t.empty()) continue;
+    const std::string key = lower(t[0]);
+    if (key == "comment" || key == "obj_info") continue;
+    if (key == "end_header") {
+      header_done = true;
+      break;
+    }
+    if (key == "format") {
+      if (t.size() < 2) throw_load_error(source, line_no, "'format' without a value", "write 'format ascii 1.0' or 'format binary_little_endian 1.0'");
+      const std::string f = lower(t[1]);
+      if (f == "ascii") fmt = Fmt::Ascii;
+      else if (f == "binary_little_endian") fmt = Fmt::BinaryLE;
+      else if (f == "binary_big_endian")
+        throw_load_error(source, line_no, "binary big-endian PLY is not supported",
+                         "convert it, e.g. with Open3D: o3d.io.write_point_cloud('out.ply', pcd, write_ascii=False) (little-endian)");
+      else
+        throw_load_error(source, line_no, "unknown PLY format '" + std::string(t[1]) + "'", "use ascii or binary_little_endian");
+      have_format = true;
+    } else if (key == "element") {
+      if (t.size() != 3) throw_load_error(source, line_no, "'element' needs a name and a count", "write e.g. 'element vertex 1000'");
+      PlyElement e;
+      e.name = std::string(t[1]);
+      e.line = line_no;
+      const auto r = std::from_chars(t[2].data(), t[2].data() + t[2].size(), e.count);
+      if (r.ec != std::errc() || r.ptr != t[2].data() + t[2].size() || e.count < 0)
+        throw_load_error(source, line_no, "element count '" + std::string(t[2]) + "' is not a non-negative integer", "fix the header");
+      elements.push_back(e);
+    } else if (key == "property") {
+      if (elements.empty()) throw_load_error(source, line_no, "'property' before any 'element'", "fix the header");
+      PlyProperty p;
+      if (t.size() >= 2 && lower(t[1]) == "list") {
+        if (t.size() != 5) throw_load_error(source, line_no, "'property list' needs count type, item type and name", "fix the header");
+        const auto ct = ply_type(t[2]);
+        const auto it = ply_type(t[3]);
+        if (!ct || !it) throw_load_error(source, line_no, "unknown PLY type in the property list", "use char/uchar/short/ushort/int/uint/float/double");
+        p.is_list = true;
+        p.count_type = *ct;
+        p.type = *it;
+        p.name = std::string(t[4]);
+      } else {
+        if (t.size() != 3) throw_load_error(source, line_no, "'property' needs a type and a name", "write e.g. 'property float x'");
+        const auto ty = ply_type(t[1]);
+        if (!ty) throw_load_error(source, line_no, "unknown PLY type '" + std::string(t[1]) + "'", "use char/uchar/short/ushort/int/uint/float/double");
+        p.type = *ty;
+        p.name = std::string(t[2]);
+      }
+      elements.back().props.push_back(p);
+    } else {
+      throw_load_error(source, line_no, "unknown PLY header line '" + std::string(trim(line)) + "'", "fix the header");
+    }
+  }
+  if (!header_done) throw_load_error(source, line_no, "the PLY header has no 'end_header'", "the file is truncated or not PLY");
+  if (!have_format) throw_load_error(source, line_no, "the PLY header has no 'format' line", "add 'format ascii 1.0'");
+  const PlyElement* vertex = nullptr;
+  for (const auto& e : elements)
+    if (e.name == "vertex") vertex = &e;
+  if (!vertex) throw_load_error(source, line_no, "the PLY file has no 'element vertex'", "export the points as PLY vertices");
+  int idx[6] = {-1, -1, -1, -1, -1, -1};
+  static const char* names[6] = {"x", "y", "z", "nx", "ny", "nz"};
+  for (std::size_t k = 0; k < vertex->props.size(); ++k)
+    for (int r = 0; r < 6; ++r)
+      if (vertex->props[k].name == names[r] && !vertex->props[k].is_list) idx[r] = static_cast<int>(k);
+  if (idx[0] < 0 || idx[1] < 0 || idx[2] < 0)
+    throw_load_error(source, vertex->line, "the vertex element has no x, y and z properties", "export point coordinates as x, y, z");
+  const bool has_n = idx[3] >= 0 && idx[4] >= 0 && idx[5] >= 0;
+
+  PointCloud c;
+  c.source = source;
+  std::vector<double> xyz, nrm;
+  auto store = [&](const std::vector<double>& vals, long long i, int at_line, std::size_t at_offset) {
+    for (int r = 0; r < (has_n ? 6 : 3); ++r) {
+      const double v = vals[static_cast<std::size_t>(idx[r])];
+      if (!std::isfinite(v)) {
+        const std::string what = "vertex " + std::to_string(i) + " has a non-finite " + names[r];
+        if (at_line > 0) throw_load_error(source, at_line, what, "remove invalid points (NaN marks missing depth)");
+        throw_load_error(source, 0, "byte offset " + std::to_string(at_offset) + ": " + what, "remove invalid points (NaN marks missing depth)");
+      }
+      (r < 3 ? xyz : nrm).push_back(v);
+    }
+    c.lines.push_back(at_line);
+  };
+
+  if (fmt == Fmt::Ascii) {
+    for (const auto& e : elements) {
+      const bool is_vertex = &e == vertex;
+      if (is_vertex) {
+        // each value needs at least 2 bytes: guards the reservation against a lying header
+        const auto cap = static_cast<long long>((content.size() - std::min(pos, content.size())) / 2 + 1);
+        xyz.reserve(static_cast<std::size_t>(std::min(e.count, cap)) * 3);
+      }
+      for (long long i = 0; i < e.count; ++i) {
+        if (!next_line(line))
+          throw_load_error(source, line_no, "element '" + e.name + "' declares " + std::to_string(e.count) + " rows, the file ends after " + std::to_string(i),
+                           "the file is truncated, or the count in the header is wrong");
+        const std::vector<std::string_view> f = split_fields(trim(line));
+        std::vector<double> vals;
+        std::size_t k = 0;
+        for (const auto& p : e.props) {
+          if (p.is_list) {
+            if (k >= f.size()) throw_load_error(source, line_no, "row ends before list '" + p.name + "'", "give every row all properties");
+            const auto n = to_double(f[k++]);
+            if (!n || *n < 0 || *n != std::floor(*n) || *n > static_cast<double>(f.size()))
+              throw_load_error(source, line_no, "bad list length for '" + p.name + "'", "fix the row");
+            k += static_cast<std::size_t>(*n);
+            vals.push_back(0.0);
+            continue;
+          }
+          if (k >= f.size())
+            throw_load_error(source, line_no, "row has fewer values than the " + std::to_string(e.props.size()) + " properties of '" + e.name + "'",
+                             "give every row all properties");
+          const auto v = to_double(f[k]);
+          if (!v) throw_load_error(source, line_no, "value '" + std::string(f[k]) + "' is not a number", "fix the row");
+          vals.push_back(*v);
+          ++k;
+        }
+        if (k != f.size())
+          throw_load_error(source, line_no, "row has more values than the properties of '" + e.name + "'", "give every row exactly its properties");
+        if (is_vertex) store(vals, i, line_no, 0);
+      }
+    }
+  } else {
+    std::size_t off = std::min(pos, content.size());
+    const auto* data = reinterpret_cast<const unsigned char*>(content.data());
+    auto need = [&](std::size_t n, const std::string& what) {
+      if (n > content.size() || off > content.size() - n)
+        throw_load_error(source, 0, "byte offset " + std::to_string(off) + ": the data ends inside " + what,
+                         "the file is truncated, or the counts in the header are wrong");
+    };
+    for (const auto& e : elements) {
+      const bool is_vertex = &e == vertex;
+      bool fixed = true;
+      std::size_t stride = 0;
+      for (const auto& p : e.props) {
+        if (p.is_list) fixed = false;
+        stride += ply_size(p.type);
+      }
+      if (fixed && stride > 0) {
+        // the whole element must fit before anything is allocated
+        const std::size_t left = content.size() - off;
+        if (static_cast<unsigned long long>(e.count) > left / stride)
+          throw_load_error(source, 0,
+                           "byte offset " + std::to_string(off) + ": element '" + e.name + "' declares " + std::to_string(e.count) + " rows of " +
+                               std::to_string(stride) + " bytes, only " + std::to_string(left) + " bytes follow",
+                           "the file is truncated, or the count in the header is wrong");
+        if (is_vertex) xyz.reserve(static_cast<std::size_t>(e.count) * 3);
+      }
+      std::vector<double> vals(e.props.size());
+      for (long long i = 0; i < e.count; ++i) {
+        const std::size_t row_off = off;
+        for (std::size_t k = 0; k < e.props.size(); ++k) {
+          const PlyProperty& p = e.props[k];
+          if (p.is_list) {
+            need(ply_size(p.count_type), "a list length of '" + e.name + "'");
+            const double n = decode(p.count_type, data + off);
+            off += ply_size(p.count_type);
+            if (n < 0) throw_load_error(source, 0, "byte offset " + std::to_string(off) + ": negative list length", "fix the file");
+            const std::size_t bytes = static_cast<std::size_t>(n) * ply_size(p.type);
+            need(bytes, "list '" + p.name + "' of '" + e.name + "'");
+            off += bytes;
+            vals[k] = 0.0;
+          } else {
+            need(ply_size(p.type), "element '" + e.name + "' row " + std::to_string(i));
+            vals[k] = decode(p.type, data + off);
+            off += ply_size(p.type);
+          }
+        }
+        if (is_vertex) store(vals, i, 0, row_off);
+        if (i == 0 && !fixed && e.count > 1 && off - row_off > 0 && static_cast<unsigned long long>(e.count) > (content.size() - row_off) / (off - row_off) * 64)
+          throw_load_error(source, 0, "byte offset " + std::to_string(row_off) + ": element '" + e.name + "' declares " + std::to_string(e.count) +
+                                          " rows, far more than the file holds", "the count in the header is wrong");
+      }
+    }
+  }
+  c.points_mm = Eigen::Map<Eigen::Matrix3Xd>(xyz.data(), 3, static_cast<Eigen::Index>(xyz.size() / 3));
+  if (has_n) {
+    c.normals = Eigen::Map<Eigen::Matrix3Xd>(nrm.data(), 3, static_cast<Eigen::Index>(nrm.size() / 3));
+    normalise_normals(c, c.lines);
+  }
+  if (std::all_of(c.lines.begin(), c.lines.end(), [](int l) { return l == 0; })) c.lines.clear();
+  return c;
+}
+
+PointCloud from_surface(std::string_view content, const std::string& source, const std::string& format) {
+  const TriMesh m = parse_surface(content, source, format, nullptr);
+  PointCloud c;
+  c.source = source;
+  c.points_mm = m.positions_World_mm;
+  for (int i = 0; i < c.points_mm.cols(); ++i)
+    if (!c.points_mm.col(i).allFinite())
+      throw_load_error(source, 0, "vertex " + std::to_string(i) + " is not finite", "remove invalid vertices");
+  for (std::size_t t = 0; t < m.tris.size(); ++t)
+    for (int v : m.tris[t])
+      if (v < 0 || v >= c.points_mm.cols())
+        throw_load_error(source, 0, "triangle " + std::to_string(t) + " uses vertex " + std::to_string(v) + " of " + std::to_string(c.points_mm.cols()),
+                         "fix the face indices (or export the points only)");
+  if (!m.tris.empty()) {
+    Eigen::Matrix3Xd n = Eigen::Matrix3Xd::Zero(3, c.points_mm.cols());
+    for (const auto& t : m.tris) {
+      const Eigen::Vector3d a = c.points_mm.col(t[0]), b = c.points_mm.col(t[1]), d = c.points_mm.col(t[2]);
+      const Eigen::Vector3d area_n = (b - a).cross(d - a);  // twice the area, along the normal
+      for (int k = 0; k < 3; ++k) n.col(t[static_cast<std::size_t>(k)]) += area_n;
+    }
+    bool all = true;
+    for (int i = 0; i < n.cols(); ++i) {
+      const double len = n.col(i).norm();
+      if (len > 1e-12) n.col(i) /= len;
+      else all = false;
+    }
+    if (all) c.normals = n;  // vertices without triangles: no normals for the cloud
+  }
+  return c;
+}
+
+}  // namespace
+
+PointCloud parse_point_cloud(std::string_view content, const std::string& source, const std::string& format) {
+  if (format == "xyz" || format == "txt" || format == "csv") return parse_table(content, source);
+  if (format == "ply") return parse_ply(content, source);
+  if (format == "obj" || format == "vtk") return from_surface(content, source, format);
+  throw_load_error(source, 0, "unknown point-cloud format '." + format + "'", "use .xyz, .txt, .csv, .ply, .obj or .vtk");
+}
+
+PointCloud read_point_cloud(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  if (!ext.empty()) ext.erase(0, 1);
+  return parse_point_cloud(read_text_file(path), path, lower(ext));
+}
+
+double bounding_extent_mm(const Eigen::Matrix3Xd& points) {
+  if (points.cols() == 0) return 0.0;
+  return (points.rowwise().maxCoeff() - points.rowwise().minCoeff()).maxCoeff();
+}
+
+void check_cloud_units(const PointCloud& cloud, double model_extent_mm) {
+  const double e = bounding_extent_mm(cloud.points_mm);
+  if (cloud.size() >= 3 && model_extent_mm > 0.0 && e < model_extent_mm / 100.0 && e * 1000.0 > model_extent_mm / 20.0)
+    throw_load_error(cloud.source, 0,
+                     "the cloud spans " + std::to_string(e) + " units while the model spans " + std::to_string(model_extent_mm) +
+                         " mm: it looks like metres",
+                     "write the cloud in millimetres (multiply the coordinates by 1000)");
+  if (cloud.size() >= 3 && model_extent_mm > 0.0 && e > model_extent_mm * 20.0)
+    throw_load_error(cloud.source, 0,
+                     "the cloud spans " + std::to_string(e) + " mm while the model spans " + std::to_string(model_extent_mm) +
+                         " mm: wrong units (micrometres?) or wild outliers",
+                     "write the cloud in millimetres and remove points far from the organ");
+}
+
+}  // namespace arnav::host

@@ -1,0 +1,358 @@
+// arnav-register: registers the patient model of a scene to an intraoperative surface
+// (rigid: landmarks + point-to-plane ICP; non-rigid: the scene's tissue model pulled by
+// the data through attachments), carries targets through it and writes the results.
+//   arnav-register SCENE --surface FILE [--landmarks FILE] [--initial-pose FILE]
+//                  [--targets FILE] [--rigid-only] --out DIR
+// Frames: Model (the scene frame) and Intraop (the frame of the surface and landmarks).
+// Exit codes: 0 done, 1 not converged (files written, reason printed), 2 bad input.
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+#include "calibration/lib/calib_error.hpp"
+#include "calibration/lib/plot.hpp"
+#include "calibration/lib/rigid_transform_file.hpp"
+#include "host/register/point_cloud.hpp"
+#include "host/register/point_files.hpp"
+#include "host/register/registration.hpp"
+#include "host/scene/load_error.hpp"
+#include "host/scene/mesh_io.hpp"
+#include "host/scene/scene.hpp"
+
+namespace {
+
+using namespace arnav::host;
+using nlohmann::json;
+
+struct Inputs {
+  std::string scene_path, surface_path, landmarks_path, pose_path, targets_path, out_dir;
+  bool rigid_only = false;
+};
+
+json icp_json(const IcpSummary& s) {
+  json h = json::array();
+  for (const auto& it : s.history) h.push_back({{"rms_mm", it.rms_mm}, {"points_used", it.used}, {"step_mm", it.step_mm}});
+  return {{"iterations", s.iterations},       {"initial_point_to_plane_rms_mm", s.initial_rms_mm},
+          {"residual_rms_mm", s.final_rms_mm}, {"residual_max_mm", s.final_max_mm},
+          {"points_used", s.points_used},      {"points_trimmed", s.points_trimmed},
+          {"wall_time_s", s.wall_time_s},      {"termination", s.termination},
+          {"history", h}};
+}
+
+json matrix_json(const Eigen::Isometry3d& X) {
+  json m = json::array();
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) m.push_back(X.matrix()(r, c));
+  return m;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"arnav-register: register a scene's patient model to an intraoperative surface (docs/register.md)"};
+  Inputs in;
+  RegistrationRequest rq;
+  double noise_mm = rq.nonrigid.noise_mm;
+  bool scene_boundary = false;
+  app.add_option("scene", in.scene_path, "scene file, e.g. data/liver/liver_coarse.scene.yaml")->required();
+  app.add_option("--surface", in.surface_path, "intraoperative points: .xyz/.txt/.csv, .ply, .obj or .vtk (mm, Intraop frame)")->required();
+  app.add_option("--landmarks", in.landmarks_path, "CSV name,model_x,model_y,model_z,intraop_x,intraop_y,intraop_z (mm)");
+  app.add_option("--initial-pose", in.pose_path, "X_IntraopModel.yaml to start the surface registration from");
+  app.add_option("--targets", in.targets_path, "CSV name,x_mm,y_mm,z_mm in the scene (Model) frame");
+  app.add_flag("--rigid-only", in.rigid_only, "stop after the rigid registration");
+  app.add_option("-o,--out", in.out_dir, "output folder")->required();
+  app.add_option("--model", rq.nonrigid.model_kind, "tissue model for the non-rigid stage (default: the scene's)");
+  app.add_option("--noise-mm", noise_mm, "expected point noise (mm): the non-rigid schedule stops at this residual")
+      ->check(CLI::Range(0.0, 20.0));
+  app.add_flag("--scene-boundary", scene_boundary, "hold the scene's fixed vertices at their rest positions during the non-rigid stage");
+  app.add_option("--schedule", rq.nonrigid.data_weight_schedule, "data weights, stiff to flexible (default 4 16 64 256 1024 4096)")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--keep-fraction", rq.icp.keep_fraction, "fraction of the closest points kept (trimming)")->check(CLI::Range(0.3, 1.0));
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+  rq.nonrigid.noise_mm = noise_mm;
+  rq.nonrigid.keep_fraction = rq.icp.keep_fraction;
+  rq.nonrigid.scene_boundary = scene_boundary;
+  rq.rigid_only = in.rigid_only;
+  const char* me = "arnav-register: ";
+
+  // ---- inputs (exit 2 on anything wrong, naming file and line) ----
+  Scene scene;
+  PointCloud cloud;
+  std::vector<NamedPoint> targets;
+  Embedding target_embedding;
+  try {
+    scene = load_scene(in.scene_path);
+    cloud = read_point_cloud(in.surface_path);
+    const double model_extent = bounding_extent_mm(scene.organ_surface.positions_World_mm);
+    check_cloud_units(cloud, model_extent);
+    if (!in.landmarks_path.empty()) {
+      rq.landmarks = read_landmarks(in.landmarks_path);
+      try {
+        register_landmarks(rq.landmarks);
+      } catch (const std::invalid_argument& e) {
+        throw_load_error(in.landmarks_path, 0, e.what(), "touch at least 3 landmarks that are not on one line");
+      }
+    }
+    if (!in.pose_path.empty()) {
+      try {
+        rq.X_IntraopModel_initial = arnav::calib::read_transform(in.pose_path, "X_IntraopModel").X_ParentChild;
+      } catch (const std::exception& e) {
+        throw LoadError(e.what());
+      }
+    }
+    if (!in.targets_path.empty()) {
+      targets = read_targets(in.targets_path);
+      Eigen::Matrix3Xd p(3, static_cast<Eigen::Index>(targets.size()));
+      for (std::size_t i = 0; i < targets.size(); ++i) {
+        // one by one, so the error names the target and its line
+        try {
+          embed_points(scene.problem.mesh, Eigen::Matrix3Xd(targets[i].p_mm), 1.0, "target");
+        } catch (const LoadError&) {
+          throw_load_error(in.targets_path, targets[i].line,
+                           "target '" + targets[i].name + "' lies outside the organ of " + in.scene_path + " (more than 1 mm)",
+                           "give targets in the scene (Model) frame, inside or on the organ");
+        }
+        p.col(static_cast<Eigen::Index>(i)) = targets[i].p_mm;
+      }
+      target_embedding = embed_points(scene.problem.mesh, p, 1.0, "target");
+    }
+    if (cloud.size() == 0 && rq.landmarks.empty() && !rq.X_IntraopModel_initial)
+      throw_load_error(in.surface_path, 0, "the cloud is empty and no landmarks or initial pose were given: nothing to register",
+                       "give a surface with points, or --landmarks / --initial-pose");
+  } catch (const LoadError& e) {
+    std::cerr << me << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << me << e.what() << "\n";
+    return 2;
+  }
+  for (const auto& note : scene.notes) std::cerr << me << note << "\n";
+  rq.points_Intraop_mm = cloud.points_mm;
+  if (cloud.has_normals()) rq.normals_Intraop = cloud.normals;
+
+  // ---- registration ----
+  RegistrationResult r;
+  try {
+    r = register_patient(scene, rq);
+  } catch (const std::invalid_argument& e) {
+    std::cerr << me << in.scene_path << ": the registration could not run: " << e.what() << "\n";
+    return 2;
+  } catch (const LoadError& e) {
+    std::cerr << me << e.what() << "\n";
+    return 2;
+  }
+
+  // ---- outputs ----
+  int exit_code = 0;
+  std::vector<std::string> problems;
+  const bool have_points = cloud.size() > 0;
+  if (have_points && r.icp.summary.termination != "converged") {
+    problems.push_back("surface rigid registration did not converge: " + r.icp.summary.termination);
+    exit_code = 1;
+  }
+  if (r.nonrigid)
+    for (const auto& l : r.nonrigid->levels)
+      if (l.termination == "model unhealthy") {
+        problems.push_back("non-rigid: " + r.nonrigid->message);
+        exit_code = 1;
+      }
+  try {
+    std::filesystem::create_directories(in.out_dir);
+    const std::string dir = in.out_dir + "/";
+    // deformed display surface in Intraop
+    const Eigen::Matrix3Xd organ_Intraop = r.X_IntraopModel * scene.organ_embedding.apply(scene.problem.mesh, r.x_Model_mm);
+    write_obj(dir + "registered_organ.obj", organ_Intraop, scene.organ_surface.tris);
+    // residual per point at the result
+    std::vector<double> residual;
+    double rms = 0.0;
+    if (have_points) {
+      rms = surface_rms_mm(scene.problem.mesh, r.x_Model_mm, r.X_IntraopModel.inverse() * cloud.points_mm, rq.icp.keep_fraction,
+                           rq.nonrigid.max_distance_mm, &residual);
+    }
+    arnav::calib::RigidTransformRecord rec;
+    rec.parent_frame = "Intraop";
+    rec.child_frame = "Model";
+    rec.X_ParentChild = r.X_IntraopModel;
+    rec.method = "arnav-register: " + r.initialisation + " + point-to-plane ICP" + (r.deformed ? " (rigid part of a non-rigid registration)" : "");
+    rec.date = arnav::calib::utc_now_iso8601();
+    rec.residuals["surface_rms_mm"] = r.icp.summary.final_rms_mm;
+    rec.residuals["surface_max_mm"] = r.icp.summary.final_max_mm;
+    if (r.landmarks) rec.residuals["landmark_fre_rms_mm"] = r.landmarks->fit.fre_rms_mm;
+    rec.samples = r.icp.summary.points_used;
+    arnav::calib::write_transform(dir + "X_IntraopModel.yaml", rec);
+    std::vector<NamedPoint> carried = targets;
+    if (!targets.empty()) {
+      const Eigen::Matrix3Xd p = carry_to_intraop(scene, target_embedding, r);
+      for (std::size_t i = 0; i < carried.size(); ++i) carried[i].p_mm = p.col(static_cast<Eigen::Index>(i));
+      write_targets(dir + "targets.csv", carried);
+    }
+
+    json j;
+    j["scene"] = in.scene_path;
+    j["surface"] = {{"file", in.surface_path}, {"points", cloud.size()}, {"normals", cloud.has_normals()}};
+    j["initialisation"] = r.initialisation;
+    j["X_IntraopModel_row_major"] = matrix_json(r.X_IntraopModel);
+    json stages = json::array();
+    if (r.landmarks) {
+      json lm = json::array();
+      for (std::size_t i = 0; i < rq.landmarks.size(); ++i)
+        lm.push_back({{"name", rq.landmarks[i].name}, {"residual_mm", r.landmarks->fit.residual_mm[i]}});
+      stages.push_back({{"stage", "landmarks"},
+                        {"iterations", 0},
+                        {"fre_rms_mm", r.landmarks->fit.fre_rms_mm},
+                        {"reflection_guarded", r.landmarks->fit.reflection_guarded},
+                        {"landmarks", lm},
+                        {"termination", "closed form"}});
+    }
+    json icp = icp_json(r.icp.summary);
+    icp["stage"] = "surface_rigid";
+    stages.push_back(icp);
+    if (r.nonrigid) {
+      const NonrigidResult& nr = *r.nonrigid;
+      json levels = json::array();
+      for (const auto& l : nr.levels)
+        levels.push_back({{"data_weight", l.data_weight},
+                          {"iterations", l.updates},
+                          {"model_steps", l.model_steps},
+                          {"energy_elastic_mN_mm", l.elastic_energy},
+                          {"energy_data_mN_mm", l.data_energy},
+                          {"residual_rms_mm", l.rms_mm},
+                          {"residual_max_mm", l.max_mm},
+                          {"points_used", l.points_used},
+                          {"points_trimmed", l.points_trimmed},
+                          {"max_displacement_mm", l.max_displacement_mm},
+                          {"wall_time_s", l.wall_time_s},
+                          {"termination", l.termination}});
+      stages.push_back({{"stage", "nonrigid"},
+                        {"model", nr.model},
+                        {"accepted", nr.accepted},
+                        {"message", nr.message},
+                        {"rigid_residual_rms_mm", nr.rigid_rms_mm},
+                        {"residual_rms_mm", nr.final_rms_mm},
+                        {"inverted_elements", nr.inverted_elements},
+                        {"iterations", static_cast<int>(nr.levels.size())},
+                        {"levels", levels},
+                        {"wall_time_s", nr.wall_time_s},
+                        {"self_collision", "not modelled"}});
+    }
+    j["stages"] = stages;
+    j["deformed"] = r.deformed;
+    j["residual_rms_mm"] = rms;
+    j["wall_time_s"] = r.wall_time_s;
+    j["notes"] = r.notes;
+    j["problems"] = problems;
+    j["exit_code"] = exit_code;
+    {
+      std::ofstream f(dir + "summary.json");
+      f << j.dump(2) << "\n";
+      if (!f) throw LoadError(dir + "summary.json: write failed. Fix: check free disk space");
+    }
+
+    std::ostringstream rep;
+    rep << "arnav-register report (" << rec.date << ")\n"
+        << "scene: " << in.scene_path << " (" << scene.problem.mesh.num_vertices() << " vertices, " << scene.problem.mesh.num_tets()
+        << " tets, model " << scene.model.kind << ")\n"
+        << "surface: " << in.surface_path << ", " << cloud.size() << " points" << (cloud.has_normals() ? " with normals" : "") << "\n"
+        << "initialisation: " << r.initialisation << "\n";
+    if (r.landmarks) {
+      rep << "landmarks: " << rq.landmarks.size() << ", FRE " << r.landmarks->fit.fre_rms_mm << " mm RMS";
+      // three points are always coplanar, so their unconstrained fit can be a reflection
+      // without any mismatch: warn from four landmarks on
+      if (r.landmarks->fit.reflection_guarded && rq.landmarks.size() >= 4)
+        rep << " (WARNING: reflection guarded - landmark pairs probably mismatched)";
+      rep << "\n";
+      for (std::size_t i = 0; i < rq.landmarks.size(); ++i)
+        rep << "  " << rq.landmarks[i].name << ": residual " << r.landmarks->fit.residual_mm[i] << " mm\n";
+    }
+    rep << "surface rigid (point-to-plane ICP): " << r.icp.summary.termination << " after " << r.icp.summary.iterations
+        << " iterations, residual " << r.icp.summary.final_rms_mm << " mm RMS / " << r.icp.summary.final_max_mm << " mm max, "
+        << r.icp.summary.points_used << " points used, " << r.icp.summary.points_trimmed << " trimmed, " << r.icp.summary.wall_time_s << " s\n";
+    rep << "rigid pose X_IntraopModel: rotation " << rotation_angle_deg(r.X_IntraopModel) << " deg, translation "
+        << r.X_IntraopModel.translation().transpose() << " mm\n";
+    if (r.nonrigid) {
+      const NonrigidResult& nr = *r.nonrigid;
+      rep << "non-rigid (" << nr.model << "): " << (nr.accepted ? "accepted" : "not accepted") << ": " << nr.message << "\n"
+          << "  residual " << nr.rigid_rms_mm << " mm (rigid) -> " << nr.final_rms_mm << " mm RMS, " << nr.wall_time_s << " s, "
+          << nr.inverted_elements << " inverted elements; self-collision is not modelled\n";
+      for (const auto& l : nr.levels)
+        rep << "  data weight " << l.data_weight << ": " << l.updates << " updates, residual " << l.rms_mm << " mm RMS / " << l.max_mm
+            << " mm max, max displacement " << l.max_displacement_mm << " mm, " << l.points_trimmed << " trimmed, " << l.wall_time_s << " s, "
+            << l.termination << "\n";
+    } else {
+      rep << "non-rigid: not run (--rigid-only)\n";
+    }
+    rep << "final surface residual: " << rms << " mm RMS over the kept points\n";
+    if (!targets.empty()) {
+      rep << "targets (Intraop, mm):\n";
+      for (std::size_t i = 0; i < carried.size(); ++i)
+        rep << "  " << carried[i].name << ": " << carried[i].p_mm.transpose() << " (moved " << (carried[i].p_mm - r.X_IntraopModel * targets[i].p_mm).norm()
+            << " mm by the deformation)\n";
+    }
+    rep << "surface error is not target error: judge a registration by TRE on known targets (docs/register.md)\n";
+    for (const auto& p : problems) rep << "NOT CONVERGED: " << p << "\n";
+    {
+      std::ofstream f(dir + "report.txt");
+      f << rep.str();
+      if (!f) throw LoadError(dir + "report.txt: write failed. Fix: check free disk space");
+    }
+
+    arnav::calib::Chart conv;
+    conv.title = "registration convergence";
+    conv.x_label = "iteration (ICP) / level (non-rigid)";
+    conv.y_label = "surface residual RMS (mm)";
+    arnav::calib::PlotSeries s_icp;
+    s_icp.name = "rigid ICP (point-to-plane)";
+    for (std::size_t i = 0; i < r.icp.summary.history.size(); ++i) {
+      s_icp.x.push_back(static_cast<double>(i + 1));
+      s_icp.y.push_back(r.icp.summary.history[i].rms_mm);
+    }
+    conv.series.push_back(s_icp);
+    if (r.nonrigid && !r.nonrigid->levels.empty()) {
+      arnav::calib::PlotSeries s_nr;
+      s_nr.name = "non-rigid per level (distance)";
+      s_nr.color = cv::Scalar(40, 160, 40);
+      const double x0 = static_cast<double>(r.icp.summary.history.size());
+      s_nr.x.push_back(x0);
+      s_nr.y.push_back(r.nonrigid->rigid_rms_mm);
+      for (std::size_t i = 0; i < r.nonrigid->levels.size(); ++i) {
+        s_nr.x.push_back(x0 + static_cast<double>(i + 1));
+        s_nr.y.push_back(r.nonrigid->levels[i].rms_mm);
+      }
+      conv.series.push_back(s_nr);
+    }
+    if (!conv.series[0].x.empty() || conv.series.size() > 1) arnav::calib::write_chart(dir + "convergence.png", conv);
+    if (!residual.empty()) {
+      arnav::calib::Chart res;
+      res.title = "distance of each point to the registered surface";
+      res.x_label = "point index";
+      res.y_label = "distance (mm)";
+      arnav::calib::PlotSeries s;
+      s.name = "points";
+      s.style = arnav::calib::SeriesStyle::Points;
+      for (std::size_t i = 0; i < residual.size(); ++i) {
+        s.x.push_back(static_cast<double>(i));
+        s.y.push_back(residual[i]);
+      }
+      res.series.push_back(s);
+      res.reference_y = rq.nonrigid.max_distance_mm;
+      res.reference_label = "outlier distance";
+      arnav::calib::write_chart(dir + "residuals.png", res);
+    }
+  } catch (const std::exception& e) {
+    std::cerr << me << e.what() << "\n";
+    return 2;
+  }
+  for (const auto& n : r.notes) std::cerr << me << n << "\n";
+  for (const auto& p : problems) std::cerr << me << "not converged: " << p << " (files written to " << in.out_dir << ")\n";
+  std::cout << "{\"out\":\"" << in.out_dir << "\",\"deformed\":" << (r.deformed ? "true" : "false") << ",\"residual_rms_mm\":"
+            << r.icp.summary.final_rms_mm << ",\"wall_time_s\":" << r.wall_time_s << ",\"exit\":" << exit_code << "}\n";
+  return exit_code;
+}
