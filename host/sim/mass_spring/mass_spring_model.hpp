@@ -123,7 +123,7 @@ class MassSpringModel final : public TissueModel {
   double omega_max_ = 0.0;  // Gershgorin bound of sqrt(max eig M^-1 K), 1/s
   double zeta_ = 0.0;       // damping ratio of that mode
   double current_h_ = 0.0;  // substep of the current semi-implicit solve
-  double inverted_time_s_ = 0.0;
+  InversionMonitor inversions_;  // inverted tets: counted warning (step_health.hpp)
   EnergyLedger ledger_;
 
   // Work buffers, sized once (no allocation per step).
