@@ -242,8 +242,8 @@ DeformBenchResult run_deform_bench(const DeformBenchOptions& o) {
   std::vector<Mesh> meshes;
   std::cerr << "arnav-bench deform: loading scenes from " << o.data_dir << "\n";
   auto wanted_mesh = [&](const char* name) { return std::find(o.meshes.begin(), o.meshes.end(), name) != o.meshes.end(); };
-  if (o.quick || wanted_mesh("coarse")) meshes.push_back({"coarse", load_scene(o.data_dir + "/liver/liver_coarse.scene.yaml")});
-  if (!o.quick && wanted_mesh("fine")) meshes.push_back({"fine", load_scene(o.data_dir + "/liver/liver.scene.yaml")});
+  if (o.quick || wanted_mesh("coarse")) meshes.push_back({"coarse", load_scene(o.data_dir + "/" + o.scene_set + "_coarse.scene.yaml")});
+  if (!o.quick && wanted_mesh("fine")) meshes.push_back({"fine", load_scene(o.data_dir + "/" + o.scene_set + ".scene.yaml")});
   auto wanted_setting = [&](const std::string& label) {
     if (o.setting_prefixes.empty()) return true;
     for (const std::string& p : o.setting_prefixes)
@@ -251,7 +251,7 @@ DeformBenchResult run_deform_bench(const DeformBenchOptions& o) {
     return false;
   };
   // Reference mesh: finer than every model mesh (quick: the coarse mesh itself, smoke only).
-  const Scene reference_scene = o.quick ? meshes[0].scene : load_scene(o.data_dir + "/liver/liver_reference.scene.yaml");
+  const Scene reference_scene = o.quick ? meshes[0].scene : load_scene(o.data_dir + "/" + o.scene_set + "_reference.scene.yaml");
   const int frames = o.quick ? std::min(o.frames, 5) : o.frames;
 
   for (const std::string& scenario : o.scenarios) {

@@ -19,6 +19,9 @@ struct DeformBenchOptions {
   std::vector<std::string> scenarios = {"gravity_sag", "lobe_pull", "vessel_stiffened"};
   std::vector<std::string> setting_prefixes;  // run only settings whose label starts with one (empty: all)
   std::vector<std::string> meshes = {"coarse", "fine"};  // model meshes to run (quick: coarse only)
+  // Scene set, relative to data_dir: <set>_coarse / <set> / <set>_reference .scene.yaml
+  // ("liver/liver": the bundled liver; "patients/sksurgery_liver" etc.: other patients).
+  std::string scene_set = "liver/liver";
 };
 
 struct DeformBenchRow {
