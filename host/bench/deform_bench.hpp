@@ -34,6 +34,10 @@ struct DeformBenchRow {
   double reference_tumour_displacement_mm = 0, reference_max_surface_displacement_mm = 0;
   int reference_tets = 0;
   bool healthy = true, vessels_modelled = false;
+  // Inverted elements (a counted warning, docs/sim.md): frames that ended with some and
+  // the longest run of such frames (the worst recovery time, s). Written into the note.
+  int frames_with_inverted = 0;
+  double worst_inverted_run_s = 0.0;
   std::string note;
 };
 

@@ -234,7 +234,9 @@ TEST_P(PatientMeshes, EveryModelRunsHealthyUnderEveryBoundaryAndLoad) {
         EXPECT_TRUE(o.finite || !o.healthy) << what << ": non-finite state in a step reported healthy";
         if (known_limit(variant.label, boundary)) {
           // Known limit (docs/sim.md): it may diverge, but must then say so.
-          if (!o.healthy) EXPECT_FALSE(o.first_warning.empty()) << what;
+          if (!o.healthy) {
+            EXPECT_FALSE(o.first_warning.empty()) << what;
+          }
           continue;
         }
         EXPECT_TRUE(o.finite) << what;
