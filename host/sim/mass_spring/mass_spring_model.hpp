@@ -27,8 +27,8 @@
 //    change (lazily, at the next step).
 // Springs do not know orientation: an inverted tet whose edges have their rest length
 // feels no spring force, so the volume term carries an inversion barrier below J = 0.1
-// (volume_energy). Inverted tets are still counted every step and reported (a warning at
-// once, healthy=false when they stay inverted for more than 1 s of simulated time).
+// (volume_energy). Inverted tets are still counted every step and reported (a counted
+// warning; healthy=false only for a collapse, InversionMonitor in step_health.hpp).
 #include <Eigen/Core>
 
 #include <vector>
