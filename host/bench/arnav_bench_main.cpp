@@ -30,6 +30,9 @@ static int main_body(int argc, char** argv) {
   deform->add_flag("--quick", options.quick, "CI smoke run: coarse mesh, two settings, 5 frames, coarse reference (numbers not meaningful)");
   deform->add_option("-o,--out", out_dir, "output folder for deform.csv and deform_pareto.png");
   deform->add_option("--data", options.data_dir, "data folder with liver/*.scene.yaml");
+  deform->add_option("--patient", options.scene_set,
+                     "scene set under the data folder: <set>_coarse, <set> and <set>_reference .scene.yaml (default liver/liver; "
+                     "other patients: patients/sksurgery_liver, patients/sksurgery_liver_fine)");
   deform->add_option("--frames", options.frames, "frames per run (1/60 s each)")->check(CLI::PositiveNumber);
   deform->add_option("--threads", options.threads, "model threads")->check(CLI::PositiveNumber);
   deform->add_option("--scenario", options.scenarios, "scenarios to run (gravity_sag, lobe_pull, vessel_stiffened)");

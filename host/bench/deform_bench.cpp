@@ -1,6 +1,7 @@
 #include "host/bench/deform_bench.hpp"
 
 #include <algorithm>
+#include <cstdio>
 #include <chrono>
 #include <ctime>
 #include <cmath>
@@ -242,8 +243,8 @@ DeformBenchResult run_deform_bench(const DeformBenchOptions& o) {
   std::vector<Mesh> meshes;
   std::cerr << "arnav-bench deform: loading scenes from " << o.data_dir << "\n";
   auto wanted_mesh = [&](const char* name) { return std::find(o.meshes.begin(), o.meshes.end(), name) != o.meshes.end(); };
-  if (o.quick || wanted_mesh("coarse")) meshes.push_back({"coarse", load_scene(o.data_dir + "/liver/liver_coarse.scene.yaml")});
-  if (!o.quick && wanted_mesh("fine")) meshes.push_back({"fine", load_scene(o.data_dir + "/liver/liver.scene.yaml")});
+  if (o.quick || wanted_mesh("coarse")) meshes.push_back({"coarse", load_scene(o.data_dir + "/" + o.scene_set + "_coarse.scene.yaml")});
+  if (!o.quick && wanted_mesh("fine")) meshes.push_back({"fine", load_scene(o.data_dir + "/" + o.scene_set + ".scene.yaml")});
   auto wanted_setting = [&](const std::string& label) {
     if (o.setting_prefixes.empty()) return true;
     for (const std::string& p : o.setting_prefixes)
@@ -251,7 +252,7 @@ DeformBenchResult run_deform_bench(const DeformBenchOptions& o) {
     return false;
   };
   // Reference mesh: finer than every model mesh (quick: the coarse mesh itself, smoke only).
-  const Scene reference_scene = o.quick ? meshes[0].scene : load_scene(o.data_dir + "/liver/liver_reference.scene.yaml");
+  const Scene reference_scene = o.quick ? meshes[0].scene : load_scene(o.data_dir + "/" + o.scene_set + "_reference.scene.yaml");
   const int frames = o.quick ? std::min(o.frames, 5) : o.frames;
 
   for (const std::string& scenario : o.scenarios) {
@@ -303,6 +304,7 @@ DeformBenchResult run_deform_bench(const DeformBenchOptions& o) {
           jaws.push_back(model->add_attachment(start));
         }
         std::vector<double> wall, cpu;
+        double inverted_run_s = 0.0;
         for (int f = 0; f < frames; ++f) {
           const double ramp = std::min(1.0, (f + 1) * kFrame_s / kPullRamp_s);
           for (std::size_t j = 0; j < jaws.size(); ++j)
@@ -313,6 +315,13 @@ DeformBenchResult run_deform_bench(const DeformBenchOptions& o) {
           cpu.push_back(cpu_ms() - c0);
           wall.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
           row.frames_run = f + 1;
+          if (st.inverted_elements > 0) {
+            ++row.frames_with_inverted;
+            inverted_run_s += kFrame_s;
+            row.worst_inverted_run_s = std::max(row.worst_inverted_run_s, inverted_run_s);
+          } else {
+            inverted_run_s = 0.0;
+          }
           if (!st.healthy) {
             row.healthy = false;
             row.note = st.warning;
@@ -326,9 +335,14 @@ DeformBenchResult run_deform_bench(const DeformBenchOptions& o) {
         const Observed obs = observe(mesh.scene, model->positions_World_mm());
         row.tumour_error_mm = (obs.tumour - ref.solved.tumour).norm();
         row.max_surface_error_mm = (obs.surface - ref.solved.surface).colwise().norm().maxCoeff();
+        if (row.frames_with_inverted > 0) {
+          char buf[96];
+          std::snprintf(buf, sizeof buf, "inverted tets in %d frames, longest run %.2f s", row.frames_with_inverted, row.worst_inverted_run_s);
+          row.note = buf + (row.note.empty() ? std::string() : "; " + row.note);
+        }
         if (scenario == "vessel_stiffened" && !row.vessels_modelled) row.note = "model ignores vessels" + (row.note.empty() ? "" : "; " + row.note);
         std::cerr << "  " << scenario << " " << mesh.name << " " << setting.label << ": " << row.median_frame_ms << " ms/frame wall, " << row.median_frame_cpu_ms << " ms CPU, tumour "
-                  << row.tumour_error_mm << " mm, surface max " << row.max_surface_error_mm << " mm" << (row.healthy ? "" : " UNHEALTHY")
+                  << row.tumour_error_mm << " mm, surface max " << row.max_surface_error_mm << " mm, inverted frames " << row.frames_with_inverted << " (longest run " << row.worst_inverted_run_s << " s)" << (row.healthy ? "" : " UNHEALTHY")
                   << "\n";
         result.rows.push_back(row);
       }

@@ -19,6 +19,9 @@ struct DeformBenchOptions {
   std::vector<std::string> scenarios = {"gravity_sag", "lobe_pull", "vessel_stiffened"};
   std::vector<std::string> setting_prefixes;  // run only settings whose label starts with one (empty: all)
   std::vector<std::string> meshes = {"coarse", "fine"};  // model meshes to run (quick: coarse only)
+  // Scene set, relative to data_dir: <set>_coarse / <set> / <set>_reference .scene.yaml
+  // ("liver/liver": the bundled liver; "patients/sksurgery_liver" etc.: other patients).
+  std::string scene_set = "liver/liver";
 };
 
 struct DeformBenchRow {
@@ -31,6 +34,10 @@ struct DeformBenchRow {
   double reference_tumour_displacement_mm = 0, reference_max_surface_displacement_mm = 0;
   int reference_tets = 0;
   bool healthy = true, vessels_modelled = false;
+  // Inverted elements (a counted warning, docs/sim.md): frames that ended with some and
+  // the longest run of such frames (the worst recovery time, s). Written into the note.
+  int frames_with_inverted = 0;
+  double worst_inverted_run_s = 0.0;
   std::string note;
 };
 

@@ -1,6 +1,7 @@
 #pragma once
 // Text mesh formats (parsers only; validation is separate, see mesh_validation.hpp):
-//   surfaces: Wavefront OBJ (v / f, polygons fanned, negative indices), OFF;
+//   surfaces: Wavefront OBJ (v / f, polygons fanned, negative indices), OFF, PLY (ASCII,
+//             binary little/big-endian; ply_format.cpp);
 //   volumes:  TetGen .node/.ele, Gmsh .msh version 1 ($NOD/$ELM) and version 2 ASCII.
 // Coordinates are taken as mm. Each parser throws LoadError naming source and line.
 #include <string>
@@ -13,6 +14,10 @@ namespace arnav::host {
 
 TriMesh parse_obj(std::string_view content, const std::string& source, ElementLines* lines = nullptr);
 TriMesh parse_off(std::string_view content, const std::string& source, ElementLines* lines = nullptr);
+// Stanford PLY: vertex x/y/z and face vertex_indices (polygons fanned); other elements and
+// properties are skipped by type. Errors name the header line, body line (ASCII) or byte
+// offset (binary).
+TriMesh parse_ply(std::string_view content, const std::string& source, ElementLines* lines = nullptr);
 
 // TetGen: the node and element files are separate. Indices may start at 0 or 1 (the first
 // node's number decides, as in TetGen). A region attribute per element (tetgen -A) becomes

@@ -38,8 +38,9 @@ std::string read_text_file(const std::string& path) {
 TriMesh parse_surface(std::string_view content, const std::string& source, const std::string& format, ElementLines* lines) {
   if (format == "obj") return parse_obj(content, source, lines);
   if (format == "off") return parse_off(content, source, lines);
+  if (format == "ply") return parse_ply(content, source, lines);
   if (format == "vtk") return vtk_surface(parse_vtk_legacy(content, source), source, lines);
-  throw_load_error(source, 0, "unknown surface format '." + format + "'", "use .obj, .off or legacy .vtk (POLYDATA)");
+  throw_load_error(source, 0, "unknown surface format '." + format + "'", "use .obj, .off, .ply or legacy .vtk (POLYDATA)");
 }
 
 TriMesh load_surface(const std::string& path, SurfaceCheck* check) {

@@ -1,6 +1,6 @@
 #pragma once
 // Mesh files in and out, chosen by extension, validated on the way in.
-//   surfaces: .obj, .off, .vtk (POLYDATA)
+//   surfaces: .obj, .off, .ply (ASCII or binary), .vtk (POLYDATA)
 //   volumes:  .ele/.node (TetGen; either name, the other is found beside it),
 //             .msh (Gmsh v1/v2 ASCII), .vtk (UNSTRUCTURED_GRID)
 // Units: coordinates are mm (a scene may scale them, see scene.hpp).
@@ -15,7 +15,7 @@ namespace arnav::host {
 std::string read_text_file(const std::string& path);  // throws LoadError naming the path
 
 // Parses without validating (exposed for the fuzzers and tests). `format` is the file
-// extension without dot: obj, off, vtk.
+// extension without dot: obj, off, ply, vtk.
 TriMesh parse_surface(std::string_view content, const std::string& source, const std::string& format, ElementLines* lines);
 
 // Reads, parses and validates a closed organ or tumour surface.

@@ -98,6 +98,18 @@ Scene load_scene(const std::string& path) {
     scene.notes.push_back("TetGen " + rep.switches + ": " + std::to_string(mesh.num_vertices()) + " vertices, " +
                           std::to_string(mesh.num_tets()) + " tetrahedra in " + fmt(rep.wall_time_ms) + " ms");
   }
+  scene.mesh_quality = tet_mesh_quality(mesh);
+  scene.notes.push_back("rest mesh quality: " + describe(scene.mesh_quality));
+  if (spec.volume.min_dihedral_required_deg > 0 && scene.mesh_quality.min_dihedral_deg < spec.volume.min_dihedral_required_deg) {
+    const auto& w = mesh.tets[scene.mesh_quality.worst_tet];
+    const Eigen::Vector3d c = 0.25 * (mesh.rest_positions_World_mm.col(w[0]) + mesh.rest_positions_World_mm.col(w[1]) +
+                                      mesh.rest_positions_World_mm.col(w[2]) + mesh.rest_positions_World_mm.col(w[3]));
+    at(spec.volume.min_dihedral_required_line,
+       "the volume mesh has a dihedral angle of " + fmt(scene.mesh_quality.min_dihedral_deg) + " degrees (tet near (" + fmt(c.x()) +
+           ", " + fmt(c.y()) + ", " + fmt(c.z()) + ") mm), below volume.min_dihedral_required_deg " +
+           fmt(spec.volume.min_dihedral_required_deg) + " (" + std::to_string(scene.mesh_quality.slivers) + " slivers)",
+       "improve the mesh: volume.tetgen.min_dihedral_deg (e.g. 10) and optimisation_level (e.g. 7), or lower the requirement");
+  }
   const int nv = mesh.num_vertices();
 
   // Tumours: closed surfaces that must lie inside the volume.

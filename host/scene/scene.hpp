@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "host/scene/embedding.hpp"
+#include "host/scene/mesh_quality.hpp"
 #include "host/scene/tet_mesh.hpp"
 #include "host/sim/model_config.hpp"
 #include "host/sim/tissue_model.hpp"
@@ -40,7 +41,8 @@ struct Scene {
   Embedding organ_embedding;              // organ_surface in problem.mesh
   std::vector<EmbeddedSurface> tumours;
   std::optional<EmbeddedVessels> vessels;
-  std::vector<std::string> notes;         // what loading did (flips, meshing, counts)
+  std::vector<std::string> notes;         // what loading did (flips, meshing, counts, mesh quality)
+  TetMeshQuality mesh_quality;            // of the rest volume (also in notes)
 };
 
 // Reads and builds a scene. Throws LoadError naming the file (scene or mesh), the line

@@ -199,14 +199,21 @@ SceneSpec parse_scene_spec(const std::string& yaml_text, const std::string& sour
   s.embed_tolerance_mm = r.positive(organ, "embed_tolerance_mm", 1.0, "organ");
 
   const YAML::Node volume = r.require(root, "volume", "the scene");
-  r.keys(volume, {"file", "tetgen"}, "volume");
+  r.keys(volume, {"file", "tetgen", "min_dihedral_required_deg"}, "volume");
   s.volume.line = volume.Mark().line + 1;
+  if (volume["min_dihedral_required_deg"]) {
+    s.volume.min_dihedral_required_deg = r.number(volume, "min_dihedral_required_deg", 0.0, "volume");
+    s.volume.min_dihedral_required_line = volume["min_dihedral_required_deg"].Mark().line + 1;
+    if (s.volume.min_dihedral_required_deg < 0 || s.volume.min_dihedral_required_deg >= 70.5)
+      r.fail(volume["min_dihedral_required_deg"], "volume.min_dihedral_required_deg must be in [0, 70.5)",
+             "a regular tet has 70.5 degrees; 5-10 rules out slivers");
+  }
   if (volume["file"] && volume["tetgen"]) r.fail(volume, "volume has both 'file' and 'tetgen'", "keep one: load a mesh or generate one");
   if (volume["file"]) {
     s.volume.file = r.file(volume["file"], "volume.file");
   } else if (volume["tetgen"]) {
     const YAML::Node t = volume["tetgen"];
-    r.keys(t, {"max_radius_edge_ratio", "min_dihedral_deg", "max_volume_mm3", "decimate_surface_to"}, "volume.tetgen");
+    r.keys(t, {"max_radius_edge_ratio", "min_dihedral_deg", "max_volume_mm3", "decimate_surface_to", "optimisation_level", "keep_surface"}, "volume.tetgen");
     TetGenSettings ts;
     ts.max_radius_edge_ratio = r.number(t, "max_radius_edge_ratio", 2.0, "volume.tetgen");
     if (ts.max_radius_edge_ratio < 1.1)
@@ -215,6 +222,8 @@ SceneSpec parse_scene_spec(const std::string& yaml_text, const std::string& sour
     if (ts.min_dihedral_deg < 0 || ts.min_dihedral_deg > 18) r.fail(t["min_dihedral_deg"], "volume.tetgen.min_dihedral_deg must be in [0, 18]", "TetGen may not terminate above ~18 degrees");
     ts.max_volume_mm3 = r.number(t, "max_volume_mm3", 0.0, "volume.tetgen");
     if (ts.max_volume_mm3 < 0) r.fail(t["max_volume_mm3"], "volume.tetgen.max_volume_mm3 must be >= 0", "0 means no size bound");
+    if (t["keep_surface"]) ts.keep_surface = r.boolean(t["keep_surface"], "volume.tetgen.keep_surface");
+    if (t["optimisation_level"]) ts.optimisation_level = static_cast<int>(r.integer(t["optimisation_level"], "volume.tetgen.optimisation_level", 0, 10));
     if (t["decimate_surface_to"]) s.volume.decimate_surface_to = static_cast<int>(r.integer(t["decimate_surface_to"], "volume.tetgen.decimate_surface_to", 8, 10000000));
     s.volume.tetgen = ts;
   } else {

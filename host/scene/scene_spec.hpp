@@ -32,6 +32,9 @@ struct VolumeSpec {
   std::optional<FileSpec> file;               // load a volume mesh ...
   std::optional<TetGenSettings> tetgen;       // ... or generate it from the organ surface
   int decimate_surface_to = 0;                // > 0: simplify the surface to this many vertices first
+  double min_dihedral_required_deg = 0.0;     // > 0: loading fails when the rest mesh has a smaller
+                                              // dihedral angle (mesh_quality.hpp)
+  int min_dihedral_required_line = 0;
   int line = 0;
 };
 

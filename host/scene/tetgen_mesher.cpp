@@ -41,6 +41,9 @@ TetMesh tetrahedralize_surface(const TriMesh& surface, const TetGenSettings& s, 
     if (s.min_dihedral_deg > 0) sw << "/" << s.min_dihedral_deg;
   }
   if (s.max_volume_mm3 > 0) sw << "a" << s.max_volume_mm3;
+  if (s.optimisation_level > 10)
+    throw_load_error(source, 0, "TetGen optimisation level " + std::to_string(s.optimisation_level) + " is above 10", "use 0..10");
+  if (s.optimisation_level >= 0) sw << "O" << s.optimisation_level << "/7";
   std::string switches = sw.str();
 
   tetgenio in, out;

@@ -13,6 +13,8 @@ struct TetGenSettings {
   double min_dihedral_deg = 0.0;       // TetGen -q/<deg> (0: TetGen's default)
   double max_volume_mm3 = 0.0;         // TetGen -a: size bound (0: no bound)
   bool keep_surface = true;            // TetGen -Y: no Steiner points on the boundary
+  int optimisation_level = -1;         // TetGen -O<level>/7 (flips, smoothing, vertex insertion
+                                       // and deletion): 0..10, -1: TetGen's default (2)
 };
 
 struct TetGenReport {

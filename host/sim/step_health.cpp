@@ -1,6 +1,8 @@
 #include "host/sim/step_health.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 
 namespace arnav::host {
@@ -48,6 +50,41 @@ void EnergyLedger::check(double ke_ee, double u_g, StepSummary& summary) const {
            "energy balance violated: " + std::to_string(created) + " mN*mm created against a budget of " +
                std::to_string(budget) + " mN*mm (solver unconverged in stiff regions, or unstable)",
            true);
+  }
+}
+
+namespace {
+std::string seconds(double s) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.2f s", s);
+  return buf;
+}
+}  // namespace
+
+void InversionMonitor::update(int inverted, int total_elements, double dt_s, StepSummary& summary, const char* what) {
+  summary.inverted_elements = inverted;
+  if (inverted <= 0) {
+    if (episode_s_ > 0.0)
+      report(summary, std::string("inverted ") + what + ": recovered after " + seconds(episode_s_), false);
+    episode_s_ = 0.0;
+    collapse_s_ = 0.0;
+    return;
+  }
+  episode_s_ += dt_s;
+  worst_episode_s_ = std::max(worst_episode_s_, episode_s_);
+  ++steps_with_;
+  peak_ = std::max(peak_, inverted);
+  const bool collapsing = total_elements > 0 && inverted > kCollapseFraction * total_elements;
+  collapse_s_ = collapsing ? collapse_s_ + dt_s : 0.0;
+  std::string text = std::string("inverted ") + what + ": " + std::to_string(inverted) + " of " + std::to_string(total_elements) +
+                     " for " + seconds(episode_s_);
+  if (collapse_s_ > kCollapseTime_s) {
+    report(summary,
+           text + ": mesh collapse (more than " + std::to_string(static_cast<int>(100 * kCollapseFraction)) + " % inverted for more than " +
+               seconds(kCollapseTime_s) + ")",
+           true);
+  } else {
+    report(summary, text + " (counted; the model keeps recovering)", false);
   }
 }
 

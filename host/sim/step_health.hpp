@@ -40,6 +40,33 @@ class EnergyLedger {
   double e0_ = 0.0, u0_ = 0.0, work_ = 0.0, abs_work_ = 0.0;
 };
 
+// The health rule for inverted elements (docs/sim.md, "Run-time health"): a few elements
+// inverted under an extreme load are a counted warning and the model keeps running and
+// recovering; only a collapse - more than kCollapseFraction of the elements inverted for
+// longer than kCollapseTime_s of simulated time - is unhealthy. The monitor also keeps the
+// statistics the benchmarks and the patient-mesh suite report.
+inline constexpr double kCollapseFraction = 0.10;
+inline constexpr double kCollapseTime_s = 1.0;
+
+class InversionMonitor {
+ public:
+  // Once per step with the inverted elements at its end; sets summary.inverted_elements and
+  // reports the warning (and a collapse as unhealthy). `what` names the elements ("tets").
+  void update(int inverted, int total_elements, double dt_s, StepSummary& summary, const char* what = "tets");
+  // Forget the current episode (set_state: the state now comes from outside).
+  void reset_episode() { episode_s_ = 0.0; collapse_s_ = 0.0; }
+
+  double episode_s() const { return episode_s_; }            // current run of steps with inversions
+  double worst_episode_s() const { return worst_episode_s_; }  // longest such run so far
+  long long steps_with_inversions() const { return steps_with_; }
+  int peak_inverted() const { return peak_; }
+
+ private:
+  double episode_s_ = 0.0, worst_episode_s_ = 0.0, collapse_s_ = 0.0;
+  long long steps_with_ = 0;
+  int peak_ = 0;
+};
+
 // Gravity potential -sum m_i g.x_i (mN*mm), for the ledger.
 double gravity_potential(const Eigen::VectorXd& mass_kg, const Eigen::Matrix3Xd& x_World_mm, const Eigen::Vector3d& g);
 

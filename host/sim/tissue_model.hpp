@@ -57,8 +57,11 @@ struct StepSummary {
   double wall_time_ms = 0.0;
   double kinetic_energy = 0.0;    // mN*mm (= micro-joules)
   double elastic_energy = 0.0;
-  bool healthy = true;            // false: NaN/Inf, energy blow-up, inverted beyond recovery
+  bool healthy = true;            // false: real divergence (NaN/Inf, energy blow-up, a solver that
+                                  // cannot reduce its residual, a collapsed mesh); docs/sim.md
   std::string warning;            // why not healthy, or a known limit hit (e.g. "inverted tets: 12")
+  int inverted_elements = 0;      // elements with det F <= 0 at the end of the step (a counted
+                                  // warning, not unhealthy by itself: InversionMonitor)
 };
 
 // Per-element measure for display and checks.

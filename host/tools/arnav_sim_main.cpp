@@ -84,7 +84,13 @@ static int main_body(int argc, char** argv) {
        << ",\"tetrahedra\":" << scene.problem.mesh.num_tets() << ",\"frames\":" << r.frames_run << ",\"dt_s\":" << scene.time_step_s
        << ",\"median_step_ms\":" << r.median_step_ms << ",\"max_displacement_mm\":" << r.max_displacement_mm
        << ",\"tumour_displacement_mm\":[" << r.tumour_displacement_mm.x() << "," << r.tumour_displacement_mm.y() << ","
-       << r.tumour_displacement_mm.z() << "],\"healthy\":" << (r.healthy ? "true" : "false") << "}";
+       << r.tumour_displacement_mm.z() << "],\"frames_with_inverted\":" << r.frames_with_inverted
+       << ",\"peak_inverted\":" << r.peak_inverted << ",\"worst_inverted_run_s\":" << r.worst_inverted_run_s
+       << ",\"peak_strain\":" << r.peak_strain << ",\"mesh_quality\":{\"min_dihedral_deg\":" << scene.mesh_quality.min_dihedral_deg
+       << ",\"p01_dihedral_deg\":" << scene.mesh_quality.p01_dihedral_deg << ",\"max_dihedral_deg\":" << scene.mesh_quality.max_dihedral_deg
+       << ",\"max_radius_edge_ratio\":" << scene.mesh_quality.max_radius_edge_ratio
+       << ",\"min_volume_mm3\":" << scene.mesh_quality.min_volume_mm3 << ",\"slivers\":" << scene.mesh_quality.slivers
+       << "},\"healthy\":" << (r.healthy ? "true" : "false") << "}";
   (options.out_dir.empty() ? std::cerr : std::cout) << json.str() << "\n";
   if (!r.healthy) {
     std::cerr << "arnav-sim: the model became unhealthy at frame " << r.frames_run << ": " << r.warning

@@ -44,10 +44,11 @@ SimRunResult run_scene(const Scene& scene, const SimRunOptions& o, std::ostream&
   const bool has_tumour = !scene.tumours.empty();
   const Eigen::Vector3d tumour0 = has_tumour ? tumour_centroid_World_mm(scene, 0, rest) : Eigen::Vector3d::Zero();
   csv << "frame,time_s,wall_ms,iterations,initial_residual,final_residual,termination,kinetic_energy,elastic_energy,"
-         "healthy,max_displacement_mm,tumour_dx_mm,tumour_dy_mm,tumour_dz_mm,warning\n";
+         "healthy,max_displacement_mm,tumour_dx_mm,tumour_dy_mm,tumour_dz_mm,inverted_elements,warning\n";
   write_frame(scene, o, 0, rest);
   SimRunResult result;
   std::vector<double> wall;
+  double inverted_run_s = 0.0;
   for (int f = 1; f <= o.frames; ++f) {
     const StepSummary s = model->step(scene.time_step_s);
     const Eigen::Matrix3Xd& x = model->positions_World_mm();
@@ -60,7 +61,17 @@ SimRunResult run_scene(const Scene& scene, const SimRunOptions& o, std::ostream&
     csv << f << ',' << f * scene.time_step_s << ',' << s.wall_time_ms << ',' << s.iterations << ',' << s.initial_residual << ','
         << s.final_residual << ',' << s.termination << ',' << s.kinetic_energy << ',' << s.elastic_energy << ',' << (s.healthy ? 1 : 0)
         << ',' << result.max_displacement_mm << ',' << result.tumour_displacement_mm.x() << ',' << result.tumour_displacement_mm.y()
-        << ',' << result.tumour_displacement_mm.z() << ',' << warning << '\n';
+        << ',' << result.tumour_displacement_mm.z() << ',' << s.inverted_elements << ',' << warning << '\n';
+    if (s.inverted_elements > 0) {
+      ++result.frames_with_inverted;
+      inverted_run_s += scene.time_step_s;
+      result.worst_inverted_run_s = std::max(result.worst_inverted_run_s, inverted_run_s);
+      result.peak_inverted = std::max(result.peak_inverted, s.inverted_elements);
+    } else {
+      inverted_run_s = 0.0;
+    }
+    if (f % 10 == 0 || f == o.frames || !s.healthy)
+      for (const ElementMeasure& m : model->element_measures()) result.peak_strain = std::max(result.peak_strain, m.max_principal_strain);
     if (f == o.frames || f % std::max(1, o.write_every) == 0 || !s.healthy) write_frame(scene, o, f, x);
     if (!s.healthy) {
       result.healthy = false;

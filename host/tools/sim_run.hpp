@@ -22,6 +22,12 @@ struct SimRunResult {
   double median_step_ms = 0.0;
   double max_displacement_mm = 0.0;  // over the volume vertices, last frame
   Eigen::Vector3d tumour_displacement_mm = Eigen::Vector3d::Zero();  // first tumour, last frame
+  // Inverted elements (a counted warning, docs/sim.md): frames that ended with some, the
+  // most at once, and the longest run of consecutive such frames (simulated s).
+  int frames_with_inverted = 0;
+  int peak_inverted = 0;
+  double worst_inverted_run_s = 0.0;
+  double peak_strain = 0.0;  // largest principal Green strain of any tet, every 10th and the last frame
 };
 
 // `csv` receives the per-frame summary (header + one row per frame).

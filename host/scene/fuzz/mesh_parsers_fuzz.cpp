@@ -15,7 +15,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   if (size < 1) return 0;
   const std::string_view text(reinterpret_cast<const char*>(data + 1), size - 1);
   try {
-    switch (data[0] % 5) {
+    switch (data[0] % 6) {
       case 0: {
         TriMesh s = parse_obj(text, "fuzz.obj");
         validate_closed_surface(s, "fuzz.obj");
@@ -40,6 +40,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       case 3: {
         TetMesh m = parse_gmsh(text, "fuzz.msh");
         validate_tet_mesh(m, "fuzz.msh");
+        break;
+      }
+      case 5: {
+        TriMesh s = parse_ply(text, "fuzz.ply");
+        validate_closed_surface(s, "fuzz.ply");
         break;
       }
       default: {

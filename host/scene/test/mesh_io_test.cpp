@@ -111,6 +111,104 @@ TEST(SurfaceLoaders, RealSofaLiverSurfaces) {
   EXPECT_EQ(load_surface(data_meshes() + "liver2.obj").positions_World_mm.cols(), 1170);
 }
 
+// PLY: a tet surface written as ASCII, binary little- and big-endian, with extra vertex
+// and face properties (normals, colours, a texture-coordinate list) that must be skipped.
+std::string ply_tet(const std::string& format) {
+  std::string h = "ply\nformat " + format + " 1.0\ncomment unit tet, mm\nelement vertex 4\nproperty float x\nproperty float y\n"
+                  "property double z\nproperty uchar red\nelement face 4\nproperty list uchar int vertex_indices\n"
+                  "property list uchar float texcoord\nelement edge 1\nproperty int vertex1\nproperty int vertex2\nend_header\n";
+  const double p[4][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  const int f[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+  if (format == "ascii") {
+    for (auto& v : p) h += std::to_string(v[0]) + " " + std::to_string(v[1]) + " " + std::to_string(v[2]) + " 200\n";
+    for (auto& t : f) h += "3 " + std::to_string(t[0]) + " " + std::to_string(t[1]) + " " + std::to_string(t[2]) + " 2 0.5 0.5\n";
+    return h + "0 1\n";
+  }
+  const bool big = format == "binary_big_endian";
+  auto put = [&](const void* data, int n) {
+    const char* c = static_cast<const char*>(data);
+    for (int k = 0; k < n; ++k) h += big ? c[n - 1 - k] : c[k];
+  };
+  for (auto& v : p) {
+    const float x = static_cast<float>(v[0]), y = static_cast<float>(v[1]);
+    put(&x, 4);
+    put(&y, 4);
+    put(&v[2], 8);
+    h += static_cast<char>(200);
+  }
+  for (auto& t : f) {
+    h += static_cast<char>(3);
+    for (int k = 0; k < 3; ++k) put(&t[k], 4);
+    h += static_cast<char>(2);
+    const float uv = 0.5f;
+    put(&uv, 4);
+    put(&uv, 4);
+  }
+  const int e[2] = {0, 1};
+  put(&e[0], 4);
+  put(&e[1], 4);
+  return h;
+}
+
+TEST(SurfaceLoaders, PlyAsciiAndBinaryBothEndians) {
+  const std::string dir = scratch("ply");
+  for (const std::string format : {"ascii", "binary_little_endian", "binary_big_endian"}) {
+    SCOPED_TRACE(format);
+    SurfaceCheck check;
+    const TriMesh s = load_surface(write_file(dir, "tet_" + format + ".ply", ply_tet(format)), &check);
+    ASSERT_EQ(s.positions_World_mm.cols(), 4);
+    ASSERT_EQ(s.tris.size(), 4u);
+    EXPECT_EQ(s.positions_World_mm(2, 3), 1.0);
+    EXPECT_EQ(s.positions_World_mm(0, 1), 1.0);
+    EXPECT_NEAR(check.volume_mm3, 1.0 / 6.0, 1e-12);
+    EXPECT_FALSE(check.flipped);
+  }
+}
+
+TEST(SurfaceLoaders, RealSciKitSurgeryLivers) {
+  SurfaceCheck check;
+  const TriMesh ply = load_surface(data_meshes() + "sksurgery_liver.ply", &check);  // binary little-endian
+  EXPECT_EQ(ply.positions_World_mm.cols(), 2002);
+  EXPECT_EQ(ply.tris.size(), 4000u);
+  EXPECT_EQ(check.components, 1);
+  EXPECT_GT(check.volume_mm3, 0.5e6);  // a real liver, mm
+  const Eigen::Vector3d ext = ply.positions_World_mm.rowwise().maxCoeff() - ply.positions_World_mm.rowwise().minCoeff();
+  EXPECT_NEAR(ext.x(), 232.0, 2.0);  // about 232 x 154 x 168 mm (data/README.md)
+  EXPECT_NEAR(ext.y(), 154.0, 2.0);
+  EXPECT_NEAR(ext.z(), 168.0, 2.0);
+  const TriMesh fine = load_surface(data_meshes() + "sksurgery_liver_fine.vtk", &check);
+  EXPECT_EQ(fine.tris.size(), 20000u);
+  EXPECT_EQ(check.components, 6);  // one liver and 5 tiny blobs inside
+}
+
+TEST(SurfaceLoaders, PlyErrorsNameLineOrByteOffsetAndFix) {
+  const std::string dir = scratch("ply_bad");
+  const std::string good = ply_tet("ascii");
+  const std::string bin = ply_tet("binary_little_endian");
+  struct Case {
+    std::string name, text, expect;
+  } cases[] = {
+      {"notply.ply", "plx\n", ".ply:1: not a PLY file"},
+      {"noend.ply", "ply\nformat ascii 1.0\nelement vertex 0\n", "no end_header"},
+      {"fmt.ply", "ply\nformat binary_middle_endian 1.0\nend_header\n", "fmt.ply:2: unknown PLY format"},
+      {"type.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty quad x\nend_header\n", "type.ply:4: unknown property type"},
+      {"count.ply", "ply\nformat ascii 1.0\nelement vertex -3\nend_header\n", "count.ply:3: bad element count"},
+      {"noface.ply", "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nend_header\n", "no vertex or no face element"},
+      {"value.ply", [&] { std::string t = good; t.replace(t.find("1.000000 0.000000 0.000000"), 8, "1.0zz000"); return t; }(),
+       "value.ply:17:"},
+      {"index.ply", [&] { std::string t = good; t.replace(t.find("3 1 2 3"), 7, "3 1 2 9"); return t; }(),
+       "refers to vertex 9 of 4"},
+      {"short.ply", bin.substr(0, bin.size() - 6), "byte offset"},
+      {"long.ply", bin + "xx", "2 bytes after the last declared element"},
+  };
+  for (const auto& c : cases) {
+    const std::string e = error_of([&] { load_surface(write_file(dir, c.name, c.text)); });
+    SCOPED_TRACE(c.name + ": " + e);
+    EXPECT_NE(e.find(c.expect), std::string::npos);
+    EXPECT_NE(e.find("Fix:"), std::string::npos);
+  }
+}
+
 TEST(SurfaceLoaders, BrokenSofaVtkIsRejectedWithLocationAndFix) {
   const std::string path = data_meshes() + "liver_for_test_broken.vtk";
   const std::string e = error_of([&] { load_surface(path); });

@@ -11,6 +11,7 @@
 #include "host/scene/surface_decimate.hpp"
 #include "host/scene/surface_shapes.hpp"
 #include "host/scene/test/test_paths.hpp"
+#include "host/scene/mesh_quality.hpp"
 #include "host/scene/tetgen_mesher.hpp"
 
 namespace arnav::host {
@@ -46,6 +47,20 @@ TEST(TetGen, MeshesEllipsoidKeepingItsSurface) {
   EXPECT_TRUE(m.rest_positions_World_mm.leftCols(s.positions_World_mm.cols()).isApprox(s.positions_World_mm));
   EXPECT_EQ(m.surface_tris.size(), s.tris.size());
   EXPECT_GT(m.num_vertices(), s.positions_World_mm.cols());  // interior refined to the size bound
+}
+
+TEST(TetGen, OptimisationLevelAndDihedralBoundAreApplied) {
+  const TriMesh s = make_ellipsoid_surface(Eigen::Vector3d::Zero(), Eigen::Vector3d(20, 15, 10), 3);
+  TetGenReport rep;
+  TetGenSettings opt{.max_radius_edge_ratio = 1.5, .min_dihedral_deg = 12.0, .max_volume_mm3 = 20.0};
+  opt.optimisation_level = 7;
+  const TetMesh m = tetrahedralize_surface(s, opt, "ellipsoid", &rep);
+  EXPECT_EQ(rep.switches, "-pQYq1.5/12a20O7/7");
+  // Interior tets meet the bound; slivers can only be made of surface vertices (kept by -Y).
+  const TetMeshQuality q = tet_mesh_quality(m);
+  EXPECT_GT(q.p01_dihedral_deg, 12.0) << describe(q);
+  opt.optimisation_level = 11;
+  EXPECT_THROW(tetrahedralize_surface(s, opt, "ellipsoid"), LoadError);
 }
 
 TEST(TetGen, SelfIntersectingSofaSurfaceIsRejected) {

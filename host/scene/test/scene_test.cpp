@@ -2,6 +2,8 @@
 // file and line; only what a scene declares is built.
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <functional>
 
 #include "host/scene/box_mesh.hpp"
@@ -159,6 +161,53 @@ struct BadScene {
   int line;
   std::string expect;
 };
+
+TEST(MeshQuality, RegularTetAndSliver) {
+  TetMesh regular;
+  regular.rest_positions_World_mm.resize(3, 4);
+  regular.rest_positions_World_mm << 1, -1, -1, 1, 1, -1, 1, -1, 1, 1, -1, -1;  // (1,1,1), (-1,-1,1), (-1,1,-1), (1,-1,-1)
+  regular.tets = {{0, 1, 2, 3}};
+  const TetMeshQuality q = tet_mesh_quality(regular);
+  EXPECT_NEAR(q.min_dihedral_deg, std::acos(1.0 / 3.0) * 180.0 / M_PI, 1e-9);  // 70.53 degrees
+  EXPECT_NEAR(q.max_dihedral_deg, q.min_dihedral_deg, 1e-9);
+  EXPECT_NEAR(q.max_radius_edge_ratio, std::sqrt(6.0) / 4.0, 1e-9);
+  EXPECT_NEAR(q.min_volume_mm3, 8.0 / 3.0, 1e-9);
+  EXPECT_EQ(q.slivers, 0);
+  // A sliver: a square's corners lifted alternately by 0.05 mm (edges 10-14 mm).
+  TetMesh sliver;
+  sliver.rest_positions_World_mm.resize(3, 4);
+  sliver.rest_positions_World_mm << 0, 10, 10, 0, 0, 0, 10, 10, 0, 0.05, 0, 0.05;
+  sliver.tets = {{0, 1, 2, 3}};
+  const TetMeshQuality qs = tet_mesh_quality(sliver);
+  EXPECT_LT(qs.min_dihedral_deg, 1.0);
+  EXPECT_GT(qs.max_dihedral_deg, 179.0);
+  EXPECT_EQ(qs.slivers, 1);
+  EXPECT_EQ(qs.worst_tet, 0);
+  EXPECT_NE(describe(qs).find("slivers (<5 or >175 deg) 1"), std::string::npos) << describe(qs);
+}
+
+TEST(SceneFile, RestMeshQualityIsReportedAndCanBeRequired) {
+  const std::string dir = make_box_files(scratch("quality"));
+  auto with = [](const std::string& extra) {
+    std::string t = kBase;
+    t.replace(t.find("  file: block.vtk\n"), 18, "  file: block.vtk\n" + extra);
+    return t;
+  };
+  const Scene s = load_scene(write_file(dir, "ok.scene.yaml", with("  min_dihedral_required_deg: 30\n")));
+  EXPECT_NEAR(s.mesh_quality.min_dihedral_deg, 45.0, 1e-6);  // cubes cut into 6 tets: 45, 60 and 90 degrees
+  EXPECT_NEAR(s.mesh_quality.max_dihedral_deg, 90.0, 1e-6);
+  EXPECT_EQ(s.mesh_quality.slivers, 0);
+  bool noted = false;
+  for (const auto& n : s.notes) noted = noted || n.find("rest mesh quality: min dihedral 45.0 deg") != std::string::npos;
+  EXPECT_TRUE(noted);
+  const std::string path = write_file(dir, "strict.scene.yaml", with("  min_dihedral_required_deg: 50\n"));
+  const std::string e = error_of([&] { load_scene(path); });
+  EXPECT_NE(e.find(path + ":5:"), std::string::npos) << e;
+  EXPECT_NE(e.find("dihedral angle of 45"), std::string::npos) << e;
+  EXPECT_NE(e.find("Fix:"), std::string::npos) << e;
+  const std::string bad = write_file(dir, "range.scene.yaml", with("  min_dihedral_required_deg: 80\n"));
+  EXPECT_NE(error_of([&] { load_scene(bad); }).find(bad + ":5:"), std::string::npos);
+}
 
 TEST(SceneFile, SchemaErrorsNameFileAndLine) {
   const std::string dir = make_box_files(scratch("errors"));

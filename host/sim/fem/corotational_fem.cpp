@@ -21,6 +21,20 @@ namespace {
 // Warm-started per step: 1-2 updates; the cap only matters after set_state or a violent step.
 constexpr RotationExtraction kStepRotation{.max_iterations = 12, .tolerance_rad = 1e-9};
 
+// Rotation of a tet (invertible FEM, Irving, Teran & Fedkiw 2004): for an inverted or
+// nearly flat tet (det F below kFlatJ) the rotation is taken in closed form from the SVD,
+// R = U diag(1, 1, det(U V^T)) V^T: the reflection goes into the smallest singular value,
+// so R^T F = V diag(s1, s2, +-s3) V^T is symmetric and the co-rotated stress pushes the
+// element back through its flat state along the shortest way. The warm-started iteration
+// is kept for all other tets (it is the polar rotation there and cheaper): started from the
+// previous rotation of a tet that flipped through, it can stop at a saddle of tr(R^T F)
+// and push the tet further in. Both give the same R for det F > 0 (polar rotation).
+constexpr double kFlatJ = 0.05;
+inline Eigen::Quaterniond element_rotation(const Eigen::Matrix3d& F, double J, const Eigen::Quaterniond& q_warm) {
+  if (J < kFlatJ) return rotation_by_svd(F);
+  return extract_rotation(F, q_warm, kStepRotation);
+}
+
 Eigen::Map<Eigen::VectorXd> flat(Eigen::Matrix3Xd& m) { return {m.data(), m.size()}; }
 
 double process_cpu_ms() { return 1000.0 * static_cast<double>(std::clock()) / CLOCKS_PER_SEC; }
@@ -257,9 +271,10 @@ void CorotationalFem::assemble_element(int id, double dt_s, bool dynamic, double
     Eigen::Matrix3d Ds;
     for (int k = 0; k < 3; ++k) Ds.col(k) = x_.col(e.v[k + 1]) - x_.col(e.v[0]);
     const Eigen::Matrix3d F = Ds * e.Dm_inv;
-    q_[id] = extract_rotation(F, q_[id], kStepRotation);
+    const double J = F.determinant();
+    q_[id] = element_rotation(F, J, q_[id]);
     const Eigen::Matrix3d R = q_[id].toRotationMatrix();
-    if (F.determinant() <= 0.0) ++n_inverted;
+    if (J <= 0.0) ++n_inverted;
     const Eigen::Matrix3d S = R.transpose() * F;
     const Eigen::Matrix3d eps = 0.5 * (S + S.transpose()) - Eigen::Matrix3d::Identity();
     const double tr = eps.trace();
@@ -330,7 +345,7 @@ double CorotationalFem::potential_energy(const Eigen::Matrix3Xd& x) {
   for (int t = 0; t < num_tets; ++t) {
     const Tet& e = tets_[t];
     const Eigen::Matrix3d F = edge_matrix(x, e.v) * e.Dm_inv;
-    q_[t] = extract_rotation(F, q_[t], kStepRotation);
+    q_[t] = element_rotation(F, F.determinant(), q_[t]);
     const Eigen::Matrix3d S = q_[t].toRotationMatrix().transpose() * F;
     const Eigen::Matrix3d eps = 0.5 * (S + S.transpose()) - Eigen::Matrix3d::Identity();
     const double tr = eps.trace();
@@ -360,6 +375,7 @@ StepSummary CorotationalFem::step(double dt_s) {
     total.wall_time_ms += s.wall_time_ms;
     total.kinetic_energy = s.kinetic_energy;
     total.elastic_energy = s.elastic_energy;
+    total.inverted_elements = s.inverted_elements;
     if (!s.warning.empty()) report(total, "substep " + std::to_string(k) + ": " + s.warning, !s.healthy);
     if (!s.healthy) break;
   }
@@ -502,16 +518,6 @@ StepSummary CorotationalFem::substep(double dt_s) {
     warnings.push_back("linear solve stopped at " + std::to_string(ls.iterations) + " iterations, residual " +
                        std::to_string(ls.final_residual));
   }
-  if (inverted > 0) {
-    ++inverted_streak_;
-    warnings.push_back("inverted tets: " + std::to_string(inverted));
-    if (inverted_streak_ >= options_.inverted_steps_limit) {
-      summary.healthy = false;
-      warnings.push_back("inverted for " + std::to_string(inverted_streak_) + " steps: not recovering");
-    }
-  } else {
-    inverted_streak_ = 0;
-  }
   if (stats.max_strain > options_.strain_warning) {
     warnings.push_back("strain " + std::to_string(stats.max_strain) + " beyond the linear range (" +
                        std::to_string(options_.strain_warning) + "): stresses are approximate");
@@ -521,6 +527,9 @@ StepSummary CorotationalFem::substep(double dt_s) {
     note_.clear();
   }
   for (std::size_t k = 0; k < warnings.size(); ++k) summary.warning += (k ? "; " : "") + warnings[k];
+  // Inverted tets (counted at assembly, i.e. in the state the step started from): a
+  // counted warning, unhealthy only for a collapse (step_health.hpp, docs/sim.md).
+  inversions_.update(inverted, static_cast<int>(tets_.size()), dt_s, summary);
   double ke = 0.0;
   for (int i = 0; i < nv; ++i) ke += 0.5 * mass_[i] * v_.col(i).squaredNorm();
   summary.kinetic_energy = ke;
@@ -601,6 +610,7 @@ void CorotationalFem::set_state(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
   x_ = x;
   v_ = v;
   last_dx_.setZero(x_.size());
+  inversions_.reset_episode();
   // The warm-start rotations belong to the old state: restart them in closed form.
   for (std::size_t t = 0; t < tets_.size(); ++t) q_[t] = rotation_by_svd(edge_matrix(x_, tets_[t].v) * tets_[t].Dm_inv);
 }
@@ -610,7 +620,7 @@ std::vector<ElementMeasure> CorotationalFem::element_measures() const {
   for (std::size_t t = 0; t < tets_.size(); ++t) {
     const Tet& e = tets_[t];
     const Eigen::Matrix3d F = edge_matrix(x_, e.v) * e.Dm_inv;
-    const Eigen::Matrix3d R = extract_rotation(F, q_[t]).toRotationMatrix();
+    const Eigen::Matrix3d R = element_rotation(F, F.determinant(), q_[t]).toRotationMatrix();
     const Eigen::Matrix3d S = R.transpose() * F;
     const Eigen::Matrix3d eps = 0.5 * (S + S.transpose()) - Eigen::Matrix3d::Identity();
     const Eigen::Matrix3d sigma = e.lambda * eps.trace() * Eigen::Matrix3d::Identity() + 2.0 * e.mu * eps;

@@ -36,7 +36,6 @@ namespace arnav::host {
 // Settings beyond ModelConfig (limits of what the model reports as unhealthy).
 struct FemOptions {
   double max_speed_mm_s = kBlowUpSpeed_mm_s;  // above this a step is rejected as unstable
-  int inverted_steps_limit = 30;    // inverted tets persisting this many steps -> unhealthy
   double refresh_residual = 0.1;    // lagged factor refreshed when its residual exceeds this
   double strain_warning = 0.3;      // co-rotated strain beyond which linear elasticity is
                                     // reported as out of range (warning, still healthy)
@@ -85,6 +84,7 @@ class CorotationalFem final : public TissueModel {
   // refactor_in_background: blocks until the running background factorisation is done
   // (tests use it to make the background path deterministic).
   void wait_for_background() { solver_.wait_for_background(); }
+  const InversionMonitor& inversions() const { return inversions_; }
 
  private:
   struct Tet {
@@ -144,7 +144,7 @@ class CorotationalFem final : public TissueModel {
   FemLinearSolver solver_;
   LinearSolveSummary last_solve_;
   Timing timing_;
-  int inverted_streak_ = 0;
+  InversionMonitor inversions_;
   double last_dt_ = -1.0;
   std::string note_;  // said once in the next step's warning (e.g. blas_threads not honoured)
 };

@@ -98,8 +98,6 @@ double dot(int threads, const Eigen::Matrix3Xd& a, const Eigen::Matrix3Xd& b) {
   return s;
 }
 
-// Tets inverted for longer than this (simulated time) are reported unhealthy.
-constexpr double kInversionGrace_s = 1.0;
 // Modulus of the volume term as a fraction of E (see the header).
 constexpr double kVolumeModulusPerE = 0.5;
 // Inversion barrier of the volume term. Below J = kBarrierJ the tet also stores
@@ -289,7 +287,7 @@ void MassSpringModel::set_state(const Eigen::Matrix3Xd& positions_World_mm, cons
   for (std::size_t i = 0; i < fixed_.size(); ++i)
     if (fixed_[i]) v_.col(static_cast<Eigen::Index>(i)).setZero();
   dv_.setZero();
-  inverted_time_s_ = 0.0;
+  inversions_.reset_episode();
   reset_ledger();
 }
 
@@ -644,18 +642,10 @@ StepSummary MassSpringModel::step(double dt_s) {
   check_state(x_, v_, summary);
   const StateMeasure measure = measure_state();
   const int inverted = measure.inverted_tets;
-  if (inverted > 0) {
-    // Springs have no orientation: inverted tets recover only if their neighbours push them
-    // back. Warned at once, unhealthy once they stay inverted beyond the grace time.
-    inverted_time_s_ += dt_s;
-    const bool stuck = inverted_time_s_ > kInversionGrace_s;
-    report(summary,
-           "inverted tets: " + std::to_string(inverted) + " (springs cannot restore orientation" +
-               (stuck ? "; inverted for more than " + std::to_string(kInversionGrace_s) + " s)" : ")"),
-           stuck);
-  } else {
-    inverted_time_s_ = 0.0;
-  }
+  // Springs have no orientation: inverted tets recover only if the volume term and their
+  // neighbours push them back. A counted warning; unhealthy only for a collapse
+  // (step_health.hpp, docs/sim.md).
+  inversions_.update(inverted, static_cast<int>(tets_.size()), dt_s, summary);
   summary.kinetic_energy = kinetic_energy(mass_, v_);
   summary.elastic_energy = measure.elastic_energy;
   ledger_.check(summary.kinetic_energy + summary.elastic_energy, gravity_potential(mass_, x_, gravity_), summary);

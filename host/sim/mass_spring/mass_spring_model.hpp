@@ -27,8 +27,8 @@
 //    change (lazily, at the next step).
 // Springs do not know orientation: an inverted tet whose edges have their rest length
 // feels no spring force, so the volume term carries an inversion barrier below J = 0.1
-// (volume_energy). Inverted tets are still counted every step and reported (a warning at
-// once, healthy=false when they stay inverted for more than 1 s of simulated time).
+// (volume_energy). Inverted tets are still counted every step and reported (a counted
+// warning; healthy=false only for a collapse, InversionMonitor in step_health.hpp).
 #include <Eigen/Core>
 
 #include <vector>
@@ -123,7 +123,7 @@ class MassSpringModel final : public TissueModel {
   double omega_max_ = 0.0;  // Gershgorin bound of sqrt(max eig M^-1 K), 1/s
   double zeta_ = 0.0;       // damping ratio of that mode
   double current_h_ = 0.0;  // substep of the current semi-implicit solve
-  double inverted_time_s_ = 0.0;
+  InversionMonitor inversions_;  // inverted tets: counted warning (step_health.hpp)
   EnergyLedger ledger_;
 
   // Work buffers, sized once (no allocation per step).

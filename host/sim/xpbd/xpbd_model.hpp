@@ -88,7 +88,7 @@ class XpbdModel final : public TissueModel {
   std::vector<double> rotation_;  // corotated: warm start of each tet's rotation (4 x kLanes per batch)
   std::vector<double> lambda_;    // corotated, iterations > 1: multipliers (10 x kLanes per batch)
   AttachmentSet attachments_;
-  double inverted_time_s_ = 0.0;  // how long some tets have stayed inverted
+  InversionMonitor inversions_;   // inverted tets: counted warning (step_health.hpp)
   int inverted_at_end_ = -1;      // inverted tets after the last step; -1: unknown
   EnergyLedger ledger_;
 };
