@@ -1,0 +1,425 @@
+#include "host/cut/tet_cutter.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <numeric>
+#include <set>
+#include <stdexcept>
+
+#include "host/scene/box_mesh.hpp"
+
+namespace arnav::host::cut {
+
+namespace {
+constexpr int kEdges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
+constexpr int kFaces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+
+double sweep_distance(const std::vector<Triangle>& tris, const Eigen::Vector3d& p) {
+  double d = 1e300;
+  for (const auto& t : tris) d = std::min(d, point_triangle_distance(p, t));
+  return d;
+}
+}  // namespace
+
+TetCutter::EdgeKey TetCutter::edge_key(int a, int b) {
+  if (a > b) std::swap(a, b);
+  return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) | static_cast<std::uint32_t>(b);
+}
+
+std::array<int, 3> TetCutter::face_key(int a, int b, int c) {
+  std::array<int, 3> f{a, b, c};
+  std::sort(f.begin(), f.end());
+  return f;
+}
+
+TetCutter::TetCutter(const TetMesh& mesh, const CutSettings& settings) : mesh_(mesh), settings_(settings) {
+  if (!(settings_.snap_fraction > 0.0 && settings_.snap_fraction < 0.5)) {
+    throw std::invalid_argument("cut settings: snap_fraction must lie in (0, 0.5)");
+  }
+  if (!(settings_.vertex_tolerance_mm >= 0.0)) throw std::invalid_argument("cut settings: vertex_tolerance_mm must be >= 0");
+  const int nv = mesh_.num_vertices();
+  vertex_tets_.assign(static_cast<std::size_t>(nv), {});
+  for (int t = 0; t < mesh_.num_tets(); ++t)
+    for (int v : mesh_.tets[static_cast<std::size_t>(t)]) {
+      if (v < 0 || v >= nv) throw std::invalid_argument("cut: tet " + std::to_string(t) + " has a vertex index out of range");
+      vertex_tets_[static_cast<std::size_t>(v)].push_back(t);
+    }
+  if (mesh_.tet_region.size() != mesh_.tets.size()) mesh_.tet_region.assign(mesh_.tets.size(), 0);
+  on_cut_.assign(static_cast<std::size_t>(nv), 0);
+  side_.assign(static_cast<std::size_t>(nv), 0);
+  origin_.resize(mesh_.tets.size());
+  std::iota(origin_.begin(), origin_.end(), 0);
+  family_.resize(mesh_.tets.size());
+  for (int t = 0; t < mesh_.num_tets(); ++t) family_[static_cast<std::size_t>(t)] = {t};
+  bvh_.build(family_boxes(mesh_.rest_positions_World_mm));
+}
+
+void TetCutter::update_surface() { mesh_.surface_tris = boundary_faces(mesh_); }
+
+void TetCutter::begin_stroke() {
+  ++stroke_;
+  pending_.clear();
+  for (int w : sided_) side_[static_cast<std::size_t>(w)] = 0;
+  sided_.clear();
+}
+
+std::vector<Aabb> TetCutter::family_boxes(const Eigen::Matrix3Xd& x) const {
+  std::vector<Aabb> boxes(family_.size());
+  for (std::size_t f = 0; f < family_.size(); ++f)
+    for (int t : family_[f])
+      for (int v : mesh_.tets[static_cast<std::size_t>(t)]) boxes[f].extend(Eigen::Vector3d(x.col(v)));
+  return boxes;
+}
+
+std::vector<int> TetCutter::tets_with_edge(int a, int b) const {
+  std::vector<int> out;
+  for (int t : vertex_tets_[static_cast<std::size_t>(a)]) {
+    const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+    if (std::find(tet.begin(), tet.end(), b) != tet.end()) out.push_back(t);
+  }
+  return out;
+}
+
+int TetCutter::tets_with_face(const std::array<int, 3>& f, int* tets) const {
+  int n = 0;
+  for (int t : vertex_tets_[static_cast<std::size_t>(f[0])]) {
+    const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+    if (std::find(tet.begin(), tet.end(), f[1]) != tet.end() && std::find(tet.begin(), tet.end(), f[2]) != tet.end()) {
+      if (tets && n < 2) tets[n] = t;
+      ++n;
+    }
+  }
+  return n;
+}
+
+int TetCutter::complete_pattern(int t) const {
+  const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+  bool zero[4];
+  for (int i = 0; i < 4; ++i) zero[i] = on_stroke(tet[static_cast<std::size_t>(i)]);
+  int crossed = 0;
+  for (int e = 0; e < 6; ++e) {
+    const int i = kEdges[e][0], j = kEdges[e][1];
+    if (zero[i] || zero[j]) continue;
+    if (pending_.count(edge_key(tet[static_cast<std::size_t>(i)], tet[static_cast<std::size_t>(j)]))) crossed |= 1 << e;
+  }
+  if (crossed == 0) return 0;
+  int free_vertices[4], k = 0;
+  for (int i = 0; i < 4; ++i)
+    if (!zero[i]) free_vertices[k++] = i;
+  // Sides: the first free vertex is +, every assignment of the others (both sides non-empty
+  // when some edge is crossed).
+  for (int mask = 0; mask < (1 << (k - 1)); ++mask) {
+    int side[4] = {0, 0, 0, 0};
+    side[free_vertices[0]] = 1;
+    for (int m = 1; m < k; ++m) side[free_vertices[m]] = (mask >> (m - 1)) & 1 ? -1 : 1;
+    int pattern = 0;
+    for (int e = 0; e < 6; ++e) {
+      const int i = kEdges[e][0], j = kEdges[e][1];
+      if (side[i] != 0 && side[j] != 0 && side[i] != side[j]) pattern |= 1 << e;
+    }
+    if (pattern != 0 && pattern == crossed) return crossed;
+  }
+  return 0;
+}
+
+int TetCutter::add_vertex(const VertexOrigin& o, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r) {
+  const int id = mesh_.num_vertices();
+  auto lerp = [&](const Eigen::Matrix3Xd& m) -> Eigen::Vector3d {
+    if (o.b < 0) return m.col(o.a);
+    return (1.0 - o.t) * m.col(o.a) + o.t * m.col(o.b);
+  };
+  const Eigen::Vector3d rest = lerp(mesh_.rest_positions_World_mm);
+  mesh_.rest_positions_World_mm.conservativeResize(Eigen::NoChange, id + 1);
+  mesh_.rest_positions_World_mm.col(id) = rest;
+  const Eigen::Vector3d xi = lerp(x), vi = v.cols() > o.a ? lerp(v) : Eigen::Vector3d::Zero();
+  x.conservativeResize(Eigen::NoChange, id + 1);
+  x.col(id) = xi;
+  if (v.cols() == id) {
+    v.conservativeResize(Eigen::NoChange, id + 1);
+    v.col(id) = vi;
+  }
+  vertex_tets_.emplace_back();
+  on_cut_.push_back(o.b < 0 ? on_cut_[static_cast<std::size_t>(o.a)] : stroke_);
+  side_.push_back(o.b < 0 ? side_[static_cast<std::size_t>(o.a)] : 0);
+  if (side_.back() != 0) sided_.push_back(id);
+  r.new_vertices.push_back(o);
+  ++r.vertices_added;
+  return id;
+}
+
+void TetCutter::replace_vertex(int tet, int from, int to) {
+  auto& t = mesh_.tets[static_cast<std::size_t>(tet)];
+  for (int& v : t)
+    if (v == from) v = to;
+  auto& lf = vertex_tets_[static_cast<std::size_t>(from)];
+  lf.erase(std::remove(lf.begin(), lf.end(), tet), lf.end());
+  vertex_tets_[static_cast<std::size_t>(to)].push_back(tet);
+}
+
+void TetCutter::split_edge(int a, int b, double t_ab, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r,
+                           std::vector<int>& touched) {
+  const std::vector<int> around = tets_with_edge(a, b);
+  if (around.empty()) return;
+  const int m = add_vertex({a, b, t_ab}, x, v, r);
+  ++r.edges_split;
+  for (int t : around) {
+    // Child 1 keeps index t with b -> m; child 2 is t with a -> m. Both keep the orientation
+    // (m lies strictly inside the edge).
+    std::array<int, 4> child2 = mesh_.tets[static_cast<std::size_t>(t)];
+    for (int& w : child2)
+      if (w == a) w = m;
+    replace_vertex(t, b, m);
+    const int n = mesh_.num_tets();
+    mesh_.tets.push_back(child2);
+    mesh_.tet_region.push_back(mesh_.tet_region[static_cast<std::size_t>(t)]);
+    origin_.push_back(origin_[static_cast<std::size_t>(t)]);
+    family_[static_cast<std::size_t>(origin_[static_cast<std::size_t>(t)])].push_back(n);
+    for (int w : child2) vertex_tets_[static_cast<std::size_t>(w)].push_back(n);
+    ++r.tets_added;
+    touched.push_back(t);
+    touched.push_back(n);
+  }
+}
+
+int TetCutter::separate_vertex(int vertex, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r) {
+  const std::vector<int> star = vertex_tets_[static_cast<std::size_t>(vertex)];
+  const int k = static_cast<int>(star.size());
+  if (k < 2) return 0;
+  std::vector<int> parent(static_cast<std::size_t>(k));
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](int i) {
+    while (parent[static_cast<std::size_t>(i)] != i) i = parent[static_cast<std::size_t>(i)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(i)])];
+    return i;
+  };
+  for (int i = 0; i < k; ++i) {
+    const auto& ti = mesh_.tets[static_cast<std::size_t>(star[static_cast<std::size_t>(i)])];
+    for (int j = i + 1; j < k; ++j) {
+      const auto& tj = mesh_.tets[static_cast<std::size_t>(star[static_cast<std::size_t>(j)])];
+      int shared[3], n = 0;
+      for (int a : ti)
+        if (a != vertex && std::find(tj.begin(), tj.end(), a) != tj.end() && n < 3) shared[n++] = a;
+      if (n != 2) continue;  // no common face through the vertex
+      if (cut_faces_.count(face_key(vertex, shared[0], shared[1]))) continue;
+      parent[static_cast<std::size_t>(find(i))] = find(j);
+    }
+  }
+  std::vector<int> group(static_cast<std::size_t>(k));
+  std::vector<int> roots;
+  for (int i = 0; i < k; ++i) {
+    const int root = find(i);
+    auto it = std::find(roots.begin(), roots.end(), root);
+    group[static_cast<std::size_t>(i)] = static_cast<int>(it - roots.begin());
+    if (it == roots.end()) roots.push_back(root);
+  }
+  if (roots.size() < 2) return 0;
+  for (std::size_t g = 1; g < roots.size(); ++g) {
+    const int copy = add_vertex({vertex, -1, 0.0}, x, v, r);
+    for (int i = 0; i < k; ++i)
+      if (group[static_cast<std::size_t>(i)] == static_cast<int>(g)) {
+        replace_vertex(star[static_cast<std::size_t>(i)], vertex, copy);
+        r.changed_tets.push_back(star[static_cast<std::size_t>(i)]);
+      }
+  }
+  return static_cast<int>(roots.size()) - 1;
+}
+
+CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v) {
+  const auto start = std::chrono::steady_clock::now();
+  CutStepReport r;
+  if (x.cols() != mesh_.num_vertices()) throw std::invalid_argument("cut: positions do not match the mesh");
+  if (v.cols() != 0 && v.cols() != mesh_.num_vertices()) throw std::invalid_argument("cut: velocities do not match the mesh");
+  std::vector<Triangle> tris;
+  for (const auto& t : sweep.triangles())
+    if ((t.b - t.a).cross(t.c - t.a).norm() > 0.0) tris.push_back(t);
+  auto finish = [&]() {
+    r.update_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    return r;
+  };
+  if (tris.empty() || mesh_.tets.empty()) return finish();
+  const double f = settings_.snap_fraction, vtol = settings_.vertex_tolerance_mm;
+  Aabb sweep_box;
+  for (const auto& t : tris) {
+    sweep_box.extend(t.a);
+    sweep_box.extend(t.b);
+    sweep_box.extend(t.c);
+  }
+  sweep_box = sweep_box.inflated(vtol);
+
+  // Candidates: tets whose current box meets the swept surface's box.
+  bvh_.refit(family_boxes(x));
+  std::vector<int> candidates;
+  bvh_.query(sweep_box, [&](int fam) {
+    for (int t : family_[static_cast<std::size_t>(fam)]) {
+      Aabb b;
+      for (int w : mesh_.tets[static_cast<std::size_t>(t)]) b.extend(Eigen::Vector3d(x.col(w)));
+      if (b.overlaps(sweep_box)) candidates.push_back(t);
+    }
+  });
+  r.candidate_tets = static_cast<int>(candidates.size());
+  if (candidates.empty()) return finish();
+  const int old_tets = mesh_.num_tets();
+
+  // 1. Vertices on the swept surface.
+  std::unordered_set<int> seen_vertices;
+  for (int t : candidates)
+    for (int w : mesh_.tets[static_cast<std::size_t>(t)])
+      if (seen_vertices.insert(w).second && !on_stroke(w) && sweep_distance(tris, x.col(w)) <= vtol) {
+        on_cut_[static_cast<std::size_t>(w)] = stroke_;
+        ++r.vertices_snapped;
+      }
+  // 2. Edge crossings: snapped to an end within f of it, recorded otherwise.
+  std::unordered_set<EdgeKey> seen_edges;
+  for (int t : candidates) {
+    const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+    for (const auto& e : kEdges) {
+      int a = tet[static_cast<std::size_t>(e[0])], b = tet[static_cast<std::size_t>(e[1])];
+      if (a > b) std::swap(a, b);
+      const EdgeKey key = edge_key(a, b);
+      if (!seen_edges.insert(key).second || on_stroke(a) || on_stroke(b) || pending_.count(key)) continue;
+      for (const auto& tri : tris) {
+        double s = 0.0;
+        if (!segment_triangle_intersection(x.col(a), x.col(b), tri, s)) continue;
+        if (s <= f) {
+          on_cut_[static_cast<std::size_t>(a)] = stroke_;
+          ++r.vertices_snapped;
+        } else if (s >= 1.0 - f) {
+          on_cut_[static_cast<std::size_t>(b)] = stroke_;
+          ++r.vertices_snapped;
+        } else {
+          pending_[key] = s;
+          ++r.edges_crossed;
+        }
+        break;
+      }
+    }
+  }
+  // 3. Sides: each vertex near the sweep and not on it gets the side of the plane of the
+  // nearest sweep triangle it lies on (kept for the stroke: a material property).
+  auto nearest_plane_distance = [&](const Eigen::Vector3d& p) {
+    int nearest = 0;
+    double best = 1e300;
+    for (std::size_t i = 0; i < tris.size(); ++i) {
+      const double d = point_triangle_distance(p, tris[i]);
+      if (d < best) {
+        best = d;
+        nearest = static_cast<int>(i);
+      }
+    }
+    const Triangle& near = tris[static_cast<std::size_t>(nearest)];
+    return (near.b - near.a).cross(near.c - near.a).normalized().dot(p - near.a);
+  };
+  for (int w : seen_vertices) {
+    if (on_stroke(w) || side_[static_cast<std::size_t>(w)] != 0) continue;
+    const double d = nearest_plane_distance(x.col(w));
+    if (std::abs(d) > vtol) {
+      side_[static_cast<std::size_t>(w)] = d > 0 ? 1 : -1;
+      sided_.push_back(w);
+    }
+  }
+  // 4. Tets the recorded crossings separate completely: split their crossed edges (every
+  // tet around such an edge is bisected: conforming). Repeated while splits complete more.
+  std::vector<char> cut_piece(static_cast<std::size_t>(mesh_.num_tets()), 0);
+  std::vector<int> check = candidates;
+  for (int round = 0; round < 8 && !check.empty(); ++round) {
+    std::set<EdgeKey> to_split;
+    for (int t : check) {
+      const int pattern = complete_pattern(t);
+      if (pattern == 0) continue;
+      ++r.tets_cut;
+      if (static_cast<std::size_t>(t) >= cut_piece.size()) cut_piece.resize(static_cast<std::size_t>(t) + 1, 0);
+      cut_piece[static_cast<std::size_t>(t)] = 1;
+      const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+      for (int e = 0; e < 6; ++e)
+        if (pattern & (1 << e)) to_split.insert(edge_key(tet[static_cast<std::size_t>(kEdges[e][0])], tet[static_cast<std::size_t>(kEdges[e][1])]));
+    }
+    std::vector<int> touched;
+    for (EdgeKey key : to_split) {
+      const int a = static_cast<int>(key >> 32), b = static_cast<int>(key & 0xffffffffu);
+      const double t_ab = pending_.at(key);
+      pending_.erase(key);
+      const std::size_t first_pair = touched.size();
+      split_edge(a, b, t_ab, x, v, r, touched);
+      // Children inherit the parent's mark (each piece of a cut tet lies on one side).
+      cut_piece.resize(mesh_.tets.size(), 0);
+      for (std::size_t i = first_pair; i + 1 < touched.size(); i += 2)
+        cut_piece[static_cast<std::size_t>(touched[i + 1])] = cut_piece[static_cast<std::size_t>(touched[i])];
+    }
+    r.changed_tets.insert(r.changed_tets.end(), touched.begin(), touched.end());
+    std::sort(touched.begin(), touched.end());
+    touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+    check = touched;
+  }
+  // Cut faces: faces of the separated pieces with their three vertices on this stroke (the
+  // cut polygons), and faces with their three vertices on this stroke between two tets on
+  // opposite sides (a cut through existing vertices and faces).
+  std::vector<std::array<int, 3>> new_cut_faces;
+  for (std::size_t t = 0; t < cut_piece.size(); ++t) {
+    if (!cut_piece[t]) continue;
+    const auto& tet = mesh_.tets[t];
+    for (const auto& fc : kFaces) {
+      const std::array<int, 3> key = face_key(tet[static_cast<std::size_t>(fc[0])], tet[static_cast<std::size_t>(fc[1])],
+                                              tet[static_cast<std::size_t>(fc[2])]);
+      if (on_stroke(key[0]) && on_stroke(key[1]) && on_stroke(key[2]) && tets_with_face(key) == 2 && cut_faces_.insert(key).second)
+        new_cut_faces.push_back(key);
+    }
+  }
+  auto tet_side = [&](int t) {
+    int side = 0;
+    bool any_free = false;
+    for (int w : mesh_.tets[static_cast<std::size_t>(t)]) {
+      if (on_stroke(w)) continue;
+      any_free = true;
+      const int sw = side_[static_cast<std::size_t>(w)];
+      if (sw == 0 || (side != 0 && sw != side)) return 0;
+      side = sw;
+    }
+    if (!any_free) {  // all four vertices on the cut: the side of its centroid
+      Eigen::Vector3d c = Eigen::Vector3d::Zero();
+      for (int w : mesh_.tets[static_cast<std::size_t>(t)]) c += x.col(w);
+      const double d = nearest_plane_distance(c / 4.0);
+      return d > 0 ? 1 : (d < 0 ? -1 : 0);
+    }
+    return side;
+  };
+  std::vector<int> face_tets = candidates;
+  face_tets.insert(face_tets.end(), r.changed_tets.begin(), r.changed_tets.end());
+  std::unordered_set<std::array<int, 3>, FaceHash> seen_faces;
+  for (int t : face_tets) {
+    const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+    for (const auto& fc : kFaces) {
+      const std::array<int, 3> key = face_key(tet[static_cast<std::size_t>(fc[0])], tet[static_cast<std::size_t>(fc[1])],
+                                              tet[static_cast<std::size_t>(fc[2])]);
+      if (!on_stroke(key[0]) || !on_stroke(key[1]) || !on_stroke(key[2])) continue;
+      if (cut_faces_.count(key) || !seen_faces.insert(key).second) continue;
+      int pair[2] = {-1, -1};
+      if (tets_with_face(key, pair) != 2) continue;
+      if (tet_side(pair[0]) * tet_side(pair[1]) < 0) {
+        cut_faces_.insert(key);
+        new_cut_faces.push_back(key);
+      }
+    }
+  }
+  // 5. Separate: duplicate each vertex of a cut face whose tets fall apart into groups.
+  if (!cut_faces_.empty()) {
+    std::vector<int> vertices;
+    for (const auto& key : cut_faces_) vertices.insert(vertices.end(), key.begin(), key.end());
+    std::sort(vertices.begin(), vertices.end());
+    vertices.erase(std::unique(vertices.begin(), vertices.end()), vertices.end());
+    for (int w : vertices) separate_vertex(w, x, v, r);
+    for (auto it = cut_faces_.begin(); it != cut_faces_.end();) {
+      if (tets_with_face(*it) < 2) {
+        ++r.faces_separated;
+        it = cut_faces_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+  }
+  r.topology_changed = r.vertices_added > 0;
+  std::sort(r.changed_tets.begin(), r.changed_tets.end());
+  r.changed_tets.erase(std::unique(r.changed_tets.begin(), r.changed_tets.end()), r.changed_tets.end());
+  (void)old_tets;
+  return finish();
+}
+
+}  // namespace arnav::host::cut
