@@ -181,6 +181,30 @@ void TetCutter::split_edge(int a, int b, double t_ab, Eigen::Matrix3Xd& x, Eigen
   }
 }
 
+bool TetCutter::ring_is_cut(int p, int q) const {
+  const std::vector<int> ring = tets_with_edge(p, q);
+  const int k = static_cast<int>(ring.size());
+  if (k < 2) return false;
+  std::vector<int> parent(static_cast<std::size_t>(k));
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](int i) {
+    while (parent[static_cast<std::size_t>(i)] != i) i = parent[static_cast<std::size_t>(i)];
+    return i;
+  };
+  for (int i = 0; i < k; ++i)
+    for (int j = i + 1; j < k; ++j) {
+      const auto& ti = mesh_.tets[static_cast<std::size_t>(ring[static_cast<std::size_t>(i)])];
+      const auto& tj = mesh_.tets[static_cast<std::size_t>(ring[static_cast<std::size_t>(j)])];
+      for (int w : ti) {
+        if (w == p || w == q || std::find(tj.begin(), tj.end(), w) == tj.end()) continue;
+        if (!cut_faces_.count(face_key(p, q, w))) parent[static_cast<std::size_t>(find(i))] = find(j);
+      }
+    }
+  int groups = 0;
+  for (int i = 0; i < k; ++i) groups += find(i) == i;
+  return groups > 1;
+}
+
 int TetCutter::separate_vertex(int vertex, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r) {
   const std::vector<int> star = vertex_tets_[static_cast<std::size_t>(vertex)];
   const int k = static_cast<int>(star.size());
@@ -405,7 +429,47 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
     for (const auto& key : cut_faces_) vertices.insert(vertices.end(), key.begin(), key.end());
     std::sort(vertices.begin(), vertices.end());
     vertices.erase(std::unique(vertices.begin(), vertices.end()), vertices.end());
+    std::vector<std::pair<int, int>> edges;
+    for (const auto& key : cut_faces_)
+      for (int i = 0; i < 3; ++i) edges.emplace_back(std::min(key[static_cast<std::size_t>(i)], key[static_cast<std::size_t>((i + 1) % 3)]),
+                                                     std::max(key[static_cast<std::size_t>(i)], key[static_cast<std::size_t>((i + 1) % 3)]));
+    std::sort(edges.begin(), edges.end());
+    edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
     for (int w : vertices) separate_vertex(w, x, v, r);
+    // Also the edges of every tet that changed (a second cut meeting an earlier one).
+    for (int t : r.changed_tets) {
+      const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+      for (const auto& e : kEdges) {
+        const int p = tet[static_cast<std::size_t>(e[0])], q = tet[static_cast<std::size_t>(e[1])];
+        if (on_cut(p) && on_cut(q)) edges.emplace_back(std::min(p, q), std::max(p, q));
+      }
+    }
+    std::sort(edges.begin(), edges.end());
+    edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+    // An edge inside the cut whose two ends stay joined (the cut reaches the edge from both
+    // sides but not past its ends) would be shared by both lips (non-manifold): split it at
+    // its mid-point and separate the new vertex.
+    for (const auto& [p, q] : edges) {
+      if (!ring_is_cut(p, q)) continue;
+      const int m = mesh_.num_vertices();
+      std::vector<int> touched;
+      split_edge(p, q, 0.5, x, v, r, touched);
+      r.changed_tets.insert(r.changed_tets.end(), touched.begin(), touched.end());
+      std::vector<std::array<int, 3>> moved;
+      for (auto it = cut_faces_.begin(); it != cut_faces_.end();) {
+        const auto& face = *it;
+        if (std::find(face.begin(), face.end(), p) != face.end() && std::find(face.begin(), face.end(), q) != face.end()) {
+          const int other = face[0] != p && face[0] != q ? face[0] : (face[1] != p && face[1] != q ? face[1] : face[2]);
+          moved.push_back(face_key(p, m, other));
+          moved.push_back(face_key(m, q, other));
+          it = cut_faces_.erase(it);
+        } else {
+          ++it;
+        }
+      }
+      cut_faces_.insert(moved.begin(), moved.end());
+      separate_vertex(m, x, v, r);
+    }
     for (auto it = cut_faces_.begin(); it != cut_faces_.end();) {
       if (tets_with_face(*it) < 2) {
         ++r.faces_separated;

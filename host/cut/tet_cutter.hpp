@@ -115,6 +115,9 @@ class TetCutter {
   void split_edge(int a, int b, double t_ab, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r,
                   std::vector<int>& touched);
   void replace_vertex(int tet, int from, int to);
+  // True when the tets around edge p-q fall into several groups once cut faces no longer
+  // connect them.
+  bool ring_is_cut(int p, int q) const;
   int separate_vertex(int vertex, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   std::vector<Aabb> family_boxes(const Eigen::Matrix3Xd& x) const;
 
