@@ -12,7 +12,13 @@ BladeSegment blade_in_world(const Blade& blade, const Eigen::Isometry3d& X_World
 
 namespace {
 Eigen::Vector3d patch(const SweptSurface& s, double u, double t) {
-  const Eigen::Vector3d p0 = (1 - u) * s.from.tip_World_mm + u * s.from.heel_World_mm;
+  Eigen::Vector3d p0 = (1 - u) * s.from.tip_World_mm + u * s.from.heel_World_mm;
+  const int n = std::max(1, s.strips);
+  if (static_cast<int>(s.from_points.size()) == n + 1) {
+    const double k = std::clamp(u * n, 0.0, static_cast<double>(n));
+    const int i = std::min(static_cast<int>(k), n - 1);
+    p0 = s.from_points[static_cast<std::size_t>(i)] + (k - i) * (s.from_points[static_cast<std::size_t>(i) + 1] - s.from_points[static_cast<std::size_t>(i)]);
+  }
   const Eigen::Vector3d p1 = (1 - u) * s.to.tip_World_mm + u * s.to.heel_World_mm;
   return (1 - t) * p0 + t * p1;
 }

@@ -40,6 +40,10 @@ struct Triangle {
 struct SweptSurface {
   BladeSegment from, to;
   int strips = 1;
+  // Optional: the start line as strips + 1 points, tip first (the previous blade carried along
+  // with the tissue during the last step: the new strip starts on the material the last one
+  // ended on). Replaces `from` when it has strips + 1 points.
+  std::vector<Eigen::Vector3d> from_points;
 
   std::vector<Triangle> triangles() const;
   // Largest distance between the bilinear patch and its triangulation (mid-points of the

@@ -1,5 +1,7 @@
 #include "host/cut/tet_cutter.hpp"
 
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
 #include <algorithm>
 #include <chrono>
 #include <numeric>
@@ -47,11 +49,71 @@ TetCutter::TetCutter(const TetMesh& mesh, const CutSettings& settings) : mesh_(m
   if (mesh_.tet_region.size() != mesh_.tets.size()) mesh_.tet_region.assign(mesh_.tets.size(), 0);
   on_cut_.assign(static_cast<std::size_t>(nv), 0);
   side_.assign(static_cast<std::size_t>(nv), 0);
+  tip_tet_.assign(mesh_.tets.size(), 0);
   origin_.resize(mesh_.tets.size());
   std::iota(origin_.begin(), origin_.end(), 0);
   family_.resize(mesh_.tets.size());
   for (int t = 0; t < mesh_.num_tets(); ++t) family_[static_cast<std::size_t>(t)] = {t};
   bvh_.build(family_boxes(mesh_.rest_positions_World_mm));
+}
+
+int TetCutter::locate(const Eigen::Vector3d& p, const Eigen::Matrix3Xd& x, Eigen::Vector4d& weights) {
+  bvh_.refit(family_boxes(x));
+  Aabb box;
+  box.extend(p);
+  int best_tet = -1;
+  double best = -1e300;
+  bvh_.query(box, [&](int fam) {
+    for (int t : family_[static_cast<std::size_t>(fam)]) {
+      const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+      Eigen::Matrix3d D;
+      for (int k = 0; k < 3; ++k) D.col(k) = x.col(tet[static_cast<std::size_t>(k + 1)]) - x.col(tet[0]);
+      const Eigen::Vector3d l = D.partialPivLu().solve(p - x.col(tet[0]));
+      const Eigen::Vector4d w(1.0 - l.sum(), l[0], l[1], l[2]);
+      if (w.allFinite() && w.minCoeff() > best) {
+        best = w.minCoeff();
+        best_tet = t;
+        weights = w;
+      }
+    }
+  });
+  return best_tet;
+}
+
+std::string TetCutter::describe_pending() const {
+  std::string out;
+  for (int t = 0; t < mesh_.num_tets(); ++t) {
+    const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+    std::string edges;
+    for (const auto& e : kEdges) {
+      const auto it = pending_.find(edge_key(tet[static_cast<std::size_t>(e[0])], tet[static_cast<std::size_t>(e[1])]));
+      if (it != pending_.end()) edges += " " + std::to_string(e[0]) + std::to_string(e[1]) + "@" + std::to_string(it->second);
+    }
+    if (edges.empty() || complete_pattern(t) != 0) continue;
+    out += "tet " + std::to_string(t) + (tip_tet_[static_cast<std::size_t>(t)] ? " [tip]" : "") + " vertices";
+    for (int w : tet)
+      out += " " + std::to_string(w) + (on_stroke(w) ? "[cut]" : "") + "(side " + std::to_string(side_[static_cast<std::size_t>(w)]) + ")";
+    out += " crossings" + edges + "\n";
+  }
+  // Interior faces with all three vertices on this stroke that are not cut.
+  for (int t = 0; t < mesh_.num_tets(); ++t) {
+    const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+    for (const auto& fc : kFaces) {
+      const auto key = face_key(tet[static_cast<std::size_t>(fc[0])], tet[static_cast<std::size_t>(fc[1])], tet[static_cast<std::size_t>(fc[2])]);
+      if (!on_stroke(key[0]) || !on_stroke(key[1]) || !on_stroke(key[2])) continue;
+      int pair[2] = {-1, -1};
+      if (tets_with_face(key, pair) != 2 || pair[0] != t) continue;
+      out += "face " + std::to_string(key[0]) + " " + std::to_string(key[1]) + " " + std::to_string(key[2]) + (cut_faces_.count(key) ? " [cut]" : "") + " between";
+      for (int k = 0; k < 2; ++k) {
+        out += " tet " + std::to_string(pair[k]) + " (";
+        for (int w : mesh_.tets[static_cast<std::size_t>(pair[k])])
+          out += " " + std::to_string(w) + (on_stroke(w) ? "*" : "") + ":" + std::to_string(side_[static_cast<std::size_t>(w)]);
+        out += ")";
+      }
+      out += "\n";
+    }
+  }
+  return out;
 }
 
 void TetCutter::update_surface() { mesh_.surface_tris = boundary_faces(mesh_); }
@@ -61,6 +123,7 @@ void TetCutter::begin_stroke() {
   pending_.clear();
   for (int w : sided_) side_[static_cast<std::size_t>(w)] = 0;
   sided_.clear();
+  std::fill(tip_tet_.begin(), tip_tet_.end(), 0);
 }
 
 std::vector<Aabb> TetCutter::family_boxes(const Eigen::Matrix3Xd& x) const {
@@ -119,7 +182,70 @@ int TetCutter::complete_pattern(int t) const {
     }
     if (pattern != 0 && pattern == crossed) return crossed;
   }
+  // The sides of the free vertices (known for this stroke) give the pattern; crossings
+  // recorded on other edges (the tissue moved between frames) are left to the other tets.
+  const int by_sides = side_pattern(t);
+  if (by_sides != 0 && (by_sides & crossed) == by_sides) return by_sides;
   return 0;
+}
+
+int TetCutter::side_pattern(int t) const {
+  const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+  int side[4];
+  bool plus = false, minus = false;
+  for (int i = 0; i < 4; ++i) {
+    const int w = tet[static_cast<std::size_t>(i)];
+    side[i] = on_stroke(w) ? 0 : side_[static_cast<std::size_t>(w)];
+    if (!on_stroke(w) && side[i] == 0) return 0;  // a free vertex without a side
+    plus |= side[i] > 0;
+    minus |= side[i] < 0;
+  }
+  if (!plus || !minus) return 0;
+  int pattern = 0;
+  for (int e = 0; e < 6; ++e)
+    if (side[kEdges[e][0]] * side[kEdges[e][1]] < 0) pattern |= 1 << e;
+  return pattern;
+}
+
+bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x) {
+  const int pattern = side_pattern(t);
+  if (pattern == 0) return false;
+  const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+  std::vector<Eigen::Vector3d> points;
+  for (int w : tet)
+    if (on_stroke(w)) points.push_back(x.col(w));
+  std::vector<int> missing;
+  for (int e = 0; e < 6; ++e) {
+    if (!(pattern & (1 << e))) continue;
+    const int a = tet[static_cast<std::size_t>(kEdges[e][0])], b = tet[static_cast<std::size_t>(kEdges[e][1])];
+    const auto it = pending_.find(edge_key(a, b));
+    if (it == pending_.end()) {
+      missing.push_back(e);
+    } else {
+      const int lo = std::min(a, b), hi = std::max(a, b);
+      points.push_back((1 - it->second) * x.col(lo) + it->second * x.col(hi));
+    }
+  }
+  if (missing.empty() || points.empty()) return false;
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  for (const auto& p : points) centre += p;
+  centre /= static_cast<double>(points.size());
+  Eigen::Vector3d normal = last_normal_;
+  if (points.size() >= 3) {
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (const auto& p : points) cov += (p - centre) * (p - centre).transpose();
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+    if (eig.eigenvalues()[1] > 1e-12 * std::max(1e-300, eig.eigenvalues()[2])) normal = eig.eigenvectors().col(0);
+  }
+  const double f = settings_.snap_fraction;
+  for (int e : missing) {
+    const int a = std::min(tet[static_cast<std::size_t>(kEdges[e][0])], tet[static_cast<std::size_t>(kEdges[e][1])]);
+    const int b = std::max(tet[static_cast<std::size_t>(kEdges[e][0])], tet[static_cast<std::size_t>(kEdges[e][1])]);
+    const double d0 = normal.dot(x.col(a) - centre), d1 = normal.dot(x.col(b) - centre);
+    const double s = d0 * d1 < 0 ? d0 / (d0 - d1) : 0.5;
+    pending_[edge_key(a, b)] = std::clamp(s, f, 1.0 - f);
+  }
+  return true;
 }
 
 int TetCutter::add_vertex(const VertexOrigin& o, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r) {
@@ -173,6 +299,7 @@ void TetCutter::split_edge(int a, int b, double t_ab, Eigen::Matrix3Xd& x, Eigen
     mesh_.tets.push_back(child2);
     mesh_.tet_region.push_back(mesh_.tet_region[static_cast<std::size_t>(t)]);
     origin_.push_back(origin_[static_cast<std::size_t>(t)]);
+    tip_tet_.push_back(tip_tet_[static_cast<std::size_t>(t)]);
     family_[static_cast<std::size_t>(origin_[static_cast<std::size_t>(t)])].push_back(n);
     for (int w : child2) vertex_tets_[static_cast<std::size_t>(w)].push_back(n);
     ++r.tets_added;
@@ -280,8 +407,39 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
     }
   });
   r.candidate_tets = static_cast<int>(candidates.size());
-  if (candidates.empty()) return finish();
+  if (candidates.empty() && pending_.empty()) return finish();
   const int old_tets = mesh_.num_tets();
+  // Tets a blade end (tip or heel path) passes through hold the crack front.
+  {
+    const int n = std::max(1, sweep.strips);
+    const bool advected = static_cast<int>(sweep.from_points.size()) == n + 1;
+    const Eigen::Vector3d tip0 = advected ? sweep.from_points.front() : sweep.from.tip_World_mm;
+    const Eigen::Vector3d heel0 = advected ? sweep.from_points.back() : sweep.from.heel_World_mm;
+    const std::array<std::pair<Eigen::Vector3d, Eigen::Vector3d>, 2> paths{{{tip0, sweep.to.tip_World_mm}, {heel0, sweep.to.heel_World_mm}}};
+    for (int t : candidates) {
+      const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+      for (const auto& [p0, p1] : paths) {
+        bool hit = false;
+        for (const auto& fc : kFaces) {
+          double s = 0;
+          if (segment_triangle_intersection(p0, p1, {x.col(tet[static_cast<std::size_t>(fc[0])]), x.col(tet[static_cast<std::size_t>(fc[1])]),
+                                                     x.col(tet[static_cast<std::size_t>(fc[2])])}, s)) {
+            hit = true;
+            break;
+          }
+        }
+        if (!hit) {
+          Eigen::Matrix3d D;
+          for (int k = 0; k < 3; ++k) D.col(k) = x.col(tet[static_cast<std::size_t>(k + 1)]) - x.col(tet[0]);
+          const Eigen::Vector3d l = D.partialPivLu().solve(p1 - x.col(tet[0]));
+          hit = l.minCoeff() >= 0 && l.sum() <= 1;
+        }
+        if (hit) tip_tet_[static_cast<std::size_t>(t)] = 1;
+      }
+    }
+    const Triangle& t0 = tris.front();
+    last_normal_ = (t0.b - t0.a).cross(t0.c - t0.a).normalized();
+  }
 
   // 1. Vertices on the swept surface.
   std::unordered_set<int> seen_vertices;
@@ -343,35 +501,60 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
   // 4. Tets the recorded crossings separate completely: split their crossed edges (every
   // tet around such an edge is bisected: conforming). Repeated while splits complete more.
   std::vector<char> cut_piece(static_cast<std::size_t>(mesh_.num_tets()), 0);
-  std::vector<int> check = candidates;
-  for (int round = 0; round < 8 && !check.empty(); ++round) {
-    std::set<EdgeKey> to_split;
-    for (int t : check) {
-      const int pattern = complete_pattern(t);
-      if (pattern == 0) continue;
-      ++r.tets_cut;
-      if (static_cast<std::size_t>(t) >= cut_piece.size()) cut_piece.resize(static_cast<std::size_t>(t) + 1, 0);
-      cut_piece[static_cast<std::size_t>(t)] = 1;
-      const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
-      for (int e = 0; e < 6; ++e)
-        if (pattern & (1 << e)) to_split.insert(edge_key(tet[static_cast<std::size_t>(kEdges[e][0])], tet[static_cast<std::size_t>(kEdges[e][1])]));
+  auto split_completed = [&](std::vector<int> check) {
+    for (int round = 0; round < 8 && !check.empty(); ++round) {
+      std::set<EdgeKey> to_split;
+      for (int t : check) {
+        const int pattern = complete_pattern(t);
+        if (pattern == 0) continue;
+        ++r.tets_cut;
+        if (static_cast<std::size_t>(t) >= cut_piece.size()) cut_piece.resize(static_cast<std::size_t>(t) + 1, 0);
+        cut_piece[static_cast<std::size_t>(t)] = 1;
+        const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+        for (int e = 0; e < 6; ++e)
+          if (pattern & (1 << e)) to_split.insert(edge_key(tet[static_cast<std::size_t>(kEdges[e][0])], tet[static_cast<std::size_t>(kEdges[e][1])]));
+      }
+      std::vector<int> touched;
+      for (EdgeKey key : to_split) {
+        const int a = static_cast<int>(key >> 32), b = static_cast<int>(key & 0xffffffffu);
+        const auto it = pending_.find(key);
+        if (it == pending_.end()) continue;
+        const double t_ab = it->second;
+        pending_.erase(it);
+        const std::size_t first_pair = touched.size();
+        split_edge(a, b, t_ab, x, v, r, touched);
+        // Children inherit the parent's mark (each piece of a cut tet lies on one side).
+        cut_piece.resize(mesh_.tets.size(), 0);
+        for (std::size_t i = first_pair; i + 1 < touched.size(); i += 2)
+          cut_piece[static_cast<std::size_t>(touched[i + 1])] = cut_piece[static_cast<std::size_t>(touched[i])];
+      }
+      r.changed_tets.insert(r.changed_tets.end(), touched.begin(), touched.end());
+      std::sort(touched.begin(), touched.end());
+      touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+      check = touched;
     }
-    std::vector<int> touched;
-    for (EdgeKey key : to_split) {
-      const int a = static_cast<int>(key >> 32), b = static_cast<int>(key & 0xffffffffu);
-      const double t_ab = pending_.at(key);
-      pending_.erase(key);
-      const std::size_t first_pair = touched.size();
-      split_edge(a, b, t_ab, x, v, r, touched);
-      // Children inherit the parent's mark (each piece of a cut tet lies on one side).
-      cut_piece.resize(mesh_.tets.size(), 0);
-      for (std::size_t i = first_pair; i + 1 < touched.size(); i += 2)
-        cut_piece[static_cast<std::size_t>(touched[i + 1])] = cut_piece[static_cast<std::size_t>(touched[i])];
+  };
+  split_completed(candidates);
+  // 4b. Tets the blade has left (no longer near the sweep) whose crossings stay incomplete
+  // because the tissue moved between frames, and that no blade end passed through (those are
+  // the crack tip): the missing crossings are put on the plane of the recorded ones.
+  {
+    std::vector<char> near(mesh_.tets.size(), 0);
+    for (int t : candidates) near[static_cast<std::size_t>(t)] = 1;
+    for (std::size_t t = static_cast<std::size_t>(old_tets); t < near.size(); ++t) near[t] = 1;
+    std::vector<int> stale;
+    for (const auto& [key, param] : pending_) {
+      (void)param;
+      for (int t : tets_with_edge(static_cast<int>(key >> 32), static_cast<int>(key & 0xffffffffu)))
+        if (!near[static_cast<std::size_t>(t)] && !tip_tet_[static_cast<std::size_t>(t)]) stale.push_back(t);
     }
-    r.changed_tets.insert(r.changed_tets.end(), touched.begin(), touched.end());
-    std::sort(touched.begin(), touched.end());
-    touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
-    check = touched;
+    std::sort(stale.begin(), stale.end());
+    stale.erase(std::unique(stale.begin(), stale.end()), stale.end());
+    std::vector<int> completed;
+    for (int t : stale)
+      if (complete_pattern(t) == 0 && complete_from_sides(t, x)) completed.push_back(t);
+    r.tets_completed = static_cast<int>(completed.size());
+    split_completed(completed);
   }
   // Cut faces: faces of the separated pieces with their three vertices on this stroke (the
   // cut polygons), and faces with their three vertices on this stroke between two tets on
@@ -482,7 +665,6 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
   r.topology_changed = r.vertices_added > 0;
   std::sort(r.changed_tets.begin(), r.changed_tets.end());
   r.changed_tets.erase(std::unique(r.changed_tets.begin(), r.changed_tets.end()), r.changed_tets.end());
-  (void)old_tets;
   return finish();
 }
 

@@ -22,6 +22,7 @@
 
 #include <array>
 #include <cstdint>
+#include <string>
 #include <unordered_map>
 #include <unordered_set>
 #include <vector>
@@ -54,6 +55,7 @@ struct CutStepReport {
   int edges_crossed = 0;      // new edge crossings recorded this step
   int vertices_snapped = 0;   // vertices newly on the cut
   int tets_cut = 0;           // tets separated by the cut this step
+  int tets_completed = 0;     // of which completed from the vertex sides (tissue moved)
   int edges_split = 0;
   int tets_added = 0;         // new tets (splits)
   int vertices_added = 0;     // edge points + copies
@@ -82,6 +84,13 @@ class TetCutter {
   // at construction.
   void begin_stroke();
 
+  // The tet containing p at positions x (or the nearest one of those whose box holds p, by
+  // barycentric weights), with its weights; tet -1 when no tet box holds p.
+  int locate(const Eigen::Vector3d& p_World_mm, const Eigen::Matrix3Xd& x_World_mm, Eigen::Vector4d& weights);
+
+  // Tets with recorded crossings that do not (yet) separate them, as text (for diagnosis).
+  std::string describe_pending() const;
+
   // Recomputes mesh().surface_tris (boundary faces, outward): O(tets log tets).
   void update_surface();
 
@@ -91,8 +100,10 @@ class TetCutter {
   bool on_cut(int vertex) const { return on_cut_[static_cast<std::size_t>(vertex)] != 0; }
   // Crossings recorded but not yet split (the crack front and tets the cut has entered).
   int pending_crossings() const { return static_cast<int>(pending_.size()); }
-  // Index of the tet of the input mesh that tet t was cut from.
+  // Index of the tet of the input mesh that tet t was cut from, and the current pieces of an
+  // input tet (they tile it exactly in the rest configuration).
   int origin_tet(int t) const { return origin_[static_cast<std::size_t>(t)]; }
+  const std::vector<int>& pieces_of(int input_tet) const { return family_[static_cast<std::size_t>(input_tet)]; }
 
  private:
   using EdgeKey = std::uint64_t;
@@ -111,6 +122,11 @@ class TetCutter {
   int tets_with_face(const std::array<int, 3>& f, int* tets = nullptr) const;
   // Crossed-edge bitmask of a complete separation of tet t, or 0 when incomplete.
   int complete_pattern(int t) const;
+  // Crossed-edge bitmask implied by the sides of tet t's free vertices (0 when unknown).
+  int side_pattern(int t) const;
+  // Adds the crossings missing from the side pattern of tet t on the plane through the
+  // recorded ones; false when the sides are unknown or nothing is missing.
+  bool complete_from_sides(int t, const Eigen::Matrix3Xd& x);
   int add_vertex(const VertexOrigin& o, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   void split_edge(int a, int b, double t_ab, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r,
                   std::vector<int>& touched);
@@ -131,6 +147,8 @@ class TetCutter {
   std::vector<signed char> side_;                // per vertex: side of this stroke's sweep (+1/-1, 0 unknown)
   std::vector<int> sided_;                       // vertices with a side (reset at the next stroke)
   FaceSet cut_faces_;                            // interior faces to separate
+  std::vector<char> tip_tet_;                    // per tet: a blade end passed through it this stroke
+  Eigen::Vector3d last_normal_ = Eigen::Vector3d::UnitZ();  // of the last sweep
   std::vector<int> origin_;                      // per tet: tet of the input mesh
   std::vector<std::vector<int>> family_;         // per input tet: its current pieces
   Bvh bvh_;                                      // over input tets (boxes of their families)

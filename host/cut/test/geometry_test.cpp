@@ -23,19 +23,19 @@ TEST(Blade, PoseMovesTipAndHeel) {
 }
 
 TEST(SweptSurface, PlanarSweepIsExactTwistedReportsDeviation) {
-  SweptSurface planar{{Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0, 0, 10)}, {Eigen::Vector3d(5, 0, 0), Eigen::Vector3d(5, 0, 10)}, 1};
+  SweptSurface planar{{Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0, 0, 10)}, {Eigen::Vector3d(5, 0, 0), Eigen::Vector3d(5, 0, 10)}, 1, {}};
   EXPECT_EQ(planar.triangles().size(), 2u);
   EXPECT_NEAR(planar.max_deviation_mm(), 0.0, 1e-12);
   double area = 0;
   for (const auto& t : planar.triangles()) area += 0.5 * (t.b - t.a).cross(t.c - t.a).norm();
   EXPECT_NEAR(area, 50.0, 1e-12);
   // A twisting blade: the bilinear patch is not planar; more strips, smaller deviation.
-  SweptSurface twisted{{Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0, 0, 10)}, {Eigen::Vector3d(5, 0, 0), Eigen::Vector3d(5, 4, 10)}, 1};
+  SweptSurface twisted{{Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0, 0, 10)}, {Eigen::Vector3d(5, 0, 0), Eigen::Vector3d(5, 4, 10)}, 1, {}};
   const double d1 = twisted.max_deviation_mm();
   twisted.strips = 8;
   EXPECT_GT(d1, 0.1);
   EXPECT_LT(twisted.max_deviation_mm(), d1 / 4);
-  SweptSurface still{planar.from, planar.from, 1};
+  SweptSurface still{planar.from, planar.from, 1, {}};
   EXPECT_TRUE(still.degenerate());
   EXPECT_FALSE(planar.degenerate());
 }

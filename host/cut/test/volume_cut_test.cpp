@@ -20,7 +20,7 @@ void sweep(TetCutter& cutter, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, const Bl
   for (int f = 1; f <= frames; ++f) {
     const double s = static_cast<double>(f) / frames;
     BladeSegment cur{(1 - s) * a.tip_World_mm + s * b.tip_World_mm, (1 - s) * a.heel_World_mm + s * b.heel_World_mm};
-    cutter.step({prev, cur, 1}, x, v);
+    cutter.step({prev, cur, 1, {}}, x, v);
     prev = cur;
   }
 }
