@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "host/scene/embedding.hpp"
+#include "host/scene/scene_spec.hpp"
 #include "host/scene/tet_mesh.hpp"
 #include "host/sim/model_config.hpp"
 #include "host/sim/tissue_model.hpp"
@@ -41,6 +42,7 @@ struct Scene {
   std::vector<EmbeddedSurface> tumours;
   std::optional<EmbeddedVessels> vessels;
   std::vector<std::string> notes;         // what loading did (flips, meshing, counts)
+  std::optional<CuttingSpec> cutting;     // the scalpel cuts the organ (docs/cut.md); only when declared
 };
 
 // Reads and builds a scene. Throws LoadError naming the file (scene or mesh), the line

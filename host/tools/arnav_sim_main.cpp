@@ -31,6 +31,10 @@ int main(int argc, char** argv) {
   app.add_option("--model", model_kind, "override the scene's model kind (mass_spring, xpbd, corotational_fem)");
   app.add_option("--iterations", iterations, "override model.iterations")->check(CLI::PositiveNumber);
   app.add_option("--substeps", substeps, "override model.substeps")->check(CLI::PositiveNumber);
+  std::string scalpel_path;
+  app.add_option("--scalpel", scalpel_path,
+                 "scalpel path CSV (t_s,tip_x,tip_y,tip_z,heel_x,heel_y,heel_z[,cutting], World mm): cut the organ "
+                 "(the scene needs a 'cutting:' section, docs/cut.md)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -49,6 +53,18 @@ int main(int argc, char** argv) {
   if (iterations > 0) scene.model.iterations = iterations;
   if (substeps > 0) scene.model.substeps = substeps;
   options.frames = frames >= 0 ? frames : scene.frames;
+  if (!scalpel_path.empty()) {
+    if (!scene.cutting) {
+      std::cerr << "arnav-sim: " << scene_path << " has no 'cutting:' section: add one to cut with --scalpel (docs/cut.md)\n";
+      return 2;
+    }
+    try {
+      options.scalpel = cut::load_scalpel_csv(scalpel_path);
+    } catch (const LoadError& e) {
+      std::cerr << "arnav-sim: " << e.what() << "\n";
+      return 2;
+    }
+  }
 
   std::ofstream csv_file;
   if (!options.out_dir.empty()) {
@@ -72,7 +88,12 @@ int main(int argc, char** argv) {
        << ",\"tetrahedra\":" << scene.problem.mesh.num_tets() << ",\"frames\":" << r.frames_run << ",\"dt_s\":" << scene.time_step_s
        << ",\"median_step_ms\":" << r.median_step_ms << ",\"max_displacement_mm\":" << r.max_displacement_mm
        << ",\"tumour_displacement_mm\":[" << r.tumour_displacement_mm.x() << "," << r.tumour_displacement_mm.y() << ","
-       << r.tumour_displacement_mm.z() << "],\"healthy\":" << (r.healthy ? "true" : "false") << "}";
+       << r.tumour_displacement_mm.z() << "],\"healthy\":" << (r.healthy ? "true" : "false");
+  if (options.scalpel) {
+    json << ",\"cut\":{\"tets\":" << r.tets << ",\"vertices\":" << r.vertices << ",\"pieces\":" << r.pieces << ",\"events\":" << r.cut_events
+         << ",\"max_topology_update_ms\":" << r.max_topology_update_ms << "}";
+  }
+  json << "}";
   (options.out_dir.empty() ? std::cerr : std::cout) << json.str() << "\n";
   if (!r.healthy) {
     std::cerr << "arnav-sim: the model became unhealthy at frame " << r.frames_run << ": " << r.warning
