@@ -195,6 +195,19 @@ void CutSession::check_events(const BladeSegment& blade, const SweptSurface* swe
   }
 }
 
+void CutSession::absorb(CutFrameReport& report, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v) {
+  if (!report.cut.topology_changed) return;
+  auto t0 = std::chrono::steady_clock::now();
+  rebuild_model(report.cut);
+  model_->set_state(x, v);
+  report.rebuild_ms = ms_since(t0);
+  t0 = std::chrono::steady_clock::now();
+  for (auto& t : tumours_) reembed(t, report.cut);
+  if (vessels_) reembed(*vessels_, report.cut);
+  report.reembed_ms = ms_since(t0);
+  surface_dirty_ = true;
+}
+
 CutFrameReport CutSession::apply_blade(const BladeSegment& blade, bool cutting_enabled) {
   ++frame_;
   CutFrameReport report;
@@ -239,22 +252,17 @@ CutFrameReport CutSession::apply_blade(const BladeSegment& blade, bool cutting_e
         sweep.from_points = moved;
       }
       report.cut = cutter_.step(sweep, x, v);
-      if (report.cut.topology_changed) {
-        auto t0 = std::chrono::steady_clock::now();
-        rebuild_model(report.cut);
-        model_->set_state(x, v);
-        report.rebuild_ms = ms_since(t0);
-        t0 = std::chrono::steady_clock::now();
-        for (auto& t : tumours_) reembed(t, report.cut);
-        if (vessels_) reembed(*vessels_, report.cut);
-        report.reembed_ms = ms_since(t0);
-        surface_dirty_ = true;
-      }
+      absorb(report, x, v);
       check_events(blade, &sweep, report);
     } else {
       check_events(blade, nullptr, report);
     }
   } else {
+    if (previous_cutting_) {  // the stroke ends: complete what the blade has left
+      Eigen::Matrix3Xd x = model_->positions_World_mm(), v = model_->velocities_World_mm_s();
+      report.cut = cutter_.finish_stroke(x, v);
+      absorb(report, x, v);
+    }
     // Contact: the blade pushes the surface point it entered towards its tip.
     if (report.contact.tip_inside) {
       if (!push_) {

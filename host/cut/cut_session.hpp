@@ -89,6 +89,7 @@ class CutSession {
 
  private:
   void rebuild_model(const CutStepReport& step);
+  void absorb(CutFrameReport& report, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v);
   void reembed(CarriedPoints& points, const CutStepReport& step);
   void check_events(const BladeSegment& blade, const SweptSurface* sweep, CutFrameReport& report);
 

@@ -116,6 +116,22 @@ std::string TetCutter::describe_pending() const {
   return out;
 }
 
+CutStepReport TetCutter::finish_stroke(Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v) {
+  finishing_ = true;
+  SweptSurface none;
+  none.from.tip_World_mm = none.to.tip_World_mm = Eigen::Vector3d::Zero();
+  none.from.heel_World_mm = none.to.heel_World_mm = Eigen::Vector3d::Zero();
+  CutStepReport r;
+  try {
+    r = step(none, x, v);
+  } catch (...) {
+    finishing_ = false;
+    throw;
+  }
+  finishing_ = false;
+  return r;
+}
+
 void TetCutter::update_surface() { mesh_.surface_tris = boundary_faces(mesh_); }
 
 void TetCutter::begin_stroke() {
@@ -124,6 +140,7 @@ void TetCutter::begin_stroke() {
   for (int w : sided_) side_[static_cast<std::size_t>(w)] = 0;
   sided_.clear();
   std::fill(tip_tet_.begin(), tip_tet_.end(), 0);
+  undecided_faces_.clear();
 }
 
 std::vector<Aabb> TetCutter::family_boxes(const Eigen::Matrix3Xd& x) const {
@@ -386,7 +403,7 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
     r.update_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     return r;
   };
-  if (tris.empty() || mesh_.tets.empty()) return finish();
+  if ((tris.empty() && !finishing_) || mesh_.tets.empty()) return finish();
   const double f = settings_.snap_fraction, vtol = settings_.vertex_tolerance_mm;
   Aabb sweep_box;
   for (const auto& t : tris) {
@@ -397,9 +414,9 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
   sweep_box = sweep_box.inflated(vtol);
 
   // Candidates: tets whose current box meets the swept surface's box.
-  bvh_.refit(family_boxes(x));
   std::vector<int> candidates;
-  bvh_.query(sweep_box, [&](int fam) {
+  if (!tris.empty()) bvh_.refit(family_boxes(x));
+  if (!tris.empty()) bvh_.query(sweep_box, [&](int fam) {
     for (int t : family_[static_cast<std::size_t>(fam)]) {
       Aabb b;
       for (int w : mesh_.tets[static_cast<std::size_t>(t)]) b.extend(Eigen::Vector3d(x.col(w)));
@@ -410,7 +427,7 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
   if (candidates.empty() && pending_.empty()) return finish();
   const int old_tets = mesh_.num_tets();
   // Tets a blade end (tip or heel path) passes through hold the crack front.
-  {
+  if (!tris.empty()) {
     const int n = std::max(1, sweep.strips);
     const bool advected = static_cast<int>(sweep.from_points.size()) == n + 1;
     const Eigen::Vector3d tip0 = advected ? sweep.from_points.front() : sweep.from.tip_World_mm;
@@ -445,9 +462,13 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
   std::unordered_set<int> seen_vertices;
   for (int t : candidates)
     for (int w : mesh_.tets[static_cast<std::size_t>(t)])
-      if (seen_vertices.insert(w).second && !on_stroke(w) && sweep_distance(tris, x.col(w)) <= vtol) {
-        on_cut_[static_cast<std::size_t>(w)] = stroke_;
-        ++r.vertices_snapped;
+      if (seen_vertices.insert(w).second && !on_stroke(w)) {
+        const double d = sweep_distance(tris, x.col(w));
+        if (d <= vtol) {
+          on_cut_[static_cast<std::size_t>(w)] = stroke_;
+          ++r.vertices_snapped;
+          r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, d);
+        }
       }
   // 2. Edge crossings: snapped to an end within f of it, recorded otherwise.
   std::unordered_set<EdgeKey> seen_edges;
@@ -464,12 +485,17 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
         if (s <= f) {
           on_cut_[static_cast<std::size_t>(a)] = stroke_;
           ++r.vertices_snapped;
+          r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, s * (x.col(b) - x.col(a)).norm());
         } else if (s >= 1.0 - f) {
           on_cut_[static_cast<std::size_t>(b)] = stroke_;
           ++r.vertices_snapped;
+          r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, (1.0 - s) * (x.col(b) - x.col(a)).norm());
         } else {
           pending_[key] = s;
           ++r.edges_crossed;
+          // The recorded point, against the swept surface (round-off only).
+          const Eigen::Vector3d p = x.col(a) + s * (x.col(b) - x.col(a));
+          r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, point_triangle_distance(p, tri));
         }
         break;
       }
@@ -490,10 +516,25 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
     const Triangle& near = tris[static_cast<std::size_t>(nearest)];
     return (near.b - near.a).cross(near.c - near.a).normalized().dot(p - near.a);
   };
+  // Only vertices whose nearest point on the sweep lies about across from them get a side:
+  // the plane far beyond a triangle's edge (a chord of a curved cut, the blade's end) can put
+  // a vertex on the wrong side of the cut it will meet.
   for (int w : seen_vertices) {
     if (on_stroke(w) || side_[static_cast<std::size_t>(w)] != 0) continue;
-    const double d = nearest_plane_distance(x.col(w));
-    if (std::abs(d) > vtol) {
+    int nearest = 0;
+    double best = 1e300;
+    for (std::size_t i = 0; i < tris.size(); ++i) {
+      const double dist = point_triangle_distance(x.col(w), tris[i]);
+      if (dist < best) {
+        best = dist;
+        nearest = static_cast<int>(i);
+      }
+    }
+    const Triangle& near = tris[static_cast<std::size_t>(nearest)];
+    const double d = (near.b - near.a).cross(near.c - near.a).normalized().dot(x.col(w) - near.a);
+    // Within 45 degrees of the triangle's normal through its nearest point: the offset along
+    // the surface is at most the distance to it.
+    if (std::abs(d) > vtol && best * best <= 2.0 * d * d) {
       side_[static_cast<std::size_t>(w)] = d > 0 ? 1 : -1;
       sided_.push_back(w);
     }
@@ -591,19 +632,26 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
   std::vector<int> face_tets = candidates;
   face_tets.insert(face_tets.end(), r.changed_tets.begin(), r.changed_tets.end());
   std::unordered_set<std::array<int, 3>, FaceHash> seen_faces;
+  // Faces on the cut whose tets' sides were not known yet are looked at again every frame
+  // (the blade reaches their vertices later).
+  std::vector<std::array<int, 3>> faces = std::move(undecided_faces_);
+  undecided_faces_.clear();
   for (int t : face_tets) {
     const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
-    for (const auto& fc : kFaces) {
-      const std::array<int, 3> key = face_key(tet[static_cast<std::size_t>(fc[0])], tet[static_cast<std::size_t>(fc[1])],
-                                              tet[static_cast<std::size_t>(fc[2])]);
-      if (!on_stroke(key[0]) || !on_stroke(key[1]) || !on_stroke(key[2])) continue;
-      if (cut_faces_.count(key) || !seen_faces.insert(key).second) continue;
-      int pair[2] = {-1, -1};
-      if (tets_with_face(key, pair) != 2) continue;
-      if (tet_side(pair[0]) * tet_side(pair[1]) < 0) {
-        cut_faces_.insert(key);
-        new_cut_faces.push_back(key);
-      }
+    for (const auto& fc : kFaces)
+      faces.push_back(face_key(tet[static_cast<std::size_t>(fc[0])], tet[static_cast<std::size_t>(fc[1])], tet[static_cast<std::size_t>(fc[2])]));
+  }
+  for (const auto& key : faces) {
+    if (!on_stroke(key[0]) || !on_stroke(key[1]) || !on_stroke(key[2])) continue;
+    if (cut_faces_.count(key) || !seen_faces.insert(key).second) continue;
+    int pair[2] = {-1, -1};
+    if (tets_with_face(key, pair) != 2) continue;
+    const int s0 = tet_side(pair[0]), s1 = tet_side(pair[1]);
+    if (s0 * s1 < 0) {
+      cut_faces_.insert(key);
+      new_cut_faces.push_back(key);
+    } else if (s0 == 0 || s1 == 0) {
+      undecided_faces_.push_back(key);
     }
   }
   // 5. Separate: duplicate each vertex of a cut face whose tets fall apart into groups.

@@ -62,6 +62,10 @@ struct CutStepReport {
   int faces_separated = 0;    // cut faces that became boundary this step
   bool topology_changed = false;
   double update_ms = 0.0;     // wall time of this step
+  // Path fidelity: largest distance from this frame's swept surface of a point put on the cut
+  // this step (snapped vertices: up to snap_fraction of their edge; split points: round-off).
+  // Completed tets (tets_completed) follow the plane of their recorded points instead.
+  double max_path_deviation_mm = 0.0;
   std::vector<VertexOrigin> new_vertices;  // for vertex ids old_count .. old_count + n - 1
   // Tets whose vertex list changed or that were created (sorted); origin_tet() names the
   // input tet each came from. Used to re-embed points and to rebuild per-element data.
@@ -77,6 +81,10 @@ class TetCutter {
   // velocities, one column per vertex; v may be empty) gain a column per new vertex
   // (interpolated or copied). mesh().surface_tris is not updated (update_surface()).
   CutStepReport step(const SweptSurface& sweep, Eigen::Matrix3Xd& x_World_mm, Eigen::Matrix3Xd& v_World_mm_s);
+
+  // Ends the stroke (cutting switched off): tets with incomplete crossings that no blade end
+  // passed through are completed from their vertex sides (as the blade leaving them does).
+  CutStepReport finish_stroke(Eigen::Matrix3Xd& x_World_mm, Eigen::Matrix3Xd& v_World_mm_s);
 
   // Starts a new stroke (cutting switched on again, a second cut): crossings the previous
   // stroke recorded but did not complete are dropped (its crack tip stays where it is), and
@@ -142,10 +150,12 @@ class TetCutter {
   std::vector<std::vector<int>> vertex_tets_;
   bool on_stroke(int v) const { return on_cut_[static_cast<std::size_t>(v)] == stroke_; }
   int stroke_ = 1;
+  bool finishing_ = false;
   std::vector<int> on_cut_;                      // per vertex: last stroke it was put on the cut by (0: none)
   std::unordered_map<EdgeKey, double> pending_;  // t from the smaller to the larger vertex id
   std::vector<signed char> side_;                // per vertex: side of this stroke's sweep (+1/-1, 0 unknown)
-  std::vector<int> sided_;                       // vertices with a side (reset at the next stroke)
+  std::vector<int> sided_;
+  std::vector<std::array<int, 3>> undecided_faces_;  // on the cut, sides of their tets not known yet                       // vertices with a side (reset at the next stroke)
   FaceSet cut_faces_;                            // interior faces to separate
   std::vector<char> tip_tet_;                    // per tet: a blade end passed through it this stroke
   Eigen::Vector3d last_normal_ = Eigen::Vector3d::UnitZ();  // of the last sweep

@@ -3,6 +3,7 @@
 // first, tilted cuts, and random blade sweeps keeping every invariant.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 
 #include "host/cut/mesh_checks.hpp"
@@ -180,4 +181,37 @@ TEST(CutFuzz, RandomBladeSweepsKeepEveryInvariant) {
   }
   EXPECT_EQ(sweeps, 1000);
   EXPECT_GT(cut_steps, 1000);
+}
+
+TEST(RingCut, RingAndBottomCutSeparateThePlug) {
+  // Paper 000's lesion on a cube: a vertical blade goes round a 20 mm circle (48 chords of
+  // 2.6 mm, against 10 mm cells), then a horizontal blade cuts under it at z = 25: the plug
+  // (a 48-gon prism of height 55 mm) comes out; volume, surface and pieces stay valid.
+  for (int cells : {8, 11}) {
+    TetMesh mesh = make_box_tet_mesh(cells, cells, cells, Eigen::Vector3d(80, 80, 80));
+    TetCutter cutter(mesh, CutSettings{});
+    Eigen::Matrix3Xd x = mesh.rest_positions_World_mm, v;
+    auto on_ring = [](double a) {
+      const double cx = 40 + 20 * std::cos(a), cy = 40 + 20 * std::sin(a);
+      return BladeSegment{Eigen::Vector3d(cx, cy, 20), Eigen::Vector3d(cx, cy, 120)};
+    };
+    BladeSegment prev = on_ring(0);
+    for (int k = 1; k <= 50; ++k) {  // a little past the start: the ring closes
+      const BladeSegment cur = on_ring(2 * M_PI * k / 48);
+      cutter.step({prev, cur, 4, {}}, x, v);
+      prev = cur;
+    }
+    cutter.finish_stroke(x, v);
+    EXPECT_EQ(check_cut_mesh(cutter.mesh()).piece_volume_mm3.size(), 1u);  // the ring ends at z = 20, inside
+    cutter.begin_stroke();
+    sweep(cutter, x, v, {Eigen::Vector3d(10, -10, 25), Eigen::Vector3d(70, -10, 25)}, {Eigen::Vector3d(10, 80, 25), Eigen::Vector3d(70, 80, 25)}, 60);
+    cutter.finish_stroke(x, v);
+    const CutMeshCheck c = check_cut_mesh(cutter.mesh());
+    EXPECT_TRUE(c.valid()) << c.summary();
+    EXPECT_NEAR(c.total_volume_mm3 / 512000.0, 1.0, 1e-12);
+    ASSERT_EQ(c.piece_volume_mm3.size(), 2u) << c.summary();
+    const double prism = 0.5 * 48 * 400 * std::sin(2 * M_PI / 48) * 55;
+    const double plug = std::min(c.piece_volume_mm3[0], c.piece_volume_mm3[1]);
+    EXPECT_NEAR(plug / prism, 1.0, 0.05) << cells << " cells";
+  }
 }
