@@ -504,6 +504,7 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
   // 3. Sides: each vertex near the sweep and not on it gets the side of the plane of the
   // nearest sweep triangle it lies on (kept for the stroke: a material property).
   auto nearest_plane_distance = [&](const Eigen::Vector3d& p) {
+    if (tris.empty()) return 0.0;  // finishing a stroke: no sweep this frame
     int nearest = 0;
     double best = 1e300;
     for (std::size_t i = 0; i < tris.size(); ++i) {
