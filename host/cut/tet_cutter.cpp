@@ -265,6 +265,45 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x) {
   return true;
 }
 
+bool TetCutter::move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r) {
+  const std::vector<int>& star = vertex_tets_[static_cast<std::size_t>(w)];
+  // Interior vertices only: moving a boundary vertex would change the organ's shape.
+  for (int tt : star) {
+    const auto& tet = mesh_.tets[static_cast<std::size_t>(tt)];
+    for (const auto& fc : kFaces) {
+      const int f0 = tet[static_cast<std::size_t>(fc[0])], f1 = tet[static_cast<std::size_t>(fc[1])], f2 = tet[static_cast<std::size_t>(fc[2])];
+      if ((f0 == w || f1 == w || f2 == w) && tets_with_face(face_key(f0, f1, f2)) != 2) return false;
+    }
+  }
+  const Eigen::Vector3d rest_new = (1 - t) * mesh_.rest_positions_World_mm.col(w) + t * mesh_.rest_positions_World_mm.col(o);
+  const Eigen::Vector3d x_new = (1 - t) * x.col(w) + t * x.col(o);
+  auto volume_with = [&](const Eigen::Matrix3Xd& pos, int tt, const Eigen::Vector3d& pw) {
+    Eigen::Vector3d q[4];
+    for (int k = 0; k < 4; ++k) {
+      const int u = mesh_.tets[static_cast<std::size_t>(tt)][static_cast<std::size_t>(k)];
+      q[k] = u == w ? pw : Eigen::Vector3d(pos.col(u));
+    }
+    return (q[1] - q[0]).cross(q[2] - q[0]).dot(q[3] - q[0]);
+  };
+  // Every tet around keeps at least a quarter of its volume, at rest and now.
+  for (int tt : star) {
+    if (!(volume_with(mesh_.rest_positions_World_mm, tt, rest_new) >= 0.25 * volume_with(mesh_.rest_positions_World_mm, tt, mesh_.rest_positions_World_mm.col(w))))
+      return false;
+    if (!(volume_with(x, tt, x_new) >= 0.25 * volume_with(x, tt, x.col(w)))) return false;
+  }
+  mesh_.rest_positions_World_mm.col(w) = rest_new;
+  x.col(w) = x_new;
+  if (v.cols() > w) v.col(w) = (1 - t) * v.col(w) + t * v.col(o);
+  // Crossings recorded on its edges referred to the old position.
+  for (int tt : star) {
+    for (int u : mesh_.tets[static_cast<std::size_t>(tt)])
+      if (u != w) pending_.erase(edge_key(w, u));
+    r.changed_tets.push_back(tt);
+  }
+  ++r.vertices_moved;
+  return true;
+}
+
 int TetCutter::add_vertex(const VertexOrigin& o, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r) {
   const int id = mesh_.num_vertices();
   auto lerp = [&](const Eigen::Matrix3Xd& m) -> Eigen::Vector3d {
@@ -482,14 +521,20 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       for (const auto& tri : tris) {
         double s = 0.0;
         if (!segment_triangle_intersection(x.col(a), x.col(b), tri, s)) continue;
-        if (s <= f) {
-          on_cut_[static_cast<std::size_t>(a)] = stroke_;
+        if (s <= f || s >= 1.0 - f) {
+          // Snap to the nearer end; an interior vertex not on any cut yet is moved onto the
+          // swept surface (paper 000's moving vertex: no split, no sliver, the cut stays on
+          // the path), any other one stays where it is (the cut passes through it).
+          const int w = s <= f ? a : b, o = s <= f ? b : a;
+          const double t_w = s <= f ? s : 1.0 - s;
+          const bool fresh = on_cut_[static_cast<std::size_t>(w)] == 0;
+          on_cut_[static_cast<std::size_t>(w)] = stroke_;
           ++r.vertices_snapped;
-          r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, s * (x.col(b) - x.col(a)).norm());
-        } else if (s >= 1.0 - f) {
-          on_cut_[static_cast<std::size_t>(b)] = stroke_;
-          ++r.vertices_snapped;
-          r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, (1.0 - s) * (x.col(b) - x.col(a)).norm());
+          if (fresh && settings_.move_snapped_vertices && move_vertex(w, o, t_w, x, v, r)) {
+            r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, point_triangle_distance(x.col(w), tri));
+          } else {
+            r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, t_w * (x.col(b) - x.col(a)).norm());
+          }
         } else {
           pending_[key] = s;
           ++r.edges_crossed;
@@ -711,7 +756,7 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       }
     }
   }
-  r.topology_changed = r.vertices_added > 0;
+  r.topology_changed = r.vertices_added > 0 || r.vertices_moved > 0;
   std::sort(r.changed_tets.begin(), r.changed_tets.end());
   r.changed_tets.erase(std::unique(r.changed_tets.begin(), r.changed_tets.end()), r.changed_tets.end());
   return finish();

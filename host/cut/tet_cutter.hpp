@@ -40,6 +40,10 @@ struct CutSettings {
   double snap_fraction = 0.1;
   // Vertices this close to the swept surface lie on it (exact hits, planes through vertices).
   double vertex_tolerance_mm = 1e-6;
+  // A snapped interior vertex not on an earlier cut is moved onto the swept surface (rest and
+  // current position along its edge) when every tet around keeps a quarter of its volume:
+  // the cut stays on the path and the star's total volume is unchanged.
+  bool move_snapped_vertices = true;
 };
 
 // Where a vertex created by a cut step came from: the edge point (1-t) a + t b, or a copy of
@@ -59,8 +63,9 @@ struct CutStepReport {
   int edges_split = 0;
   int tets_added = 0;         // new tets (splits)
   int vertices_added = 0;     // edge points + copies
+  int vertices_moved = 0;     // snapped interior vertices moved onto the cut
   int faces_separated = 0;    // cut faces that became boundary this step
-  bool topology_changed = false;
+  bool topology_changed = false;  // the mesh changed (new vertices or tets, moved vertices)
   double update_ms = 0.0;     // wall time of this step
   // Path fidelity: largest distance from this frame's swept surface of a point put on the cut
   // this step (snapped vertices: up to snap_fraction of their edge; split points: round-off).
@@ -135,6 +140,7 @@ class TetCutter {
   // Adds the crossings missing from the side pattern of tet t on the plane through the
   // recorded ones; false when the sides are unknown or nothing is missing.
   bool complete_from_sides(int t, const Eigen::Matrix3Xd& x);
+  bool move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   int add_vertex(const VertexOrigin& o, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   void split_edge(int a, int b, double t_ab, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r,
                   std::vector<int>& touched);
