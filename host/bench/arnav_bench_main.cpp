@@ -46,6 +46,8 @@ int main(int argc, char** argv) {
   cut->add_option("--scenario", cut_options.scenarios, "scenarios (right_lobe, ring)")->check(CLI::IsMember({"right_lobe", "ring"}));
   cut->add_option("--setting", cut_options.setting_prefixes, "run only the models whose label starts with this (repeatable)");
   cut->add_option("--frames", cut_options.max_frames, "cap the frames per run")->check(CLI::PositiveNumber);
+  std::string rebuild = "inline";
+  cut->add_option("--rebuild", rebuild, "model rebuild after a cut: inline, background or both")->check(CLI::IsMember({"inline", "background", "both"}));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -63,6 +65,7 @@ int main(int argc, char** argv) {
   }
 
   if (cut->parsed()) {
+    cut_options.background = rebuild == "inline" ? std::vector<bool>{false} : rebuild == "background" ? std::vector<bool>{true} : std::vector<bool>{false, true};
     std::vector<CutBenchRow> rows;
     try {
       rows = run_cut_bench(cut_options);
@@ -76,7 +79,7 @@ int main(int argc, char** argv) {
     for (std::size_t i = 0; i < rows.size(); ++i) {
       const auto& r = rows[i];
       std::cout << (i ? "," : "") << "{\"mesh\":\"" << r.mesh << "\",\"scenario\":\"" << r.scenario << "\",\"model\":\"" << r.label
-                << "\",\"frames\":" << r.frames << ",\"topology_p99_ms\":" << r.topology_p99_ms << ",\"frame_median_ms\":" << r.frame_median_ms
+                << "\",\"background_rebuild\":" << (r.background ? "true" : "false") << ",\"frames\":" << r.frames << ",\"topology_p99_ms\":" << r.topology_p99_ms << ",\"frame_median_ms\":" << r.frame_median_ms
                 << ",\"frame_p99_ms\":" << r.frame_p99_ms << ",\"min_dihedral_deg\":" << r.min_dihedral_deg << ",\"volume_change_rel\":"
                 << r.volume_change_rel << ",\"path_fidelity_mm\":" << r.path_fidelity_mm << ",\"pieces\":" << r.pieces
                 << ",\"mesh_valid\":" << (r.mesh_valid ? "true" : "false") << ",\"healthy\":" << (r.healthy ? "true" : "false") << "}";

@@ -48,9 +48,11 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
       int frames = static_cast<int>(path.samples.back().t_s / scene.time_step_s) + 1;
       if (o.quick) frames = std::min(frames, 150);
       if (o.max_frames > 0) frames = std::min(frames, o.max_frames);
-      for (const auto& variant : model_variants()) {
+      for (const auto& variant : model_variants())
+      for (const bool background : o.background) {
         if (!selected(variant.label, prefixes)) continue;
         CutSessionSettings settings;  // docs/cut.md defaults (the scene's cutting section on the coarse mesh)
+        settings.rebuild_in_background = background;
         if (scene.cutting) {
           settings.cut.snap_fraction = scene.cutting->snap_fraction;
           settings.sweep_strips = scene.cutting->sweep_strips;
@@ -73,6 +75,7 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
         row.mesh = mesh_name;
         row.scenario = scenario;
         row.label = variant.label;
+        row.background = background;
         row.tets_before = scene.problem.mesh.num_tets();
         row.min_dihedral_input_deg = input.min_dihedral_deg;
         std::vector<double> topology, frame, rebuild;
@@ -119,7 +122,7 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
           for (int v : session.mesh().tets[static_cast<std::size_t>(t)])
             if (is_fixed[static_cast<std::size_t>(v)]) fixed_piece[static_cast<std::size_t>(after.piece_of_tet[static_cast<std::size_t>(t)])] = 1;
         row.free_pieces = static_cast<int>(std::count(fixed_piece.begin(), fixed_piece.end(), 0));
-        std::cerr << "arnav-bench cut: " << mesh_name << " " << scenario << " " << variant.label << ": " << row.frames << " frames, frame "
+        std::cerr << "arnav-bench cut: " << mesh_name << " " << scenario << " " << variant.label << (background ? " (background rebuild)" : "") << ": " << row.frames << " frames, frame "
                   << row.frame_median_ms << "/" << row.frame_p99_ms << " ms (median/p99), topology " << row.topology_median_ms << "/"
                   << row.topology_p99_ms << " ms, rebuild " << row.rebuild_median_ms << " ms, pieces " << row.pieces
                   << (row.healthy ? "" : " UNHEALTHY: " + row.warning) << "\n";
@@ -133,13 +136,13 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
 void write_cut_csv(const std::string& path, const std::vector<CutBenchRow>& rows) {
   std::ofstream out(path);
   if (!out) throw std::runtime_error("cannot write " + path + ": check the folder");
-  out << "mesh,scenario,model,tets_before,tets_after,vertices_after,frames,topology_changes,new_tets,topology_median_ms,topology_p99_ms,"
+  out << "mesh,scenario,model,background_rebuild,tets_before,tets_after,vertices_after,frames,topology_changes,new_tets,topology_median_ms,topology_p99_ms,"
          "topology_max_ms,frame_median_ms,frame_p99_ms,rebuild_median_ms,rebuild_p99_ms,min_dihedral_input_deg,min_dihedral_deg,"
          "volume_change_rel,path_fidelity_mm,completed_tets,pieces,free_pieces,events,mesh_valid,healthy,warning\n";
   for (const auto& r : rows) {
     std::string warning = r.warning;
     std::replace(warning.begin(), warning.end(), ',', ';');
-    out << r.mesh << ',' << r.scenario << ',' << r.label << ',' << r.tets_before << ',' << r.tets_after << ',' << r.vertices_after << ','
+    out << r.mesh << ',' << r.scenario << ',' << r.label << ',' << (r.background ? 1 : 0) << ',' << r.tets_before << ',' << r.tets_after << ',' << r.vertices_after << ','
         << r.frames << ',' << r.topology_changes << ',' << r.new_tets << ',' << r.topology_median_ms << ',' << r.topology_p99_ms << ','
         << r.topology_max_ms << ',' << r.frame_median_ms << ',' << r.frame_p99_ms << ',' << r.rebuild_median_ms << ',' << r.rebuild_p99_ms
         << ',' << r.min_dihedral_input_deg << ',' << r.min_dihedral_deg << ',' << r.volume_change_rel << ',' << r.path_fidelity_mm << ','

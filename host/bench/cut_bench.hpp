@@ -15,10 +15,12 @@ struct CutBenchOptions {
   std::vector<std::string> scenarios = {"right_lobe", "ring"};
   std::vector<std::string> setting_prefixes;                   // model labels to run (prefix match; empty: all)
   int max_frames = 0;                                          // cap per run (0: the whole path)
+  std::vector<bool> background = {false};                      // rebuild the model inline and/or in the background
 };
 
 struct CutBenchRow {
   std::string mesh, scenario, label;
+  bool background = false;  // model rebuilt on a worker thread
   int tets_before = 0, tets_after = 0, vertices_after = 0, frames = 0, topology_changes = 0, new_tets = 0;
   double topology_median_ms = 0, topology_p99_ms = 0, topology_max_ms = 0;
   double frame_median_ms = 0, frame_p99_ms = 0;

@@ -92,6 +92,7 @@ CutSession::CutSession(const SimProblem& problem, const ModelConfig& config, con
   if (!(settings_.push_stiffness_mN_per_mm > 0.0)) throw std::invalid_argument("cutting: push_stiffness_mN_per_mm must be > 0");
   if (tumour_tris_.size() != tumours_.size()) throw std::invalid_argument("cut session: one triangle list per tumour");
   model_ = make_tissue_model(problem_, config_);
+  n0_ = problem_.mesh.num_vertices();
   fixed_.assign(static_cast<std::size_t>(problem_.mesh.num_vertices()), 0);
   for (int v : problem_.fixed_vertices) fixed_[static_cast<std::size_t>(v)] = 1;
   in_margin_.assign(tumours_.size(), 0);
@@ -102,7 +103,7 @@ CutSession::CutSession(const SimProblem& problem, const ModelConfig& config, con
 const std::vector<std::array<int, 3>>& CutSession::surface_tris() {
   if (surface_dirty_) {
     cutter_.update_surface();
-    surface_bvh_.build(triangle_boxes(cutter_.mesh().surface_tris, model_->positions_World_mm()));
+    surface_bvh_.build(triangle_boxes(cutter_.mesh().surface_tris, positions_World_mm()));
     surface_dirty_ = false;
   }
   return cutter_.mesh().surface_tris;
@@ -116,10 +117,49 @@ void CutSession::rebuild_model(const CutStepReport& step) {
                                : fixed_[static_cast<std::size_t>(o.a)] != 0 && fixed_[static_cast<std::size_t>(o.b)] != 0;
     fixed_.push_back(fixed ? 1 : 0);
     if (fixed) problem_.fixed_vertices.push_back(old_vertices + static_cast<int>(i));
+    origins_.push_back(o);
   }
   problem_.mesh = cutter_.mesh();
+  if (settings_.rebuild_in_background) {
+    if (build_.valid()) {
+      rebuild_wanted_ = true;  // a build is running: another one follows it
+    } else {
+      launch_build();
+    }
+    return;
+  }
   model_ = make_tissue_model(problem_, config_);
   ++rebuilds_;
+}
+
+Eigen::Matrix3Xd CutSession::extended(const Eigen::Matrix3Xd& m) const {
+  const int n = cutter_.mesh().num_vertices();
+  if (m.cols() >= n) return m;
+  Eigen::Matrix3Xd out(3, n);
+  out.leftCols(m.cols()) = m;
+  for (int i = static_cast<int>(m.cols()); i < n; ++i) {
+    const VertexOrigin& o = origins_[static_cast<std::size_t>(i - n0_)];
+    out.col(i) = o.b < 0 ? Eigen::Vector3d(out.col(o.a)) : Eigen::Vector3d((1 - o.t) * out.col(o.a) + o.t * out.col(o.b));
+  }
+  return out;
+}
+
+void CutSession::launch_build() {
+  rebuild_wanted_ = false;
+  build_ = std::async(std::launch::async, [problem = problem_, config = config_]() { return make_tissue_model(problem, config); });
+}
+
+double CutSession::poll_build() {
+  if (!build_.valid() || build_.wait_for(std::chrono::seconds(0)) != std::future_status::ready) return 0.0;
+  const auto t0 = std::chrono::steady_clock::now();
+  std::unique_ptr<TissueModel> next = build_.get();  // rethrows a failed build
+  const int n = next->positions_World_mm().cols();
+  next->set_state(extended(model_->positions_World_mm()).leftCols(n), extended(model_->velocities_World_mm_s()).leftCols(n));
+  model_ = std::move(next);
+  ++rebuilds_;
+  if (push_) push_ = model_->add_attachment(push_spec_);
+  if (rebuild_wanted_) launch_build();
+  return ms_since(t0);
 }
 
 void CutSession::reembed(CarriedPoints& points, const CutStepReport& step) {
@@ -152,7 +192,7 @@ void CutSession::reembed(CarriedPoints& points, const CutStepReport& step) {
 
 void CutSession::check_events(const BladeSegment& blade, const SweptSurface* sweep, CutFrameReport& report) {
   const TetMesh& mesh = cutter_.mesh();
-  const Eigen::Matrix3Xd& x = model_->positions_World_mm();
+  const Eigen::Matrix3Xd x = positions_World_mm();
   if (report.contact.touching) {
     for (std::size_t k = 0; k < tumours_.size(); ++k) {
       const Eigen::Matrix3Xd p = tumours_[k].embedding.apply(mesh, x);
@@ -199,7 +239,7 @@ void CutSession::absorb(CutFrameReport& report, const Eigen::Matrix3Xd& x, const
   if (!report.cut.topology_changed) return;
   auto t0 = std::chrono::steady_clock::now();
   rebuild_model(report.cut);
-  model_->set_state(x, v);
+  if (!settings_.rebuild_in_background) model_->set_state(x, v);
   report.rebuild_ms = ms_since(t0);
   t0 = std::chrono::steady_clock::now();
   for (auto& t : tumours_) reembed(t, report.cut);
@@ -211,9 +251,11 @@ void CutSession::absorb(CutFrameReport& report, const Eigen::Matrix3Xd& x, const
 CutFrameReport CutSession::apply_blade(const BladeSegment& blade, bool cutting_enabled) {
   ++frame_;
   CutFrameReport report;
+  report.rebuild_ms = poll_build();
   const auto& tris = surface_tris();
-  surface_bvh_.refit(triangle_boxes(tris, model_->positions_World_mm()));
-  report.contact = blade_contact(surface_bvh_, tris, model_->positions_World_mm(), blade);
+  const Eigen::Matrix3Xd x_now = positions_World_mm();
+  surface_bvh_.refit(triangle_boxes(tris, x_now));
+  report.contact = blade_contact(surface_bvh_, tris, x_now, blade);
   if (cutting_enabled) {
     if (push_) {
       model_->remove_attachment(*push_);
@@ -222,7 +264,7 @@ CutFrameReport CutSession::apply_blade(const BladeSegment& blade, bool cutting_e
     if (!previous_cutting_) cutter_.begin_stroke();
     if (previous_blade_ && previous_cutting_) {
       SweptSurface sweep{*previous_blade_, blade, settings_.sweep_strips, {}};
-      Eigen::Matrix3Xd x = model_->positions_World_mm(), v = model_->velocities_World_mm_s();
+      Eigen::Matrix3Xd x = positions_World_mm(), v = velocities_World_mm_s();
       if (x_at_blade_.cols() == x.cols()) {
         // Points of the blade inside the tissue move with their tet; points outside move with
         // the nearest point inside (no gap opens between the strips at the surface).
@@ -259,15 +301,20 @@ CutFrameReport CutSession::apply_blade(const BladeSegment& blade, bool cutting_e
     }
   } else {
     if (previous_cutting_) {  // the stroke ends: complete what the blade has left
-      Eigen::Matrix3Xd x = model_->positions_World_mm(), v = model_->velocities_World_mm_s();
+      Eigen::Matrix3Xd x = positions_World_mm(), v = velocities_World_mm_s();
       report.cut = cutter_.finish_stroke(x, v);
       absorb(report, x, v);
     }
     // Contact: the blade pushes the surface point it entered towards its tip.
-    if (report.contact.tip_inside) {
+    bool pushable = false;  // the entered triangle's vertices exist in the model (a new one may still be building)
+    if (report.contact.triangle >= 0) {
+      const auto& entered = tris[static_cast<std::size_t>(report.contact.triangle)];
+      pushable = std::max({entered[0], entered[1], entered[2]}) < static_cast<int>(model_->positions_World_mm().cols());
+    }
+    if (report.contact.tip_inside && (push_ || pushable)) {
       if (!push_) {
         const auto& t = tris[static_cast<std::size_t>(report.contact.triangle)];
-        const Eigen::Matrix3Xd& x = model_->positions_World_mm();
+        const Eigen::Matrix3Xd& x = x_now;
         const Eigen::Vector3d a = x.col(t[0]), b = x.col(t[1]), c = x.col(t[2]), p = report.contact.point_World_mm;
         const Eigen::Vector3d n = (b - a).cross(c - a);
         const double area2 = n.squaredNorm();
@@ -277,8 +324,10 @@ CutFrameReport CutSession::apply_blade(const BladeSegment& blade, bool cutting_e
         spec.point.weights = {wa, wb, 1.0 - wa - wb};
         spec.target_World_mm = blade.tip_World_mm;
         spec.stiffness_mN_per_mm = settings_.push_stiffness_mN_per_mm;
+        push_spec_ = spec;
         push_ = model_->add_attachment(spec);
       } else {
+        push_spec_.target_World_mm = blade.tip_World_mm;
         model_->set_attachment_target(*push_, blade.tip_World_mm);
       }
     } else if (push_) {
@@ -290,7 +339,7 @@ CutFrameReport CutSession::apply_blade(const BladeSegment& blade, bool cutting_e
   }
   previous_blade_ = blade;
   previous_cutting_ = cutting_enabled;
-  x_at_blade_ = model_->positions_World_mm();
+  x_at_blade_ = positions_World_mm();
   return report;
 }
 

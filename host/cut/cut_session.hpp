@@ -16,6 +16,7 @@
 // Frame World, units mm, s, mN.
 #include <Eigen/Core>
 
+#include <future>
 #include <memory>
 #include <optional>
 #include <string>
@@ -35,6 +36,10 @@ struct CutSessionSettings {
   int sweep_strips = 8;                    // strips of the swept surface (and blade points carried with the tissue)
   double tumour_margin_mm = 10.0;          // safety margin around each tumour
   double push_stiffness_mN_per_mm = 50.0;  // contact spring when cutting is disabled
+  // Rebuild the model on a worker thread after a topology change; the previous model keeps
+  // stepping (the cut shows at once, the pieces separate mechanically when the new model is
+  // swapped in a few frames later). false: rebuild inline, deterministic.
+  bool rebuild_in_background = false;
 };
 
 // A closed surface or a polyline carried by the volume (tumour, vessel centerlines), in its
@@ -77,6 +82,10 @@ class CutSession {
   StepSummary step(double dt_s) { return model_->step(dt_s); }
 
   TissueModel& model() { return *model_; }
+  // Positions and velocities of every vertex of the current (cut) mesh: the model's, plus
+  // vertices made since the model was built (background rebuild), interpolated or copied.
+  Eigen::Matrix3Xd positions_World_mm() const { return extended(model_->positions_World_mm()); }
+  Eigen::Matrix3Xd velocities_World_mm_s() const { return extended(model_->velocities_World_mm_s()); }
   const TetMesh& mesh() const { return cutter_.mesh(); }
   TetCutter& cutter() { return cutter_; }
   const std::vector<int>& fixed_vertices() const { return problem_.fixed_vertices; }
@@ -89,6 +98,9 @@ class CutSession {
 
  private:
   void rebuild_model(const CutStepReport& step);
+  Eigen::Matrix3Xd extended(const Eigen::Matrix3Xd& m) const;
+  void launch_build();
+  double poll_build();  // swaps a finished background model in; returns the ms it took
   void absorb(CutFrameReport& report, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v);
   void reembed(CarriedPoints& points, const CutStepReport& step);
   void check_events(const BladeSegment& blade, const SweptSurface* sweep, CutFrameReport& report);
@@ -111,6 +123,11 @@ class CutSession {
   Bvh surface_bvh_;
   bool surface_dirty_ = true;
   std::optional<AttachmentId> push_;
+  AttachmentSpec push_spec_;
+  std::vector<VertexOrigin> origins_;  // of vertices n0_, n0_ + 1, ... (made by cuts)
+  int n0_ = 0;
+  std::future<std::unique_ptr<TissueModel>> build_;
+  bool rebuild_wanted_ = false;
   int frame_ = 0;
   int rebuilds_ = 0;
 };

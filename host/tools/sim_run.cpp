@@ -80,7 +80,7 @@ SimRunResult run_scene_with_scalpel(const Scene& scene, const SimRunOptions& o, 
   }
   auto write = [&](int frame) {
     if (o.out_dir.empty()) return;
-    const Eigen::Matrix3Xd& x = session.model().positions_World_mm();
+    const Eigen::Matrix3Xd& x = session.positions_World_mm();
     const TetMesh& mesh = session.mesh();
     const auto& surface = session.surface_tris();
     if (o.format == "obj") {
@@ -101,7 +101,7 @@ SimRunResult run_scene_with_scalpel(const Scene& scene, const SimRunOptions& o, 
   };
   const bool has_tumour = !tumours.empty();
   auto tumour_centroid = [&]() {
-    return closed_surface_centroid(session.tumours()[0].embedding.apply(session.mesh(), session.model().positions_World_mm()), tumour_tris[0]);
+    return closed_surface_centroid(session.tumours()[0].embedding.apply(session.mesh(), session.positions_World_mm()), tumour_tris[0]);
   };
   const Eigen::Vector3d tumour0 = has_tumour ? tumour_centroid() : Eigen::Vector3d::Zero();
   csv << "frame,time_s,wall_ms,iterations,initial_residual,final_residual,termination,kinetic_energy,elastic_energy,"
@@ -122,7 +122,7 @@ SimRunResult run_scene_with_scalpel(const Scene& scene, const SimRunOptions& o, 
                << e.location_World_mm.x() << ',' << e.location_World_mm.y() << ',' << e.location_World_mm.z() << '\n';
     }
     const StepSummary s = session.step(scene.time_step_s);
-    const Eigen::Matrix3Xd& x = session.model().positions_World_mm();
+    const Eigen::Matrix3Xd& x = session.positions_World_mm();
     const Eigen::Matrix3Xd& rest = session.mesh().rest_positions_World_mm;
     wall.push_back(s.wall_time_ms + cr.cut.update_ms + cr.rebuild_ms + cr.reembed_ms);
     result.frames_run = f;

@@ -3,7 +3,9 @@
 // gravity, structures re-embedded in the pieces, the blade pushing when cutting is off.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
+#include <thread>
 
 #include "host/cut/cut_session.hpp"
 #include "host/cut/mesh_checks.hpp"
@@ -59,13 +61,14 @@ namespace arnav::host {
 void PrintTo(const ModelVariant& v, std::ostream* os) { *os << v.label; }
 }  // namespace arnav::host
 
-TEST_P(EveryModel, HangingBarCutInTwoLowerPieceFallsUpperStays) {
-  const ModelVariant& variant = GetParam();
+void hanging_bar_cut_in_two(const ModelVariant& variant, bool background) {
   // 20 x 20 x 100 mm column hanging from its top face (z = 100).
   SimProblem problem = bar_problem(Eigen::Vector3d(20, 20, 100), 3, 3, 9, 10.0);
   for (int v = 0; v < problem.mesh.num_vertices(); ++v)
     if (problem.mesh.rest_positions_World_mm(2, v) > 100 - 1e-9) problem.fixed_vertices.push_back(v);
-  CutSession session(problem, variant.config, CutSessionSettings{});
+  CutSessionSettings settings;
+  settings.rebuild_in_background = background;
+  CutSession session(problem, variant.config, settings);
   const double dt = 1.0 / 60.0;
   // Settle 20 frames, then a horizontal blade (along x) sweeps across y at z = 50 in 10
   // frames, on to y = 40 (a quick stroke, 180 mm/s: a slow one lets the part below swing about the
@@ -86,6 +89,15 @@ TEST_P(EveryModel, HangingBarCutInTwoLowerPieceFallsUpperStays) {
     ASSERT_TRUE(s.healthy) << variant.label << " frame " << f << ": " << s.warning;
   }
   EXPECT_GT(topology_changes, 0);
+  if (background) {
+    // The previous model keeps stepping until the new one is swapped in at a later frame.
+    for (int f = 0; f < 600 && session.model().positions_World_mm().cols() < session.mesh().num_vertices(); ++f) {
+      session.apply_blade(horizontal_blade(60, 50, -10, 30), false);
+      ASSERT_TRUE(session.step(dt).healthy);
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    ASSERT_EQ(session.model().positions_World_mm().cols(), session.mesh().num_vertices()) << "the background build never finished";
+  }
   const CutMeshCheck c = check_cut_mesh(session.mesh());
   ASSERT_TRUE(c.valid()) << c.summary();
   ASSERT_EQ(c.piece_volume_mm3.size(), 2u) << c.summary();
@@ -93,8 +105,8 @@ TEST_P(EveryModel, HangingBarCutInTwoLowerPieceFallsUpperStays) {
   // but the pieces add up to the column exactly.
   EXPECT_NEAR(c.total_volume_mm3 / 40000.0, 1.0, 1e-12);
   const int lower = piece_centroid(session.mesh(), session.mesh().rest_positions_World_mm, c, 0).z() < 50 ? 0 : 1;
-  const Eigen::Vector3d lower0 = piece_centroid(session.mesh(), session.model().positions_World_mm(), c, lower);
-  const Eigen::Vector3d upper0 = piece_centroid(session.mesh(), session.model().positions_World_mm(), c, 1 - lower);
+  const Eigen::Vector3d lower0 = piece_centroid(session.mesh(), session.positions_World_mm(), c, lower);
+  const Eigen::Vector3d upper0 = piece_centroid(session.mesh(), session.positions_World_mm(), c, 1 - lower);
   const int fall_frames = 24;
   for (int f = 0; f < fall_frames; ++f) {
     session.apply_blade(horizontal_blade(60, 50, -10, 30), false);
@@ -102,7 +114,7 @@ TEST_P(EveryModel, HangingBarCutInTwoLowerPieceFallsUpperStays) {
     if (known_explicit_limit(variant, s)) return;
     ASSERT_TRUE(s.healthy) << variant.label << ": " << s.warning;
   }
-  const Eigen::Matrix3Xd& x = session.model().positions_World_mm();
+  const Eigen::Matrix3Xd& x = session.positions_World_mm();
   const double fall = lower0.z() - piece_centroid(session.mesh(), x, c, lower).z();
   const double t = fall_frames * dt;
   // Free fall with mass damping (5/s) over 0.4 s: between 40 % and 100 % of 0.5 g t^2 (785 mm)
@@ -112,6 +124,9 @@ TEST_P(EveryModel, HangingBarCutInTwoLowerPieceFallsUpperStays) {
   EXPECT_LT((piece_centroid(session.mesh(), x, c, 1 - lower) - upper0).norm(), 10.0) << variant.label;
   EXPECT_TRUE(x.allFinite());
 }
+
+TEST_P(EveryModel, HangingBarCutInTwoLowerPieceFallsUpperStays) { hanging_bar_cut_in_two(GetParam(), false); }
+TEST_P(EveryModel, HangingBarCutWithBackgroundRebuild) { hanging_bar_cut_in_two(GetParam(), true); }
 
 TEST_P(EveryModel, SlitOpensUnderGravity) {
   const ModelVariant& variant = GetParam();
@@ -134,7 +149,7 @@ TEST_P(EveryModel, SlitOpensUnderGravity) {
     ASSERT_TRUE(s.healthy) << variant.label;
   }
   {
-    const Eigen::Matrix3Xd& x = session.model().positions_World_mm();
+    const Eigen::Matrix3Xd& x = session.positions_World_mm();
     double bottom = 1e9;
     for (int v = 0; v < x.cols(); ++v)
       if (std::abs(session.mesh().rest_positions_World_mm(0, v) - 50) < 6 && session.mesh().rest_positions_World_mm(2, v) < 1e-9)
@@ -152,7 +167,7 @@ TEST_P(EveryModel, SlitOpensUnderGravity) {
   ASSERT_TRUE(c.valid()) << c.summary();
   EXPECT_EQ(c.piece_volume_mm3.size(), 1u) << c.summary() << " first piece " << c.piece_volume_mm3[0];
   // The lips: vertex copies made by the cut, against their originals, on the bottom face.
-  const Eigen::Matrix3Xd& x = session.model().positions_World_mm();
+  const Eigen::Matrix3Xd& x = session.positions_World_mm();
   const Eigen::Matrix3Xd& rest = session.mesh().rest_positions_World_mm;
   double gap = 0;
   int copies = 0;
@@ -226,7 +241,7 @@ TEST(CutSession, BladePushesWhenCuttingIsOff) {
   EXPECT_TRUE(r.pushing);
   EXPECT_EQ(session.mesh().num_tets(), tets);  // no cut
   // The top surface under the blade went down with it.
-  const Eigen::Matrix3Xd& x = session.model().positions_World_mm();
+  const Eigen::Matrix3Xd& x = session.positions_World_mm();
   double lowest_top = 1e9;
   for (int v = 0; v < x.cols(); ++v)
     if (session.mesh().rest_positions_World_mm(2, v) > 40 - 1e-9) lowest_top = std::min(lowest_top, x(2, v));
