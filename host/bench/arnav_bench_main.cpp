@@ -3,6 +3,7 @@
 //   arnav-bench plot deform.csv out.png          redraw the plot from a CSV
 //   arnav-bench register [--quick] [--out DIR]  in-silico registration (TRE vs run time)
 //   arnav-bench track [--frames N] [--out DIR]  per-frame tracking (TRE and frame time)
+//   arnav-bench cut [--quick] [--out DIR]      the scalpel cutting the liver, every model
 // Writes DIR/deform.csv and DIR/deform_pareto.png and prints the CSV rows' summary as
 // JSON on stdout. Exit 0 done, 1 nothing measured (every scenario skipped: the reasons are
 // printed, no plot written), 2 usage or scene errors, 3 internal error.
@@ -13,6 +14,7 @@
 #include <fstream>
 #include <iostream>
 
+#include "host/bench/cut_bench.hpp"
 #include "host/bench/deform_bench.hpp"
 #include "host/bench/pareto_plot.hpp"
 #include "host/bench/register_bench.hpp"
@@ -68,6 +70,18 @@ static int main_body(int argc, char** argv) {
   track->add_option("-o,--out", out_dir, "output folder for track.csv and track.png");
   track->add_option("--data", track_options.data_dir, "data folder with liver/*.scene.yaml");
   track->add_option("--frames", track_frames, "frames at 60 Hz (default 600 = 10 s)")->check(CLI::PositiveNumber);
+  CutBenchOptions cut_options;
+  cut_options.data_dir = ARNAV_DEFAULT_DATA_DIR;
+  CLI::App* cut = app.add_subcommand("cut", "the scalpel cutting the liver: topology update, frame time, quality, volume, path fidelity");
+  cut->add_flag("--quick", cut_options.quick, "CI smoke run: coarse mesh, XPBD, right-lobe path, 150 frames");
+  cut->add_option("-o,--out", out_dir, "output folder for cut.csv");
+  cut->add_option("--data", cut_options.data_dir, "data folder with liver/*.scene.yaml and liver/scalpel_*.csv");
+  cut->add_option("--mesh", cut_options.meshes, "meshes (coarse: 4,768 tets; paper: 26,054 tets)")->check(CLI::IsMember({"coarse", "paper"}));
+  cut->add_option("--scenario", cut_options.scenarios, "scenarios (right_lobe, ring)")->check(CLI::IsMember({"right_lobe", "ring"}));
+  cut->add_option("--setting", cut_options.setting_prefixes, "run only the models whose label starts with this (repeatable)");
+  cut->add_option("--frames", cut_options.max_frames, "cap the frames per run")->check(CLI::PositiveNumber);
+  std::string rebuild = "inline";
+  cut->add_option("--rebuild", rebuild, "model rebuild after a cut: inline, background or both")->check(CLI::IsMember({"inline", "background", "both"}));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -161,6 +175,27 @@ static int main_body(int argc, char** argv) {
       std::cerr << "arnav-bench: " << e.what() << "\n";
       return 1;
     }
+  if (cut->parsed()) {
+    cut_options.background = rebuild == "inline" ? std::vector<bool>{false} : rebuild == "background" ? std::vector<bool>{true} : std::vector<bool>{false, true};
+    std::vector<CutBenchRow> rows;
+    try {
+      rows = run_cut_bench(cut_options);
+      std::filesystem::create_directories(out_dir);
+      write_cut_csv(out_dir + "/cut.csv", rows);
+    } catch (const std::exception& e) {
+      std::cerr << "arnav-bench: " << e.what() << "\n";
+      return 2;
+    }
+    std::cout << "{\"csv\":\"" << out_dir << "/cut.csv\",\"rows\":[";
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      const auto& r = rows[i];
+      std::cout << (i ? "," : "") << "{\"mesh\":\"" << r.mesh << "\",\"scenario\":\"" << r.scenario << "\",\"model\":\"" << r.label
+                << "\",\"background_rebuild\":" << (r.background ? "true" : "false") << ",\"frames\":" << r.frames << ",\"topology_p99_ms\":" << r.topology_p99_ms << ",\"frame_median_ms\":" << r.frame_median_ms
+                << ",\"frame_p99_ms\":" << r.frame_p99_ms << ",\"min_dihedral_deg\":" << r.min_dihedral_deg << ",\"volume_change_rel\":"
+                << r.volume_change_rel << ",\"path_fidelity_mm\":" << r.path_fidelity_mm << ",\"pieces\":" << r.pieces
+                << ",\"mesh_valid\":" << (r.mesh_valid ? "true" : "false") << ",\"healthy\":" << (r.healthy ? "true" : "false") << "}";
+    }
+    std::cout << "]}\n";
     return 0;
   }
 

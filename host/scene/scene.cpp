@@ -221,6 +221,7 @@ Scene load_scene(const std::string& path) {
   scene.time_step_s = spec.time_step_s;
   scene.frames = spec.frames;
   scene.model = spec.model;
+  scene.cutting = spec.cutting;
 
   // Display surface carried by the volume.
   scene.organ_embedding = embed_points(mesh, scene.organ_surface.positions_World_mm, spec.embed_tolerance_mm,

@@ -10,6 +10,7 @@
 
 #include "host/scene/embedding.hpp"
 #include "host/scene/mesh_quality.hpp"
+#include "host/scene/scene_spec.hpp"
 #include "host/scene/tet_mesh.hpp"
 #include "host/sim/model_config.hpp"
 #include "host/sim/tissue_model.hpp"
@@ -43,6 +44,8 @@ struct Scene {
   std::optional<EmbeddedVessels> vessels;
   std::vector<std::string> notes;         // what loading did (flips, meshing, counts, mesh quality)
   TetMeshQuality mesh_quality;            // of the rest volume (also in notes)
+  std::vector<std::string> notes;         // what loading did (flips, meshing, counts)
+  std::optional<CuttingSpec> cutting;     // the scalpel cuts the organ (docs/cut.md); only when declared
 };
 
 // Reads and builds a scene. Throws LoadError naming the file (scene or mesh), the line

@@ -187,7 +187,7 @@ SceneSpec parse_scene_spec(const std::string& yaml_text, const std::string& sour
   const Reader r(source);
   const YAML::Node root = load_yaml(yaml_text, source);
   if (!root.IsMap()) r.fail(root, "a scene file is a map of sections", "start from data/liver/liver.scene.yaml");
-  r.keys(root, {"organ", "volume", "structures", "regions", "materials", "boundary", "gravity_mm_s2", "time_step_s", "frames", "model"},
+  r.keys(root, {"organ", "volume", "structures", "regions", "materials", "boundary", "gravity_mm_s2", "time_step_s", "frames", "model", "cutting"},
          "the scene");
   SceneSpec s;
   s.source = source;
@@ -377,6 +377,34 @@ SceneSpec parse_scene_spec(const std::string& yaml_text, const std::string& sour
   if (model["blas_threads"]) s.model.blas_threads = static_cast<int>(r.integer(model["blas_threads"], "model.blas_threads", 0, 256));
   if (model["single_precision_preconditioner"])
     s.model.single_precision_preconditioner = r.boolean(model["single_precision_preconditioner"], "model.single_precision_preconditioner");
+
+  if (const YAML::Node c = root["cutting"]) {
+    CuttingSpec cs;
+    for (const auto& kv : root)
+      if (kv.first.Scalar() == "cutting") cs.line = kv.first.Mark().line + 1;
+    if (!c.IsNull()) {
+      r.keys(c, {"blade", "tumour_margin_mm", "snap_fraction", "sweep_strips", "push_stiffness_mN_per_mm"}, "cutting");
+      if (const YAML::Node b = c["blade"]) {
+        r.keys(b, {"tip_mm", "heel_mm"}, "cutting.blade");
+        if (b["tip_mm"]) cs.blade_tip_Tool_mm = r.vec3(b["tip_mm"], "cutting.blade.tip_mm");
+        if (b["heel_mm"]) cs.blade_heel_Tool_mm = r.vec3(b["heel_mm"], "cutting.blade.heel_mm");
+        if ((cs.blade_tip_Tool_mm - cs.blade_heel_Tool_mm).norm() <= 0.0)
+          r.fail(b, "cutting.blade: tip and heel are the same point", "give the tip (pivot) and a second point along the blade edge (arnav-calib)");
+      }
+      if (c["tumour_margin_mm"]) {
+        cs.tumour_margin_mm = r.number(c["tumour_margin_mm"], "cutting.tumour_margin_mm");
+        if (cs.tumour_margin_mm < 0) r.fail(c["tumour_margin_mm"], "cutting.tumour_margin_mm must be >= 0", "10 mm is the usual resection margin");
+      }
+      if (c["snap_fraction"]) {
+        cs.snap_fraction = r.number(c["snap_fraction"], "cutting.snap_fraction");
+        if (!(cs.snap_fraction > 0 && cs.snap_fraction < 0.5))
+          r.fail(c["snap_fraction"], "cutting.snap_fraction must be in (0, 0.5)", "0.1: no piece below a tenth of its tet per split edge");
+      }
+      if (c["sweep_strips"]) cs.sweep_strips = static_cast<int>(r.integer(c["sweep_strips"], "cutting.sweep_strips", 1, 256));
+      cs.push_stiffness_mN_per_mm = r.positive(c, "push_stiffness_mN_per_mm", cs.push_stiffness_mN_per_mm, "cutting");
+    }
+    s.cutting = cs;
+  }
   return s;
 }
 

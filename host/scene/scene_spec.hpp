@@ -75,6 +75,17 @@ struct FixedRule {
   int line = 0;
 };
 
+// The cutting section (docs/cut.md): built only when the scene declares it.
+struct CuttingSpec {
+  Eigen::Vector3d blade_tip_Tool_mm = Eigen::Vector3d::Zero();      // blade edge in the tool frame
+  Eigen::Vector3d blade_heel_Tool_mm = Eigen::Vector3d(0, 0, 20.0);
+  double tumour_margin_mm = 10.0;         // safety margin event distance
+  double snap_fraction = 0.1;             // quality bound: crossings this close (fraction of the edge) snap to its vertex
+  int sweep_strips = 8;                   // strips of the swept surface
+  double push_stiffness_mN_per_mm = 50.0; // contact spring when cutting is off
+  int line = 0;
+};
+
 struct SceneSpec {
   std::string source;
   FileSpec organ;
@@ -91,6 +102,7 @@ struct SceneSpec {
   int frames = 60;
   ModelConfig model;
   int model_line = 0;
+  std::optional<CuttingSpec> cutting;
 };
 
 // Parses scene YAML text; throws LoadError "<source>:<line>: ... Fix: ...".

@@ -34,6 +34,10 @@ static int main_body(int argc, char** argv) {
                  "recommended settings (docs/sim.md); --iterations/--substeps override them");
   app.add_option("--iterations", iterations, "override model.iterations")->check(CLI::PositiveNumber);
   app.add_option("--substeps", substeps, "override model.substeps")->check(CLI::PositiveNumber);
+  std::string scalpel_path;
+  app.add_option("--scalpel", scalpel_path,
+                 "scalpel path CSV (t_s,tip_x,tip_y,tip_z,heel_x,heel_y,heel_z[,cutting], World mm): cut the organ "
+                 "(the scene needs a 'cutting:' section, docs/cut.md)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -61,6 +65,18 @@ static int main_body(int argc, char** argv) {
   if (iterations > 0) scene.model.iterations = iterations;
   if (substeps > 0) scene.model.substeps = substeps;
   options.frames = frames >= 0 ? frames : scene.frames;
+  if (!scalpel_path.empty()) {
+    if (!scene.cutting) {
+      std::cerr << "arnav-sim: " << scene_path << " has no 'cutting:' section: add one to cut with --scalpel (docs/cut.md)\n";
+      return 2;
+    }
+    try {
+      options.scalpel = cut::load_scalpel_csv(scalpel_path);
+    } catch (const LoadError& e) {
+      std::cerr << "arnav-sim: " << e.what() << "\n";
+      return 2;
+    }
+  }
 
   std::ofstream csv_file;
   if (!options.out_dir.empty()) {
@@ -90,7 +106,12 @@ static int main_body(int argc, char** argv) {
        << ",\"p01_dihedral_deg\":" << scene.mesh_quality.p01_dihedral_deg << ",\"max_dihedral_deg\":" << scene.mesh_quality.max_dihedral_deg
        << ",\"max_radius_edge_ratio\":" << scene.mesh_quality.max_radius_edge_ratio
        << ",\"min_volume_mm3\":" << scene.mesh_quality.min_volume_mm3 << ",\"slivers\":" << scene.mesh_quality.slivers
-       << "},\"healthy\":" << (r.healthy ? "true" : "false") << "}";
+       << "},\"healthy\":" << (r.healthy ? "true" : "false");
+  if (options.scalpel) {
+    json << ",\"cut\":{\"tets\":" << r.tets << ",\"vertices\":" << r.vertices << ",\"pieces\":" << r.pieces << ",\"events\":" << r.cut_events
+         << ",\"max_topology_update_ms\":" << r.max_topology_update_ms << "}";
+  }
+  json << "}";
   (options.out_dir.empty() ? std::cerr : std::cout) << json.str() << "\n";
   if (!r.healthy) {
     std::cerr << "arnav-sim: the model became unhealthy at frame " << r.frames_run << ": " << r.warning

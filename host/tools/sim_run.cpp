@@ -3,8 +3,12 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <stdexcept>
 #include <vector>
 
+#include "host/cut/cut_session.hpp"
+#include "host/cut/mesh_checks.hpp"
 #include "host/scene/mesh_io.hpp"
 #include "host/sim/model_factory.hpp"
 
@@ -35,10 +39,130 @@ void write_frame(const Scene& scene, const SimRunOptions& o, int frame, const Ei
   }
 }
 
+// Volume centroid of a closed triangle surface (divergence theorem).
+Eigen::Vector3d closed_surface_centroid(const Eigen::Matrix3Xd& p, const std::vector<std::array<int, 3>>& tris) {
+  double volume = 0.0;
+  Eigen::Vector3d moment = Eigen::Vector3d::Zero();
+  for (const auto& t : tris) {
+    const Eigen::Vector3d a = p.col(t[0]), b = p.col(t[1]), c = p.col(t[2]);
+    const double v = a.dot(b.cross(c)) / 6.0;
+    volume += v;
+    moment += v * (a + b + c) / 4.0;
+  }
+  return std::abs(volume) > 0 ? Eigen::Vector3d(moment / volume) : Eigen::Vector3d(p.rowwise().mean());
+}
+
+SimRunResult run_scene_with_scalpel(const Scene& scene, const SimRunOptions& o, std::ostream& csv) {
+  using namespace cut;
+  const CuttingSpec& spec = *scene.cutting;
+  CutSessionSettings settings;
+  settings.cut.snap_fraction = spec.snap_fraction;
+  settings.sweep_strips = spec.sweep_strips;
+  settings.tumour_margin_mm = spec.tumour_margin_mm;
+  settings.push_stiffness_mN_per_mm = spec.push_stiffness_mN_per_mm;
+  std::vector<CarriedPoints> tumours;
+  std::vector<std::vector<std::array<int, 3>>> tumour_tris;
+  for (const auto& t : scene.tumours) {
+    tumours.push_back({t.name, t.rest.positions_World_mm, t.embedding});
+    tumour_tris.push_back(t.rest.tris);
+  }
+  std::optional<CarriedPoints> vessels;
+  std::vector<std::array<int, 2>> segments;
+  if (scene.vessels) {
+    vessels = CarriedPoints{"vessels", scene.vessels->rest.nodes_World_mm, scene.vessels->embedding};
+    segments = scene.vessels->rest.segments;
+  }
+  CutSession session(scene.problem, scene.model, settings, tumours, tumour_tris, vessels, segments);
+  std::ofstream events;
+  if (!o.out_dir.empty()) {
+    events.open(o.out_dir + "/cut_events.csv");
+    events << "frame,time_s,kind,structure,distance_mm,x_mm,y_mm,z_mm\n";
+  }
+  auto write = [&](int frame) {
+    if (o.out_dir.empty()) return;
+    const Eigen::Matrix3Xd& x = session.positions_World_mm();
+    const TetMesh& mesh = session.mesh();
+    const auto& surface = session.surface_tris();
+    if (o.format == "obj") {
+      write_obj(numbered(o.out_dir, "organ", frame, "obj"), x, surface);
+    } else {
+      write_vtk_volume(numbered(o.out_dir, "volume", frame, "vtk"), mesh, x);
+      write_vtk_surface(numbered(o.out_dir, "organ", frame, "vtk"), x, surface);
+    }
+    for (std::size_t k = 0; k < session.tumours().size(); ++k) {
+      const Eigen::Matrix3Xd p = session.tumours()[k].embedding.apply(mesh, x);
+      const std::string stem = "tumour_" + session.tumours()[k].name;
+      if (o.format == "obj") write_obj(numbered(o.out_dir, stem, frame, "obj"), p, tumour_tris[k]);
+      else write_vtk_surface(numbered(o.out_dir, stem, frame, "vtk"), p, tumour_tris[k]);
+    }
+    if (session.vessels() && o.format != "obj")
+      write_vtk_lines(numbered(o.out_dir, "vessels", frame, "vtk"), session.vessels()->embedding.apply(mesh, x), segments,
+                      scene.vessels->rest.radius_mm);
+  };
+  const bool has_tumour = !tumours.empty();
+  auto tumour_centroid = [&]() {
+    return closed_surface_centroid(session.tumours()[0].embedding.apply(session.mesh(), session.positions_World_mm()), tumour_tris[0]);
+  };
+  const Eigen::Vector3d tumour0 = has_tumour ? tumour_centroid() : Eigen::Vector3d::Zero();
+  csv << "frame,time_s,wall_ms,iterations,initial_residual,final_residual,termination,kinetic_energy,elastic_energy,"
+         "healthy,max_displacement_mm,tumour_dx_mm,tumour_dy_mm,tumour_dz_mm,warning,"
+         "cutting,contact_depth_mm,topology_update_ms,model_rebuild_ms,tets,vertices,tets_cut,tets_added,pieces,events\n";
+  write(0);
+  SimRunResult result;
+  std::vector<double> wall;
+  int pieces = 1;
+  for (int f = 1; f <= o.frames; ++f) {
+    const ScalpelSample blade = o.scalpel->at(f * scene.time_step_s);
+    const CutFrameReport cr = session.apply_blade(blade.blade, blade.cutting);
+    if (cr.cut.topology_changed) pieces = static_cast<int>(check_cut_mesh(session.mesh()).piece_volume_mm3.size());
+    for (const auto& e : cr.events) {
+      ++result.cut_events;
+      if (events.is_open())
+        events << f << ',' << f * scene.time_step_s << ',' << e.kind << ',' << e.structure << ',' << e.distance_mm << ','
+               << e.location_World_mm.x() << ',' << e.location_World_mm.y() << ',' << e.location_World_mm.z() << '\n';
+    }
+    const StepSummary s = session.step(scene.time_step_s);
+    const Eigen::Matrix3Xd& x = session.positions_World_mm();
+    const Eigen::Matrix3Xd& rest = session.mesh().rest_positions_World_mm;
+    wall.push_back(s.wall_time_ms + cr.cut.update_ms + cr.rebuild_ms + cr.reembed_ms);
+    result.frames_run = f;
+    result.max_displacement_mm = (x - rest).colwise().norm().maxCoeff();
+    result.max_topology_update_ms = std::max(result.max_topology_update_ms, cr.cut.update_ms);
+    if (has_tumour) result.tumour_displacement_mm = tumour_centroid() - tumour0;
+    std::string warning = s.warning;
+    std::replace(warning.begin(), warning.end(), ',', ';');
+    csv << f << ',' << f * scene.time_step_s << ',' << wall.back() << ',' << s.iterations << ',' << s.initial_residual << ','
+        << s.final_residual << ',' << s.termination << ',' << s.kinetic_energy << ',' << s.elastic_energy << ',' << (s.healthy ? 1 : 0)
+        << ',' << result.max_displacement_mm << ',' << result.tumour_displacement_mm.x() << ',' << result.tumour_displacement_mm.y()
+        << ',' << result.tumour_displacement_mm.z() << ',' << warning << ',' << (blade.cutting ? 1 : 0) << ','
+        << (cr.contact.tip_inside ? cr.contact.depth_mm : 0.0) << ',' << cr.cut.update_ms << ',' << cr.rebuild_ms << ','
+        << session.mesh().num_tets() << ',' << session.mesh().num_vertices() << ',' << cr.cut.tets_cut << ',' << cr.cut.tets_added << ','
+        << pieces << ',' << cr.events.size() << '\n';
+    if (f == o.frames || f % std::max(1, o.write_every) == 0 || !s.healthy) write(f);
+    if (!s.healthy) {
+      result.healthy = false;
+      result.warning = s.warning.empty() ? "unhealthy step" : s.warning;
+      break;
+    }
+  }
+  if (!wall.empty()) {
+    std::nth_element(wall.begin(), wall.begin() + wall.size() / 2, wall.end());
+    result.median_step_ms = wall[wall.size() / 2];
+  }
+  result.tets = session.mesh().num_tets();
+  result.vertices = session.mesh().num_vertices();
+  result.pieces = pieces;
+  return result;
+}
+
 }  // namespace
 
 SimRunResult run_scene(const Scene& scene, const SimRunOptions& o, std::ostream& csv) {
   if (!o.out_dir.empty()) std::filesystem::create_directories(o.out_dir);
+  if (o.scalpel) {
+    if (!scene.cutting) throw std::invalid_argument("a scalpel path needs the scene to declare a 'cutting:' section (docs/cut.md)");
+    return run_scene_with_scalpel(scene, o, csv);
+  }
   std::unique_ptr<TissueModel> model = make_tissue_model(scene.problem, scene.model);
   const Eigen::Matrix3Xd& rest = scene.problem.mesh.rest_positions_World_mm;
   const bool has_tumour = !scene.tumours.empty();

@@ -1,0 +1,154 @@
+#include "host/bench/cut_bench.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <fstream>
+#include <iostream>
+#include <stdexcept>
+
+#include "host/cut/cut_session.hpp"
+#include "host/cut/mesh_checks.hpp"
+#include "host/cut/scalpel_path.hpp"
+#include "host/scene/scene.hpp"
+#include "host/sim/model_factory.hpp"
+
+namespace arnav::host {
+
+namespace {
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const std::size_t i = std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5));
+  return v[i];
+}
+
+bool selected(const std::string& label, const std::vector<std::string>& prefixes) {
+  if (prefixes.empty()) return true;
+  for (const auto& p : prefixes)
+    if (label.rfind(p, 0) == 0) return true;
+  return false;
+}
+
+}  // namespace
+
+std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
+  using namespace cut;
+  std::vector<std::string> meshes = o.quick ? std::vector<std::string>{"coarse"} : o.meshes;
+  std::vector<std::string> scenarios = o.quick ? std::vector<std::string>{"right_lobe"} : o.scenarios;
+  std::vector<std::string> prefixes = o.quick ? std::vector<std::string>{"xpbd"} : o.setting_prefixes;
+  std::vector<CutBenchRow> rows;
+  for (const auto& mesh_name : meshes) {
+    if (mesh_name != "coarse" && mesh_name != "paper") throw std::invalid_argument("cut bench: unknown mesh '" + mesh_name + "' (coarse, paper)");
+    const Scene scene = load_scene(o.data_dir + (mesh_name == "coarse" ? "/liver/liver_coarse_cut.scene.yaml" : "/liver/liver.scene.yaml"));
+    const CutMeshCheck input = check_cut_mesh(scene.problem.mesh);
+    for (const auto& scenario : scenarios) {
+      if (scenario != "right_lobe" && scenario != "ring") throw std::invalid_argument("cut bench: unknown scenario '" + scenario + "' (right_lobe, ring)");
+      const ScalpelPath path = load_scalpel_csv(o.data_dir + "/liver/scalpel_" + scenario + ".csv");
+      int frames = static_cast<int>(path.samples.back().t_s / scene.time_step_s) + 1;
+      if (o.quick) frames = std::min(frames, 150);
+      if (o.max_frames > 0) frames = std::min(frames, o.max_frames);
+      for (const auto& variant : model_variants())
+      for (const bool background : o.background) {
+        if (!selected(variant.label, prefixes)) continue;
+        CutSessionSettings settings;  // docs/cut.md defaults (the scene's cutting section on the coarse mesh)
+        settings.rebuild_in_background = background;
+        if (scene.cutting) {
+          settings.cut.snap_fraction = scene.cutting->snap_fraction;
+          settings.sweep_strips = scene.cutting->sweep_strips;
+          settings.tumour_margin_mm = scene.cutting->tumour_margin_mm;
+        }
+        std::vector<CarriedPoints> tumours;
+        std::vector<std::vector<std::array<int, 3>>> tumour_tris;
+        for (const auto& t : scene.tumours) {
+          tumours.push_back({t.name, t.rest.positions_World_mm, t.embedding});
+          tumour_tris.push_back(t.rest.tris);
+        }
+        std::optional<CarriedPoints> vessels;
+        std::vector<std::array<int, 2>> segments;
+        if (scene.vessels) {
+          vessels = CarriedPoints{"vessels", scene.vessels->rest.nodes_World_mm, scene.vessels->embedding};
+          segments = scene.vessels->rest.segments;
+        }
+        CutSession session(scene.problem, variant.config, settings, tumours, tumour_tris, vessels, segments);
+        CutBenchRow row;
+        row.mesh = mesh_name;
+        row.scenario = scenario;
+        row.label = variant.label;
+        row.background = background;
+        row.tets_before = scene.problem.mesh.num_tets();
+        row.min_dihedral_input_deg = input.min_dihedral_deg;
+        std::vector<double> topology, frame, rebuild;
+        for (int f = 1; f <= frames; ++f) {
+          const ScalpelSample s = path.at(f * scene.time_step_s);
+          const auto t0 = std::chrono::steady_clock::now();
+          const CutFrameReport cr = session.apply_blade(s.blade, s.cutting);
+          const StepSummary step = session.step(scene.time_step_s);
+          frame.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+          topology.push_back(cr.cut.update_ms);
+          row.frames = f;
+          row.events += static_cast<int>(cr.events.size());
+          row.path_fidelity_mm = std::max(row.path_fidelity_mm, cr.cut.max_path_deviation_mm);
+          row.completed_tets += cr.cut.tets_completed;
+          if (cr.cut.topology_changed) {
+            ++row.topology_changes;
+            rebuild.push_back(cr.rebuild_ms);
+          }
+          if (!step.healthy) {
+            row.healthy = false;
+            row.warning = step.warning;
+            break;
+          }
+        }
+        const CutMeshCheck after = check_cut_mesh(session.mesh());
+        row.tets_after = session.mesh().num_tets();
+        row.vertices_after = session.mesh().num_vertices();
+        row.new_tets = row.tets_after - row.tets_before;
+        row.topology_median_ms = percentile(topology, 0.5);
+        row.topology_p99_ms = percentile(topology, 0.99);
+        row.topology_max_ms = percentile(topology, 1.0);
+        row.frame_median_ms = percentile(frame, 0.5);
+        row.frame_p99_ms = percentile(frame, 0.99);
+        row.rebuild_median_ms = percentile(rebuild, 0.5);
+        row.rebuild_p99_ms = percentile(rebuild, 0.99);
+        row.min_dihedral_deg = after.min_dihedral_deg;
+        row.volume_change_rel = after.total_volume_mm3 / input.total_volume_mm3 - 1.0;
+        row.mesh_valid = after.valid();
+        row.pieces = static_cast<int>(after.piece_volume_mm3.size());
+        std::vector<char> fixed_piece(after.piece_volume_mm3.size(), 0);
+        std::vector<char> is_fixed(static_cast<std::size_t>(session.mesh().num_vertices()), 0);
+        for (int v : session.fixed_vertices()) is_fixed[static_cast<std::size_t>(v)] = 1;
+        for (int t = 0; t < session.mesh().num_tets(); ++t)
+          for (int v : session.mesh().tets[static_cast<std::size_t>(t)])
+            if (is_fixed[static_cast<std::size_t>(v)]) fixed_piece[static_cast<std::size_t>(after.piece_of_tet[static_cast<std::size_t>(t)])] = 1;
+        row.free_pieces = static_cast<int>(std::count(fixed_piece.begin(), fixed_piece.end(), 0));
+        std::cerr << "arnav-bench cut: " << mesh_name << " " << scenario << " " << variant.label << (background ? " (background rebuild)" : "") << ": " << row.frames << " frames, frame "
+                  << row.frame_median_ms << "/" << row.frame_p99_ms << " ms (median/p99), topology " << row.topology_median_ms << "/"
+                  << row.topology_p99_ms << " ms, rebuild " << row.rebuild_median_ms << " ms, pieces " << row.pieces
+                  << (row.healthy ? "" : " UNHEALTHY: " + row.warning) << "\n";
+        rows.push_back(row);
+      }
+    }
+  }
+  return rows;
+}
+
+void write_cut_csv(const std::string& path, const std::vector<CutBenchRow>& rows) {
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error("cannot write " + path + ": check the folder");
+  out << "mesh,scenario,model,background_rebuild,tets_before,tets_after,vertices_after,frames,topology_changes,new_tets,topology_median_ms,topology_p99_ms,"
+         "topology_max_ms,frame_median_ms,frame_p99_ms,rebuild_median_ms,rebuild_p99_ms,min_dihedral_input_deg,min_dihedral_deg,"
+         "volume_change_rel,path_fidelity_mm,completed_tets,pieces,free_pieces,events,mesh_valid,healthy,warning\n";
+  for (const auto& r : rows) {
+    std::string warning = r.warning;
+    std::replace(warning.begin(), warning.end(), ',', ';');
+    out << r.mesh << ',' << r.scenario << ',' << r.label << ',' << (r.background ? 1 : 0) << ',' << r.tets_before << ',' << r.tets_after << ',' << r.vertices_after << ','
+        << r.frames << ',' << r.topology_changes << ',' << r.new_tets << ',' << r.topology_median_ms << ',' << r.topology_p99_ms << ','
+        << r.topology_max_ms << ',' << r.frame_median_ms << ',' << r.frame_p99_ms << ',' << r.rebuild_median_ms << ',' << r.rebuild_p99_ms
+        << ',' << r.min_dihedral_input_deg << ',' << r.min_dihedral_deg << ',' << r.volume_change_rel << ',' << r.path_fidelity_mm << ','
+        << r.completed_tets << ',' << r.pieces << ',' << r.free_pieces << ',' << r.events << ',' << (r.mesh_valid ? 1 : 0) << ','
+        << (r.healthy ? 1 : 0) << ',' << warning << '\n';
+  }
+}
+
+}  // namespace arnav::host

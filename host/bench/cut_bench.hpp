@@ -1,0 +1,40 @@
+#pragma once
+// arnav-bench cut: the tracked scalpel cutting the bundled liver, for every tissue model
+// (docs/cut.md, docs/benchmarks.md). Per run: topology-update and whole-frame time (median,
+// p99), model rebuild time, new elements, smallest dihedral angle, volume change, path
+// fidelity, pieces and events.
+#include <string>
+#include <vector>
+
+namespace arnav::host {
+
+struct CutBenchOptions {
+  std::string data_dir;                                        // folder with liver/*.scene.yaml and the scalpel paths
+  bool quick = false;                                          // CI smoke run: coarse mesh, XPBD, 150 frames
+  std::vector<std::string> meshes = {"coarse"};                // coarse (4,768 tets) and/or paper (26,054 tets)
+  std::vector<std::string> scenarios = {"right_lobe", "ring"};
+  std::vector<std::string> setting_prefixes;                   // model labels to run (prefix match; empty: all)
+  int max_frames = 0;                                          // cap per run (0: the whole path)
+  std::vector<bool> background = {false};                      // rebuild the model inline and/or in the background
+};
+
+struct CutBenchRow {
+  std::string mesh, scenario, label;
+  bool background = false;  // model rebuilt on a worker thread
+  int tets_before = 0, tets_after = 0, vertices_after = 0, frames = 0, topology_changes = 0, new_tets = 0;
+  double topology_median_ms = 0, topology_p99_ms = 0, topology_max_ms = 0;
+  double frame_median_ms = 0, frame_p99_ms = 0;
+  double rebuild_median_ms = 0, rebuild_p99_ms = 0;  // over frames with a topology change
+  double min_dihedral_input_deg = 0, min_dihedral_deg = 0;
+  double volume_change_rel = 0;                      // rest volume after / before - 1
+  double path_fidelity_mm = 0;                       // largest distance of a cut point from the swept surface
+  int completed_tets = 0;                            // tets completed from vertex sides (tissue moved)
+  int pieces = 1, free_pieces = 0, events = 0;
+  bool healthy = true, mesh_valid = true;
+  std::string warning;
+};
+
+std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& options);
+void write_cut_csv(const std::string& path, const std::vector<CutBenchRow>& rows);
+
+}  // namespace arnav::host

@@ -1,0 +1,346 @@
+#include "host/cut/cut_session.hpp"
+
+#include <Eigen/LU>
+#include <algorithm>
+#include <chrono>
+#include <stdexcept>
+
+#include "host/sim/model_factory.hpp"
+
+namespace arnav::host::cut {
+
+namespace {
+
+double ms_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Closest points of segments p0-p1 and q0-q1 (Ericson 5.1.9); returns the distance.
+double segment_segment_distance(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, const Eigen::Vector3d& q0,
+                                const Eigen::Vector3d& q1, Eigen::Vector3d* on_p) {
+  const Eigen::Vector3d d1 = p1 - p0, d2 = q1 - q0, r = p0 - q0;
+  const double a = d1.squaredNorm(), e = d2.squaredNorm(), f = d2.dot(r);
+  double s = 0, t = 0;
+  if (a <= 1e-300 && e <= 1e-300) {
+    s = t = 0;
+  } else if (a <= 1e-300) {
+    t = std::clamp(f / e, 0.0, 1.0);
+  } else {
+    const double c = d1.dot(r);
+    if (e <= 1e-300) {
+      s = std::clamp(-c / a, 0.0, 1.0);
+    } else {
+      const double b = d1.dot(d2), denom = a * e - b * b;
+      s = denom > 0 ? std::clamp((b * f - c * e) / denom, 0.0, 1.0) : 0.0;
+      t = (b * s + f) / e;
+      if (t < 0) {
+        t = 0;
+        s = std::clamp(-c / a, 0.0, 1.0);
+      } else if (t > 1) {
+        t = 1;
+        s = std::clamp((b - c) / a, 0.0, 1.0);
+      }
+    }
+  }
+  const Eigen::Vector3d cp = p0 + s * d1, cq = q0 + t * d2;
+  if (on_p) *on_p = cp;
+  return (cp - cq).norm();
+}
+
+// Distance between a segment and a triangle, with the closest point on the segment.
+double segment_triangle_distance(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, const Triangle& tri, Eigen::Vector3d* on_seg) {
+  double s = 0;
+  if (segment_triangle_intersection(p0, p1, tri, s)) {
+    if (on_seg) *on_seg = p0 + s * (p1 - p0);
+    return 0.0;
+  }
+  double best = point_triangle_distance(p0, tri);
+  Eigen::Vector3d where = p0;
+  const double d1 = point_triangle_distance(p1, tri);
+  if (d1 < best) {
+    best = d1;
+    where = p1;
+  }
+  const Eigen::Vector3d corners[3] = {tri.a, tri.b, tri.c};
+  for (int i = 0; i < 3; ++i) {
+    Eigen::Vector3d cp;
+    const double d = segment_segment_distance(p0, p1, corners[i], corners[(i + 1) % 3], &cp);
+    if (d < best) {
+      best = d;
+      where = cp;
+    }
+  }
+  if (on_seg) *on_seg = where;
+  return best;
+}
+
+}  // namespace
+
+CutSession::CutSession(const SimProblem& problem, const ModelConfig& config, const CutSessionSettings& settings,
+                       std::vector<CarriedPoints> tumours, std::vector<std::vector<std::array<int, 3>>> tumour_tris,
+                       std::optional<CarriedPoints> vessels, std::vector<std::array<int, 2>> vessel_segments)
+    : problem_(problem),
+      config_(config),
+      settings_(settings),
+      cutter_(problem.mesh, settings.cut),
+      tumours_(std::move(tumours)),
+      tumour_tris_(std::move(tumour_tris)),
+      vessels_(std::move(vessels)),
+      vessel_segments_(std::move(vessel_segments)) {
+  if (settings_.sweep_strips < 1) throw std::invalid_argument("cutting: sweep_strips must be >= 1");
+  if (!(settings_.tumour_margin_mm >= 0.0)) throw std::invalid_argument("cutting: tumour_margin_mm must be >= 0");
+  if (!(settings_.push_stiffness_mN_per_mm > 0.0)) throw std::invalid_argument("cutting: push_stiffness_mN_per_mm must be > 0");
+  if (tumour_tris_.size() != tumours_.size()) throw std::invalid_argument("cut session: one triangle list per tumour");
+  model_ = make_tissue_model(problem_, config_);
+  n0_ = problem_.mesh.num_vertices();
+  fixed_.assign(static_cast<std::size_t>(problem_.mesh.num_vertices()), 0);
+  for (int v : problem_.fixed_vertices) fixed_[static_cast<std::size_t>(v)] = 1;
+  in_margin_.assign(tumours_.size(), 0);
+  tumour_cut_.assign(tumours_.size(), 0);
+  vessel_segment_crossed_.assign(vessel_segments_.size(), 0);
+}
+
+const std::vector<std::array<int, 3>>& CutSession::surface_tris() {
+  if (surface_dirty_) {
+    cutter_.update_surface();
+    surface_bvh_.build(triangle_boxes(cutter_.mesh().surface_tris, positions_World_mm()));
+    surface_dirty_ = false;
+  }
+  return cutter_.mesh().surface_tris;
+}
+
+void CutSession::rebuild_model(const CutStepReport& step) {
+  const int old_vertices = static_cast<int>(fixed_.size());
+  for (std::size_t i = 0; i < step.new_vertices.size(); ++i) {
+    const VertexOrigin& o = step.new_vertices[i];
+    const bool fixed = o.b < 0 ? fixed_[static_cast<std::size_t>(o.a)] != 0
+                               : fixed_[static_cast<std::size_t>(o.a)] != 0 && fixed_[static_cast<std::size_t>(o.b)] != 0;
+    fixed_.push_back(fixed ? 1 : 0);
+    if (fixed) problem_.fixed_vertices.push_back(old_vertices + static_cast<int>(i));
+    origins_.push_back(o);
+  }
+  problem_.mesh = cutter_.mesh();
+  if (settings_.rebuild_in_background) {
+    if (build_.valid()) {
+      rebuild_wanted_ = true;  // a build is running: another one follows it
+    } else {
+      launch_build();
+    }
+    return;
+  }
+  model_ = make_tissue_model(problem_, config_);
+  ++rebuilds_;
+}
+
+Eigen::Matrix3Xd CutSession::extended(const Eigen::Matrix3Xd& m) const {
+  const int n = cutter_.mesh().num_vertices();
+  if (m.cols() >= n) return m;
+  Eigen::Matrix3Xd out(3, n);
+  out.leftCols(m.cols()) = m;
+  for (int i = static_cast<int>(m.cols()); i < n; ++i) {
+    const VertexOrigin& o = origins_[static_cast<std::size_t>(i - n0_)];
+    out.col(i) = o.b < 0 ? Eigen::Vector3d(out.col(o.a)) : Eigen::Vector3d((1 - o.t) * out.col(o.a) + o.t * out.col(o.b));
+  }
+  return out;
+}
+
+void CutSession::launch_build() {
+  rebuild_wanted_ = false;
+  build_ = std::async(std::launch::async, [problem = problem_, config = config_]() { return make_tissue_model(problem, config); });
+}
+
+double CutSession::poll_build() {
+  if (!build_.valid() || build_.wait_for(std::chrono::seconds(0)) != std::future_status::ready) return 0.0;
+  const auto t0 = std::chrono::steady_clock::now();
+  std::unique_ptr<TissueModel> next = build_.get();  // rethrows a failed build
+  const int n = next->positions_World_mm().cols();
+  next->set_state(extended(model_->positions_World_mm()).leftCols(n), extended(model_->velocities_World_mm_s()).leftCols(n));
+  model_ = std::move(next);
+  ++rebuilds_;
+  if (push_) push_ = model_->add_attachment(push_spec_);
+  if (rebuild_wanted_) launch_build();
+  return ms_since(t0);
+}
+
+void CutSession::reembed(CarriedPoints& points, const CutStepReport& step) {
+  const auto& changed = step.changed_tets;
+  const TetMesh& mesh = cutter_.mesh();
+  const auto& rest = mesh.rest_positions_World_mm;
+  for (int i = 0; i < points.embedding.size(); ++i) {
+    const int t = points.embedding.tet[static_cast<std::size_t>(i)];
+    if (!std::binary_search(changed.begin(), changed.end(), t)) continue;
+    const Eigen::Vector3d p = points.rest_World_mm.col(i);
+    double best = -1e300;
+    int best_tet = t;
+    Eigen::Vector4d best_w = points.embedding.weights.col(i);
+    for (int piece : cutter_.pieces_of(cutter_.origin_tet(t))) {
+      const auto& tet = mesh.tets[static_cast<std::size_t>(piece)];
+      Eigen::Matrix3d D;
+      for (int k = 0; k < 3; ++k) D.col(k) = rest.col(tet[static_cast<std::size_t>(k + 1)]) - rest.col(tet[0]);
+      const Eigen::Vector3d l = D.partialPivLu().solve(p - rest.col(tet[0]));
+      const Eigen::Vector4d w(1.0 - l.sum(), l[0], l[1], l[2]);
+      if (w.minCoeff() > best) {
+        best = w.minCoeff();
+        best_tet = piece;
+        best_w = w;
+      }
+    }
+    points.embedding.tet[static_cast<std::size_t>(i)] = best_tet;
+    points.embedding.weights.col(i) = best_w;
+  }
+}
+
+void CutSession::check_events(const BladeSegment& blade, const SweptSurface* sweep, CutFrameReport& report) {
+  const TetMesh& mesh = cutter_.mesh();
+  const Eigen::Matrix3Xd x = positions_World_mm();
+  if (report.contact.touching) {
+    for (std::size_t k = 0; k < tumours_.size(); ++k) {
+      const Eigen::Matrix3Xd p = tumours_[k].embedding.apply(mesh, x);
+      double best = 1e300;
+      Eigen::Vector3d where = blade.tip_World_mm;
+      for (const auto& t : tumour_tris_[k]) {
+        Eigen::Vector3d on_blade;
+        const double d = segment_triangle_distance(blade.tip_World_mm, blade.heel_World_mm, {p.col(t[0]), p.col(t[1]), p.col(t[2])}, &on_blade);
+        if (d < best) {
+          best = d;
+          where = on_blade;
+        }
+      }
+      if (best < settings_.tumour_margin_mm && !in_margin_[k]) {
+        report.events.push_back({frame_, "margin_entered", tumours_[k].name, best, where});
+      }
+      in_margin_[k] = best < settings_.tumour_margin_mm;
+      if (sweep && best == 0.0 && !tumour_cut_[k]) {
+        report.events.push_back({frame_, "tumour_cut", tumours_[k].name, 0.0, where});
+        tumour_cut_[k] = 1;
+      }
+    }
+  }
+  if (sweep && vessels_) {
+    const Eigen::Matrix3Xd p = vessels_->embedding.apply(mesh, x);
+    const auto tris = sweep->triangles();
+    for (std::size_t s = 0; s < vessel_segments_.size(); ++s) {
+      if (vessel_segment_crossed_[s]) continue;
+      const auto [a, b] = vessel_segments_[s];
+      for (const auto& t : tris) {
+        double u = 0;
+        if (segment_triangle_intersection(p.col(a), p.col(b), t, u)) {
+          vessel_segment_crossed_[s] = 1;
+          report.events.push_back({frame_, "vessel_crossed", vessels_->name + " segment " + std::to_string(s), 0.0,
+                                   p.col(a) + u * (p.col(b) - p.col(a))});
+          break;
+        }
+      }
+    }
+  }
+}
+
+void CutSession::absorb(CutFrameReport& report, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v) {
+  if (!report.cut.topology_changed) return;
+  auto t0 = std::chrono::steady_clock::now();
+  rebuild_model(report.cut);
+  if (!settings_.rebuild_in_background) model_->set_state(x, v);
+  report.rebuild_ms = ms_since(t0);
+  t0 = std::chrono::steady_clock::now();
+  for (auto& t : tumours_) reembed(t, report.cut);
+  if (vessels_) reembed(*vessels_, report.cut);
+  report.reembed_ms = ms_since(t0);
+  surface_dirty_ = true;
+}
+
+CutFrameReport CutSession::apply_blade(const BladeSegment& blade, bool cutting_enabled) {
+  ++frame_;
+  CutFrameReport report;
+  report.rebuild_ms = poll_build();
+  const auto& tris = surface_tris();
+  const Eigen::Matrix3Xd x_now = positions_World_mm();
+  surface_bvh_.refit(triangle_boxes(tris, x_now));
+  report.contact = blade_contact(surface_bvh_, tris, x_now, blade);
+  if (cutting_enabled) {
+    if (push_) {
+      model_->remove_attachment(*push_);
+      push_.reset();
+    }
+    if (!previous_cutting_) cutter_.begin_stroke();
+    if (previous_blade_ && previous_cutting_) {
+      SweptSurface sweep{*previous_blade_, blade, settings_.sweep_strips, {}};
+      Eigen::Matrix3Xd x = positions_World_mm(), v = velocities_World_mm_s();
+      if (x_at_blade_.cols() == x.cols()) {
+        // Points of the blade inside the tissue move with their tet; points outside move with
+        // the nearest point inside (no gap opens between the strips at the surface).
+        const int n = settings_.sweep_strips;
+        std::vector<Eigen::Vector3d> start(static_cast<std::size_t>(n) + 1), moved(static_cast<std::size_t>(n) + 1);
+        std::vector<char> inside(static_cast<std::size_t>(n) + 1, 0);
+        for (int i = 0; i <= n; ++i) {
+          const double u = static_cast<double>(i) / n;
+          start[static_cast<std::size_t>(i)] = (1 - u) * previous_blade_->tip_World_mm + u * previous_blade_->heel_World_mm;
+          Eigen::Vector4d w;
+          const int t = cutter_.locate(start[static_cast<std::size_t>(i)], x_at_blade_, w);
+          if (t >= 0 && w.minCoeff() >= -1e-9) {
+            const auto& tet = cutter_.mesh().tets[static_cast<std::size_t>(t)];
+            moved[static_cast<std::size_t>(i)].setZero();
+            for (int k = 0; k < 4; ++k) moved[static_cast<std::size_t>(i)] += w[k] * x.col(tet[static_cast<std::size_t>(k)]);
+            inside[static_cast<std::size_t>(i)] = 1;
+          }
+        }
+        for (int i = 0; i <= n; ++i) {
+          if (inside[static_cast<std::size_t>(i)]) continue;
+          int nearest = -1;
+          for (int j = 0; j <= n; ++j)
+            if (inside[static_cast<std::size_t>(j)] && (nearest < 0 || std::abs(j - i) < std::abs(nearest - i))) nearest = j;
+          moved[static_cast<std::size_t>(i)] = start[static_cast<std::size_t>(i)] +
+              (nearest < 0 ? Eigen::Vector3d::Zero() : Eigen::Vector3d(moved[static_cast<std::size_t>(nearest)] - start[static_cast<std::size_t>(nearest)]));
+        }
+        sweep.from_points = moved;
+      }
+      report.cut = cutter_.step(sweep, x, v);
+      absorb(report, x, v);
+      check_events(blade, &sweep, report);
+    } else {
+      check_events(blade, nullptr, report);
+    }
+  } else {
+    if (previous_cutting_) {  // the stroke ends: complete what the blade has left
+      Eigen::Matrix3Xd x = positions_World_mm(), v = velocities_World_mm_s();
+      report.cut = cutter_.finish_stroke(x, v);
+      absorb(report, x, v);
+    }
+    // Contact: the blade pushes the surface point it entered towards its tip.
+    bool pushable = false;  // the entered triangle's vertices exist in the model (a new one may still be building)
+    if (report.contact.triangle >= 0) {
+      const auto& entered = tris[static_cast<std::size_t>(report.contact.triangle)];
+      pushable = std::max({entered[0], entered[1], entered[2]}) < static_cast<int>(model_->positions_World_mm().cols());
+    }
+    if (report.contact.tip_inside && (push_ || pushable)) {
+      if (!push_) {
+        const auto& t = tris[static_cast<std::size_t>(report.contact.triangle)];
+        const Eigen::Matrix3Xd& x = x_now;
+        const Eigen::Vector3d a = x.col(t[0]), b = x.col(t[1]), c = x.col(t[2]), p = report.contact.point_World_mm;
+        const Eigen::Vector3d n = (b - a).cross(c - a);
+        const double area2 = n.squaredNorm();
+        const double wa = n.dot((b - p).cross(c - p)) / area2, wb = n.dot((c - p).cross(a - p)) / area2;
+        AttachmentSpec spec;
+        spec.point.vertices = {t[0], t[1], t[2]};
+        spec.point.weights = {wa, wb, 1.0 - wa - wb};
+        spec.target_World_mm = blade.tip_World_mm;
+        spec.stiffness_mN_per_mm = settings_.push_stiffness_mN_per_mm;
+        push_spec_ = spec;
+        push_ = model_->add_attachment(spec);
+      } else {
+        push_spec_.target_World_mm = blade.tip_World_mm;
+        model_->set_attachment_target(*push_, blade.tip_World_mm);
+      }
+    } else if (push_) {
+      model_->remove_attachment(*push_);
+      push_.reset();
+    }
+    report.pushing = push_.has_value();
+    check_events(blade, nullptr, report);
+  }
+  previous_blade_ = blade;
+  previous_cutting_ = cutting_enabled;
+  x_at_blade_ = positions_World_mm();
+  return report;
+}
+
+}  // namespace arnav::host::cut

@@ -1,0 +1,135 @@
+#pragma once
+// A tissue model that the tracked scalpel cuts while it keeps deforming (docs/cut.md).
+// Per frame: the blade (tip, heel in World) and whether cutting is enabled (foot pedal).
+//  - cutting enabled: the surface the blade sweeps since the last frame cuts the volume
+//    (TetCutter). The sweep starts from the previous blade carried along with the tissue
+//    during the last step (its points move with the tets holding them), so each frame's
+//    strip starts on the material where the last one ended even when the tissue moves
+//    (a real blade holds the crack tip); after a topology change the tissue model is rebuilt on the new mesh and its
+//    state (positions, velocities) carried over, embedded structures are re-embedded in the
+//    pieces of the tets that changed, fixed vertices stay fixed in every copy;
+//  - cutting disabled: the blade pushes the tissue: while its tip is inside the organ, the
+//    surface point where it entered is pulled to the tip (a stiff attachment: contact
+//    constraint as a penalty spring), released when the tip leaves.
+// Events: the blade edge inside the organ entering a tumour's safety margin, the swept
+// surface crossing a vessel centerline.
+// Frame World, units mm, s, mN.
+#include <Eigen/Core>
+
+#include <future>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "host/cut/blade.hpp"
+#include "host/cut/bvh.hpp"
+#include "host/cut/tet_cutter.hpp"
+#include "host/scene/embedding.hpp"
+#include "host/sim/model_config.hpp"
+#include "host/sim/tissue_model.hpp"
+
+namespace arnav::host::cut {
+
+struct CutSessionSettings {
+  CutSettings cut;
+  int sweep_strips = 8;                    // strips of the swept surface (and blade points carried with the tissue)
+  double tumour_margin_mm = 10.0;          // safety margin around each tumour
+  double push_stiffness_mN_per_mm = 50.0;  // contact spring when cutting is disabled
+  // Rebuild the model on a worker thread after a topology change; the previous model keeps
+  // stepping (the cut shows at once, the pieces separate mechanically when the new model is
+  // swapped in a few frames later). false: rebuild inline, deterministic.
+  bool rebuild_in_background = false;
+};
+
+// A closed surface or a polyline carried by the volume (tumour, vessel centerlines), in its
+// rest shape; the session keeps its embedding valid across cuts.
+struct CarriedPoints {
+  std::string name;
+  Eigen::Matrix3Xd rest_World_mm;
+  Embedding embedding;
+};
+
+struct CutEvent {
+  int frame = 0;
+  std::string kind;        // "margin_entered", "tumour_cut", "vessel_crossed"
+  std::string structure;   // tumour or vessel name
+  double distance_mm = 0;  // blade to tumour surface (margin), 0 when crossing
+  Eigen::Vector3d location_World_mm = Eigen::Vector3d::Zero();
+};
+
+struct CutFrameReport {
+  CutStepReport cut;              // what the cutter did (topology_changed, update_ms, ...)
+  double rebuild_ms = 0.0;        // model rebuilt on the new mesh (0 without topology change)
+  double reembed_ms = 0.0;
+  Contact contact;                // blade against the organ surface
+  bool pushing = false;           // contact attachment active (cutting disabled)
+  std::vector<CutEvent> events;   // raised this frame
+};
+
+class CutSession {
+ public:
+  // problem.mesh is the mesh to cut; carried structures are embedded in it (their
+  // embeddings must refer to problem.mesh). Throws std::invalid_argument like
+  // make_tissue_model, or for bad settings.
+  CutSession(const SimProblem& problem, const ModelConfig& config, const CutSessionSettings& settings,
+             std::vector<CarriedPoints> tumours = {}, std::vector<std::vector<std::array<int, 3>>> tumour_tris = {},
+             std::optional<CarriedPoints> vessels = std::nullopt, std::vector<std::array<int, 2>> vessel_segments = {});
+
+  // Applies the blade for this frame (before the model steps). The first call only places
+  // the blade (nothing swept yet).
+  CutFrameReport apply_blade(const BladeSegment& blade, bool cutting_enabled);
+  StepSummary step(double dt_s) { return model_->step(dt_s); }
+
+  TissueModel& model() { return *model_; }
+  // Positions and velocities of every vertex of the current (cut) mesh: the model's, plus
+  // vertices made since the model was built (background rebuild), interpolated or copied.
+  Eigen::Matrix3Xd positions_World_mm() const { return extended(model_->positions_World_mm()); }
+  Eigen::Matrix3Xd velocities_World_mm_s() const { return extended(model_->velocities_World_mm_s()); }
+  const TetMesh& mesh() const { return cutter_.mesh(); }
+  TetCutter& cutter() { return cutter_; }
+  const std::vector<int>& fixed_vertices() const { return problem_.fixed_vertices; }
+  // Organ surface: boundary faces of the cut volume (closed, outward), cut faces included.
+  const std::vector<std::array<int, 3>>& surface_tris();
+  const std::vector<CarriedPoints>& tumours() const { return tumours_; }
+  const std::optional<CarriedPoints>& vessels() const { return vessels_; }
+  int frame() const { return frame_; }
+  int rebuilds() const { return rebuilds_; }
+
+ private:
+  void rebuild_model(const CutStepReport& step);
+  Eigen::Matrix3Xd extended(const Eigen::Matrix3Xd& m) const;
+  void launch_build();
+  double poll_build();  // swaps a finished background model in; returns the ms it took
+  void absorb(CutFrameReport& report, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v);
+  void reembed(CarriedPoints& points, const CutStepReport& step);
+  void check_events(const BladeSegment& blade, const SweptSurface* sweep, CutFrameReport& report);
+
+  SimProblem problem_;
+  ModelConfig config_;
+  CutSessionSettings settings_;
+  TetCutter cutter_;
+  std::unique_ptr<TissueModel> model_;
+  std::vector<char> fixed_;
+  std::vector<CarriedPoints> tumours_;
+  std::vector<std::vector<std::array<int, 3>>> tumour_tris_;
+  std::optional<CarriedPoints> vessels_;
+  std::vector<std::array<int, 2>> vessel_segments_;
+  std::vector<char> in_margin_, tumour_cut_;
+  std::vector<char> vessel_segment_crossed_;
+  std::optional<BladeSegment> previous_blade_;
+  Eigen::Matrix3Xd x_at_blade_;  // positions when the previous blade was applied
+  bool previous_cutting_ = false;
+  Bvh surface_bvh_;
+  bool surface_dirty_ = true;
+  std::optional<AttachmentId> push_;
+  AttachmentSpec push_spec_;
+  std::vector<VertexOrigin> origins_;  // of vertices n0_, n0_ + 1, ... (made by cuts)
+  int n0_ = 0;
+  std::future<std::unique_ptr<TissueModel>> build_;
+  bool rebuild_wanted_ = false;
+  int frame_ = 0;
+  int rebuilds_ = 0;
+};
+
+}  // namespace arnav::host::cut

@@ -1,0 +1,765 @@
+#include "host/cut/tet_cutter.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
+#include <algorithm>
+#include <chrono>
+#include <numeric>
+#include <set>
+#include <stdexcept>
+
+#include "host/scene/box_mesh.hpp"
+
+namespace arnav::host::cut {
+
+namespace {
+constexpr int kEdges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
+constexpr int kFaces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+
+double sweep_distance(const std::vector<Triangle>& tris, const Eigen::Vector3d& p) {
+  double d = 1e300;
+  for (const auto& t : tris) d = std::min(d, point_triangle_distance(p, t));
+  return d;
+}
+}  // namespace
+
+TetCutter::EdgeKey TetCutter::edge_key(int a, int b) {
+  if (a > b) std::swap(a, b);
+  return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) | static_cast<std::uint32_t>(b);
+}
+
+std::array<int, 3> TetCutter::face_key(int a, int b, int c) {
+  std::array<int, 3> f{a, b, c};
+  std::sort(f.begin(), f.end());
+  return f;
+}
+
+TetCutter::TetCutter(const TetMesh& mesh, const CutSettings& settings) : mesh_(mesh), settings_(settings) {
+  if (!(settings_.snap_fraction > 0.0 && settings_.snap_fraction < 0.5)) {
+    throw std::invalid_argument("cut settings: snap_fraction must lie in (0, 0.5)");
+  }
+  if (!(settings_.vertex_tolerance_mm >= 0.0)) throw std::invalid_argument("cut settings: vertex_tolerance_mm must be >= 0");
+  const int nv = mesh_.num_vertices();
+  vertex_tets_.assign(static_cast<std::size_t>(nv), {});
+  for (int t = 0; t < mesh_.num_tets(); ++t)
+    for (int v : mesh_.tets[static_cast<std::size_t>(t)]) {
+      if (v < 0 || v >= nv) throw std::invalid_argument("cut: tet " + std::to_string(t) + " has a vertex index out of range");
+      vertex_tets_[static_cast<std::size_t>(v)].push_back(t);
+    }
+  if (mesh_.tet_region.size() != mesh_.tets.size()) mesh_.tet_region.assign(mesh_.tets.size(), 0);
+  on_cut_.assign(static_cast<std::size_t>(nv), 0);
+  side_.assign(static_cast<std::size_t>(nv), 0);
+  tip_tet_.assign(mesh_.tets.size(), 0);
+  origin_.resize(mesh_.tets.size());
+  std::iota(origin_.begin(), origin_.end(), 0);
+  family_.resize(mesh_.tets.size());
+  for (int t = 0; t < mesh_.num_tets(); ++t) family_[static_cast<std::size_t>(t)] = {t};
+  bvh_.build(family_boxes(mesh_.rest_positions_World_mm));
+}
+
+int TetCutter::locate(const Eigen::Vector3d& p, const Eigen::Matrix3Xd& x, Eigen::Vector4d& weights) {
+  bvh_.refit(family_boxes(x));
+  Aabb box;
+  box.extend(p);
+  int best_tet = -1;
+  double best = -1e300;
+  bvh_.query(box, [&](int fam) {
+    for (int t : family_[static_cast<std::size_t>(fam)]) {
+      const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+      Eigen::Matrix3d D;
+      for (int k = 0; k < 3; ++k) D.col(k) = x.col(tet[static_cast<std::size_t>(k + 1)]) - x.col(tet[0]);
+      const Eigen::Vector3d l = D.partialPivLu().solve(p - x.col(tet[0]));
+      const Eigen::Vector4d w(1.0 - l.sum(), l[0], l[1], l[2]);
+      if (w.allFinite() && w.minCoeff() > best) {
+        best = w.minCoeff();
+        best_tet = t;
+        weights = w;
+      }
+    }
+  });
+  return best_tet;
+}
+
+std::string TetCutter::describe_pending() const {
+  std::string out;
+  for (int t = 0; t < mesh_.num_tets(); ++t) {
+    const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+    std::string edges;
+    for (const auto& e : kEdges) {
+      const auto it = pending_.find(edge_key(tet[static_cast<std::size_t>(e[0])], tet[static_cast<std::size_t>(e[1])]));
+      if (it != pending_.end()) edges += " " + std::to_string(e[0]) + std::to_string(e[1]) + "@" + std::to_string(it->second);
+    }
+    if (edges.empty() || complete_pattern(t) != 0) continue;
+    out += "tet " + std::to_string(t) + (tip_tet_[static_cast<std::size_t>(t)] ? " [tip]" : "") + " vertices";
+    for (int w : tet)
+      out += " " + std::to_string(w) + (on_stroke(w) ? "[cut]" : "") + "(side " + std::to_string(side_[static_cast<std::size_t>(w)]) + ")";
+    out += " crossings" + edges + "\n";
+  }
+  // Interior faces with all three vertices on this stroke that are not cut.
+  for (int t = 0; t < mesh_.num_tets(); ++t) {
+    const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+    for (const auto& fc : kFaces) {
+      const auto key = face_key(tet[static_cast<std::size_t>(fc[0])], tet[static_cast<std::size_t>(fc[1])], tet[static_cast<std::size_t>(fc[2])]);
+      if (!on_stroke(key[0]) || !on_stroke(key[1]) || !on_stroke(key[2])) continue;
+      int pair[2] = {-1, -1};
+      if (tets_with_face(key, pair) != 2 || pair[0] != t) continue;
+      out += "face " + std::to_string(key[0]) + " " + std::to_string(key[1]) + " " + std::to_string(key[2]) + (cut_faces_.count(key) ? " [cut]" : "") + " between";
+      for (int k = 0; k < 2; ++k) {
+        out += " tet " + std::to_string(pair[k]) + " (";
+        for (int w : mesh_.tets[static_cast<std::size_t>(pair[k])])
+          out += " " + std::to_string(w) + (on_stroke(w) ? "*" : "") + ":" + std::to_string(side_[static_cast<std::size_t>(w)]);
+        out += ")";
+      }
+      out += "\n";
+    }
+  }
+  return out;
+}
+
+CutStepReport TetCutter::finish_stroke(Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v) {
+  finishing_ = true;
+  SweptSurface none;
+  none.from.tip_World_mm = none.to.tip_World_mm = Eigen::Vector3d::Zero();
+  none.from.heel_World_mm = none.to.heel_World_mm = Eigen::Vector3d::Zero();
+  CutStepReport r;
+  try {
+    r = step(none, x, v);
+  } catch (...) {
+    finishing_ = false;
+    throw;
+  }
+  finishing_ = false;
+  return r;
+}
+
+void TetCutter::update_surface() { mesh_.surface_tris = boundary_faces(mesh_); }
+
+void TetCutter::begin_stroke() {
+  ++stroke_;
+  pending_.clear();
+  for (int w : sided_) side_[static_cast<std::size_t>(w)] = 0;
+  sided_.clear();
+  std::fill(tip_tet_.begin(), tip_tet_.end(), 0);
+  undecided_faces_.clear();
+}
+
+std::vector<Aabb> TetCutter::family_boxes(const Eigen::Matrix3Xd& x) const {
+  std::vector<Aabb> boxes(family_.size());
+  for (std::size_t f = 0; f < family_.size(); ++f)
+    for (int t : family_[f])
+      for (int v : mesh_.tets[static_cast<std::size_t>(t)]) boxes[f].extend(Eigen::Vector3d(x.col(v)));
+  return boxes;
+}
+
+std::vector<int> TetCutter::tets_with_edge(int a, int b) const {
+  std::vector<int> out;
+  for (int t : vertex_tets_[static_cast<std::size_t>(a)]) {
+    const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+    if (std::find(tet.begin(), tet.end(), b) != tet.end()) out.push_back(t);
+  }
+  return out;
+}
+
+int TetCutter::tets_with_face(const std::array<int, 3>& f, int* tets) const {
+  int n = 0;
+  for (int t : vertex_tets_[static_cast<std::size_t>(f[0])]) {
+    const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+    if (std::find(tet.begin(), tet.end(), f[1]) != tet.end() && std::find(tet.begin(), tet.end(), f[2]) != tet.end()) {
+      if (tets && n < 2) tets[n] = t;
+      ++n;
+    }
+  }
+  return n;
+}
+
+int TetCutter::complete_pattern(int t) const {
+  const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+  bool zero[4];
+  for (int i = 0; i < 4; ++i) zero[i] = on_stroke(tet[static_cast<std::size_t>(i)]);
+  int crossed = 0;
+  for (int e = 0; e < 6; ++e) {
+    const int i = kEdges[e][0], j = kEdges[e][1];
+    if (zero[i] || zero[j]) continue;
+    if (pending_.count(edge_key(tet[static_cast<std::size_t>(i)], tet[static_cast<std::size_t>(j)]))) crossed |= 1 << e;
+  }
+  if (crossed == 0) return 0;
+  int free_vertices[4], k = 0;
+  for (int i = 0; i < 4; ++i)
+    if (!zero[i]) free_vertices[k++] = i;
+  // Sides: the first free vertex is +, every assignment of the others (both sides non-empty
+  // when some edge is crossed).
+  for (int mask = 0; mask < (1 << (k - 1)); ++mask) {
+    int side[4] = {0, 0, 0, 0};
+    side[free_vertices[0]] = 1;
+    for (int m = 1; m < k; ++m) side[free_vertices[m]] = (mask >> (m - 1)) & 1 ? -1 : 1;
+    int pattern = 0;
+    for (int e = 0; e < 6; ++e) {
+      const int i = kEdges[e][0], j = kEdges[e][1];
+      if (side[i] != 0 && side[j] != 0 && side[i] != side[j]) pattern |= 1 << e;
+    }
+    if (pattern != 0 && pattern == crossed) return crossed;
+  }
+  // The sides of the free vertices (known for this stroke) give the pattern; crossings
+  // recorded on other edges (the tissue moved between frames) are left to the other tets.
+  const int by_sides = side_pattern(t);
+  if (by_sides != 0 && (by_sides & crossed) == by_sides) return by_sides;
+  return 0;
+}
+
+int TetCutter::side_pattern(int t) const {
+  const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+  int side[4];
+  bool plus = false, minus = false;
+  for (int i = 0; i < 4; ++i) {
+    const int w = tet[static_cast<std::size_t>(i)];
+    side[i] = on_stroke(w) ? 0 : side_[static_cast<std::size_t>(w)];
+    if (!on_stroke(w) && side[i] == 0) return 0;  // a free vertex without a side
+    plus |= side[i] > 0;
+    minus |= side[i] < 0;
+  }
+  if (!plus || !minus) return 0;
+  int pattern = 0;
+  for (int e = 0; e < 6; ++e)
+    if (side[kEdges[e][0]] * side[kEdges[e][1]] < 0) pattern |= 1 << e;
+  return pattern;
+}
+
+bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x) {
+  const int pattern = side_pattern(t);
+  if (pattern == 0) return false;
+  const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+  std::vector<Eigen::Vector3d> points;
+  for (int w : tet)
+    if (on_stroke(w)) points.push_back(x.col(w));
+  std::vector<int> missing;
+  for (int e = 0; e < 6; ++e) {
+    if (!(pattern & (1 << e))) continue;
+    const int a = tet[static_cast<std::size_t>(kEdges[e][0])], b = tet[static_cast<std::size_t>(kEdges[e][1])];
+    const auto it = pending_.find(edge_key(a, b));
+    if (it == pending_.end()) {
+      missing.push_back(e);
+    } else {
+      const int lo = std::min(a, b), hi = std::max(a, b);
+      points.push_back((1 - it->second) * x.col(lo) + it->second * x.col(hi));
+    }
+  }
+  if (missing.empty() || points.empty()) return false;
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  for (const auto& p : points) centre += p;
+  centre /= static_cast<double>(points.size());
+  Eigen::Vector3d normal = last_normal_;
+  if (points.size() >= 3) {
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (const auto& p : points) cov += (p - centre) * (p - centre).transpose();
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+    if (eig.eigenvalues()[1] > 1e-12 * std::max(1e-300, eig.eigenvalues()[2])) normal = eig.eigenvectors().col(0);
+  }
+  const double f = settings_.snap_fraction;
+  for (int e : missing) {
+    const int a = std::min(tet[static_cast<std::size_t>(kEdges[e][0])], tet[static_cast<std::size_t>(kEdges[e][1])]);
+    const int b = std::max(tet[static_cast<std::size_t>(kEdges[e][0])], tet[static_cast<std::size_t>(kEdges[e][1])]);
+    const double d0 = normal.dot(x.col(a) - centre), d1 = normal.dot(x.col(b) - centre);
+    const double s = d0 * d1 < 0 ? d0 / (d0 - d1) : 0.5;
+    pending_[edge_key(a, b)] = std::clamp(s, f, 1.0 - f);
+  }
+  return true;
+}
+
+bool TetCutter::move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r) {
+  const std::vector<int>& star = vertex_tets_[static_cast<std::size_t>(w)];
+  // Interior vertices only: moving a boundary vertex would change the organ's shape.
+  for (int tt : star) {
+    const auto& tet = mesh_.tets[static_cast<std::size_t>(tt)];
+    for (const auto& fc : kFaces) {
+      const int f0 = tet[static_cast<std::size_t>(fc[0])], f1 = tet[static_cast<std::size_t>(fc[1])], f2 = tet[static_cast<std::size_t>(fc[2])];
+      if ((f0 == w || f1 == w || f2 == w) && tets_with_face(face_key(f0, f1, f2)) != 2) return false;
+    }
+  }
+  const Eigen::Vector3d rest_new = (1 - t) * mesh_.rest_positions_World_mm.col(w) + t * mesh_.rest_positions_World_mm.col(o);
+  const Eigen::Vector3d x_new = (1 - t) * x.col(w) + t * x.col(o);
+  auto volume_with = [&](const Eigen::Matrix3Xd& pos, int tt, const Eigen::Vector3d& pw) {
+    Eigen::Vector3d q[4];
+    for (int k = 0; k < 4; ++k) {
+      const int u = mesh_.tets[static_cast<std::size_t>(tt)][static_cast<std::size_t>(k)];
+      q[k] = u == w ? pw : Eigen::Vector3d(pos.col(u));
+    }
+    return (q[1] - q[0]).cross(q[2] - q[0]).dot(q[3] - q[0]);
+  };
+  // Every tet around keeps at least a quarter of its volume, at rest and now.
+  for (int tt : star) {
+    if (!(volume_with(mesh_.rest_positions_World_mm, tt, rest_new) >= 0.25 * volume_with(mesh_.rest_positions_World_mm, tt, mesh_.rest_positions_World_mm.col(w))))
+      return false;
+    if (!(volume_with(x, tt, x_new) >= 0.25 * volume_with(x, tt, x.col(w)))) return false;
+  }
+  mesh_.rest_positions_World_mm.col(w) = rest_new;
+  x.col(w) = x_new;
+  if (v.cols() > w) v.col(w) = (1 - t) * v.col(w) + t * v.col(o);
+  // Crossings recorded on its edges referred to the old position.
+  for (int tt : star) {
+    for (int u : mesh_.tets[static_cast<std::size_t>(tt)])
+      if (u != w) pending_.erase(edge_key(w, u));
+    r.changed_tets.push_back(tt);
+  }
+  ++r.vertices_moved;
+  return true;
+}
+
+int TetCutter::add_vertex(const VertexOrigin& o, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r) {
+  const int id = mesh_.num_vertices();
+  auto lerp = [&](const Eigen::Matrix3Xd& m) -> Eigen::Vector3d {
+    if (o.b < 0) return m.col(o.a);
+    return (1.0 - o.t) * m.col(o.a) + o.t * m.col(o.b);
+  };
+  const Eigen::Vector3d rest = lerp(mesh_.rest_positions_World_mm);
+  mesh_.rest_positions_World_mm.conservativeResize(Eigen::NoChange, id + 1);
+  mesh_.rest_positions_World_mm.col(id) = rest;
+  const Eigen::Vector3d xi = lerp(x), vi = v.cols() > o.a ? lerp(v) : Eigen::Vector3d::Zero();
+  x.conservativeResize(Eigen::NoChange, id + 1);
+  x.col(id) = xi;
+  if (v.cols() == id) {
+    v.conservativeResize(Eigen::NoChange, id + 1);
+    v.col(id) = vi;
+  }
+  vertex_tets_.emplace_back();
+  on_cut_.push_back(o.b < 0 ? on_cut_[static_cast<std::size_t>(o.a)] : stroke_);
+  side_.push_back(o.b < 0 ? side_[static_cast<std::size_t>(o.a)] : 0);
+  if (side_.back() != 0) sided_.push_back(id);
+  r.new_vertices.push_back(o);
+  ++r.vertices_added;
+  return id;
+}
+
+void TetCutter::replace_vertex(int tet, int from, int to) {
+  auto& t = mesh_.tets[static_cast<std::size_t>(tet)];
+  for (int& v : t)
+    if (v == from) v = to;
+  auto& lf = vertex_tets_[static_cast<std::size_t>(from)];
+  lf.erase(std::remove(lf.begin(), lf.end(), tet), lf.end());
+  vertex_tets_[static_cast<std::size_t>(to)].push_back(tet);
+}
+
+void TetCutter::split_edge(int a, int b, double t_ab, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r,
+                           std::vector<int>& touched) {
+  const std::vector<int> around = tets_with_edge(a, b);
+  if (around.empty()) return;
+  const int m = add_vertex({a, b, t_ab}, x, v, r);
+  ++r.edges_split;
+  for (int t : around) {
+    // Child 1 keeps index t with b -> m; child 2 is t with a -> m. Both keep the orientation
+    // (m lies strictly inside the edge).
+    std::array<int, 4> child2 = mesh_.tets[static_cast<std::size_t>(t)];
+    for (int& w : child2)
+      if (w == a) w = m;
+    replace_vertex(t, b, m);
+    const int n = mesh_.num_tets();
+    mesh_.tets.push_back(child2);
+    mesh_.tet_region.push_back(mesh_.tet_region[static_cast<std::size_t>(t)]);
+    origin_.push_back(origin_[static_cast<std::size_t>(t)]);
+    tip_tet_.push_back(tip_tet_[static_cast<std::size_t>(t)]);
+    family_[static_cast<std::size_t>(origin_[static_cast<std::size_t>(t)])].push_back(n);
+    for (int w : child2) vertex_tets_[static_cast<std::size_t>(w)].push_back(n);
+    ++r.tets_added;
+    touched.push_back(t);
+    touched.push_back(n);
+  }
+}
+
+bool TetCutter::ring_is_cut(int p, int q) const {
+  const std::vector<int> ring = tets_with_edge(p, q);
+  const int k = static_cast<int>(ring.size());
+  if (k < 2) return false;
+  std::vector<int> parent(static_cast<std::size_t>(k));
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](int i) {
+    while (parent[static_cast<std::size_t>(i)] != i) i = parent[static_cast<std::size_t>(i)];
+    return i;
+  };
+  for (int i = 0; i < k; ++i)
+    for (int j = i + 1; j < k; ++j) {
+      const auto& ti = mesh_.tets[static_cast<std::size_t>(ring[static_cast<std::size_t>(i)])];
+      const auto& tj = mesh_.tets[static_cast<std::size_t>(ring[static_cast<std::size_t>(j)])];
+      for (int w : ti) {
+        if (w == p || w == q || std::find(tj.begin(), tj.end(), w) == tj.end()) continue;
+        if (!cut_faces_.count(face_key(p, q, w))) parent[static_cast<std::size_t>(find(i))] = find(j);
+      }
+    }
+  int groups = 0;
+  for (int i = 0; i < k; ++i) groups += find(i) == i;
+  return groups > 1;
+}
+
+int TetCutter::separate_vertex(int vertex, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r) {
+  const std::vector<int> star = vertex_tets_[static_cast<std::size_t>(vertex)];
+  const int k = static_cast<int>(star.size());
+  if (k < 2) return 0;
+  std::vector<int> parent(static_cast<std::size_t>(k));
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](int i) {
+    while (parent[static_cast<std::size_t>(i)] != i) i = parent[static_cast<std::size_t>(i)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(i)])];
+    return i;
+  };
+  for (int i = 0; i < k; ++i) {
+    const auto& ti = mesh_.tets[static_cast<std::size_t>(star[static_cast<std::size_t>(i)])];
+    for (int j = i + 1; j < k; ++j) {
+      const auto& tj = mesh_.tets[static_cast<std::size_t>(star[static_cast<std::size_t>(j)])];
+      int shared[3], n = 0;
+      for (int a : ti)
+        if (a != vertex && std::find(tj.begin(), tj.end(), a) != tj.end() && n < 3) shared[n++] = a;
+      if (n != 2) continue;  // no common face through the vertex
+      if (cut_faces_.count(face_key(vertex, shared[0], shared[1]))) continue;
+      parent[static_cast<std::size_t>(find(i))] = find(j);
+    }
+  }
+  std::vector<int> group(static_cast<std::size_t>(k));
+  std::vector<int> roots;
+  for (int i = 0; i < k; ++i) {
+    const int root = find(i);
+    auto it = std::find(roots.begin(), roots.end(), root);
+    group[static_cast<std::size_t>(i)] = static_cast<int>(it - roots.begin());
+    if (it == roots.end()) roots.push_back(root);
+  }
+  if (roots.size() < 2) return 0;
+  for (std::size_t g = 1; g < roots.size(); ++g) {
+    const int copy = add_vertex({vertex, -1, 0.0}, x, v, r);
+    for (int i = 0; i < k; ++i)
+      if (group[static_cast<std::size_t>(i)] == static_cast<int>(g)) {
+        replace_vertex(star[static_cast<std::size_t>(i)], vertex, copy);
+        r.changed_tets.push_back(star[static_cast<std::size_t>(i)]);
+      }
+  }
+  return static_cast<int>(roots.size()) - 1;
+}
+
+CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v) {
+  const auto start = std::chrono::steady_clock::now();
+  CutStepReport r;
+  if (x.cols() != mesh_.num_vertices()) throw std::invalid_argument("cut: positions do not match the mesh");
+  if (v.cols() != 0 && v.cols() != mesh_.num_vertices()) throw std::invalid_argument("cut: velocities do not match the mesh");
+  std::vector<Triangle> tris;
+  for (const auto& t : sweep.triangles())
+    if ((t.b - t.a).cross(t.c - t.a).norm() > 0.0) tris.push_back(t);
+  auto finish = [&]() {
+    r.update_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    return r;
+  };
+  if ((tris.empty() && !finishing_) || mesh_.tets.empty()) return finish();
+  const double f = settings_.snap_fraction, vtol = settings_.vertex_tolerance_mm;
+  Aabb sweep_box;
+  for (const auto& t : tris) {
+    sweep_box.extend(t.a);
+    sweep_box.extend(t.b);
+    sweep_box.extend(t.c);
+  }
+  sweep_box = sweep_box.inflated(vtol);
+
+  // Candidates: tets whose current box meets the swept surface's box.
+  std::vector<int> candidates;
+  if (!tris.empty()) bvh_.refit(family_boxes(x));
+  if (!tris.empty()) bvh_.query(sweep_box, [&](int fam) {
+    for (int t : family_[static_cast<std::size_t>(fam)]) {
+      Aabb b;
+      for (int w : mesh_.tets[static_cast<std::size_t>(t)]) b.extend(Eigen::Vector3d(x.col(w)));
+      if (b.overlaps(sweep_box)) candidates.push_back(t);
+    }
+  });
+  r.candidate_tets = static_cast<int>(candidates.size());
+  if (candidates.empty() && pending_.empty()) return finish();
+  const int old_tets = mesh_.num_tets();
+  // Tets a blade end (tip or heel path) passes through hold the crack front.
+  if (!tris.empty()) {
+    const int n = std::max(1, sweep.strips);
+    const bool advected = static_cast<int>(sweep.from_points.size()) == n + 1;
+    const Eigen::Vector3d tip0 = advected ? sweep.from_points.front() : sweep.from.tip_World_mm;
+    const Eigen::Vector3d heel0 = advected ? sweep.from_points.back() : sweep.from.heel_World_mm;
+    const std::array<std::pair<Eigen::Vector3d, Eigen::Vector3d>, 2> paths{{{tip0, sweep.to.tip_World_mm}, {heel0, sweep.to.heel_World_mm}}};
+    for (int t : candidates) {
+      const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+      for (const auto& [p0, p1] : paths) {
+        bool hit = false;
+        for (const auto& fc : kFaces) {
+          double s = 0;
+          if (segment_triangle_intersection(p0, p1, {x.col(tet[static_cast<std::size_t>(fc[0])]), x.col(tet[static_cast<std::size_t>(fc[1])]),
+                                                     x.col(tet[static_cast<std::size_t>(fc[2])])}, s)) {
+            hit = true;
+            break;
+          }
+        }
+        if (!hit) {
+          Eigen::Matrix3d D;
+          for (int k = 0; k < 3; ++k) D.col(k) = x.col(tet[static_cast<std::size_t>(k + 1)]) - x.col(tet[0]);
+          const Eigen::Vector3d l = D.partialPivLu().solve(p1 - x.col(tet[0]));
+          hit = l.minCoeff() >= 0 && l.sum() <= 1;
+        }
+        if (hit) tip_tet_[static_cast<std::size_t>(t)] = 1;
+      }
+    }
+    const Triangle& t0 = tris.front();
+    last_normal_ = (t0.b - t0.a).cross(t0.c - t0.a).normalized();
+  }
+
+  // 1. Vertices on the swept surface.
+  std::unordered_set<int> seen_vertices;
+  for (int t : candidates)
+    for (int w : mesh_.tets[static_cast<std::size_t>(t)])
+      if (seen_vertices.insert(w).second && !on_stroke(w)) {
+        const double d = sweep_distance(tris, x.col(w));
+        if (d <= vtol) {
+          on_cut_[static_cast<std::size_t>(w)] = stroke_;
+          ++r.vertices_snapped;
+          r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, d);
+        }
+      }
+  // 2. Edge crossings: snapped to an end within f of it, recorded otherwise.
+  std::unordered_set<EdgeKey> seen_edges;
+  for (int t : candidates) {
+    const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+    for (const auto& e : kEdges) {
+      int a = tet[static_cast<std::size_t>(e[0])], b = tet[static_cast<std::size_t>(e[1])];
+      if (a > b) std::swap(a, b);
+      const EdgeKey key = edge_key(a, b);
+      if (!seen_edges.insert(key).second || on_stroke(a) || on_stroke(b) || pending_.count(key)) continue;
+      for (const auto& tri : tris) {
+        double s = 0.0;
+        if (!segment_triangle_intersection(x.col(a), x.col(b), tri, s)) continue;
+        if (s <= f || s >= 1.0 - f) {
+          // Snap to the nearer end; an interior vertex not on any cut yet is moved onto the
+          // swept surface (paper 000's moving vertex: no split, no sliver, the cut stays on
+          // the path), any other one stays where it is (the cut passes through it).
+          const int w = s <= f ? a : b, o = s <= f ? b : a;
+          const double t_w = s <= f ? s : 1.0 - s;
+          const bool fresh = on_cut_[static_cast<std::size_t>(w)] == 0;
+          on_cut_[static_cast<std::size_t>(w)] = stroke_;
+          ++r.vertices_snapped;
+          if (fresh && settings_.move_snapped_vertices && move_vertex(w, o, t_w, x, v, r)) {
+            r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, point_triangle_distance(x.col(w), tri));
+          } else {
+            r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, t_w * (x.col(b) - x.col(a)).norm());
+          }
+        } else {
+          pending_[key] = s;
+          ++r.edges_crossed;
+          // The recorded point, against the swept surface (round-off only).
+          const Eigen::Vector3d p = x.col(a) + s * (x.col(b) - x.col(a));
+          r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, point_triangle_distance(p, tri));
+        }
+        break;
+      }
+    }
+  }
+  // 3. Sides: each vertex near the sweep and not on it gets the side of the plane of the
+  // nearest sweep triangle it lies on (kept for the stroke: a material property).
+  auto nearest_plane_distance = [&](const Eigen::Vector3d& p) {
+    if (tris.empty()) return 0.0;  // finishing a stroke: no sweep this frame
+    int nearest = 0;
+    double best = 1e300;
+    for (std::size_t i = 0; i < tris.size(); ++i) {
+      const double d = point_triangle_distance(p, tris[i]);
+      if (d < best) {
+        best = d;
+        nearest = static_cast<int>(i);
+      }
+    }
+    const Triangle& near = tris[static_cast<std::size_t>(nearest)];
+    return (near.b - near.a).cross(near.c - near.a).normalized().dot(p - near.a);
+  };
+  // Only vertices whose nearest point on the sweep lies about across from them get a side:
+  // the plane far beyond a triangle's edge (a chord of a curved cut, the blade's end) can put
+  // a vertex on the wrong side of the cut it will meet.
+  for (int w : seen_vertices) {
+    if (on_stroke(w) || side_[static_cast<std::size_t>(w)] != 0) continue;
+    int nearest = 0;
+    double best = 1e300;
+    for (std::size_t i = 0; i < tris.size(); ++i) {
+      const double dist = point_triangle_distance(x.col(w), tris[i]);
+      if (dist < best) {
+        best = dist;
+        nearest = static_cast<int>(i);
+      }
+    }
+    const Triangle& near = tris[static_cast<std::size_t>(nearest)];
+    const double d = (near.b - near.a).cross(near.c - near.a).normalized().dot(x.col(w) - near.a);
+    // Within 45 degrees of the triangle's normal through its nearest point: the offset along
+    // the surface is at most the distance to it.
+    if (std::abs(d) > vtol && best * best <= 2.0 * d * d) {
+      side_[static_cast<std::size_t>(w)] = d > 0 ? 1 : -1;
+      sided_.push_back(w);
+    }
+  }
+  // 4. Tets the recorded crossings separate completely: split their crossed edges (every
+  // tet around such an edge is bisected: conforming). Repeated while splits complete more.
+  std::vector<char> cut_piece(static_cast<std::size_t>(mesh_.num_tets()), 0);
+  auto split_completed = [&](std::vector<int> check) {
+    for (int round = 0; round < 8 && !check.empty(); ++round) {
+      std::set<EdgeKey> to_split;
+      for (int t : check) {
+        const int pattern = complete_pattern(t);
+        if (pattern == 0) continue;
+        ++r.tets_cut;
+        if (static_cast<std::size_t>(t) >= cut_piece.size()) cut_piece.resize(static_cast<std::size_t>(t) + 1, 0);
+        cut_piece[static_cast<std::size_t>(t)] = 1;
+        const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+        for (int e = 0; e < 6; ++e)
+          if (pattern & (1 << e)) to_split.insert(edge_key(tet[static_cast<std::size_t>(kEdges[e][0])], tet[static_cast<std::size_t>(kEdges[e][1])]));
+      }
+      std::vector<int> touched;
+      for (EdgeKey key : to_split) {
+        const int a = static_cast<int>(key >> 32), b = static_cast<int>(key & 0xffffffffu);
+        const auto it = pending_.find(key);
+        if (it == pending_.end()) continue;
+        const double t_ab = it->second;
+        pending_.erase(it);
+        const std::size_t first_pair = touched.size();
+        split_edge(a, b, t_ab, x, v, r, touched);
+        // Children inherit the parent's mark (each piece of a cut tet lies on one side).
+        cut_piece.resize(mesh_.tets.size(), 0);
+        for (std::size_t i = first_pair; i + 1 < touched.size(); i += 2)
+          cut_piece[static_cast<std::size_t>(touched[i + 1])] = cut_piece[static_cast<std::size_t>(touched[i])];
+      }
+      r.changed_tets.insert(r.changed_tets.end(), touched.begin(), touched.end());
+      std::sort(touched.begin(), touched.end());
+      touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+      check = touched;
+    }
+  };
+  split_completed(candidates);
+  // 4b. Tets the blade has left (no longer near the sweep) whose crossings stay incomplete
+  // because the tissue moved between frames, and that no blade end passed through (those are
+  // the crack tip): the missing crossings are put on the plane of the recorded ones.
+  {
+    std::vector<char> near(mesh_.tets.size(), 0);
+    for (int t : candidates) near[static_cast<std::size_t>(t)] = 1;
+    for (std::size_t t = static_cast<std::size_t>(old_tets); t < near.size(); ++t) near[t] = 1;
+    std::vector<int> stale;
+    for (const auto& [key, param] : pending_) {
+      (void)param;
+      for (int t : tets_with_edge(static_cast<int>(key >> 32), static_cast<int>(key & 0xffffffffu)))
+        if (!near[static_cast<std::size_t>(t)] && !tip_tet_[static_cast<std::size_t>(t)]) stale.push_back(t);
+    }
+    std::sort(stale.begin(), stale.end());
+    stale.erase(std::unique(stale.begin(), stale.end()), stale.end());
+    std::vector<int> completed;
+    for (int t : stale)
+      if (complete_pattern(t) == 0 && complete_from_sides(t, x)) completed.push_back(t);
+    r.tets_completed = static_cast<int>(completed.size());
+    split_completed(completed);
+  }
+  // Cut faces: faces of the separated pieces with their three vertices on this stroke (the
+  // cut polygons), and faces with their three vertices on this stroke between two tets on
+  // opposite sides (a cut through existing vertices and faces).
+  std::vector<std::array<int, 3>> new_cut_faces;
+  for (std::size_t t = 0; t < cut_piece.size(); ++t) {
+    if (!cut_piece[t]) continue;
+    const auto& tet = mesh_.tets[t];
+    for (const auto& fc : kFaces) {
+      const std::array<int, 3> key = face_key(tet[static_cast<std::size_t>(fc[0])], tet[static_cast<std::size_t>(fc[1])],
+                                              tet[static_cast<std::size_t>(fc[2])]);
+      if (on_stroke(key[0]) && on_stroke(key[1]) && on_stroke(key[2]) && tets_with_face(key) == 2 && cut_faces_.insert(key).second)
+        new_cut_faces.push_back(key);
+    }
+  }
+  auto tet_side = [&](int t) {
+    int side = 0;
+    bool any_free = false;
+    for (int w : mesh_.tets[static_cast<std::size_t>(t)]) {
+      if (on_stroke(w)) continue;
+      any_free = true;
+      const int sw = side_[static_cast<std::size_t>(w)];
+      if (sw == 0 || (side != 0 && sw != side)) return 0;
+      side = sw;
+    }
+    if (!any_free) {  // all four vertices on the cut: the side of its centroid
+      Eigen::Vector3d c = Eigen::Vector3d::Zero();
+      for (int w : mesh_.tets[static_cast<std::size_t>(t)]) c += x.col(w);
+      const double d = nearest_plane_distance(c / 4.0);
+      return d > 0 ? 1 : (d < 0 ? -1 : 0);
+    }
+    return side;
+  };
+  std::vector<int> face_tets = candidates;
+  face_tets.insert(face_tets.end(), r.changed_tets.begin(), r.changed_tets.end());
+  std::unordered_set<std::array<int, 3>, FaceHash> seen_faces;
+  // Faces on the cut whose tets' sides were not known yet are looked at again every frame
+  // (the blade reaches their vertices later).
+  std::vector<std::array<int, 3>> faces = std::move(undecided_faces_);
+  undecided_faces_.clear();
+  for (int t : face_tets) {
+    const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+    for (const auto& fc : kFaces)
+      faces.push_back(face_key(tet[static_cast<std::size_t>(fc[0])], tet[static_cast<std::size_t>(fc[1])], tet[static_cast<std::size_t>(fc[2])]));
+  }
+  for (const auto& key : faces) {
+    if (!on_stroke(key[0]) || !on_stroke(key[1]) || !on_stroke(key[2])) continue;
+    if (cut_faces_.count(key) || !seen_faces.insert(key).second) continue;
+    int pair[2] = {-1, -1};
+    if (tets_with_face(key, pair) != 2) continue;
+    const int s0 = tet_side(pair[0]), s1 = tet_side(pair[1]);
+    if (s0 * s1 < 0) {
+      cut_faces_.insert(key);
+      new_cut_faces.push_back(key);
+    } else if (s0 == 0 || s1 == 0) {
+      undecided_faces_.push_back(key);
+    }
+  }
+  // 5. Separate: duplicate each vertex of a cut face whose tets fall apart into groups.
+  if (!cut_faces_.empty()) {
+    std::vector<int> vertices;
+    for (const auto& key : cut_faces_) vertices.insert(vertices.end(), key.begin(), key.end());
+    std::sort(vertices.begin(), vertices.end());
+    vertices.erase(std::unique(vertices.begin(), vertices.end()), vertices.end());
+    std::vector<std::pair<int, int>> edges;
+    for (const auto& key : cut_faces_)
+      for (int i = 0; i < 3; ++i) edges.emplace_back(std::min(key[static_cast<std::size_t>(i)], key[static_cast<std::size_t>((i + 1) % 3)]),
+                                                     std::max(key[static_cast<std::size_t>(i)], key[static_cast<std::size_t>((i + 1) % 3)]));
+    std::sort(edges.begin(), edges.end());
+    edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+    for (int w : vertices) separate_vertex(w, x, v, r);
+    // Also the edges of every tet that changed (a second cut meeting an earlier one).
+    for (int t : r.changed_tets) {
+      const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+      for (const auto& e : kEdges) {
+        const int p = tet[static_cast<std::size_t>(e[0])], q = tet[static_cast<std::size_t>(e[1])];
+        if (on_cut(p) && on_cut(q)) edges.emplace_back(std::min(p, q), std::max(p, q));
+      }
+    }
+    std::sort(edges.begin(), edges.end());
+    edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+    // An edge inside the cut whose two ends stay joined (the cut reaches the edge from both
+    // sides but not past its ends) would be shared by both lips (non-manifold): split it at
+    // its mid-point and separate the new vertex.
+    for (const auto& [p, q] : edges) {
+      if (!ring_is_cut(p, q)) continue;
+      const int m = mesh_.num_vertices();
+      std::vector<int> touched;
+      split_edge(p, q, 0.5, x, v, r, touched);
+      r.changed_tets.insert(r.changed_tets.end(), touched.begin(), touched.end());
+      std::vector<std::array<int, 3>> moved;
+      for (auto it = cut_faces_.begin(); it != cut_faces_.end();) {
+        const auto& face = *it;
+        if (std::find(face.begin(), face.end(), p) != face.end() && std::find(face.begin(), face.end(), q) != face.end()) {
+          const int other = face[0] != p && face[0] != q ? face[0] : (face[1] != p && face[1] != q ? face[1] : face[2]);
+          moved.push_back(face_key(p, m, other));
+          moved.push_back(face_key(m, q, other));
+          it = cut_faces_.erase(it);
+        } else {
+          ++it;
+        }
+      }
+      cut_faces_.insert(moved.begin(), moved.end());
+      separate_vertex(m, x, v, r);
+    }
+    for (auto it = cut_faces_.begin(); it != cut_faces_.end();) {
+      if (tets_with_face(*it) < 2) {
+        ++r.faces_separated;
+        it = cut_faces_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+  }
+  r.topology_changed = r.vertices_added > 0 || r.vertices_moved > 0;
+  std::sort(r.changed_tets.begin(), r.changed_tets.end());
+  r.changed_tets.erase(std::unique(r.changed_tets.begin(), r.changed_tets.end()), r.changed_tets.end());
+  return finish();
+}
+
+}  // namespace arnav::host::cut

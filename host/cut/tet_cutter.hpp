@@ -1,0 +1,173 @@
+#pragma once
+// Progressive volumetric cut of a tetrahedral mesh by the surface the blade sweeps, frame by
+// frame (docs/cut.md). Method: element splitting with snapping, driven by the intersection
+// state of each tet's edges (paper 003's edge/face intersection state):
+//  - every frame, the edges of the tets near the swept surface are intersected with it (in
+//    the current, deformed configuration); a crossing closer than snap_fraction of the edge
+//    to an end snaps to that vertex (the vertex is "on the cut"), otherwise the crossing
+//    parameter is recorded for the edge (material parameter: it survives deformation);
+//  - a tet is cut when its recorded crossings separate it completely (the crossed edges are
+//    exactly those between two non-empty vertex sides); its crossed edges are then split at
+//    the recorded points. An edge split bisects every tet around the edge, so the mesh stays
+//    conforming; a tet the cut reaches only partly (the crack tip) is bisected but stays
+//    connected until the cut goes through it;
+//  - faces whose three vertices lie on the cut and that lie on the swept surface are cut
+//    faces; a vertex whose incident tets fall into several groups once cut faces no longer
+//    connect them is duplicated, one copy per group (the pieces separate there).
+// Volumes: every split partitions a tet exactly (sub-tets sum to the parent, in rest and
+// current configuration), vertex duplication moves nothing: total volume is conserved to
+// round-off, every tet keeps a positive volume (split parameters lie in (f, 1-f)).
+// Frame World, units mm.
+#include <Eigen/Core>
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <unordered_map>
+#include <unordered_set>
+#include <vector>
+
+#include "host/cut/blade.hpp"
+#include "host/cut/bvh.hpp"
+#include "host/scene/tet_mesh.hpp"
+
+namespace arnav::host::cut {
+
+struct CutSettings {
+  // Edge crossings closer than this fraction of the edge length to an end snap to that vertex
+  // (no split, no sliver). Sub-tets of a split keep at least this fraction of their parent's
+  // volume per split edge. In (0, 0.5).
+  double snap_fraction = 0.1;
+  // Vertices this close to the swept surface lie on it (exact hits, planes through vertices).
+  double vertex_tolerance_mm = 1e-6;
+  // A snapped interior vertex not on an earlier cut is moved onto the swept surface (rest and
+  // current position along its edge) when every tet around keeps a quarter of its volume:
+  // the cut stays on the path and the star's total volume is unchanged.
+  bool move_snapped_vertices = true;
+};
+
+// Where a vertex created by a cut step came from: the edge point (1-t) a + t b, or a copy of
+// a (t = 0, b = -1) when the cut separated the pieces at a.
+struct VertexOrigin {
+  int a = -1;
+  int b = -1;
+  double t = 0.0;
+};
+
+struct CutStepReport {
+  int candidate_tets = 0;     // tets near the swept surface
+  int edges_crossed = 0;      // new edge crossings recorded this step
+  int vertices_snapped = 0;   // vertices newly on the cut
+  int tets_cut = 0;           // tets separated by the cut this step
+  int tets_completed = 0;     // of which completed from the vertex sides (tissue moved)
+  int edges_split = 0;
+  int tets_added = 0;         // new tets (splits)
+  int vertices_added = 0;     // edge points + copies
+  int vertices_moved = 0;     // snapped interior vertices moved onto the cut
+  int faces_separated = 0;    // cut faces that became boundary this step
+  bool topology_changed = false;  // the mesh changed (new vertices or tets, moved vertices)
+  double update_ms = 0.0;     // wall time of this step
+  // Path fidelity: largest distance from this frame's swept surface of a point put on the cut
+  // this step (snapped vertices: up to snap_fraction of their edge; split points: round-off).
+  // Completed tets (tets_completed) follow the plane of their recorded points instead.
+  double max_path_deviation_mm = 0.0;
+  std::vector<VertexOrigin> new_vertices;  // for vertex ids old_count .. old_count + n - 1
+  // Tets whose vertex list changed or that were created (sorted); origin_tet() names the
+  // input tet each came from. Used to re-embed points and to rebuild per-element data.
+  std::vector<int> changed_tets;
+};
+
+class TetCutter {
+ public:
+  // The mesh must be valid (positive tets, conforming). Copies it.
+  TetCutter(const TetMesh& mesh, const CutSettings& settings);
+
+  // One frame: cuts along the surface swept by the blade. x and v (current positions and
+  // velocities, one column per vertex; v may be empty) gain a column per new vertex
+  // (interpolated or copied). mesh().surface_tris is not updated (update_surface()).
+  CutStepReport step(const SweptSurface& sweep, Eigen::Matrix3Xd& x_World_mm, Eigen::Matrix3Xd& v_World_mm_s);
+
+  // Ends the stroke (cutting switched off): tets with incomplete crossings that no blade end
+  // passed through are completed from their vertex sides (as the blade leaving them does).
+  CutStepReport finish_stroke(Eigen::Matrix3Xd& x_World_mm, Eigen::Matrix3Xd& v_World_mm_s);
+
+  // Starts a new stroke (cutting switched on again, a second cut): crossings the previous
+  // stroke recorded but did not complete are dropped (its crack tip stays where it is), and
+  // vertices on earlier cuts no longer count as lying on the new one. The first stroke starts
+  // at construction.
+  void begin_stroke();
+
+  // The tet containing p at positions x (or the nearest one of those whose box holds p, by
+  // barycentric weights), with its weights; tet -1 when no tet box holds p.
+  int locate(const Eigen::Vector3d& p_World_mm, const Eigen::Matrix3Xd& x_World_mm, Eigen::Vector4d& weights);
+
+  // Tets with recorded crossings that do not (yet) separate them, as text (for diagnosis).
+  std::string describe_pending() const;
+
+  // Recomputes mesh().surface_tris (boundary faces, outward): O(tets log tets).
+  void update_surface();
+
+  const TetMesh& mesh() const { return mesh_; }
+  const CutSettings& settings() const { return settings_; }
+  // The vertex lies on a cut (this stroke or an earlier one).
+  bool on_cut(int vertex) const { return on_cut_[static_cast<std::size_t>(vertex)] != 0; }
+  // Crossings recorded but not yet split (the crack front and tets the cut has entered).
+  int pending_crossings() const { return static_cast<int>(pending_.size()); }
+  // Index of the tet of the input mesh that tet t was cut from, and the current pieces of an
+  // input tet (they tile it exactly in the rest configuration).
+  int origin_tet(int t) const { return origin_[static_cast<std::size_t>(t)]; }
+  const std::vector<int>& pieces_of(int input_tet) const { return family_[static_cast<std::size_t>(input_tet)]; }
+
+ private:
+  using EdgeKey = std::uint64_t;
+  struct FaceHash {
+    std::size_t operator()(const std::array<int, 3>& f) const {
+      return std::hash<std::uint64_t>()((static_cast<std::uint64_t>(f[0]) * 73856093ULL) ^
+                                        (static_cast<std::uint64_t>(f[1]) * 19349663ULL) ^
+                                        (static_cast<std::uint64_t>(f[2]) * 83492791ULL));
+    }
+  };
+  using FaceSet = std::unordered_set<std::array<int, 3>, FaceHash>;
+
+  static EdgeKey edge_key(int a, int b);
+  static std::array<int, 3> face_key(int a, int b, int c);
+  std::vector<int> tets_with_edge(int a, int b) const;
+  int tets_with_face(const std::array<int, 3>& f, int* tets = nullptr) const;
+  // Crossed-edge bitmask of a complete separation of tet t, or 0 when incomplete.
+  int complete_pattern(int t) const;
+  // Crossed-edge bitmask implied by the sides of tet t's free vertices (0 when unknown).
+  int side_pattern(int t) const;
+  // Adds the crossings missing from the side pattern of tet t on the plane through the
+  // recorded ones; false when the sides are unknown or nothing is missing.
+  bool complete_from_sides(int t, const Eigen::Matrix3Xd& x);
+  bool move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
+  int add_vertex(const VertexOrigin& o, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
+  void split_edge(int a, int b, double t_ab, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r,
+                  std::vector<int>& touched);
+  void replace_vertex(int tet, int from, int to);
+  // True when the tets around edge p-q fall into several groups once cut faces no longer
+  // connect them.
+  bool ring_is_cut(int p, int q) const;
+  int separate_vertex(int vertex, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
+  std::vector<Aabb> family_boxes(const Eigen::Matrix3Xd& x) const;
+
+  TetMesh mesh_;
+  CutSettings settings_;
+  std::vector<std::vector<int>> vertex_tets_;
+  bool on_stroke(int v) const { return on_cut_[static_cast<std::size_t>(v)] == stroke_; }
+  int stroke_ = 1;
+  bool finishing_ = false;
+  std::vector<int> on_cut_;                      // per vertex: last stroke it was put on the cut by (0: none)
+  std::unordered_map<EdgeKey, double> pending_;  // t from the smaller to the larger vertex id
+  std::vector<signed char> side_;                // per vertex: side of this stroke's sweep (+1/-1, 0 unknown)
+  std::vector<int> sided_;
+  std::vector<std::array<int, 3>> undecided_faces_;  // on the cut, sides of their tets not known yet                       // vertices with a side (reset at the next stroke)
+  FaceSet cut_faces_;                            // interior faces to separate
+  std::vector<char> tip_tet_;                    // per tet: a blade end passed through it this stroke
+  Eigen::Vector3d last_normal_ = Eigen::Vector3d::UnitZ();  // of the last sweep
+  std::vector<int> origin_;                      // per tet: tet of the input mesh
+  std::vector<std::vector<int>> family_;         // per input tet: its current pieces
+  Bvh bvh_;                                      // over input tets (boxes of their families)
+};
+
+}  // namespace arnav::host::cut
