@@ -223,10 +223,14 @@ int run_session(const Cli& cli) {
   bus.subscribe(std::string(arnav::channels::kEvents), &SessionHandler::event, &handler);
   if (config.camera) bus.subscribe(arnav::channels::frame(config.camera->name), &SessionHandler::frame, &handler);
   session->start();
+  // Scene loaded, model built, subscribed: what the bench waits for before it starts the appliance.
+  std::cout << "arnav-host: session ready: " << config.source << (config.camera ? " (overlay on ARNAV_FRAME_" + config.camera->name + ")" : " (status monitor)")
+            << std::endl;
   const std::int64_t t0 = arnav::monotonic_us();
   std::int64_t next_print = t0 + static_cast<std::int64_t>(config.print_period_s * 1e6);
   while (!g_stop.load()) {
     if (bus.handleTimeout(20) < 0) {
+      if (g_stop.load()) break;  // interrupted by SIGTERM/SIGINT
       std::cerr << "arnav-host: LCM receive failed\n";
       return 1;
     }
@@ -316,6 +320,7 @@ int main(int argc, char** argv) {
   std::int64_t next_print = t0 + static_cast<std::int64_t>(print_period_s * 1e6);
   while (!g_stop.load()) {
     if (bus.handleTimeout(20) < 0) {
+      if (g_stop.load()) break;  // interrupted by SIGTERM/SIGINT
       std::cerr << "arnav-host: LCM receive failed\n";
       return 1;
     }

@@ -42,6 +42,7 @@ namespace arnav::host {
 
 namespace overlay {
 class OverlayRenderer;
+struct OverlayCamera;
 }
 
 struct SessionOptions {
@@ -102,6 +103,8 @@ class NavigationSession {
   struct Resolved;
   Resolved resolve_poses(const image_frame_t& msg, std::int64_t now_us);
   void render_loop();
+  // The renderer for frames of width x height (intrinsics scaled when they differ).
+  overlay::OverlayCamera ensure_renderer(int width, int height);
   void note_flags(const FrameRow& row);
 
   SessionConfig config_;
@@ -125,7 +128,7 @@ class NavigationSession {
 
   // Statistics.
   std::int64_t frames_received_ = 0, frames_displayed_ = 0, frames_dropped_ = 0, decode_failures_ = 0;
-  std::vector<double> latency_ms_, render_ms_;
+  std::vector<double> latency_ms_, host_latency_ms_, render_ms_;
   std::map<std::string, std::int64_t> flag_frames_;   // frames showing each flag
   std::map<std::string, std::int64_t> flag_episodes_; // onsets
   std::map<std::string, std::vector<std::pair<std::int64_t, std::int64_t>>> flag_spans_;  // capture time onset, recovery (-1 open)

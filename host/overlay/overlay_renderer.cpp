@@ -88,9 +88,8 @@ struct OverlayRenderer::Impl {
   GLuint resolve_fbo = 0, resolve_colour = 0;
   int samples = 0;
   std::vector<float> vertex_data;
-  // Edge adjacency of the organ surface, rebuilt when another mesh is drawn.
-  const void* adjacency_of = nullptr;
-  std::size_t adjacency_tris = 0;
+  // Edge adjacency of the organ surface, rebuilt when the topology changes (a cut).
+  std::vector<std::array<int, 3>> adjacency_tris;
   std::vector<EdgeFaces> adjacency;
   cv::Mat canvas;
 
@@ -282,10 +281,9 @@ struct OverlayRenderer::Impl {
     if (c.organ && (L & kOutline)) {
       std::vector<unsigned> idx;
       geo([&] {
-        if (adjacency_of != &c.organ->tris || adjacency_tris != c.organ->tris.size()) {
+        if (adjacency_tris != c.organ->tris) {
           adjacency = edge_faces(c.organ->tris);
-          adjacency_of = &c.organ->tris;
-          adjacency_tris = c.organ->tris.size();
+          adjacency_tris = c.organ->tris;
         }
         for (const auto& e : silhouette_edges(organ_Cam, c.organ->tris, adjacency, Eigen::Vector3d::Zero())) {
           idx.push_back(static_cast<unsigned>(e[0]));
