@@ -96,18 +96,19 @@ void NavigationSession::start() {
   std::string error;
   bool ready = false;
   render_thread_ = std::thread([this, &error, &ready] {
+    std::string failed;  // error and ready live in start(): not touched after ready is set
     try {
       ensure_renderer(config_.camera->intrinsics.image_width, config_.camera->intrinsics.image_height);
     } catch (const std::exception& e) {
-      std::lock_guard lock(frame_mutex_);
-      error = e.what();
+      failed = e.what();
     }
     {
       std::lock_guard lock(frame_mutex_);
+      error = failed;
       ready = true;
       frame_cv_.notify_all();
     }
-    if (error.empty()) render_loop();
+    if (failed.empty()) render_loop();
   });
   std::unique_lock lock(frame_mutex_);
   frame_cv_.wait(lock, [&] { return ready; });
@@ -154,8 +155,6 @@ void NavigationSession::on_pose(const tool_pose_t& msg, std::int64_t now_us) {
   PoseHistory& h = poses_[msg.tool_name];
   h.recent.push_back({msg, now_us});
   if (h.recent.size() > kHistory) h.recent.pop_front();
-  h.last_status = msg.status;
-  if (msg.status == tool_pose_t::STATUS_VALID) h.last_valid_arrival_us = now_us;
 }
 
 void NavigationSession::on_health(const device_health_t& msg, std::int64_t now_us) {
@@ -218,7 +217,7 @@ NavigationSession::Resolved NavigationSession::resolve_poses(const image_frame_t
     const PoseSample* best = nullptr;
     std::int64_t best_dt = 0;
     for (const auto& s : h->recent) {
-      if (s.msg.status != tool_pose_t::STATUS_VALID) continue;
+      if (s.msg.status != tool_pose_t::STATUS_VALID || s.arrival_us > now_us) continue;
       const std::int64_t dt = std::llabs(s.msg.receive_time_mono_us - t_us);
       if (!best || dt < best_dt) {
         best = &s;
@@ -227,15 +226,27 @@ NavigationSession::Resolved NavigationSession::resolve_poses(const image_frame_t
     }
     return best;
   };
-  // Fresh/lost/stale of a role, at now_us.
+  // Fresh/lost/stale of a role as known when the frame arrived (now_us): messages that came
+  // in later (the rendering thread may run behind) do not count, so live == replay.
   const auto check = [&](const ToolRole& role, const char* what, const char* flag, cv::Scalar colour) -> bool {
     PoseHistory* h = history(role.name);
-    if (h && h->last_status != -1 && h->last_status != tool_pose_t::STATUS_VALID) {
+    std::int8_t last_status = -1;
+    std::int64_t last_valid_arrival_us = -1;
+    if (h)
+      for (auto it = h->recent.rbegin(); it != h->recent.rend(); ++it) {
+        if (it->arrival_us > now_us) continue;
+        if (last_status == -1) last_status = it->msg.status;
+        if (it->msg.status == tool_pose_t::STATUS_VALID) {
+          last_valid_arrival_us = it->arrival_us;
+          break;
+        }
+      }
+    if (h && last_status != -1 && last_status != tool_pose_t::STATUS_VALID) {
       add_flag(r.flags, std::string(flag) + "_lost");
       r.banners.push_back({std::string("TRACKING LOST: ") + what + " '" + role.name + "'", colour});
       return false;
     }
-    const double age_ms = h && h->last_valid_arrival_us >= 0 ? static_cast<double>(now_us - h->last_valid_arrival_us) * 1e-3 : -1.0;
+    const double age_ms = last_valid_arrival_us >= 0 ? static_cast<double>(now_us - last_valid_arrival_us) * 1e-3 : -1.0;
     if (age_ms < 0 || age_ms > role.stale_after_ms) {
       add_flag(r.flags, std::string(flag) + "_stale");
       char text[160];

@@ -97,8 +97,6 @@ class NavigationSession {
   };
   struct PoseHistory {
     std::deque<PoseSample> recent;     // newest last
-    std::int64_t last_valid_arrival_us = -1;
-    int8_t last_status = -1;
   };
   struct Resolved;
   Resolved resolve_poses(const image_frame_t& msg, std::int64_t now_us);
