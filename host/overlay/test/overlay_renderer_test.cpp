@@ -209,7 +209,7 @@ TEST(OverlayRenderer, OrganVeilOutlineAndScalpelCompose) {
   EXPECT_GT(outside[3], 240);
   EXPECT_GT(outside[0], without.at<cv::Vec4b>(p_out)[0] + 60) << "blade in front of the organ is solid";
   EXPECT_GT(inside[0], without.at<cv::Vec4b>(p_in)[0] + 10) << "blade inside the tissue still shows";
-  EXPECT_LT(inside[0], outside[0] - 30) << "blade inside the tissue is dimmed";
+  EXPECT_LT(inside[0], outside[0] - 30) << "blade inside the tissue is dimmed; inside " << inside << " outside " << outside << " without " << without.at<cv::Vec4b>(p_in) << " " << without.at<cv::Vec4b>(p_out);
 }
 
 TEST(OverlayRenderer, CompositeBlendsPremultipliedAlpha) {
