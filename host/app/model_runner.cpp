@@ -2,14 +2,17 @@
 
 #include <chrono>
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include "host/overlay/overlay_geometry.hpp"
 #include "host/sim/model_factory.hpp"
 #include "protocol/clock.hpp"
 
 namespace arnav::host {
 
-ModelRunner::ModelRunner(const Scene& scene, double rate_hz, bool gravity, double margin_mm)
-    : scene_(scene), rate_hz_(rate_hz), margin_mm_(margin_mm) {
+ModelRunner::ModelRunner(const Scene& scene, double rate_hz, bool gravity, double margin_mm, int nice)
+    : scene_(scene), rate_hz_(rate_hz), margin_mm_(margin_mm), nice_(nice) {
   SimProblem problem = scene.problem;
   if (!gravity) problem.gravity_World_mm_s2.setZero();
   model_ = make_tissue_model(problem, scene.model);
@@ -23,6 +26,9 @@ ModelRunner::~ModelRunner() { stop(); }
 void ModelRunner::start() {
   stop_ = false;
   thread_ = std::thread([this] {
+    // The overlay's latency matters more than the model's rate: on a machine with few
+    // cores the model thread (and the solver threads it starts) yields to rendering.
+    if (nice_ > 0) setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), nice_);
     const auto period = std::chrono::duration<double>(1.0 / rate_hz_);
     auto next = std::chrono::steady_clock::now();
     while (!stop_.load()) {

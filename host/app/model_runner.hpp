@@ -40,8 +40,9 @@ struct ModelSnapshot {
 
 class ModelRunner {
  public:
-  // Builds the scene's tissue model (gravity per `gravity`). Throws std::invalid_argument.
-  ModelRunner(const Scene& scene, double rate_hz, bool gravity, double margin_mm);
+  // Builds the scene's tissue model (gravity per `gravity`). `nice` > 0 lowers the model
+  // thread's scheduling priority (Linux nice, per thread). Throws std::invalid_argument.
+  ModelRunner(const Scene& scene, double rate_hz, bool gravity, double margin_mm, int nice = 0);
   ~ModelRunner();
   ModelRunner(const ModelRunner&) = delete;
   ModelRunner& operator=(const ModelRunner&) = delete;
@@ -63,6 +64,7 @@ class ModelRunner {
   const Scene& scene_;
   double rate_hz_;
   double margin_mm_;
+  int nice_ = 0;
   std::unique_ptr<TissueModel> model_;
   mutable std::mutex mutex_;
   std::shared_ptr<const ModelSnapshot> snapshot_;

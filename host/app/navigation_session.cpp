@@ -69,7 +69,8 @@ NavigationSession::NavigationSession(const SessionConfig& config, std::unique_pt
       tracker_(static_cast<std::int64_t>(config.stale_after_ms * 1000.0)) {
   if (scene_) {
     try {
-      model_ = std::make_unique<ModelRunner>(*scene_, config_.model.rate_hz, config_.model.gravity, config_.overlay.margin_mm);
+      model_ = std::make_unique<ModelRunner>(*scene_, config_.model.rate_hz, config_.model.gravity, config_.overlay.margin_mm,
+                                             config_.model.nice);
     } catch (const std::exception& e) {
       throw SessionError(config_.source + ":" + std::to_string(config_.scene_line) + ": key 'scene': the tissue model cannot be built: " + e.what());
     }

@@ -127,9 +127,10 @@ SessionConfig parse_session(const std::string& text, const std::string& source, 
   }
 
   if (const YAML::Node m = root["model"]) {
-    r.only(m, "model", {"rate_hz", "gravity"});
+    r.only(m, "model", {"rate_hz", "gravity", "nice"});
     c.model.rate_hz = r.number(m, "model", "rate_hz", c.model.rate_hz, 1.0, 1000.0);
     c.model.gravity = r.boolean(m, "model", "gravity", c.model.gravity);
+    c.model.nice = r.integer(m, "model", "nice", c.model.nice, 0, 19);
   }
   if (const YAML::Node o = root["overlay"]) {
     r.only(o, "overlay", {"margin_mm", "warn_mm", "msaa", "layers"});

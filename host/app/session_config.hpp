@@ -49,6 +49,7 @@ struct CameraSettings {
 struct ModelSettings {
   double rate_hz = 60.0;        // model steps per second on the model thread
   bool gravity = false;         // the scene's gravity; off: the CT shape is already the loaded one
+  int nice = 5;                 // model thread yields to rendering (0: same priority)
 };
 
 struct OverlaySettings {
