@@ -103,6 +103,7 @@ void ModelRunner::step_once(std::int64_t now_us) {
     v.nodes_World_mm = scene_.vessels->embedding.apply(mesh, x);
     snap->vessels = std::move(v);
   }
+  snap->volume_positions_mm = x;
   snap->step_done_mono_us = now_us;
   std::lock_guard lock(mutex_);
   snap->step = steps_.load() + (now_us >= 0 ? 1 : 0);

@@ -382,8 +382,13 @@ FrameResult NavigationSession::render_frame(const image_frame_t& msg, std::int64
         distance = distance ? std::min(*distance, d) : d;
       }
       if (model_) model_->set_scalpel(content.scalpel_mm);
+      cut_trace_.add(scene_->problem.mesh, snap->volume_positions_mm, tip);
     } else if (model_) {
       model_->set_scalpel(std::nullopt);
+    }
+    if (cut_trace_.size() > 0) {
+      last_strokes_ = cut_trace_.strokes(snap->volume_positions_mm, scene_->problem.mesh);
+      content.cut_paths_mm = last_strokes_;
     }
     const cv::Mat layer = renderer_->render(content);
     overlay::composite(image, layer);

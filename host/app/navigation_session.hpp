@@ -32,6 +32,7 @@
 #include <nlohmann/json.hpp>
 
 #include "arnav/image_frame_t.hpp"
+#include "host/app/cut_trace.hpp"
 #include "host/app/model_runner.hpp"
 #include "host/app/recorder.hpp"
 #include "host/app/session_config.hpp"
@@ -89,6 +90,8 @@ class NavigationSession {
   bool has_camera() const { return config_.camera.has_value(); }
   bool has_model() const { return model_ != nullptr; }
   std::optional<FrameResult> last_frame();
+  // The blade tip's path through the tissue so far (Model, at the last drawn model state).
+  std::vector<std::vector<Eigen::Vector3d>> cut_strokes() const { return last_strokes_; }
 
  private:
   struct PoseSample {
@@ -132,6 +135,8 @@ class NavigationSession {
   std::map<std::string, std::vector<std::pair<std::int64_t, std::int64_t>>> flag_spans_;  // capture time onset, recovery (-1 open)
   std::set<std::string> active_flags_;
   std::optional<FrameResult> last_;
+  CutTrace cut_trace_;                                  // rendering thread only
+  std::vector<std::vector<Eigen::Vector3d>> last_strokes_;
 };
 
 // Splits "a|b" flags.

@@ -246,15 +246,23 @@ struct OverlayRenderer::Impl {
     }
     if (L & kCut) {
       if (c.cut_surface) draw_mesh(to_cam(c.cut_surface->positions_World_mm), c.cut_surface->tris, style.cut, 1);
-      if (c.cut_path_mm.size() >= 2) {
-        Eigen::Matrix3Xd p(3, static_cast<Eigen::Index>(c.cut_path_mm.size()));
-        for (std::size_t i = 0; i < c.cut_path_mm.size(); ++i) p.col(static_cast<Eigen::Index>(i)) = c.X_CamModel * c.cut_path_mm[i];
+      std::size_t n = 0;
+      for (const auto& path : c.cut_paths_mm) n += path.size();
+      if (n >= 2) {
+        Eigen::Matrix3Xd p(3, static_cast<Eigen::Index>(n));
         std::vector<unsigned> idx;
-        for (unsigned i = 0; i + 1 < c.cut_path_mm.size(); ++i) {
-          idx.push_back(i);
-          idx.push_back(i + 1);
-        }
+        unsigned i = 0;
+        for (const auto& path : c.cut_paths_mm)
+          for (std::size_t k = 0; k < path.size(); ++k, ++i) {
+            p.col(i) = c.X_CamModel * path[k];
+            if (k + 1 < path.size()) {
+              idx.push_back(i);
+              idx.push_back(i + 1);
+            }
+          }
+        glLineWidth(2.0f * style.line_width_px);
         draw_lines(p, idx, style.cut);
+        glLineWidth(style.line_width_px);
       }
     }
     if (L & kMargin) {

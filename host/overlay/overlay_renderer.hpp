@@ -69,7 +69,7 @@ struct OverlayContent {
   std::vector<const TriMesh*> margins;           // safety-margin shells
   const VesselTree* vessels = nullptr;
   const TriMesh* cut_surface = nullptr;          // the cut made so far, as a surface (host/cut)
-  std::vector<Eigen::Vector3d> cut_path_mm;      // or as the path the blade traced (polyline)
+  std::vector<std::vector<Eigen::Vector3d>> cut_paths_mm;  // or as the paths the blade traced (polylines)
   std::optional<std::array<Eigen::Vector3d, 2>> scalpel_mm;  // blade tip and heel
   unsigned layers = kAllLayers;
 };

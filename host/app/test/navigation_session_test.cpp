@@ -179,6 +179,53 @@ TEST_F(SessionRun, BladeToMarginThroughTheFrameChain) {
   EXPECT_NEAR(*r.row.blade_to_margin_mm, -2.0, 0.15);
 }
 
+TEST_F(SessionRun, CutShownAlongTheScalpelPathThroughTheTissue) {
+  SessionFolder f("cut");
+  auto s = make(f);
+  const Eigen::Isometry3d X_RefModel = test_X_RefModel();
+  const auto scalpel_at = [&](std::int64_t k, const Eigen::Vector3d& tip_Model) {
+    Eigen::Isometry3d X_ModelTool = Eigen::Isometry3d::Identity();
+    X_ModelTool.translation() = tip_Model;
+    const std::int64_t t = 1'000'000 + k * 16'667;
+    s->on_pose(pose_msg("scalpel", "Ref", X_RefModel * X_ModelTool, k, t, true, tool_pose_t::SOURCE_NDI), t + 1000);
+  };
+  // Above the organ first (no cut), then a straight stroke 18 mm above the tumour's centre
+  // (inside the liver), then out again.
+  std::vector<Eigen::Vector3d> path;
+  std::int64_t k = 0;
+  for (; k < 5; ++k) {
+    scalpel_at(k, kTumourCentre_Model + Eigen::Vector3d(0, 0, 250));
+    step(*s, k);
+  }
+  EXPECT_TRUE(s->cut_strokes().empty());
+  for (int i = 0; i <= 40; ++i, ++k) {
+    const Eigen::Vector3d tip = kTumourCentre_Model + Eigen::Vector3d(-20.0 + i, 0.5 * i, 18);
+    path.push_back(tip);
+    scalpel_at(k, tip);
+    const FrameResult r = step(*s, k);
+    ASSERT_TRUE(r.row.blade_to_margin_mm) << r.row.flags;
+  }
+  scalpel_at(k, kTumourCentre_Model + Eigen::Vector3d(0, 0, 250));
+  const FrameResult last = step(*s, k);
+  const auto strokes = s->cut_strokes();
+  ASSERT_EQ(strokes.size(), 1u);
+  ASSERT_EQ(strokes[0].size(), path.size()) << "one point per mm of the 1.1 mm steps";
+  // The trace is the blade tip's path (the model is at rest: nothing deforms it).
+  for (std::size_t i = 0; i < path.size(); ++i) EXPECT_LT((strokes[0][i] - path[i]).norm(), 1e-6) << i;
+  // And it is drawn there: the cut colour (green) along the projected path.
+  const auto intr = test_intrinsics();
+  int green = 0;
+  for (std::size_t i = 5; i + 5 < path.size(); i += 5) {
+    const Eigen::Vector3d p = test_X_CamRef(k) * X_RefModel * path[i];
+    std::vector<cv::Point3d> in{{p.x(), p.y(), p.z()}};
+    std::vector<cv::Point2d> px;
+    cv::projectPoints(in, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), cv::Mat(intr.camera_matrix), intr.distortion_mat(), px);
+    const cv::Vec3b bgr = last.image.at<cv::Vec3b>(cv::Point(static_cast<int>(std::lround(px[0].x)), static_cast<int>(std::lround(px[0].y))));
+    green += bgr[1] > bgr[2] + 20 ? 1 : 0;
+  }
+  EXPECT_GE(green, 6) << "of 7 points along the path";
+}
+
 TEST_F(SessionRun, RecordingWritesCsvVideoAndContactSheet) {
   SessionFolder f("record");
   const auto rec = f.dir / "rec";
