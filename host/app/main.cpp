@@ -235,6 +235,11 @@ int run_session(const Cli& cli) {
       return 1;
     }
     const std::int64_t now = arnav::monotonic_us();
+    if (const std::string failed = session->failure(); !failed.empty()) {
+      std::cerr << "arnav-host: " << failed << "\n";
+      session->stop();
+      return 1;
+    }
     if (!cli.quiet && now >= next_print) {
       std::cout << session->status_table(now) << std::endl;
       next_print += static_cast<std::int64_t>(config.print_period_s * 1e6);
@@ -295,6 +300,11 @@ int main(int argc, char** argv) {
     return 2;
   }
   if (!cli.session_path.empty()) {
+    for (const char* opt : {"--lcm-url", "--stale-after-ms", "--print-period"})
+      if (app.count(opt) > 0) {
+        std::cerr << "arnav-host: " << opt << " belongs to the status monitor; with a session file set it there (lcm_url, stale_after_ms, print_period_s)\n";
+        return 2;
+      }
     try {
       return run_session(cli);
     } catch (const std::exception& e) {

@@ -198,8 +198,9 @@ void NavigationSession::render_loop() {
     }
     try {
       render_frame(item.first, item.second);
-    } catch (const overlay::OverlayError& e) {
-      std::fprintf(stderr, "arnav-host: overlay: %s\n", e.what());
+    } catch (const std::exception& e) {
+      std::lock_guard lock(mutex_);
+      render_error_ = std::string("overlay: ") + e.what();
       return;
     }
   }
@@ -440,6 +441,11 @@ void NavigationSession::note_flags(const FrameRow& row) {
   for (const auto& f : active_flags_)
     if (!now.count(f)) flag_spans_[f].back().second = row.capture_time_mono_us;
   active_flags_ = now;
+}
+
+std::string NavigationSession::failure() {
+  std::lock_guard lock(mutex_);
+  return render_error_;
 }
 
 ToolFreshnessTracker NavigationSession::tracker_at(std::int64_t now_us) {

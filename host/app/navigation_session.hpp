@@ -90,6 +90,8 @@ class NavigationSession {
   bool has_camera() const { return config_.camera.has_value(); }
   bool has_model() const { return model_ != nullptr; }
   std::optional<FrameResult> last_frame();
+  // Why the rendering thread stopped (empty while it runs): the caller exits with it.
+  std::string failure();
   // The blade tip's path through the tissue so far (Model, at the last drawn model state).
   std::vector<std::vector<Eigen::Vector3d>> cut_strokes() const { return last_strokes_; }
 
@@ -135,6 +137,7 @@ class NavigationSession {
   std::map<std::string, std::vector<std::pair<std::int64_t, std::int64_t>>> flag_spans_;  // capture time onset, recovery (-1 open)
   std::set<std::string> active_flags_;
   std::optional<FrameResult> last_;
+  std::string render_error_;
   CutTrace cut_trace_;                                  // rendering thread only
   std::vector<std::vector<Eigen::Vector3d>> last_strokes_;
 };
