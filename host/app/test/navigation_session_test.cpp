@@ -259,6 +259,57 @@ TEST_F(SessionRun, RecordingWritesCsvVideoAndContactSheet) {
   EXPECT_EQ(sheet.rows, 180);  // 1.5 s of frames, one thumbnail per second: 2 thumbnails, one row
 }
 
+TEST_F(SessionRun, TrackedCameraMarkerWithHandEyeInNdiAndRefFrames) {
+  // pose_from: tool: the camera carries an NDI marker; X_CamMarkerCam is the hand-eye.
+  SessionFolder f("tracked");
+  Eigen::Isometry3d X_MarkerCam = Eigen::Isometry3d::Identity();
+  X_MarkerCam.linear() = Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 1, 0).normalized()).toRotationMatrix();
+  X_MarkerCam.translation() = Eigen::Vector3d(12, -40, 85);
+  calib::RigidTransformRecord he;
+  he.parent_frame = "Cam";  // written as X_CamMarker: the reader takes either direction
+  he.child_frame = "Marker";
+  he.X_ParentChild = X_MarkerCam.inverse();
+  he.method = "test";
+  he.date = "2026-11-25T00:00:00Z";
+  calib::write_transform(f.dir / "X_CamMarker.yaml", he);
+  const std::string text = "arnav_session_version: 1\nlcm_url: \"memq://\"\nscene: " + data_dir() +
+                           "/liver/liver_coarse.scene.yaml\nregistration: X_RefModel.yaml\n"
+                           "tools:\n  reference: {name: reference, stale_after_ms: 100}\n"
+                           "camera:\n  name: cam0\n  intrinsics: camera.yaml\n  pose_from: tool\n  pose_tool: cam_marker\n"
+                           "  hand_eye: X_CamMarker.yaml\n";
+  SessionOptions o;
+  o.threaded = false;
+  NavigationSession s(load_session(f.write("tracked.yaml", text)), std::make_unique<Scene>(*scene_), o);
+  // Tracker frame: reference and camera marker both seen by the NDI (parent Ndi).
+  Eigen::Isometry3d X_NdiRef = Eigen::Isometry3d::Identity();
+  X_NdiRef.linear() = Eigen::AngleAxisd(1.1, Eigen::Vector3d(0.2, 0.3, 1).normalized()).toRotationMatrix();
+  X_NdiRef.translation() = Eigen::Vector3d(-50, 120, -1400);
+  for (std::int64_t k = 0; k < 6; ++k) {
+    const std::int64_t t = 1'000'000 + k * 16'667;
+    const Eigen::Isometry3d X_RefCam = test_X_CamRef(k).inverse();
+    const Eigen::Isometry3d X_NdiMarker = X_NdiRef * X_RefCam * X_MarkerCam.inverse();
+    if (k < 3) {  // NDI poses in Ndi
+      s.on_pose(pose_msg("reference", "Ndi", X_NdiRef, 100 + k, t, true, tool_pose_t::SOURCE_NDI), t + 1000);
+      s.on_pose(pose_msg("cam_marker", "Ndi", X_NdiMarker, 100 + k, t, true, tool_pose_t::SOURCE_NDI), t + 1000);
+    } else {  // the appliance publishing in Ref (frames.reference: Ref)
+      s.on_pose(pose_msg("reference", "Ndi", X_NdiRef, 100 + k, t, true, tool_pose_t::SOURCE_NDI), t + 1000);
+      s.on_pose(pose_msg("cam_marker", "Ref", X_RefCam * X_MarkerCam.inverse(), 100 + k, t, true, tool_pose_t::SOURCE_NDI), t + 1000);
+    }
+    s.advance_model(t + 2000);
+    const FrameResult r = s.render_frame(frame_msg(k, t), t + 3000);
+    ASSERT_TRUE(r.row.tumour_px) << "frame " << k << " flags " << r.row.flags;
+    EXPECT_LT(cv::norm(*r.row.tumour_px - expected_tumour_px(k)), 0.05) << "frame " << k;
+    EXPECT_EQ(r.row.flags, "");
+  }
+  // The camera marker missing: no camera pose, banner.
+  const std::int64_t t = 2'000'000;
+  s.on_pose(pose_msg("reference", "Ndi", X_NdiRef, 200, t, true, tool_pose_t::SOURCE_NDI), t);
+  s.on_pose(pose_msg("cam_marker", "Ndi", X_NdiRef, 200, t, false, tool_pose_t::SOURCE_NDI), t);
+  const FrameResult r = s.render_frame(frame_msg(10, t), t + 1000);
+  EXPECT_FALSE(r.row.tumour_px);
+  EXPECT_NE(r.row.flags.find("camera_pose_lost"), std::string::npos) << r.row.flags;
+}
+
 TEST_F(SessionRun, DownscaledFramesUseScaledIntrinsics) {
   SessionFolder f("scaled");
   auto s = make(f);
