@@ -112,7 +112,7 @@ int write_summary(const Cli& cli, const nlohmann::json& j) {
 
 // Replays an lcm-logger log through the session on this thread (deterministic): the
 // session clock is the log's receive time mapped onto the appliance's monotonic clock.
-int run_replay(const Cli& cli, arnav::host::NavigationSession& session) {
+int run_replay(const Cli& cli, arnav::host::NavigationSession& session, const std::string& frame_channel) {
   lcm::LogFile log(cli.replay_log, "r");
   if (!log.good()) {
     std::cerr << "arnav-host: --replay " << cli.replay_log << ": cannot open the log (an lcm-logger file)\n";
@@ -121,7 +121,6 @@ int run_replay(const Cli& cli, arnav::host::NavigationSession& session) {
   std::optional<std::int64_t> offset_us;  // appliance monotonic - wall
   std::int64_t first_ts = -1, last_now = 0, next_print = -1, undecodable = 0, messages = 0;
   const auto wall0 = std::chrono::steady_clock::now();
-  const std::string frame_channel = session.has_camera() ? std::string(arnav::channels::kFramePrefix) : std::string("\x01");
   const auto starts = [](const std::string& s, std::string_view p) { return s.compare(0, p.size(), p) == 0; };
   while (!g_stop.load()) {
     const lcm::LogEvent* ev = log.readNextEvent();
@@ -151,7 +150,7 @@ int run_replay(const Cli& cli, arnav::host::NavigationSession& session) {
       if (m.decode(ev->data, 0, ev->datalen) < 0) { ++undecodable; continue; }
       session.on_event(m);
       now(m.time_mono_us, m.time_wall_us);
-    } else if (starts(ch, frame_channel)) {
+    } else if (!frame_channel.empty() && ch == frame_channel) {
       arnav::image_frame_t m;
       if (m.decode(ev->data, 0, ev->datalen) < 0) { ++undecodable; continue; }
       const std::int64_t t = now(m.capture_time_mono_us, m.capture_time_wall_us);
@@ -209,7 +208,7 @@ int run_session(const Cli& cli) {
   }
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
-  if (!cli.replay_log.empty()) return run_replay(cli, *session);
+  if (!cli.replay_log.empty()) return run_replay(cli, *session, config.camera ? arnav::channels::frame(config.camera->name) : std::string());
 
   lcm::LCM bus(config.lcm_url);
   if (!bus.good()) {
