@@ -348,6 +348,7 @@ FrameResult NavigationSession::render_frame(const image_frame_t& msg, std::int64
     ++frames_received_;
   }
   cv::Mat image = cv::imdecode(msg.data, cv::IMREAD_COLOR);
+  const double decode_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   if (image.empty()) {
     std::lock_guard lock(mutex_);
     ++decode_failures_;
@@ -364,6 +365,7 @@ FrameResult NavigationSession::render_frame(const image_frame_t& msg, std::int64
     r.banners.push_back({"MODEL: " + snap->warning, cv::Scalar(0, 0, 160)});
   }
   std::optional<double> distance;
+  double overlay_ms = 0.0;
   if (r.X_CamRef && snap) {
     const Eigen::Isometry3d X_CamModel = *r.X_CamRef * *config_.X_RefModel;
     overlay::OverlayContent content;
@@ -391,7 +393,9 @@ FrameResult NavigationSession::render_frame(const image_frame_t& msg, std::int64
       last_strokes_ = cut_trace_.strokes(snap->volume_positions_mm, scene_->problem.mesh);
       content.cut_paths_mm = last_strokes_;
     }
-    const cv::Mat layer = renderer_->render(content);
+    overlay::RenderTiming timing;
+    const cv::Mat layer = renderer_->render(content, &timing);
+    overlay_ms = timing.total_ms;
     overlay::composite(image, layer);
     if (!snap->tumour_centroids_mm.empty()) {
       const Eigen::Vector3d p = X_CamModel * snap->tumour_centroids_mm[0];
@@ -417,6 +421,8 @@ FrameResult NavigationSession::render_frame(const image_frame_t& msg, std::int64
     latency_ms_.push_back(out.row.motion_to_photon_ms);
     host_latency_ms_.push_back(static_cast<double>(out.row.render_done_mono_us - now_us) * 1e-3);
     render_ms_.push_back(render_ms);
+    decode_ms_.push_back(decode_ms);
+    overlay_ms_.push_back(overlay_ms);
     note_flags(out.row);
   }
   if (recorder_) recorder_->add(out.row, options_.keep_last_frame ? image.clone() : image);
@@ -475,7 +481,9 @@ nlohmann::json NavigationSession::summary_json(double run_s) {
   j["motion_to_photon_ms"] = {{"p50", percentile(latency_ms_, 0.5)}, {"p99", percentile(latency_ms_, 0.99)},
                               {"max", latency_ms_.empty() ? 0.0 : *std::max_element(latency_ms_.begin(), latency_ms_.end())}};
   j["host_latency_ms"] = {{"p50", percentile(host_latency_ms_, 0.5)}, {"p99", percentile(host_latency_ms_, 0.99)}};
-  j["render_ms"] = {{"p50", percentile(render_ms_, 0.5)}, {"p99", percentile(render_ms_, 0.99)}};
+  j["render_ms"] = {{"p50", percentile(render_ms_, 0.5)}, {"p99", percentile(render_ms_, 0.99)}};  // whole frame
+  j["jpeg_decode_ms"] = {{"p50", percentile(decode_ms_, 0.5)}, {"p99", percentile(decode_ms_, 0.99)}};
+  j["overlay_render_ms"] = {{"p50", percentile(overlay_ms_, 0.5)}, {"p99", percentile(overlay_ms_, 0.99)}};  // OverlayRenderer::render
   if (model_) {
     const auto steps = model_->step_times_ms();
     j["model"] = {{"steps", steps.size()},

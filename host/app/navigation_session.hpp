@@ -131,7 +131,7 @@ class NavigationSession {
 
   // Statistics.
   std::int64_t frames_received_ = 0, frames_displayed_ = 0, frames_dropped_ = 0, decode_failures_ = 0;
-  std::vector<double> latency_ms_, host_latency_ms_, render_ms_;
+  std::vector<double> latency_ms_, host_latency_ms_, render_ms_, decode_ms_, overlay_ms_;
   std::map<std::string, std::int64_t> flag_frames_;   // frames showing each flag
   std::map<std::string, std::int64_t> flag_episodes_; // onsets
   std::map<std::string, std::vector<std::pair<std::int64_t, std::int64_t>>> flag_spans_;  // capture time onset, recovery (-1 open)
