@@ -1,6 +1,10 @@
-// arnav-host (minimal for now): subscribes to the appliance's poses, health and events
-// over LCM, tracks freshness per tool and prints a status table. --summary-json writes
-// what it saw at exit (used by scripts/demo and the HIL bench).
+// arnav-host: the navigation host.
+//   arnav-host SESSION.yaml [--record DIR] [--replay LOG [--replay-speed X]] ...
+// runs the navigation session the file declares (docs/overlay.md): poses, frames, health
+// and events in over LCM (or from an lcm-logger log), the tissue model on its own thread,
+// the AR overlay on every camera frame, recording. Without a session file (or with one
+// that declares no camera) it is the status monitor: freshness per tool and a status
+// table. --summary-json writes what it saw at exit (used by scripts/demo and the bench).
 #include <atomic>
 #include <chrono>
 #include <csignal>
@@ -8,11 +12,17 @@
 #include <iostream>
 #include <thread>
 
+#include <lcm/lcm_coretypes.h>
+
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
 #include <nlohmann/json.hpp>
 
+#include "host/app/navigation_session.hpp"
 #include "host/app/status_report.hpp"
+#include "host/scene/load_error.hpp"
+#include "host/scene/scene.hpp"
+#include "host/overlay/egl_context.hpp"
 #include "protocol/channels.hpp"
 #include "protocol/clock.hpp"
 #include "protocol/guarded_main.hpp"
@@ -32,6 +42,22 @@ struct Handler {
   void event(const lcm::ReceiveBuffer*, const std::string&, const arnav::appliance_event_t* msg) {
     tracker.on_event(*msg);
     if (print_events) std::cout << "event " << msg->source << " " << msg->code << ": " << msg->text << std::endl;
+  }
+};
+
+struct SessionHandler {
+  arnav::host::NavigationSession& session;
+  bool print_events;
+  void pose(const lcm::ReceiveBuffer*, const std::string&, const arnav::tool_pose_t* msg) { session.on_pose(*msg, arnav::monotonic_us()); }
+  void health(const lcm::ReceiveBuffer*, const std::string&, const arnav::device_health_t* msg) {
+    session.on_health(*msg, arnav::monotonic_us());
+  }
+  void event(const lcm::ReceiveBuffer*, const std::string&, const arnav::appliance_event_t* msg) {
+    session.on_event(*msg);
+    if (print_events) std::cout << "event " << msg->source << " " << msg->code << ": " << msg->text << std::endl;
+  }
+  void frame(const lcm::ReceiveBuffer*, const std::string&, const arnav::image_frame_t* msg) {
+    session.submit_frame(*msg, arnav::monotonic_us());
   }
 };
 
@@ -65,14 +91,196 @@ nlohmann::json summary(const arnav::host::ToolFreshnessTracker& tracker, double 
   return j;
 }
 
-}  // namespace
-
-static int main_body(int argc, char** argv) {
-  CLI::App app{"arnav-host (minimal): subscribes to poses, health and events, tracks per-tool freshness, prints a status table"};
+struct Cli {
+  std::string session_path, record_dir, replay_log;
+  double replay_speed = 1.0;
   std::string lcm_url = "udpm://239.255.76.67:7667?ttl=0";
   double stale_after_ms = 250.0, print_period_s = 1.0, duration_s = 0.0;
   std::string summary_path;
   bool quiet = false, events = false, print_summary = false;
+};
+
+int write_summary(const Cli& cli, const nlohmann::json& j) {
+  if (cli.summary_path.empty()) return 0;
+  std::ofstream out(cli.summary_path);
+  out << j.dump(2) << "\n";
+  if (!out) {
+    std::cerr << "arnav-host: cannot write " << cli.summary_path << "\n";
+    return 1;
+  }
+  return 0;
+}
+
+// Replays an lcm-logger log through the session on this thread (deterministic): the
+// session clock is the log's receive time mapped onto the appliance's monotonic clock.
+int run_replay(const Cli& cli, arnav::host::NavigationSession& session, const std::string& frame_channel) {
+  lcm::LogFile log(cli.replay_log, "r");
+  if (!log.good()) {
+    std::cerr << "arnav-host: --replay " << cli.replay_log << ": cannot open the log (an lcm-logger file)\n";
+    return 2;
+  }
+  std::optional<std::int64_t> offset_us;  // appliance monotonic - wall
+  std::int64_t first_ts = -1, last_now = 0, next_print = -1, undecodable = 0, messages = 0;
+  const auto wall0 = std::chrono::steady_clock::now();
+  const auto starts = [](const std::string& s, std::string_view p) { return s.compare(0, p.size(), p) == 0; };
+  while (!g_stop.load()) {
+    const lcm::LogEvent* ev = log.readNextEvent();
+    if (!ev) break;
+    ++messages;
+    if (first_ts < 0) first_ts = ev->timestamp;
+    if (cli.replay_speed > 0) {
+      const auto due = wall0 + std::chrono::microseconds(static_cast<std::int64_t>(static_cast<double>(ev->timestamp - first_ts) / cli.replay_speed));
+      std::this_thread::sleep_until(due);
+    }
+    const auto now = [&](std::int64_t mono, std::int64_t wall) {
+      if (!offset_us) offset_us = mono - wall;
+      last_now = ev->timestamp + *offset_us;
+      return last_now;
+    };
+    const std::string& ch = ev->channel;
+    if (starts(ch, arnav::channels::kPosePrefix)) {
+      arnav::tool_pose_t m;
+      if (m.decode(ev->data, 0, ev->datalen) < 0) { ++undecodable; continue; }
+      session.on_pose(m, now(m.publish_time_mono_us, m.publish_time_wall_us));
+    } else if (starts(ch, arnav::channels::kHealthPrefix)) {
+      arnav::device_health_t m;
+      if (m.decode(ev->data, 0, ev->datalen) < 0) { ++undecodable; continue; }
+      session.on_health(m, now(m.publish_time_mono_us, m.publish_time_wall_us));
+    } else if (ch == arnav::channels::kEvents) {
+      arnav::appliance_event_t m;
+      if (m.decode(ev->data, 0, ev->datalen) < 0) { ++undecodable; continue; }
+      session.on_event(m);
+      now(m.time_mono_us, m.time_wall_us);
+    } else if (!frame_channel.empty() && ch == frame_channel) {
+      arnav::image_frame_t m;
+      if (m.decode(ev->data, 0, ev->datalen) < 0) { ++undecodable; continue; }
+      const std::int64_t t = now(m.capture_time_mono_us, m.capture_time_wall_us);
+      session.advance_model(t);
+      session.render_frame(m, t);
+    }
+    if (offset_us && !cli.quiet) {
+      if (next_print < 0) next_print = last_now;
+      if (last_now >= next_print) {
+        std::cout << session.status_table(last_now) << std::endl;
+        next_print += static_cast<std::int64_t>(cli.print_period_s * 1e6);
+      }
+    }
+  }
+  if (undecodable > 0)
+    std::cerr << "arnav-host: --replay " << cli.replay_log << ": " << undecodable << " of " << messages
+              << " messages could not be decoded (another schema version?)\n";
+  session.stop();
+  const double run_s = first_ts >= 0 && offset_us ? static_cast<double>(last_now - (first_ts + *offset_us)) * 1e-6 : 0.0;
+  const auto tracker = session.tracker_at(last_now);
+  std::cout << format_status_table(tracker, last_now) << std::flush;
+  if (cli.print_summary) std::cout << format_summary(tracker, run_s) << session.format_summary(run_s) << std::flush;
+  for (const auto& f : session.recorded_files()) std::cout << "recorded: " << f << "\n";
+  nlohmann::json j = summary(tracker, run_s);
+  j["navigation"] = session.summary_json(run_s);
+  j["replay"] = {{"log", cli.replay_log}, {"messages", messages}, {"undecodable", undecodable}};
+  return write_summary(cli, j);
+}
+
+int run_session(const Cli& cli) {
+  arnav::host::SessionConfig config;
+  std::unique_ptr<arnav::host::Scene> scene;
+  try {
+    config = arnav::host::load_session(cli.session_path);
+    if (config.scene_path) {
+      try {
+        scene = std::make_unique<arnav::host::Scene>(arnav::host::load_scene(*config.scene_path));
+      } catch (const arnav::host::LoadError& e) {
+        throw arnav::host::SessionError(config.source + ":" + std::to_string(config.scene_line) + ": key 'scene': " + e.what());
+      }
+    }
+  } catch (const arnav::host::SessionError& e) {
+    std::cerr << "arnav-host: " << e.what() << "\n";
+    return 2;
+  }
+  arnav::host::SessionOptions options;
+  options.threaded = cli.replay_log.empty();
+  options.record_dir = cli.record_dir;
+  std::unique_ptr<arnav::host::NavigationSession> session;
+  try {
+    session = std::make_unique<arnav::host::NavigationSession>(config, std::move(scene), options);
+  } catch (const arnav::host::SessionError& e) {
+    std::cerr << "arnav-host: " << e.what() << "\n";
+    return 2;
+  }
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+  if (!cli.replay_log.empty()) return run_replay(cli, *session, config.camera ? arnav::channels::frame(config.camera->name) : std::string());
+
+  lcm::LCM bus(config.lcm_url);
+  if (!bus.good()) {
+    std::cerr << "arnav-host: " << config.source << ": cannot open LCM at '" << config.lcm_url
+              << "': check lcm_url (udpm needs a multicast route, e.g. 224.0.0.0/4 on the interface)\n";
+    return 2;
+  }
+  SessionHandler handler{*session, cli.events};
+  bus.subscribe(std::string(arnav::channels::kPoseRegex), &SessionHandler::pose, &handler);
+  bus.subscribe(std::string(arnav::channels::kHealthRegex), &SessionHandler::health, &handler);
+  bus.subscribe(std::string(arnav::channels::kEvents), &SessionHandler::event, &handler);
+  if (config.camera) bus.subscribe(arnav::channels::frame(config.camera->name), &SessionHandler::frame, &handler);
+  session->start();
+  // Scene loaded, model built, subscribed: what the bench waits for before it starts the appliance.
+  std::cout << "arnav-host: session ready: " << config.source << (config.camera ? " (overlay on ARNAV_FRAME_" + config.camera->name + ")" : " (status monitor)")
+            << std::endl;
+  const std::int64_t t0 = arnav::monotonic_us();
+  std::int64_t next_print = t0 + static_cast<std::int64_t>(config.print_period_s * 1e6);
+  while (!g_stop.load()) {
+    if (bus.handleTimeout(20) < 0) {
+      if (g_stop.load()) break;  // interrupted by SIGTERM/SIGINT
+      std::cerr << "arnav-host: LCM receive failed\n";
+      return 1;
+    }
+    const std::int64_t now = arnav::monotonic_us();
+    if (const std::string failed = session->failure(); !failed.empty()) {
+      std::cerr << "arnav-host: " << failed << "\n";
+      session->stop();
+      return 1;
+    }
+    if (!cli.quiet && now >= next_print) {
+      std::cout << session->status_table(now) << std::endl;
+      next_print += static_cast<std::int64_t>(config.print_period_s * 1e6);
+    }
+    if (cli.duration_s > 0 && now - t0 >= static_cast<std::int64_t>(cli.duration_s * 1e6)) break;
+  }
+  try {
+    session->stop();
+  } catch (const arnav::host::SessionError& e) {
+    std::cerr << "arnav-host: " << e.what() << "\n";
+    return 1;
+  }
+  const std::int64_t now = arnav::monotonic_us();
+  const double run_s = static_cast<double>(now - t0) * 1e-6;
+  const auto tracker = session->tracker_at(now);
+  std::cout << format_status_table(tracker, now) << std::flush;
+  if (cli.print_summary) {
+    std::cout << format_summary(tracker, run_s);
+    if (config.camera) std::cout << session->format_summary(run_s);
+    std::cout << std::flush;
+  }
+  for (const auto& f : session->recorded_files()) std::cout << "recorded: " << f << "\n";
+  nlohmann::json j = summary(tracker, run_s);
+  if (config.camera || session->has_model()) j["navigation"] = session->summary_json(run_s);
+  return write_summary(cli, j);
+}
+
+}  // namespace
+
+static int main_body(int argc, char** argv) {
+  CLI::App app{"arnav-host: navigation session (SESSION.yaml: overlay, model, recording) or, without one, the pose/health status monitor"};
+  Cli cli;
+  std::string& lcm_url = cli.lcm_url;
+  double &stale_after_ms = cli.stale_after_ms, &print_period_s = cli.print_period_s, &duration_s = cli.duration_s;
+  std::string& summary_path = cli.summary_path;
+  bool &quiet = cli.quiet, &events = cli.events, &print_summary = cli.print_summary;
+  app.add_option("session", cli.session_path, "session file (docs/overlay.md); without it: status monitor");
+  app.add_option("--record", cli.record_dir, "write overlay.avi, overlay.csv and contact_sheet.png into this folder");
+  app.add_option("--replay", cli.replay_log, "re-run the session on an lcm-logger log instead of the live bus");
+  app.add_option("--replay-speed", cli.replay_speed, "1 = the log's pace (default), 2 = twice as fast, 0 = as fast as possible")
+      ->check(CLI::Range(0.0, 1000.0));
   app.add_option("--lcm-url", lcm_url, "LCM URL (default: the appliance's, TTL 0)");
   app.add_option("--stale-after-ms", stale_after_ms, "a tool is stale when its last valid pose is older (default 250)")
       ->check(CLI::Range(1.0, 600000.0));
@@ -86,6 +294,23 @@ static int main_body(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
+  }
+  if (cli.session_path.empty() && (!cli.record_dir.empty() || !cli.replay_log.empty())) {
+    std::cerr << "arnav-host: --record and --replay need a session file: arnav-host SESSION.yaml ...\n";
+    return 2;
+  }
+  if (!cli.session_path.empty()) {
+    for (const char* opt : {"--lcm-url", "--stale-after-ms", "--print-period"})
+      if (app.count(opt) > 0) {
+        std::cerr << "arnav-host: " << opt << " belongs to the status monitor; with a session file set it there (lcm_url, stale_after_ms, print_period_s)\n";
+        return 2;
+      }
+    try {
+      return run_session(cli);
+    } catch (const std::exception& e) {
+      std::cerr << "arnav-host: " << e.what() << "\n";
+      return 1;
+    }
   }
   lcm::LCM bus(lcm_url);
   if (!bus.good()) {
@@ -105,6 +330,7 @@ static int main_body(int argc, char** argv) {
   std::int64_t next_print = t0 + static_cast<std::int64_t>(print_period_s * 1e6);
   while (!g_stop.load()) {
     if (bus.handleTimeout(20) < 0) {
+      if (g_stop.load()) break;  // interrupted by SIGTERM/SIGINT
       std::cerr << "arnav-host: LCM receive failed\n";
       return 1;
     }

@@ -1,0 +1,41 @@
+#pragma once
+// AR error of a navigation session on the bench: the tumour centroid the host drew
+// (overlay.csv, per camera frame) against where the synthetic camera's ground truth puts
+// it (ground_truth.csv: X_CamBoard of the reference board per frame, through the session's
+// registration X_RefModel, the scene's tumour centroid and the camera's intrinsics, with
+// cv::projectPoints). In pixels, and in mm at the organ (px x depth / focal length).
+// Also: which frames showed the overlay, which showed a tracking banner, and whether any
+// frame whose board was clearly visible had no overlay.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace arnav::hil {
+
+struct ArFrame {
+  std::int64_t sequence = 0;
+  bool drawn = false;           // the host drew the tumour
+  bool board_visible = false;   // ground truth: every tag of the board clear
+  double error_px = 0.0;        // when drawn
+  double error_mm = 0.0;
+  double latency_ms = 0.0;
+  bool own_pose = false;        // drawn with the board pose of this very frame (never an older one)
+  std::string flags;
+};
+
+struct ArErrorReport {
+  std::vector<ArFrame> frames;  // frames present in both files
+  std::int64_t truth_frames = 0, csv_rows = 0, missing_in_csv = 0;
+  std::int64_t visible_without_overlay = 0;  // board clear, no tumour drawn
+  std::int64_t invisible_with_overlay = 0;   // board gone, overlay still drawn (a frozen overlay)
+  nlohmann::json summary() const;            // mean/p95/max px and mm, latency p50/p99, counts
+};
+
+// session_path: the host's session file (scene, registration, camera intrinsics, reference
+// tool = the board's name in the ground truth). Throws std::runtime_error naming the file.
+ArErrorReport evaluate_ar_error(const std::string& session_path, const std::string& ground_truth_csv,
+                                const std::string& overlay_csv);
+
+}  // namespace arnav::hil

@@ -1,0 +1,27 @@
+// arnav-ar-error: AR error of a recorded bench session (overlay.csv against the synthetic
+// camera's ground truth); prints JSON. Used by scripts/demo (docs/hil.md).
+#include <iostream>
+
+#include <CLI/CLI.hpp>
+
+#include "hil_tests/scenarios/ar_error.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{"arnav-ar-error: overlay tumour centroid vs the synthetic camera's ground truth (JSON)"};
+  std::string session, truth, csv;
+  app.add_option("--session", session, "the host's session file")->required();
+  app.add_option("--ground-truth", truth, "the synthetic camera's ground_truth.csv")->required();
+  app.add_option("--overlay-csv", csv, "the host's overlay.csv (--record)")->required();
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+  try {
+    std::cout << arnav::hil::evaluate_ar_error(session, truth, csv).summary().dump(2) << std::endl;
+  } catch (const std::exception& e) {
+    std::cerr << "arnav-ar-error: " << e.what() << "\n";
+    return 2;
+  }
+  return 0;
+}

@@ -1,0 +1,127 @@
+// arnav-host-latency-bench: motion-to-photon latency of the navigation session on this
+// machine, in process (no LCM, no appliance): frames (JPEG, width x height) and the
+// reference board pose of each are handed to a live NavigationSession at `rate` Hz, with
+// capture time = hand-over time, while its model runs on the scene at model_rate Hz on its
+// own thread. Latency = capture -> overlay frame ready (JPEG decode, poses, overlay render,
+// lens warp, composite, text; recording off). Prints JSON: latency p50/p99/max, frames
+// dropped by the host, model rate and step time.
+#include <chrono>
+#include <cmath>
+#include <iostream>
+#include <thread>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "host/app/navigation_session.hpp"
+#include "host/scene/load_error.hpp"
+#include "protocol/clock.hpp"
+#include "protocol/pose_convert.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{"arnav-host-latency-bench: capture -> overlay ready latency of the navigation session (JSON)"};
+  std::string scene_path;
+  int width = 1280, height = 720;
+  double rate = 60.0, model_rate = 60.0, seconds = 20.0;
+  app.add_option("--scene", scene_path, "scene (e.g. data/liver/liver.scene.yaml)")->required();
+  app.add_option("--width", width)->check(CLI::Range(64, 4096));
+  app.add_option("--height", height)->check(CLI::Range(64, 4096));
+  app.add_option("--rate", rate, "camera frames per second")->check(CLI::Range(1.0, 240.0));
+  app.add_option("--model-rate", model_rate, "model steps per second")->check(CLI::Range(1.0, 1000.0));
+  app.add_option("--seconds", seconds)->check(CLI::Range(1.0, 3600.0));
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+  using namespace arnav;
+  using namespace arnav::host;
+  try {
+    auto scene = std::make_unique<Scene>(load_scene(scene_path));
+    SessionConfig c;
+    c.source = "(bench)";
+    c.scene_path = scene_path;
+    c.reference = ToolRole{"liver_marker", 100.0};
+    CameraSettings cam;
+    cam.name = "bench";
+    cam.intrinsics.image_width = width;
+    cam.intrinsics.image_height = height;
+    const double f = 0.85 * width;
+    cam.intrinsics.camera_matrix = cv::Matx33d(f, 0, (width - 1) / 2.0, 0, f, (height - 1) / 2.0, 0, 0, 1);
+    cam.intrinsics.distortion = {-0.1, 0.02, 0, 0, 0};
+    c.camera = cam;
+    c.model.rate_hz = model_rate;
+    const Eigen::Vector3d centre = scene->organ_surface.positions_World_mm.rowwise().mean();
+    Eigen::Isometry3d X_RefModel = Eigen::Isometry3d::Identity();
+    X_RefModel.linear() = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
+    X_RefModel.translation() = -(X_RefModel.linear() * centre);
+    c.X_RefModel = X_RefModel;
+    SessionOptions o;
+    o.threaded = true;
+    NavigationSession session(c, std::move(scene), o);
+    session.start();
+    // A few distinct camera images (noise texture), JPEG as the appliance sends them.
+    std::vector<std::vector<std::uint8_t>> jpegs;
+    cv::RNG rng(1);
+    for (int i = 0; i < 8; ++i) {
+      cv::Mat img(height, width, CV_8UC3);
+      rng.fill(img, cv::RNG::UNIFORM, 40, 200);
+      cv::GaussianBlur(img, img, cv::Size(0, 0), 3.0);
+      std::vector<std::uint8_t> buf;
+      cv::imencode(".jpg", img, buf, {cv::IMWRITE_JPEG_QUALITY, 80});
+      jpegs.push_back(std::move(buf));
+    }
+    const auto period = std::chrono::duration<double>(1.0 / rate);
+    auto next = std::chrono::steady_clock::now();
+    const std::int64_t t0 = monotonic_us();
+    const int n = static_cast<int>(seconds * rate);
+    for (int k = 0; k < n; ++k) {
+      std::this_thread::sleep_until(next);
+      next += std::chrono::duration_cast<std::chrono::steady_clock::duration>(period);
+      const std::int64_t t = monotonic_us();
+      const double s = static_cast<double>(k) / rate;
+      Eigen::Isometry3d X_CamRef = Eigen::Isometry3d::Identity();
+      X_CamRef.linear() = Eigen::AngleAxisd(0.2 * std::sin(s), Eigen::Vector3d::UnitY()).toRotationMatrix();
+      X_CamRef.translation() = Eigen::Vector3d(20 * std::sin(0.7 * s), 10 * std::cos(0.5 * s), 450);
+      tool_pose_t p{};
+      p.tool_name = "liver_marker";
+      p.source = tool_pose_t::SOURCE_CAMERA;
+      p.frame_parent = "Cam";
+      p.frame_child = "Board";
+      set_pose(p, X_CamRef);
+      p.status = tool_pose_t::STATUS_VALID;
+      p.device_frame_number = k;
+      p.receive_time_mono_us = t;
+      session.on_pose(p, t);
+      image_frame_t fr{};
+      fr.camera_name = "bench";
+      fr.sequence = k;
+      fr.capture_time_mono_us = t;
+      fr.width = fr.source_width = width;
+      fr.height = fr.source_height = height;
+      fr.channels = 3;
+      fr.encoding = image_frame_t::ENCODING_JPEG;
+      fr.data = jpegs[static_cast<std::size_t>(k) % jpegs.size()];
+      fr.size = static_cast<std::int32_t>(fr.data.size());
+      session.submit_frame(fr, t);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    session.stop();
+    nlohmann::json j = session.summary_json(static_cast<double>(monotonic_us() - t0) * 1e-6);
+    j.erase("flags");
+    j["bench"] = "session_latency";
+    j["scene"] = scene_path;
+    j["width"] = width;
+    j["height"] = height;
+    j["rate_hz"] = rate;
+    j["model_rate_hz"] = model_rate;
+    j["frames_sent"] = n;
+    std::cout << j.dump(2) << std::endl;
+  } catch (const std::exception& e) {
+    std::cerr << "arnav-host-latency-bench: " << e.what() << "\n";
+    return 2;
+  }
+  return 0;
+}

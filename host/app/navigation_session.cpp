@@ -1,0 +1,527 @@
+#include "host/app/navigation_session.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "host/app/status_report.hpp"
+#include "host/overlay/egl_context.hpp"
+#include "host/overlay/overlay_geometry.hpp"
+#include "host/overlay/overlay_renderer.hpp"
+#include "protocol/clock.hpp"
+#include "protocol/pose_convert.hpp"
+
+namespace arnav::host {
+namespace {
+
+constexpr std::size_t kHistory = 240;  // poses kept per tool (4 s at 60 Hz)
+
+unsigned layer_mask(const std::vector<std::string>& layers) {
+  unsigned m = 0;
+  for (const auto& l : layers) {
+    if (l == "tumour") m |= overlay::kTumour;
+    else if (l == "margin") m |= overlay::kMargin;
+    else if (l == "vessels") m |= overlay::kVessels;
+    else if (l == "cut") m |= overlay::kCut;
+    else if (l == "organ") m |= overlay::kOrganVeil;
+    else if (l == "outline") m |= overlay::kOutline;
+    else if (l == "scalpel") m |= overlay::kScalpel;
+  }
+  return m;
+}
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5))];
+}
+
+void add_flag(std::string& flags, const std::string& f) { flags += (flags.empty() ? "" : "|") + f; }
+
+}  // namespace
+
+std::vector<std::string> split_flags(const std::string& flags) {
+  std::vector<std::string> out;
+  std::stringstream ss(flags);
+  std::string f;
+  while (std::getline(ss, f, '|'))
+    if (!f.empty()) out.push_back(f);
+  return out;
+}
+
+struct NavigationSession::Resolved {
+  std::optional<Eigen::Isometry3d> X_CamRef;
+  std::optional<Eigen::Isometry3d> X_RefScalpel;
+  std::int64_t pose_time_us = -1;  // newest pose used (its receive time)
+  std::string flags;
+  std::vector<overlay::Banner> banners;
+};
+
+NavigationSession::NavigationSession(const SessionConfig& config, std::unique_ptr<Scene> scene, const SessionOptions& options)
+    : config_(config),
+      options_(options),
+      scene_(std::move(scene)),
+      tracker_(static_cast<std::int64_t>(config.stale_after_ms * 1000.0)) {
+  if (scene_) {
+    try {
+      model_ = std::make_unique<ModelRunner>(*scene_, config_.model.rate_hz, config_.model.gravity, config_.overlay.margin_mm,
+                                             config_.model.nice);
+    } catch (const std::exception& e) {
+      throw SessionError(config_.source + ":" + std::to_string(config_.scene_line) + ": key 'scene': the tissue model cannot be built: " + e.what());
+    }
+  }
+  if (!options_.record_dir.empty()) {
+    if (!config_.camera) throw SessionError("--record " + options_.record_dir + ": the session " + config_.source + " has no camera: nothing to record");
+    recorder_ = std::make_unique<Recorder>(options_.record_dir, config_.record);
+  }
+}
+
+NavigationSession::~NavigationSession() {
+  try {
+    stop();
+  } catch (const std::exception&) {  // stop() reports failures to an explicit caller
+  }
+}
+
+void NavigationSession::start() {
+  if (!options_.threaded) return;
+  if (model_) model_->start();
+  if (!config_.camera) return;
+  // The GL context belongs to the rendering thread: it is made there, before any frame
+  // arrives (building it and the lens tables takes a few hundred ms), and start() waits.
+  std::string error;
+  bool ready = false;
+  render_thread_ = std::thread([this, &error, &ready] {
+    std::string failed;  // error and ready live in start(): not touched after ready is set
+    try {
+      ensure_renderer(config_.camera->intrinsics.image_width, config_.camera->intrinsics.image_height);
+    } catch (const std::exception& e) {
+      failed = e.what();
+    }
+    {
+      std::lock_guard lock(frame_mutex_);
+      error = failed;
+      ready = true;
+      frame_cv_.notify_all();
+    }
+    if (failed.empty()) render_loop();
+  });
+  std::unique_lock lock(frame_mutex_);
+  frame_cv_.wait(lock, [&] { return ready; });
+  if (!error.empty()) {
+    lock.unlock();
+    render_thread_.join();
+    throw SessionError(config_.source + ": camera '" + config_.camera->name + "': the overlay renderer cannot start: " + error);
+  }
+}
+
+overlay::OverlayCamera NavigationSession::ensure_renderer(int width, int height) {
+  const CameraSettings& cam = *config_.camera;
+  overlay::OverlayCamera camera;
+  camera.width = cam.intrinsics.image_width;
+  camera.height = cam.intrinsics.image_height;
+  camera.K = cam.intrinsics.camera_matrix;
+  camera.distortion = cam.intrinsics.distortion;
+  if (width != camera.width || height != camera.height) camera = camera.scaled_to(width, height);
+  if (!renderer_ || renderer_->camera().width != camera.width || renderer_->camera().height != camera.height) {
+    overlay::OverlayStyle style;
+    style.msaa_samples = config_.overlay.msaa;
+    renderer_ = std::make_unique<overlay::OverlayRenderer>(camera, style);
+  }
+  return camera;
+}
+
+void NavigationSession::stop() {
+  {
+    std::lock_guard lock(frame_mutex_);
+    stopping_ = true;
+    frame_cv_.notify_all();
+  }
+  if (render_thread_.joinable()) render_thread_.join();
+  if (model_) model_->stop();
+  if (recorder_) {
+    auto rec = std::move(recorder_);
+    recorded_files_ = rec->close();
+  }
+}
+
+void NavigationSession::on_pose(const tool_pose_t& msg, std::int64_t now_us) {
+  std::lock_guard lock(mutex_);
+  tracker_.on_pose(msg, now_us);
+  PoseHistory& h = poses_[msg.tool_name];
+  h.recent.push_back({msg, now_us});
+  if (h.recent.size() > kHistory) h.recent.pop_front();
+}
+
+void NavigationSession::on_health(const device_health_t& msg, std::int64_t now_us) {
+  std::lock_guard lock(mutex_);
+  tracker_.on_health(msg, now_us);
+}
+
+void NavigationSession::on_event(const appliance_event_t& msg) {
+  std::lock_guard lock(mutex_);
+  tracker_.on_event(msg);
+}
+
+void NavigationSession::advance_model(std::int64_t now_us) {
+  if (model_) model_->advance_to(now_us);
+}
+
+void NavigationSession::submit_frame(const image_frame_t& msg, std::int64_t now_us) {
+  bool dropped = false;
+  {
+    std::lock_guard lock(frame_mutex_);
+    dropped = pending_.has_value();
+    pending_.emplace(msg, now_us);
+    frame_cv_.notify_one();
+  }
+  if (dropped) {
+    std::lock_guard lock(mutex_);
+    ++frames_dropped_;
+  }
+}
+
+void NavigationSession::render_loop() {
+  for (;;) {
+    std::pair<image_frame_t, std::int64_t> item;
+    {
+      std::unique_lock lock(frame_mutex_);
+      frame_cv_.wait(lock, [this] { return stopping_ || pending_.has_value(); });
+      if (stopping_) return;
+      item = std::move(*pending_);
+      pending_.reset();
+    }
+    try {
+      render_frame(item.first, item.second);
+    } catch (const std::exception& e) {
+      std::lock_guard lock(mutex_);
+      render_error_ = std::string("overlay: ") + e.what();
+      return;
+    }
+  }
+}
+
+NavigationSession::Resolved NavigationSession::resolve_poses(const image_frame_t& frame, std::int64_t now_us) {
+  Resolved r;
+  std::lock_guard lock(mutex_);
+  const auto history = [&](const std::string& tool) -> PoseHistory* {
+    auto it = poses_.find(tool);
+    return it == poses_.end() ? nullptr : &it->second;
+  };
+  // Newest valid sample with receive time at or before t (or the newest valid at all).
+  const auto nearest_valid = [&](PoseHistory* h, std::int64_t t_us) -> const PoseSample* {
+    if (!h) return nullptr;
+    const PoseSample* best = nullptr;
+    std::int64_t best_dt = 0;
+    for (const auto& s : h->recent) {
+      if (s.msg.status != tool_pose_t::STATUS_VALID || s.arrival_us > now_us) continue;
+      const std::int64_t dt = std::llabs(s.msg.receive_time_mono_us - t_us);
+      if (!best || dt < best_dt) {
+        best = &s;
+        best_dt = dt;
+      }
+    }
+    return best;
+  };
+  // Fresh/lost/stale of a role as known when the frame arrived (now_us): messages that came
+  // in later (the rendering thread may run behind) do not count, so live == replay.
+  const auto check = [&](const ToolRole& role, const char* what, const char* flag, cv::Scalar colour) -> bool {
+    PoseHistory* h = history(role.name);
+    std::int8_t last_status = -1;
+    std::int64_t last_valid_arrival_us = -1;
+    if (h)
+      for (auto it = h->recent.rbegin(); it != h->recent.rend(); ++it) {
+        if (it->arrival_us > now_us) continue;
+        if (last_status == -1) last_status = it->msg.status;
+        if (it->msg.status == tool_pose_t::STATUS_VALID) {
+          last_valid_arrival_us = it->arrival_us;
+          break;
+        }
+      }
+    if (h && last_status != -1 && last_status != tool_pose_t::STATUS_VALID) {
+      add_flag(r.flags, std::string(flag) + "_lost");
+      r.banners.push_back({std::string("TRACKING LOST: ") + what + " '" + role.name + "'", colour});
+      return false;
+    }
+    const double age_ms = last_valid_arrival_us >= 0 ? static_cast<double>(now_us - last_valid_arrival_us) * 1e-3 : -1.0;
+    if (age_ms < 0 || age_ms > role.stale_after_ms) {
+      add_flag(r.flags, std::string(flag) + "_stale");
+      char text[160];
+      if (age_ms < 0)
+        std::snprintf(text, sizeof text, "STALE: %s '%s' - no pose yet", what, role.name.c_str());
+      else
+        std::snprintf(text, sizeof text, "STALE: %s '%s' - last pose %.0f ms old (limit %.0f)", what, role.name.c_str(), age_ms,
+                      role.stale_after_ms);
+      r.banners.push_back({text, colour});
+      return false;
+    }
+    return true;
+  };
+  const cv::Scalar red(0, 0, 200), amber(0, 140, 230);
+  const ToolRole& ref_role = *config_.reference;
+  const bool ref_ok = check(ref_role, "reference", "reference", red);
+  PoseHistory* ref_h = history(ref_role.name);
+  const CameraSettings& cam = *config_.camera;
+  const auto use = [&](const PoseSample* s) { r.pose_time_us = std::max(r.pose_time_us, s->msg.receive_time_mono_us); };
+  // Reference sample in a given parent frame, nearest to the frame's capture.
+  const auto reference_in = [&](const std::string& parent) -> const PoseSample* {
+    const PoseSample* s = nearest_valid(ref_h, frame.capture_time_mono_us);
+    return s && s->msg.frame_parent == parent ? s : nullptr;
+  };
+  // X_Ref<tool> from a sample of that tool, whatever its parent frame.
+  const auto to_ref = [&](const PoseSample& s) -> std::optional<Eigen::Isometry3d> {
+    const Eigen::Isometry3d X = get_pose(s.msg);
+    if (s.msg.frame_parent == "Ref") return X;
+    if (const PoseSample* ref = reference_in(s.msg.frame_parent)) {
+      use(ref);
+      return get_pose(ref->msg).inverse() * X;
+    }
+    return std::nullopt;
+  };
+
+  if (ref_ok) {
+    if (cam.pose_from == "reference") {
+      // The reference board seen in this very frame: same camera sequence.
+      const PoseSample* match = nullptr;
+      if (ref_h)
+        for (auto it = ref_h->recent.rbegin(); it != ref_h->recent.rend(); ++it)
+          if (it->msg.source == tool_pose_t::SOURCE_CAMERA && it->msg.device_frame_number == frame.sequence) {
+            match = &*it;
+            break;
+          }
+      if (match && match->msg.status != tool_pose_t::STATUS_VALID) {
+        add_flag(r.flags, "reference_lost");
+        r.banners.push_back({"TRACKING LOST: reference '" + ref_role.name + "' not seen in this frame", red});
+      } else {
+        if (!match) {
+          add_flag(r.flags, "pose_not_matched");
+          match = nearest_valid(ref_h, frame.capture_time_mono_us);
+        }
+        if (match && match->msg.frame_parent == "Cam") {
+          r.X_CamRef = get_pose(match->msg);
+          use(match);
+        } else if (match) {
+          add_flag(r.flags, "camera_pose_lost");
+          r.banners.push_back({"NO CAMERA POSE: reference '" + ref_role.name + "' arrives in frame " + match->msg.frame_parent +
+                                   "; pose_from: reference needs it in Cam",
+                               red});
+        }
+      }
+    } else {
+      const ToolRole cam_role{cam.pose_tool, ref_role.stale_after_ms};
+      if (check(cam_role, "camera marker", "camera_pose", red)) {
+        const PoseSample* s = nearest_valid(history(cam.pose_tool), frame.capture_time_mono_us);
+        std::optional<Eigen::Isometry3d> X_RefTool = s ? to_ref(*s) : std::nullopt;
+        if (X_RefTool) {
+          use(s);
+          r.X_CamRef = (*X_RefTool * cam.X_ToolCam).inverse();
+        } else {
+          add_flag(r.flags, "camera_pose_lost");
+          r.banners.push_back({"NO CAMERA POSE: camera marker '" + cam.pose_tool + "' cannot be related to the reference", red});
+        }
+      }
+    }
+  }
+  if (config_.scalpel && check(*config_.scalpel, "scalpel", "scalpel", amber)) {
+    const PoseSample* s = nearest_valid(history(config_.scalpel->name), frame.capture_time_mono_us);
+    if (s) {
+      r.X_RefScalpel = to_ref(*s);
+      if (r.X_RefScalpel) use(s);
+      else add_flag(r.flags, "scalpel_lost");
+    }
+  }
+  return r;
+}
+
+FrameResult NavigationSession::render_frame(const image_frame_t& msg, std::int64_t now_us) {
+  const auto t0 = std::chrono::steady_clock::now();
+  FrameResult out;
+  out.row.camera_sequence = msg.sequence;
+  out.row.capture_time_mono_us = msg.capture_time_mono_us;
+  {
+    std::lock_guard lock(mutex_);
+    ++frames_received_;
+  }
+  cv::Mat image = cv::imdecode(msg.data, cv::IMREAD_COLOR);
+  const double decode_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  if (image.empty()) {
+    std::lock_guard lock(mutex_);
+    ++decode_failures_;
+    return out;
+  }
+  const overlay::OverlayCamera camera = ensure_renderer(image.cols, image.rows);
+
+  Resolved r = resolve_poses(msg, now_us);
+  std::shared_ptr<const ModelSnapshot> snap = model_ ? model_->snapshot() : nullptr;
+  out.row.pose_time_mono_us = r.pose_time_us;
+  if (snap) out.row.model_step_time_mono_us = snap->step_done_mono_us;
+  if (snap && !snap->healthy) {
+    add_flag(r.flags, "model_unhealthy");
+    r.banners.push_back({"MODEL: " + snap->warning, cv::Scalar(0, 0, 160)});
+  }
+  std::optional<double> distance;
+  double overlay_ms = 0.0;
+  if (r.X_CamRef && snap) {
+    const Eigen::Isometry3d X_CamModel = *r.X_CamRef * *config_.X_RefModel;
+    overlay::OverlayContent content;
+    content.X_CamModel = X_CamModel;
+    content.layers = layer_mask(config_.overlay.layers);
+    content.organ = &snap->organ;
+    for (const auto& t : snap->tumours) content.tumours.push_back(&t);
+    for (const auto& m : snap->margins) content.margins.push_back(&m);
+    if (snap->vessels) content.vessels = &*snap->vessels;
+    if (snap->cut_surface) content.cut_surface = &*snap->cut_surface;
+    if (r.X_RefScalpel) {
+      const Eigen::Isometry3d X_ModelTool = config_.X_RefModel->inverse() * *r.X_RefScalpel;
+      const Eigen::Vector3d tip = X_ModelTool * config_.scalpel->tip_Tool_mm, heel = X_ModelTool * config_.scalpel->heel_Tool_mm;
+      content.scalpel_mm = std::array<Eigen::Vector3d, 2>{tip, heel};
+      for (const auto& t : snap->tumours) {
+        const double d = overlay::blade_to_margin_mm(tip, heel, t, config_.overlay.margin_mm, 1.0);
+        distance = distance ? std::min(*distance, d) : d;
+      }
+      if (model_) model_->set_scalpel(content.scalpel_mm);
+      cut_trace_.add(scene_->problem.mesh, snap->volume_positions_mm, tip);
+    } else if (model_) {
+      model_->set_scalpel(std::nullopt);
+    }
+    if (cut_trace_.size() > 0) {
+      last_strokes_ = cut_trace_.strokes(snap->volume_positions_mm, scene_->problem.mesh);
+      content.cut_paths_mm = last_strokes_;
+    }
+    overlay::RenderTiming timing;
+    const cv::Mat layer = renderer_->render(content, &timing);
+    overlay_ms = timing.total_ms;
+    overlay::composite(image, layer);
+    if (!snap->tumour_centroids_mm.empty()) {
+      const Eigen::Vector3d p = X_CamModel * snap->tumour_centroids_mm[0];
+      std::vector<cv::Point3d> in{{p.x(), p.y(), p.z()}};
+      std::vector<cv::Point2d> px;
+      cv::projectPoints(in, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), cv::Mat(camera.K), cv::Mat(camera.distortion), px);
+      out.row.tumour_px = px[0];
+    }
+  }
+  out.row.blade_to_margin_mm = distance;
+  char footer[200];
+  std::snprintf(footer, sizeof footer, "seq %lld  model step %lld", static_cast<long long>(msg.sequence),
+                static_cast<long long>(snap ? snap->step : -1));
+  overlay::draw_status(image, r.banners, distance, config_.overlay.warn_mm, footer);
+  const double render_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  out.row.render_done_mono_us = options_.threaded ? monotonic_us() : now_us + static_cast<std::int64_t>(render_ms * 1000.0);
+  out.row.motion_to_photon_ms = static_cast<double>(out.row.render_done_mono_us - msg.capture_time_mono_us) * 1e-3;
+  out.row.flags = r.flags;
+  for (const auto& b : r.banners) out.banners.push_back(b.text);
+  {
+    std::lock_guard lock(mutex_);
+    ++frames_displayed_;
+    latency_ms_.push_back(out.row.motion_to_photon_ms);
+    host_latency_ms_.push_back(static_cast<double>(out.row.render_done_mono_us - now_us) * 1e-3);
+    render_ms_.push_back(render_ms);
+    decode_ms_.push_back(decode_ms);
+    overlay_ms_.push_back(overlay_ms);
+    note_flags(out.row);
+  }
+  if (recorder_) recorder_->add(out.row, options_.keep_last_frame ? image.clone() : image);
+  if (options_.keep_last_frame) {
+    out.image = image;
+    std::lock_guard lock(mutex_);
+    last_ = out;
+  }
+  return out;
+}
+
+void NavigationSession::note_flags(const FrameRow& row) {
+  std::set<std::string> now;
+  for (const auto& f : split_flags(row.flags)) now.insert(f);
+  for (const auto& f : now) {
+    ++flag_frames_[f];
+    if (!active_flags_.count(f)) {
+      ++flag_episodes_[f];
+      flag_spans_[f].push_back({row.capture_time_mono_us, -1});
+    }
+  }
+  for (const auto& f : active_flags_)
+    if (!now.count(f)) flag_spans_[f].back().second = row.capture_time_mono_us;
+  active_flags_ = now;
+}
+
+std::string NavigationSession::failure() {
+  std::lock_guard lock(mutex_);
+  return render_error_;
+}
+
+ToolFreshnessTracker NavigationSession::tracker_at(std::int64_t now_us) {
+  std::lock_guard lock(mutex_);
+  tracker_.update(now_us);
+  return tracker_;
+}
+
+std::optional<FrameResult> NavigationSession::last_frame() {
+  std::lock_guard lock(mutex_);
+  return last_;
+}
+
+std::string NavigationSession::status_table(std::int64_t now_us) {
+  std::lock_guard lock(mutex_);
+  tracker_.update(now_us);
+  return format_status_table(tracker_, now_us);
+}
+
+nlohmann::json NavigationSession::summary_json(double run_s) {
+  std::lock_guard lock(mutex_);
+  nlohmann::json j;
+  j["frames_received"] = frames_received_;
+  j["frames_displayed"] = frames_displayed_;
+  j["frames_dropped"] = frames_dropped_;
+  j["decode_failures"] = decode_failures_;
+  j["motion_to_photon_ms"] = {{"p50", percentile(latency_ms_, 0.5)}, {"p99", percentile(latency_ms_, 0.99)},
+                              {"max", latency_ms_.empty() ? 0.0 : *std::max_element(latency_ms_.begin(), latency_ms_.end())}};
+  j["host_latency_ms"] = {{"p50", percentile(host_latency_ms_, 0.5)}, {"p99", percentile(host_latency_ms_, 0.99)}};
+  j["render_ms"] = {{"p50", percentile(render_ms_, 0.5)}, {"p99", percentile(render_ms_, 0.99)}};  // whole frame
+  j["jpeg_decode_ms"] = {{"p50", percentile(decode_ms_, 0.5)}, {"p99", percentile(decode_ms_, 0.99)}};
+  j["overlay_render_ms"] = {{"p50", percentile(overlay_ms_, 0.5)}, {"p99", percentile(overlay_ms_, 0.99)}};  // OverlayRenderer::render
+  if (model_) {
+    const auto steps = model_->step_times_ms();
+    j["model"] = {{"steps", steps.size()},
+                  {"rate_hz", run_s > 0 ? static_cast<double>(steps.size()) / run_s : 0.0},
+                  {"step_ms_p50", percentile(steps, 0.5)},
+                  {"step_ms_p99", percentile(steps, 0.99)}};
+  }
+  for (const auto& [f, n] : flag_frames_) {
+    nlohmann::json spans = nlohmann::json::array();
+    for (const auto& [a, b] : flag_spans_[f]) spans.push_back({{"onset_capture_us", a}, {"recovered_capture_us", b}});
+    j["flags"][f] = {{"frames", n}, {"episodes", flag_episodes_[f]}, {"spans", spans}};
+  }
+  return j;
+}
+
+std::string NavigationSession::format_summary(double run_s) {
+  const nlohmann::json j = summary_json(run_s);
+  std::ostringstream os;
+  os << "navigation: " << j["frames_displayed"] << " frames displayed of " << j["frames_received"] << " received, "
+     << j["frames_dropped"] << " dropped, " << j["decode_failures"] << " undecodable\n";
+  char line[256];
+  std::snprintf(line, sizeof line,
+                "  motion-to-photon (capture -> overlay ready): p50 %.1f ms, p99 %.1f ms, max %.1f ms; frame arrival -> ready p50 %.1f ms, "
+                "p99 %.1f ms\n",
+                j["motion_to_photon_ms"]["p50"].get<double>(), j["motion_to_photon_ms"]["p99"].get<double>(),
+                j["motion_to_photon_ms"]["max"].get<double>(), j["host_latency_ms"]["p50"].get<double>(),
+                j["host_latency_ms"]["p99"].get<double>());
+  os << line;
+  if (j.contains("model")) {
+    std::snprintf(line, sizeof line, "  model: %lld steps, %.1f Hz, step p50 %.2f ms, p99 %.2f ms\n",
+                  static_cast<long long>(j["model"]["steps"].get<std::int64_t>()), j["model"]["rate_hz"].get<double>(),
+                  j["model"]["step_ms_p50"].get<double>(), j["model"]["step_ms_p99"].get<double>());
+    os << line;
+  }
+  if (j.contains("flags"))
+    for (const auto& [f, v] : j["flags"].items())
+      os << "  " << f << ": " << v["frames"] << " frames in " << v["episodes"] << " episode(s)\n";
+  return os.str();
+}
+
+}  // namespace arnav::host

@@ -1,0 +1,148 @@
+#pragma once
+// The navigation loop of `arnav-host SESSION.yaml`: tool poses, camera frames, health and
+// events in; for every camera frame the overlay (tumour, margin, vessels, cut, organ
+// outline, scalpel, blade-to-margin distance) drawn over the image, with status banners;
+// recording of what was displayed. Only what the session declares is built: no camera,
+// no renderer; no scene, no model.
+//
+// Frames: a pose message X_<parent><tool> (parent Cam, Ndi or Ref) is brought into Ref,
+// the patient reference tool's frame; X_RefModel is the registration; the camera pose
+// X_CamRef comes from the reference tool measured in Cam (pose_from: reference, matched to
+// the frame by its camera sequence number) or from a tracked camera marker and hand-eye
+// (pose_from: tool, nearest in time). X_CamModel = X_CamRef * X_RefModel.
+//
+// Clocks: `now_us` is the session clock: CLOCK_MONOTONIC live, the log's clock in replay.
+// Threads: on_* are thread-safe; live sessions render on their own thread (start/stop),
+// the model steps on its own (ModelRunner); replay calls render_frame and advance_model on
+// one thread for a deterministic run. The GL context lives on the rendering thread.
+#include <opencv2/core.hpp>
+
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "arnav/image_frame_t.hpp"
+#include "host/app/cut_trace.hpp"
+#include "host/app/model_runner.hpp"
+#include "host/app/recorder.hpp"
+#include "host/app/session_config.hpp"
+#include "host/app/tool_freshness.hpp"
+#include "host/scene/scene.hpp"
+
+namespace arnav::host {
+
+namespace overlay {
+class OverlayRenderer;
+struct OverlayCamera;
+}
+
+struct SessionOptions {
+  bool threaded = true;           // live: model and rendering threads; replay: false
+  std::string record_dir;         // --record; empty: no recording
+  bool keep_last_frame = false;   // tests: keep the last displayed image
+};
+
+struct FrameResult {
+  FrameRow row;
+  std::vector<std::string> banners;
+  cv::Mat image;                  // only with keep_last_frame / render_frame callers
+};
+
+class NavigationSession {
+ public:
+  // Takes the loaded scene (null when the session has none). Throws SessionError.
+  NavigationSession(const SessionConfig& config, std::unique_ptr<Scene> scene, const SessionOptions& options);
+  ~NavigationSession();
+  NavigationSession(const NavigationSession&) = delete;
+  NavigationSession& operator=(const NavigationSession&) = delete;
+
+  void on_pose(const tool_pose_t& msg, std::int64_t now_us);
+  void on_health(const device_health_t& msg, std::int64_t now_us);
+  void on_event(const appliance_event_t& msg);
+  // Live: hands the frame to the rendering thread; a frame still waiting is replaced and
+  // counted as dropped.
+  void submit_frame(const image_frame_t& msg, std::int64_t now_us);
+  // Renders on the calling thread. render_done = now_us + the time the rendering took
+  // (live: the monotonic clock at the end).
+  FrameResult render_frame(const image_frame_t& msg, std::int64_t now_us);
+  // Replay: model steps due by now_us.
+  void advance_model(std::int64_t now_us);
+
+  void start();   // live: model and rendering threads
+  void stop();    // joins them, closes the recording (throws SessionError if it failed)
+
+  std::string status_table(std::int64_t now_us);
+  // A copy of the per-tool/per-device bookkeeping, updated to now_us (for summaries).
+  ToolFreshnessTracker tracker_at(std::int64_t now_us);
+  std::string format_summary(double run_s);
+  nlohmann::json summary_json(double run_s);
+  std::vector<std::string> recorded_files() const { return recorded_files_; }
+  bool has_camera() const { return config_.camera.has_value(); }
+  bool has_model() const { return model_ != nullptr; }
+  std::optional<FrameResult> last_frame();
+  // Why the rendering thread stopped (empty while it runs): the caller exits with it.
+  std::string failure();
+  // The blade tip's path through the tissue so far (Model, at the last drawn model state).
+  std::vector<std::vector<Eigen::Vector3d>> cut_strokes() const { return last_strokes_; }
+
+ private:
+  struct PoseSample {
+    tool_pose_t msg;
+    std::int64_t arrival_us = 0;
+  };
+  struct PoseHistory {
+    std::deque<PoseSample> recent;     // newest last
+  };
+  struct Resolved;
+  Resolved resolve_poses(const image_frame_t& msg, std::int64_t now_us);
+  void render_loop();
+  // The renderer for frames of width x height (intrinsics scaled when they differ).
+  overlay::OverlayCamera ensure_renderer(int width, int height);
+  void note_flags(const FrameRow& row);
+
+  SessionConfig config_;
+  SessionOptions options_;
+  std::unique_ptr<Scene> scene_;
+  std::unique_ptr<ModelRunner> model_;
+  std::unique_ptr<overlay::OverlayRenderer> renderer_;  // created on the rendering thread
+  std::unique_ptr<Recorder> recorder_;
+  std::vector<std::string> recorded_files_;
+
+  std::mutex mutex_;                   // poses, tracker, stats
+  ToolFreshnessTracker tracker_;
+  std::map<std::string, PoseHistory> poses_;
+
+  // Rendering thread mailbox.
+  std::mutex frame_mutex_;
+  std::condition_variable frame_cv_;
+  std::optional<std::pair<image_frame_t, std::int64_t>> pending_;
+  bool stopping_ = false;
+  std::thread render_thread_;
+
+  // Statistics.
+  std::int64_t frames_received_ = 0, frames_displayed_ = 0, frames_dropped_ = 0, decode_failures_ = 0;
+  std::vector<double> latency_ms_, host_latency_ms_, render_ms_, decode_ms_, overlay_ms_;
+  std::map<std::string, std::int64_t> flag_frames_;   // frames showing each flag
+  std::map<std::string, std::int64_t> flag_episodes_; // onsets
+  std::map<std::string, std::vector<std::pair<std::int64_t, std::int64_t>>> flag_spans_;  // capture time onset, recovery (-1 open)
+  std::set<std::string> active_flags_;
+  std::optional<FrameResult> last_;
+  std::string render_error_;
+  CutTrace cut_trace_;                                  // rendering thread only
+  std::vector<std::vector<Eigen::Vector3d>> last_strokes_;
+};
+
+// Splits "a|b" flags.
+std::vector<std::string> split_flags(const std::string& flags);
+
+}  // namespace arnav::host

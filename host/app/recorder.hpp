@@ -1,0 +1,74 @@
+#pragma once
+// --record DIR of a navigation session: overlay.avi (OpenCV VideoWriter, MJPG), overlay.csv
+// (one row per displayed frame) and contact_sheet.png (thumbnails every few seconds).
+// Writing runs on its own thread so that encoding never delays the next overlay.
+//
+// overlay.csv columns:
+//   camera_sequence, capture_time_mono_us, pose_time_mono_us (newest pose used),
+//   model_step_time_mono_us (model state drawn), render_done_mono_us, motion_to_photon_ms
+//   (capture -> overlay ready), tumour_u_px, tumour_v_px (projected tumour centroid, empty
+//   when not drawn), blade_to_margin_mm (empty without a fresh scalpel), flags
+//   ('|'-separated: reference_lost, reference_stale, scalpel_lost, scalpel_stale,
+//   camera_pose_lost, model_unhealthy, pose_not_matched; empty when all is well).
+#include <opencv2/core.hpp>
+#include <opencv2/videoio.hpp>
+
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <fstream>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "host/app/session_config.hpp"
+
+namespace arnav::host {
+
+struct FrameRow {
+  std::int64_t camera_sequence = 0;
+  std::int64_t capture_time_mono_us = 0;
+  std::int64_t pose_time_mono_us = -1;
+  std::int64_t model_step_time_mono_us = -1;
+  std::int64_t render_done_mono_us = 0;
+  double motion_to_photon_ms = 0.0;
+  std::optional<cv::Point2d> tumour_px;
+  std::optional<double> blade_to_margin_mm;
+  std::string flags;
+};
+
+std::string csv_header();
+std::string csv_line(const FrameRow& row);
+
+class Recorder {
+ public:
+  // Creates DIR (and parents). Throws SessionError naming the folder when it cannot.
+  Recorder(const std::string& dir, const RecordSettings& settings);
+  ~Recorder();
+  Recorder(const Recorder&) = delete;
+  Recorder& operator=(const Recorder&) = delete;
+  void add(const FrameRow& row, cv::Mat frame);  // takes the image (no copy)
+  // Flushes, writes the contact sheet; returns the files written.
+  std::vector<std::string> close();
+
+ private:
+  void run();
+  std::string dir_;
+  RecordSettings settings_;
+  std::ofstream csv_;
+  std::unique_ptr<cv::VideoWriter> writer_;
+  std::vector<cv::Mat> thumbs_;
+  std::int64_t next_thumb_us_ = -1;
+  std::deque<std::pair<FrameRow, cv::Mat>> queue_;
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  bool closing_ = false;
+  std::thread thread_;
+  std::vector<std::string> files_;
+  std::string error_;
+};
+
+}  // namespace arnav::host

@@ -1,0 +1,178 @@
+#include "host/app/session_config.hpp"
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "appliance/yaml/yaml_reader.hpp"
+#include "calibration/lib/calib_error.hpp"
+#include "calibration/lib/rigid_transform_file.hpp"
+
+namespace arnav::host {
+namespace {
+
+using Reader = yaml::YamlReader<SessionError>;
+
+std::string resolve(const std::string& base_dir, const std::string& p) {
+  const std::filesystem::path path(p);
+  return path.is_absolute() ? p : (std::filesystem::path(base_dir) / path).lexically_normal().string();
+}
+
+int line_of(const YAML::Node& n) { return n.IsDefined() && n.Mark().line >= 0 ? n.Mark().line + 1 : 1; }
+
+ToolRole parse_role(const Reader& r, const YAML::Node& n, const std::string& key, std::set<std::string> extra_keys = {}) {
+  std::set<std::string> known = {"name", "stale_after_ms"};
+  known.insert(extra_keys.begin(), extra_keys.end());
+  r.only(n, key, known);
+  ToolRole role;
+  if (!n["name"]) r.fail(n, key + ".name", "missing: the appliance's tool name (its poses arrive on ARNAV_POSE_<name>)");
+  role.name = r.text(n, key, "name", "");
+  if (role.name.empty()) r.fail(n["name"], key + ".name", "must not be empty");
+  role.stale_after_ms = r.number(n, key, "stale_after_ms", role.stale_after_ms, 1.0, 60000.0);
+  return role;
+}
+
+Eigen::Vector3d vec3(const Reader& r, const YAML::Node& n, const std::string& key) {
+  const auto v = r.numbers(n, key);
+  if (v.size() != 3) r.fail(n, key, "expected 3 numbers [x, y, z] in mm");
+  return {v[0], v[1], v[2]};
+}
+
+}  // namespace
+
+SessionConfig parse_session(const std::string& text, const std::string& source, const std::string& base_dir) {
+  const Reader r(source);
+  const YAML::Node root = r.load_root(text);
+  r.only(root, "", {"arnav_session_version", "lcm_url", "stale_after_ms", "print_period_s", "scene", "registration", "tools",
+                    "camera", "model", "overlay", "record"});
+  SessionConfig c;
+  c.source = source;
+  if (!root["arnav_session_version"]) r.fail(root, "arnav_session_version", "missing: add 'arnav_session_version: 1' at the top");
+  if (r.integer(root, "", "arnav_session_version", 1, 1, 1000) != 1)
+    r.fail(root["arnav_session_version"], "arnav_session_version", "this arnav-host reads version 1");
+  c.lcm_url = r.text(root, "", "lcm_url", c.lcm_url);
+  c.stale_after_ms = r.number(root, "", "stale_after_ms", c.stale_after_ms, 1.0, 600000.0);
+  c.print_period_s = r.number(root, "", "print_period_s", c.print_period_s, 0.05, 3600.0);
+
+  if (const YAML::Node tools = root["tools"]) {
+    r.only(tools, "tools", {"reference", "scalpel", "pointer"});
+    if (tools["reference"]) c.reference = parse_role(r, tools["reference"], "tools.reference");
+    if (tools["pointer"]) c.pointer = parse_role(r, tools["pointer"], "tools.pointer");
+    if (const YAML::Node s = tools["scalpel"]) {
+      ScalpelRole scalpel;
+      static_cast<ToolRole&>(scalpel) = parse_role(r, s, "tools.scalpel", {"blade"});
+      const YAML::Node blade = s["blade"];
+      if (!blade) r.fail(s, "tools.scalpel.blade", "missing: the cutting edge in the tool frame, {tip_mm: [x, y, z], heel_mm: [x, y, z]}");
+      r.only(blade, "tools.scalpel.blade", {"tip_mm", "heel_mm"});
+      if (!blade["tip_mm"] || !blade["heel_mm"]) r.fail(blade, "tools.scalpel.blade", "needs both tip_mm and heel_mm");
+      scalpel.tip_Tool_mm = vec3(r, blade["tip_mm"], "tools.scalpel.blade.tip_mm");
+      scalpel.heel_Tool_mm = vec3(r, blade["heel_mm"], "tools.scalpel.blade.heel_mm");
+      if ((scalpel.tip_Tool_mm - scalpel.heel_Tool_mm).norm() < 1.0)
+        r.fail(blade, "tools.scalpel.blade", "tip and heel are less than 1 mm apart");
+      c.scalpel = scalpel;
+    }
+  }
+
+  if (const YAML::Node scene = root["scene"]) {
+    c.scene_path = resolve(base_dir, r.text(root, "", "scene", ""));
+    c.scene_line = line_of(scene);
+    if (!std::filesystem::exists(*c.scene_path)) r.fail(scene, "scene", "file " + *c.scene_path + " not found");
+  }
+  if (const YAML::Node reg = root["registration"]) {
+    c.registration_path = resolve(base_dir, r.text(root, "", "registration", ""));
+    try {
+      const auto record = calib::read_transform(c.registration_path, "X_RefModel");
+      c.X_RefModel = record.X_ParentChild;
+    } catch (const calib::CalibError& e) {
+      r.fail(reg, "registration", std::string(e.what()) + " (a rigid transform file named X_RefModel: parent_frame Ref, child_frame Model)");
+    }
+  }
+
+  if (const YAML::Node cam = root["camera"]) {
+    r.only(cam, "camera", {"name", "intrinsics", "pose_from", "pose_tool", "hand_eye", "stale_after_ms"});
+    CameraSettings s;
+    if (!cam["name"]) r.fail(cam, "camera.name", "missing: the appliance's camera name (frames arrive on ARNAV_FRAME_<name>)");
+    s.name = r.text(cam, "camera", "name", "");
+    if (!cam["intrinsics"]) r.fail(cam, "camera.intrinsics", "missing: the camera's intrinsics file (arnav-calib intrinsics)");
+    s.intrinsics_path = resolve(base_dir, r.text(cam, "camera", "intrinsics", ""));
+    try {
+      s.intrinsics = calib::read_intrinsics(s.intrinsics_path);
+    } catch (const calib::CalibError& e) {
+      r.fail(cam["intrinsics"], "camera.intrinsics", e.what());
+    }
+    s.pose_from = r.text(cam, "camera", "pose_from", s.pose_from);
+    if (s.pose_from != "reference" && s.pose_from != "tool")
+      r.fail(cam["pose_from"], "camera.pose_from", "must be 'reference' (the reference tool is measured in Cam) or 'tool' (tracked camera marker + hand_eye)");
+    if (s.pose_from == "tool") {
+      if (!cam["pose_tool"] || !cam["hand_eye"])
+        r.fail(cam, "camera", "pose_from: tool needs pose_tool (the camera marker's tool name) and hand_eye (X_<Tool>Cam file)");
+      s.pose_tool = r.text(cam, "camera", "pose_tool", "");
+      s.hand_eye_path = resolve(base_dir, r.text(cam, "camera", "hand_eye", ""));
+      try {
+        const auto rec = calib::read_transform(s.hand_eye_path);
+        if (rec.child_frame == "Cam")
+          s.X_ToolCam = rec.X_ParentChild;
+        else if (rec.parent_frame == "Cam")
+          s.X_ToolCam = rec.X_ParentChild.inverse();
+        else
+          r.fail(cam["hand_eye"], "camera.hand_eye", rec.name() + " does not involve frame Cam: give X_<Tool>Cam or X_Cam<Tool>");
+      } catch (const calib::CalibError& e) {
+        r.fail(cam["hand_eye"], "camera.hand_eye", e.what());
+      }
+    } else if (cam["pose_tool"] || cam["hand_eye"]) {
+      r.fail(cam, "camera", "pose_tool and hand_eye belong to pose_from: tool");
+    }
+    s.stale_after_ms = r.number(cam, "camera", "stale_after_ms", s.stale_after_ms, 1.0, 60000.0);
+    c.camera = s;
+  }
+
+  if (const YAML::Node m = root["model"]) {
+    r.only(m, "model", {"rate_hz", "gravity", "nice"});
+    c.model.rate_hz = r.number(m, "model", "rate_hz", c.model.rate_hz, 1.0, 1000.0);
+    c.model.gravity = r.boolean(m, "model", "gravity", c.model.gravity);
+    c.model.nice = r.integer(m, "model", "nice", c.model.nice, 0, 19);
+  }
+  if (const YAML::Node o = root["overlay"]) {
+    r.only(o, "overlay", {"margin_mm", "warn_mm", "msaa", "layers"});
+    c.overlay.margin_mm = r.number(o, "overlay", "margin_mm", c.overlay.margin_mm, 0.0, 50.0);
+    c.overlay.warn_mm = r.number(o, "overlay", "warn_mm", c.overlay.warn_mm, 0.0, 100.0);
+    c.overlay.msaa = r.integer(o, "overlay", "msaa", c.overlay.msaa, 0, 16);
+    if (o["layers"]) {
+      c.overlay.layers = r.strings(o["layers"], "overlay.layers");
+      const std::set<std::string> known = {"tumour", "margin", "vessels", "cut", "organ", "outline", "scalpel"};
+      for (std::size_t i = 0; i < c.overlay.layers.size(); ++i)
+        if (!known.count(c.overlay.layers[i]))
+          r.fail(o["layers"][i], "overlay.layers[" + std::to_string(i) + "]",
+                 "unknown layer '" + c.overlay.layers[i] + "' (known: tumour, margin, vessels, cut, organ, outline, scalpel)");
+    }
+  }
+  if (const YAML::Node rec = root["record"]) {
+    r.only(rec, "record", {"video_fps", "contact_sheet_frames", "contact_sheet_every_s"});
+    c.record.video_fps = r.number(rec, "record", "video_fps", c.record.video_fps, 1.0, 240.0);
+    c.record.contact_sheet_frames = r.integer(rec, "record", "contact_sheet_frames", c.record.contact_sheet_frames, 1, 100);
+    c.record.contact_sheet_every_s = r.number(rec, "record", "contact_sheet_every_s", c.record.contact_sheet_every_s, 0.01, 3600.0);
+  }
+
+  // What depends on what: the overlay needs a scene, a registration and a reference.
+  if (c.camera) {
+    if (!c.scene_path) r.fail(root["camera"], "camera", "the overlay needs a scene: add 'scene: <file>.scene.yaml'");
+    if (!c.X_RefModel)
+      r.fail(root["camera"], "camera",
+             "the overlay needs a registration: add 'registration: X_RefModel.yaml' (live pointer/swab registration is not built yet)");
+    if (!c.reference) r.fail(root["camera"], "camera", "the overlay needs tools.reference (the patient reference tool)");
+  }
+  if (c.scalpel && !c.reference) r.fail(root["tools"]["scalpel"], "tools.scalpel", "a scalpel needs tools.reference (its pose is taken relative to it)");
+  if (c.X_RefModel && !c.scene_path) r.fail(root["registration"], "registration", "a registration needs a scene (scene: <file>)");
+  return c;
+}
+
+SessionConfig load_session(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw SessionError(path + ": cannot read the session file (check the path)");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  const std::string base = std::filesystem::path(path).parent_path().string();
+  return parse_session(ss.str(), path, base.empty() ? "." : base);
+}
+
+}  // namespace arnav::host

@@ -1,0 +1,92 @@
+#pragma once
+// The navigation session file of `arnav-host SESSION.yaml` (docs/overlay.md): LCM URL,
+// which tracked tools play which role, the camera (intrinsics, where its pose comes from),
+// the patient scene, the registration and the model/overlay settings. Only what the file
+// declares is built: no camera -> no overlay; no scene -> the status monitor only.
+// Relative paths are relative to the session file. Every error reads
+// "<file>:<line>: key '<key>': <what>" and arnav-host exits 2 on it.
+#include <Eigen/Geometry>
+
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "calibration/lib/camera_intrinsics.hpp"
+
+namespace arnav::host {
+
+class SessionError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct ToolRole {
+  std::string name;              // the appliance's tool name (ARNAV_POSE_<name>)
+  double stale_after_ms = 100.0; // older than this: "stale" banner, its part of the overlay hidden
+};
+
+// Blade of the scalpel in its tool frame (Tool), mm: tip and heel of the cutting edge.
+struct ScalpelRole : ToolRole {
+  Eigen::Vector3d tip_Tool_mm = Eigen::Vector3d::Zero();
+  Eigen::Vector3d heel_Tool_mm = Eigen::Vector3d(0, 0, 30);
+};
+
+struct CameraSettings {
+  std::string name;                          // frames arrive on ARNAV_FRAME_<name>
+  std::string intrinsics_path;
+  calib::CameraIntrinsics intrinsics;
+  // Where X_CamRef comes from: "reference": the reference tool's own pose is measured in
+  // Cam (its tag board seen by this camera, or the appliance publishing in Cam);
+  // "tool": a tracked camera marker (pose_tool) and the hand-eye X_<Tool>Cam.
+  std::string pose_from = "reference";
+  std::string pose_tool;
+  std::string hand_eye_path;
+  Eigen::Isometry3d X_ToolCam = Eigen::Isometry3d::Identity();
+  double stale_after_ms = 150.0;             // no frame for longer: "camera stale" (summary)
+};
+
+struct ModelSettings {
+  double rate_hz = 60.0;        // model steps per second on the model thread
+  bool gravity = false;         // the scene's gravity; off: the CT shape is already the loaded one
+  int nice = 5;                 // model thread yields to rendering (0: same priority)
+};
+
+struct OverlaySettings {
+  double margin_mm = 5.0;       // safety margin around each tumour
+  double warn_mm = 5.0;         // distance colour: amber below this, red inside the margin
+  int msaa = 0;                 // OpenGL multisampling (costly on the software rasteriser)
+  std::vector<std::string> layers = {"tumour", "margin", "vessels", "cut", "organ", "outline", "scalpel"};
+};
+
+struct RecordSettings {
+  double video_fps = 30.0;      // overlay.avi frame rate (the camera's displayed rate)
+  int contact_sheet_frames = 12;
+  double contact_sheet_every_s = 1.0;
+};
+
+struct SessionConfig {
+  std::string source;                        // the session file
+  std::string lcm_url = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304";
+  double stale_after_ms = 250.0;             // status table freshness (every tool)
+  double print_period_s = 1.0;
+  std::optional<std::string> scene_path;
+  int scene_line = 0;
+  std::optional<Eigen::Isometry3d> X_RefModel;   // registration (Model -> Ref)
+  std::string registration_path;
+  std::optional<ToolRole> reference;
+  std::optional<ScalpelRole> scalpel;
+  std::optional<ToolRole> pointer;
+  std::optional<CameraSettings> camera;
+  ModelSettings model;
+  OverlaySettings overlay;
+  RecordSettings record;
+};
+
+// Reads the file and the files it names (intrinsics, hand-eye, registration; not the
+// scene, which load_scene reads). Throws SessionError.
+SessionConfig load_session(const std::string& path);
+// Same from text; `source` names it in errors, relative paths resolve against base_dir.
+SessionConfig parse_session(const std::string& yaml_text, const std::string& source, const std::string& base_dir);
+
+}  // namespace arnav::host
