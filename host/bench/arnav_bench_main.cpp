@@ -175,6 +175,9 @@ static int main_body(int argc, char** argv) {
       std::cerr << "arnav-bench: " << e.what() << "\n";
       return 1;
     }
+    return 0;
+  }
+
   if (cut->parsed()) {
     cut_options.background = rebuild == "inline" ? std::vector<bool>{false} : rebuild == "background" ? std::vector<bool>{true} : std::vector<bool>{false, true};
     std::vector<CutBenchRow> rows;

@@ -44,7 +44,6 @@ struct Scene {
   std::optional<EmbeddedVessels> vessels;
   std::vector<std::string> notes;         // what loading did (flips, meshing, counts, mesh quality)
   TetMeshQuality mesh_quality;            // of the rest volume (also in notes)
-  std::vector<std::string> notes;         // what loading did (flips, meshing, counts)
   std::optional<CuttingSpec> cutting;     // the scalpel cuts the organ (docs/cut.md); only when declared
 };
 
