@@ -320,6 +320,15 @@ TEST(BundledScenes, LiverAtPaperSizeWithTumourAndVessels) {
   for (int i = 0; i < s.tumours[0].rest.positions_World_mm.cols(); ++i) EXPECT_GT(depth(s.tumours[0].rest.positions_World_mm.col(i)), 5.0);
 }
 
+TEST(BundledScenes, CoarseVariant) {
+  const Scene s = load_scene(test::source_dir() + "/data/liver/liver_coarse.scene.yaml");
+  EXPECT_LT(s.problem.mesh.num_tets(), 8000);
+  EXPECT_GT(s.problem.mesh.num_tets(), 2000);
+  EXPECT_EQ(s.organ_embedding.size(), 4996);  // full display surface carried by the coarse volume
+  EXPECT_LE(s.organ_embedding.max_outside_mm, 3.0);
+  EXPECT_GT(s.problem.fixed_vertices.size(), 10u);
+}
+
 // Another patient's liver (binary PLY) meshed with the surface kept: TetGen leaves flat
 // tets lying on the surface; peeling removes those with two boundary faces, the boundary
 // stays a closed 2-manifold and the display surface stays embedded.
@@ -357,15 +366,6 @@ TEST(PatientScenes, BoundarySliversArePeeledAndTheBoundaryStaysClosed) {
   } catch (const LoadError& e) {
     EXPECT_NE(std::string(e.what()).find("peel_boundary_slivers_deg must be in [0, 30]"), std::string::npos) << e.what();
   }
-}
-
-TEST(BundledScenes, CoarseVariant) {
-  const Scene s = load_scene(test::source_dir() + "/data/liver/liver_coarse.scene.yaml");
-  EXPECT_LT(s.problem.mesh.num_tets(), 8000);
-  EXPECT_GT(s.problem.mesh.num_tets(), 2000);
-  EXPECT_EQ(s.organ_embedding.size(), 4996);  // full display surface carried by the coarse volume
-  EXPECT_LE(s.organ_embedding.max_outside_mm, 3.0);
-  EXPECT_GT(s.problem.fixed_vertices.size(), 10u);
 }
 
 }  // namespace
