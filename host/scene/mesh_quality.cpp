@@ -4,7 +4,9 @@
 #include <Eigen/LU>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <map>
 #include <cstdio>
 #include <limits>
 #include <vector>
@@ -26,7 +28,111 @@ double circumradius(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Ei
   return A.partialPivLu().solve(rhs).norm();
 }
 
+// Smallest and largest dihedral angle of one tet, degrees.
+std::pair<double, double> dihedral_range(const Eigen::Matrix3Xd& X, const std::array<int, 4>& v) {
+  Eigen::Vector3d p[4], n[4];
+  for (int k = 0; k < 4; ++k) p[k] = X.col(v[k]);
+  for (int k = 0; k < 4; ++k) {
+    const Eigen::Vector3d& a = p[(k + 1) % 4];
+    n[k] = (p[(k + 2) % 4] - a).cross(p[(k + 3) % 4] - a);
+    if (n[k].dot(p[k] - a) > 0) n[k] = -n[k];
+  }
+  static constexpr int kEdge[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
+  double lo = 180.0, hi = 0.0;
+  for (const auto& e : kEdge) {
+    int o[2], m = 0;
+    for (int k = 0; k < 4; ++k)
+      if (k != e[0] && k != e[1]) o[m++] = k;
+    const double deg = std::acos(std::clamp(-n[o[0]].normalized().dot(n[o[1]].normalized()), -1.0, 1.0)) * 180.0 / kPi;
+    if (std::isfinite(deg)) {
+      lo = std::min(lo, deg);
+      hi = std::max(hi, deg);
+    } else {
+      lo = 0.0;
+      hi = 180.0;
+    }
+  }
+  return {lo, hi};
+}
+
+using Face = std::array<int, 3>;
+using Edge = std::array<int, 2>;
+Face face_key(const std::array<int, 4>& t, int skip) {
+  Face f{};
+  for (int k = 0, m = 0; k < 4; ++k)
+    if (k != skip) f[m++] = t[k];
+  std::sort(f.begin(), f.end());
+  return f;
+}
+Edge edge_key(int a, int b) { return a < b ? Edge{a, b} : Edge{b, a}; }
+
 }  // namespace
+
+int peel_boundary_slivers(TetMesh& mesh, double min_dihedral_deg, double* max_thickness_mm) {
+  if (max_thickness_mm) *max_thickness_mm = 0.0;
+  if (!(min_dihedral_deg > 0.0)) return 0;
+  const Eigen::Matrix3Xd& X = mesh.rest_positions_World_mm;
+  std::map<Face, int> face_count;
+  for (const auto& t : mesh.tets)
+    for (int k = 0; k < 4; ++k) ++face_count[face_key(t, k)];
+  std::map<Edge, int> boundary_edge_faces;  // boundary faces on each edge
+  auto add_boundary_face = [&](const Face& f, int d) {
+    for (int i = 0; i < 3; ++i) boundary_edge_faces[edge_key(f[i], f[(i + 1) % 3])] += d;
+  };
+  for (const auto& [f, c] : face_count)
+    if (c == 1) add_boundary_face(f, 1);
+  std::vector<char> removed(mesh.tets.size(), 0);
+  int total = 0;
+  for (bool changed = true; changed;) {
+    changed = false;
+    for (std::size_t t = 0; t < mesh.tets.size(); ++t) {
+      if (removed[t]) continue;
+      const auto& v = mesh.tets[t];
+      int on_boundary[4], nb = 0;
+      for (int k = 0; k < 4; ++k) {
+        on_boundary[k] = face_count[face_key(v, k)] == 1;
+        nb += on_boundary[k];
+      }
+      if (nb != 2) continue;
+      const auto [lo, hi] = dihedral_range(X, v);
+      if (lo >= min_dihedral_deg && hi <= 180.0 - min_dihedral_deg) continue;
+      // The boundary faces are opposite two vertices c, d (the "free" edge cd of the new
+      // boundary); it must not be a boundary edge already.
+      int cd[2], m = 0;
+      for (int k = 0; k < 4; ++k)
+        if (on_boundary[k]) cd[m++] = v[k];
+      const auto it = boundary_edge_faces.find(edge_key(cd[0], cd[1]));
+      if (it != boundary_edge_faces.end() && it->second > 0) continue;
+      removed[t] = 1;
+      ++total;
+      changed = true;
+      double max_twice_area = 0.0;
+      const double six_v = std::abs((X.col(v[1]) - X.col(v[0])).dot((X.col(v[2]) - X.col(v[0])).cross(X.col(v[3]) - X.col(v[0]))));
+      for (int k = 0; k < 4; ++k) {
+        const Face f = face_key(v, k);
+        const double twice_area = (X.col(f[1]) - X.col(f[0])).cross(X.col(f[2]) - X.col(f[0])).norm();
+        max_twice_area = std::max(max_twice_area, twice_area);
+        int& c = face_count[f];
+        if (c == 1) add_boundary_face(f, -1);  // was boundary: gone with the tet
+        --c;
+        if (c == 1) add_boundary_face(f, 1);   // was interior: now boundary
+      }
+      // Thickness: the height over the largest face.
+      if (max_thickness_mm && max_twice_area > 0) *max_thickness_mm = std::max(*max_thickness_mm, six_v / max_twice_area);
+    }
+  }
+  if (total == 0) return 0;
+  std::vector<std::array<int, 4>> tets;
+  std::vector<int> region;
+  for (std::size_t t = 0; t < mesh.tets.size(); ++t)
+    if (!removed[t]) {
+      tets.push_back(mesh.tets[t]);
+      if (t < mesh.tet_region.size()) region.push_back(mesh.tet_region[t]);
+    }
+  mesh.tets = std::move(tets);
+  if (!mesh.tet_region.empty()) mesh.tet_region = std::move(region);
+  return total;
+}
 
 TetMeshQuality tet_mesh_quality(const TetMesh& mesh) {
   TetMeshQuality q;

@@ -22,6 +22,16 @@ struct TetMeshQuality {
 
 TetMeshQuality tet_mesh_quality(const TetMesh& mesh);
 
+// Removes boundary slivers: tets with exactly two faces on the boundary (a flat tet lying
+// on the surface, made of four surface vertices; TetGen keeps them when the surface is
+// kept, -Y) whose smallest dihedral angle is below min_dihedral_deg or largest above
+// 180 - min_dihedral_deg. The boundary then runs over the sliver's two other faces: it
+// moves by at most the sliver's thickness (reported in *max_thickness_mm). A sliver is
+// kept when removing it would make the boundary non-manifold (its free edge already on
+// the boundary). Repeats until none is left. Returns how many were removed; tet_region
+// follows; surface_tris must be recomputed by the caller (validate_tet_mesh).
+int peel_boundary_slivers(TetMesh& mesh, double min_dihedral_deg, double* max_thickness_mm = nullptr);
+
 // "min dihedral 7.1 deg (1 %: 14.2), max 161.3 deg, radius-edge <= 2.00, min volume 0.52 mm^3, slivers 0".
 std::string describe(const TetMeshQuality& q);
 

@@ -98,6 +98,16 @@ Scene load_scene(const std::string& path) {
     scene.notes.push_back("TetGen " + rep.switches + ": " + std::to_string(mesh.num_vertices()) + " vertices, " +
                           std::to_string(mesh.num_tets()) + " tetrahedra in " + fmt(rep.wall_time_ms) + " ms");
   }
+  if (spec.volume.peel_boundary_slivers_deg > 0) {
+    double thickness_mm = 0.0;
+    const int peeled = peel_boundary_slivers(mesh, spec.volume.peel_boundary_slivers_deg, &thickness_mm);
+    if (peeled > 0) {
+      validate_tet_mesh(mesh, organ_path + " (volume after peeling boundary slivers)");
+      scene.notes.push_back("peeled " + std::to_string(peeled) + " boundary slivers (dihedral angle below " +
+                            fmt(spec.volume.peel_boundary_slivers_deg) + " deg): the boundary moved by at most " + fmt(thickness_mm) +
+                            " mm; " + std::to_string(mesh.num_tets()) + " tetrahedra");
+    }
+  }
   scene.mesh_quality = tet_mesh_quality(mesh);
   scene.notes.push_back("rest mesh quality: " + describe(scene.mesh_quality));
   if (spec.volume.min_dihedral_required_deg > 0 && scene.mesh_quality.min_dihedral_deg < spec.volume.min_dihedral_required_deg) {

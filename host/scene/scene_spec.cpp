@@ -199,7 +199,13 @@ SceneSpec parse_scene_spec(const std::string& yaml_text, const std::string& sour
   s.embed_tolerance_mm = r.positive(organ, "embed_tolerance_mm", 1.0, "organ");
 
   const YAML::Node volume = r.require(root, "volume", "the scene");
-  r.keys(volume, {"file", "tetgen", "min_dihedral_required_deg"}, "volume");
+  r.keys(volume, {"file", "tetgen", "min_dihedral_required_deg", "peel_boundary_slivers_deg"}, "volume");
+  if (volume["peel_boundary_slivers_deg"]) {
+    s.volume.peel_boundary_slivers_deg = r.number(volume, "peel_boundary_slivers_deg", 0.0, "volume");
+    if (s.volume.peel_boundary_slivers_deg < 0 || s.volume.peel_boundary_slivers_deg > 30)
+      r.fail(volume["peel_boundary_slivers_deg"], "volume.peel_boundary_slivers_deg must be in [0, 30]",
+             "5-10 removes flat tets lying on the surface; 0 keeps them");
+  }
   s.volume.line = volume.Mark().line + 1;
   if (volume["min_dihedral_required_deg"]) {
     s.volume.min_dihedral_required_deg = r.number(volume, "min_dihedral_required_deg", 0.0, "volume");

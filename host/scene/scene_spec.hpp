@@ -35,6 +35,8 @@ struct VolumeSpec {
   double min_dihedral_required_deg = 0.0;     // > 0: loading fails when the rest mesh has a smaller
                                               // dihedral angle (mesh_quality.hpp)
   int min_dihedral_required_line = 0;
+  double peel_boundary_slivers_deg = 0.0;     // > 0: remove boundary slivers below this angle
+                                              // (peel_boundary_slivers, mesh_quality.hpp)
   int line = 0;
 };
 

@@ -347,5 +347,44 @@ TEST(BundledScenes, CoarseVariant) {
   EXPECT_GT(s.problem.fixed_vertices.size(), 10u);
 }
 
+// Another patient's liver (binary PLY) meshed with the surface kept: TetGen leaves flat
+// tets lying on the surface; peeling removes those with two boundary faces, the boundary
+// stays a closed 2-manifold and the display surface stays embedded.
+TEST(PatientScenes, BoundarySliversArePeeledAndTheBoundaryStaysClosed) {
+  const std::string dir = scratch("peel");
+  const std::string base = test::source_dir() + "/data/patients/sksurgery_liver.scene.yaml";
+  std::string text = read_text_file(base);
+  text.replace(text.find("../meshes/"), 10, test::source_dir() + "/data/meshes/");
+  const Scene plain = load_scene(write_file(dir, "plain.scene.yaml", text));
+  std::string peel = text;
+  peel.replace(peel.find("volume:\n"), 8, "volume:\n  peel_boundary_slivers_deg: 5\n");
+  const Scene peeled = load_scene(write_file(dir, "peeled.scene.yaml", peel));
+  const int removed = plain.problem.mesh.num_tets() - peeled.problem.mesh.num_tets();
+  RecordProperty("peeled", std::to_string(removed));
+  RecordProperty("slivers_before_after", std::to_string(plain.mesh_quality.slivers) + "/" + std::to_string(peeled.mesh_quality.slivers));
+  EXPECT_GT(removed, 5);
+  EXPECT_LT(peeled.mesh_quality.slivers, plain.mesh_quality.slivers / 2);
+  EXPECT_EQ(peeled.problem.mesh.num_vertices(), plain.problem.mesh.num_vertices());  // no vertex lost
+  bool noted = false;
+  for (const auto& n : peeled.notes) noted = noted || n.find("peeled " + std::to_string(removed) + " boundary slivers") != std::string::npos;
+  EXPECT_TRUE(noted);
+  TriMesh boundary{peeled.problem.mesh.rest_positions_World_mm, peeled.problem.mesh.surface_tris};
+  const SurfaceCheck check = validate_closed_surface(boundary, "peeled boundary");  // throws unless closed 2-manifold
+  EXPECT_EQ(check.components, 1);
+  EXPECT_NEAR(check.volume_mm3, validate_closed_surface(boundary, "again").volume_mm3, 1e-9);
+  EXPECT_EQ(peeled.organ_embedding.size(), plain.organ_embedding.size());
+  EXPECT_LE(peeled.organ_embedding.max_outside_mm, 0.5);
+  // Out of range: named with its line.
+  std::string bad = text;
+  bad.replace(bad.find("volume:\n"), 8, "volume:\n  peel_boundary_slivers_deg: 45\n");
+  const std::string path = write_file(dir, "bad.scene.yaml", bad);
+  try {
+    load_scene(path);
+    ADD_FAILURE() << "accepted 45 degrees";
+  } catch (const LoadError& e) {
+    EXPECT_NE(std::string(e.what()).find("peel_boundary_slivers_deg must be in [0, 30]"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace arnav::host
