@@ -9,8 +9,10 @@
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
+#include <limits>
 #include <optional>
 
+#include "arnav/point_cloud_t.hpp"
 #include "host/scene/load_error.hpp"
 #include "host/scene/mesh_io.hpp"
 
@@ -500,6 +502,80 @@ PointCloud read_point_cloud(const std::string& path) {
   std::string ext = std::filesystem::path(path).extension().string();
   if (!ext.empty()) ext.erase(0, 1);
   return parse_point_cloud(read_text_file(path), path, lower(ext));
+}
+
+namespace {
+// The generated decoder sizes its arrays from the counts in the message before reading
+// them: walk the encoding first (LCM: 8-byte fingerprint, big-endian fields, strings as
+// int32 length + bytes) and refuse counts the bytes cannot hold.
+void check_cloud_counts(const unsigned char* b, std::size_t size, const std::string& channel) {
+  std::size_t off = 8;
+  auto fail = [&](const std::string& what) {
+    throw_load_error(channel, 0, "point_cloud_t message of " + std::to_string(size) + " bytes: " + what,
+                     "publish arnav.point_cloud_t as generated from protocol/lcm/point_cloud_t.lcm");
+  };
+  auto int32 = [&](const char* what) {
+    if (size < 4 || off > size - 4) fail(std::string("ends before ") + what);
+    const std::uint32_t v = (std::uint32_t{b[off]} << 24) | (std::uint32_t{b[off + 1]} << 16) | (std::uint32_t{b[off + 2]} << 8) | b[off + 3];
+    off += 4;
+    return static_cast<std::int32_t>(v);
+  };
+  auto skip = [&](std::size_t n, const char* what) {
+    if (n > size || off > size - n) fail(std::string("ends inside ") + what);
+    off += n;
+  };
+  for (const char* what : {"frame_name", "source"}) {
+    const std::int32_t len = int32(what);
+    if (len < 1) fail(std::string("bad length of ") + what + " (LCM strings carry their terminating zero)");
+    skip(static_cast<std::size_t>(len), what);
+  }
+  skip(32, "the time stamps");
+  const struct {
+    const char* name;
+    std::size_t bytes;
+  } arrays[] = {{"num_points", 24}, {"num_normals", 24}, {"num_ids", 8}};
+  for (const auto& a : arrays) {
+    const std::int32_t n = int32(a.name);
+    if (n < 0 || static_cast<std::size_t>(n) > (size - off) / a.bytes)
+      fail(std::string(a.name) + " " + std::to_string(n) + " exceeds what the remaining " + std::to_string(size - off) + " bytes hold");
+    skip(static_cast<std::size_t>(n) * a.bytes, a.name);
+  }
+}
+}  // namespace
+
+PointCloud decode_point_cloud_message(const void* data, std::size_t size, const std::string& channel) {
+  check_cloud_counts(static_cast<const unsigned char*>(data), size, channel);
+  arnav::point_cloud_t m;
+  if (size > static_cast<std::size_t>(std::numeric_limits<int>::max()) || m.decode(data, 0, static_cast<int>(size)) < 0)
+    throw_load_error(channel, 0, "undecodable point_cloud_t message (" + std::to_string(size) + " bytes)",
+                     "publish arnav.point_cloud_t as generated from protocol/lcm/point_cloud_t.lcm");
+  const std::string where = channel + " message " + std::to_string(m.sequence);
+  if (m.num_normals != 0 && m.num_normals != m.num_points)
+    throw_load_error(where, 0, "num_normals " + std::to_string(m.num_normals) + " is neither 0 nor num_points " + std::to_string(m.num_points),
+                     "send one normal per point or none");
+  if (m.num_ids != 0 && m.num_ids != m.num_points)
+    throw_load_error(where, 0, "num_ids " + std::to_string(m.num_ids) + " is neither 0 nor num_points " + std::to_string(m.num_points),
+                     "send one id per point or none");
+  PointCloud c;
+  c.source = where + " (" + m.source + ", frame " + m.frame_name + ")";
+  c.points_mm.resize(3, m.num_points);
+  for (int i = 0; i < m.num_points; ++i)
+    for (int k = 0; k < 3; ++k) {
+      const double v = m.p_mm[static_cast<std::size_t>(i)][static_cast<std::size_t>(k)];
+      if (!std::isfinite(v)) throw_load_error(where, 0, "point " + std::to_string(i) + " is not finite", "drop invalid samples before publishing");
+      c.points_mm(k, i) = v;
+    }
+  if (m.num_normals > 0) {
+    c.normals.resize(3, m.num_normals);
+    for (int i = 0; i < m.num_normals; ++i)
+      for (int k = 0; k < 3; ++k) c.normals(k, i) = m.normals[static_cast<std::size_t>(i)][static_cast<std::size_t>(k)];
+    for (int i = 0; i < m.num_normals; ++i)
+      if (!c.normals.col(i).allFinite())
+        throw_load_error(where, 0, "normal " + std::to_string(i) + " is not finite", "send unit normals");
+    normalise_normals(c, {});
+  }
+  c.ids.assign(m.ids.begin(), m.ids.end());
+  return c;
 }
 
 double bounding_extent_mm(const Eigen::Matrix3Xd& points) {

@@ -13,6 +13,7 @@
 // Every error is a LoadError naming the file and the line (text) or byte offset (binary).
 #include <Eigen/Core>
 
+#include <cstddef>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -41,6 +42,12 @@ PointCloud read_point_cloud(const std::string& path);
 // thousandth of the model's was written in metres. Throws LoadError naming the file, the
 // two extents and the fix.
 void check_cloud_units(const PointCloud& cloud, double model_extent_mm);
+
+// A cloud received over LCM (arnav::point_cloud_t, channel ARNAV_CLOUD_<source>) from its
+// encoded bytes: decodes, then checks the counts (normals and ids 0 or num_points), finite
+// coordinates and non-zero normals. Throws LoadError naming the channel, the message's
+// sequence number and the point.
+PointCloud decode_point_cloud_message(const void* data, std::size_t size, const std::string& channel);
 
 // Largest bounding-box side of a point set (mm); 0 when empty.
 double bounding_extent_mm(const Eigen::Matrix3Xd& points);

@@ -1,5 +1,6 @@
-// libFuzzer target: the point-cloud parsers on arbitrary bytes. The first byte picks the
-// format; errors must surface as LoadError, never as a crash or a huge allocation.
+// libFuzzer target: the point-cloud, landmark and target parsers and the point_cloud_t
+// decoder on arbitrary bytes. The first byte picks the parser; errors must surface as
+// LoadError, never as a crash or a huge allocation.
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -15,7 +16,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const std::string_view text(reinterpret_cast<const char*>(data + 1), size - 1);
   static const char* formats[] = {"xyz", "csv", "ply", "obj", "vtk"};
   try {
-    if (data[0] % 7 == 5) {
+    if (data[0] >= 224) {  // the LCM message decoder
+      decode_point_cloud_message(data + 1, size - 1, "fuzz");
+    } else if (data[0] % 7 == 5) {
       parse_landmarks(text, "fuzz_landmarks.csv");
     } else if (data[0] % 7 == 6) {
       parse_targets(text, "fuzz_targets.csv");

@@ -3,9 +3,12 @@
 
 #include <cstdint>
 #include <cstring>
+#include <cmath>
 #include <cstdlib>
+#include <vector>
 #include <string>
 
+#include "arnav/point_cloud_t.hpp"
 #include "host/register/point_cloud.hpp"
 #include "host/scene/load_error.hpp"
 
@@ -149,4 +152,60 @@ TEST(PointCloud, MetresAreDetected) {
   }
   c.points_mm *= 1000.0;
   EXPECT_NO_THROW(check_cloud_units(c, 200.0));
+}
+
+TEST(PointCloud, LcmMessage) {
+  arnav::point_cloud_t m;
+  m.frame_name = "Ref";
+  m.source = "pointer";
+  m.sequence = 7;
+  m.num_points = 2;
+  m.p_mm = {{1, 2, 3}, {4, 5, 6}};
+  m.num_normals = 2;
+  m.normals = {{0, 0, 2}, {0, 1, 0}};
+  m.num_ids = 2;
+  m.ids = {10, 11};
+  std::vector<std::uint8_t> buf(static_cast<std::size_t>(m.getEncodedSize()));
+  ASSERT_GT(m.encode(buf.data(), 0, static_cast<int>(buf.size())), 0);
+  const PointCloud c = decode_point_cloud_message(buf.data(), buf.size(), "ARNAV_CLOUD_pointer");
+  ASSERT_EQ(c.size(), 2);
+  EXPECT_DOUBLE_EQ(c.points_mm(2, 1), 6.0);
+  EXPECT_DOUBLE_EQ(c.normals(2, 0), 1.0);
+  EXPECT_EQ(c.ids, (std::vector<long long>{10, 11}));
+  // bad: ids for only one point, non-finite point, truncated bytes
+  m.num_ids = 1;
+  m.ids = {10};
+  buf.resize(static_cast<std::size_t>(m.getEncodedSize()));
+  m.encode(buf.data(), 0, static_cast<int>(buf.size()));
+  try {
+    decode_point_cloud_message(buf.data(), buf.size(), "ARNAV_CLOUD_pointer");
+    FAIL();
+  } catch (const LoadError& e) {
+    EXPECT_NE(std::string(e.what()).find("ARNAV_CLOUD_pointer message 7: num_ids 1"), std::string::npos) << e.what();
+  }
+  m.num_ids = 0;
+  m.ids.clear();
+  m.p_mm[1][0] = std::nan("");
+  buf.resize(static_cast<std::size_t>(m.getEncodedSize()));
+  m.encode(buf.data(), 0, static_cast<int>(buf.size()));
+  EXPECT_THROW(decode_point_cloud_message(buf.data(), buf.size(), "c"), LoadError);
+  EXPECT_THROW(decode_point_cloud_message(buf.data(), buf.size() / 2, "c"), LoadError);
+  // Found by the fuzzer: counts and string lengths the bytes cannot hold are refused
+  // before the generated decoder allocates or throws std::length_error.
+  m.p_mm[1][0] = 4.0;
+  buf.resize(static_cast<std::size_t>(m.getEncodedSize()));
+  m.encode(buf.data(), 0, static_cast<int>(buf.size()));
+  std::vector<std::uint8_t> huge = buf;
+  const std::size_t num_points_at = 8 + 4 + 4 + 4 + 8 + 32;  // fingerprint, "Ref", "pointer", time stamps
+  huge[num_points_at] = 0x7f;
+  huge[num_points_at + 1] = huge[num_points_at + 2] = huge[num_points_at + 3] = 0xff;
+  try {
+    decode_point_cloud_message(huge.data(), huge.size(), "c");
+    FAIL();
+  } catch (const LoadError& e) {
+    EXPECT_NE(std::string(e.what()).find("num_points 2147483647 exceeds"), std::string::npos) << e.what();
+  }
+  std::vector<std::uint8_t> empty_string = buf;
+  empty_string[8] = empty_string[9] = empty_string[10] = empty_string[11] = 0;
+  EXPECT_THROW(decode_point_cloud_message(empty_string.data(), empty_string.size(), "c"), LoadError);
 }
