@@ -12,6 +12,7 @@ inline constexpr std::string_view kEvents = "ARNAV_EVENT";
 inline constexpr std::string_view kFramePrefix = "ARNAV_FRAME_";    // + camera name
 inline constexpr std::string_view kInput = "ARNAV_INPUT";           // input_event_t (CAN pedal, buttons)
 inline constexpr std::string_view kCloudPrefix = "ARNAV_CLOUD_";    // + source ("pointer", ...)
+inline constexpr std::string_view kInputState = "ARNAV_INPUT_STATE"; // input_event_t snapshots
 inline constexpr std::string_view kPoseRegex = "ARNAV_POSE_.*";
 inline constexpr std::string_view kHealthRegex = "ARNAV_HEALTH_.*";
 

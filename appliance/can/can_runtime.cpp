@@ -285,6 +285,23 @@ void CanService::publish_health(std::int64_t now) {
   window_start_us_ = now;
   const device_health_t h = fill_health(latency_.take(), rate);
   lcm_.publish(health_channel_, &h);
+  // Every input's state, so a subscriber that lost a change (UDP) converges within a period.
+  input_event_t snap{};
+  snap.source_interface = config_.interface;
+  snap.cause = +input_event_t::CAUSE_STATE;
+  snap.device_time_wall_us = -1;
+  snap.sequence = input_sequence_;
+  for (std::size_t i = 0; i < config_.inputs.size(); ++i) {
+    const InputConfig& in = config_.inputs[i];
+    const InputStatus& st = decoder_.inputs()[i];
+    snap.input_name = in.name;
+    snap.device = config_.nodes[in.node].name;
+    snap.state = st.pressed ? +input_event_t::STATE_PRESSED : +input_event_t::STATE_RELEASED;
+    snap.value = st.value;
+    snap.publish_time_mono_us = monotonic_us();
+    snap.publish_time_wall_us = wall_us();
+    lcm_.publish(std::string(channels::kInputState), &snap);
+  }
   next_health_us_ = now + health_period_us_;
 }
 

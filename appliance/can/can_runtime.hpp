@@ -3,6 +3,7 @@
 // CanService does the work one step at a time (open the bus, read a frame, run the
 // decoder's deadlines, publish health) and publishes over the LCM it is given:
 //   input_event_t      ARNAV_INPUT        one per press / release (forced ones included)
+//   input_event_t      ARNAV_INPUT_STATE  every input's state at health_rate_hz (CAUSE_STATE)
 //   device_health_t    ARNAV_HEALTH_can   at health_rate_hz
 //   appliance_event_t  ARNAV_EVENT        source "can": bus and device changes, faults
 // CanRuntime runs a CanService on its own thread with its own LCM.

@@ -36,6 +36,7 @@ CanCapture::CanCapture(const std::string& url) : bus_(url) {
   bus_.subscribe(std::string(channels::kInput), &CanCapture::on_input, this);
   bus_.subscribe(std::string(channels::kEvents), &CanCapture::on_event, this);
   bus_.subscribe(channels::health("can"), &CanCapture::on_health, this);
+  bus_.subscribe(std::string(channels::kInputState), &CanCapture::on_state, this);
   thread_ = std::thread([this] {
     while (!stop_.load()) bus_.handleTimeout(50);
   });
@@ -59,6 +60,14 @@ void CanCapture::on_event(const lcm::ReceiveBuffer*, const std::string&, const a
 void CanCapture::on_health(const lcm::ReceiveBuffer*, const std::string&, const device_health_t* m) {
   std::lock_guard lock(mutex_);
   health_.push_back(*m);
+}
+void CanCapture::on_state(const lcm::ReceiveBuffer*, const std::string&, const input_event_t* m) {
+  std::lock_guard lock(mutex_);
+  states_.push_back(*m);
+}
+std::vector<input_event_t> CanCapture::states() const {
+  std::lock_guard lock(mutex_);
+  return states_;
 }
 std::vector<input_event_t> CanCapture::inputs() const {
   std::lock_guard lock(mutex_);

@@ -51,6 +51,7 @@ class CanCapture {
   std::vector<std::int64_t> input_arrivals() const;
   std::vector<appliance_event_t> events() const;
   std::vector<device_health_t> health() const;
+  std::vector<input_event_t> states() const;  // ARNAV_INPUT_STATE snapshots
   std::size_t count_inputs(const std::string& name, std::int8_t state) const;
   std::size_t count_events(const std::string& code) const;
   bool wait_for(const std::function<bool(const CanCapture&)>& pred, double timeout_s) const;
@@ -60,6 +61,7 @@ class CanCapture {
   void on_input(const lcm::ReceiveBuffer*, const std::string&, const input_event_t* m);
   void on_event(const lcm::ReceiveBuffer*, const std::string&, const appliance_event_t* m);
   void on_health(const lcm::ReceiveBuffer*, const std::string&, const device_health_t* m);
+  void on_state(const lcm::ReceiveBuffer*, const std::string&, const input_event_t* m);
   lcm::LCM bus_;
   bool good_ = false;
   std::atomic<bool> stop_{false};
@@ -68,6 +70,7 @@ class CanCapture {
   std::vector<std::int64_t> input_arrivals_;
   std::vector<appliance_event_t> events_;
   std::vector<device_health_t> health_;
+  std::vector<input_event_t> states_;
   std::thread thread_;
 };
 

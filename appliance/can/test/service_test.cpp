@@ -18,12 +18,15 @@ struct Bus {
   std::vector<input_event_t> inputs;
   std::vector<appliance_event_t> events;
   std::vector<device_health_t> health;
+  std::vector<input_event_t> states;
   Bus() {
+    lcm.subscribe(std::string(channels::kInputState), &Bus::on_state, this);
     lcm.subscribe(std::string(channels::kInput), &Bus::on_input, this);
     lcm.subscribe(std::string(channels::kEvents), &Bus::on_event, this);
     lcm.subscribe(channels::health("can"), &Bus::on_health, this);
   }
   void on_input(const lcm::ReceiveBuffer*, const std::string&, const input_event_t* m) { inputs.push_back(*m); }
+  void on_state(const lcm::ReceiveBuffer*, const std::string&, const input_event_t* m) { states.push_back(*m); }
   void on_event(const lcm::ReceiveBuffer*, const std::string&, const appliance_event_t* m) { events.push_back(*m); }
   void on_health(const lcm::ReceiveBuffer*, const std::string&, const device_health_t* m) { health.push_back(*m); }
   void drain() {
@@ -103,6 +106,18 @@ TEST_F(Service, OnePressOneEventWithTimesAndLatency) {
   EXPECT_EQ(h.link_state, +device_health_t::LINK_TRACKING);
   EXPECT_EQ(h.frames_total, 3);
   EXPECT_NE(h.detail.find("pedal=alive(operational)"), std::string::npos) << h.detail;
+  // Snapshots: one per input and health period, the current state, the last change's number.
+  run_for(0.12);
+  ASSERT_GE(bus.states.size(), 4u);
+  const input_event_t& last_cut = [&]() -> const input_event_t& {
+    for (auto it = bus.states.rbegin(); it != bus.states.rend(); ++it)
+      if (it->input_name == "pedal_cut") return *it;
+    return bus.states.front();
+  }();
+  EXPECT_EQ(last_cut.input_name, "pedal_cut");
+  EXPECT_EQ(last_cut.cause, +input_event_t::CAUSE_STATE);
+  EXPECT_EQ(last_cut.state, +input_event_t::STATE_RELEASED);
+  EXPECT_EQ(last_cut.sequence, 2);
 }
 
 TEST_F(Service, DeviceLossReleasesAndIsReportedThenReturns) {

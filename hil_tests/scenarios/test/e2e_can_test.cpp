@@ -73,6 +73,17 @@ TEST_P(CanE2e, EachPressGivesExactlyOneEvent) {
   EXPECT_EQ(h.link_state, +device_health_t::LINK_TRACKING) << h.detail;
   EXPECT_GT(h.frames_total, 60);
   EXPECT_NE(h.detail.find("pedal=alive"), std::string::npos) << h.detail;
+  // The state snapshots agree: released, numbered after the last change.
+  ASSERT_TRUE(run.lcm().wait_for([](const CanCapture& c) {
+    for (const auto& st : c.states())
+      if (st.input_name == "pedal_cut" && st.sequence == 60) return true;
+    return false;
+  }, 5.0));
+  for (const auto& st : run.lcm().states())
+    if (st.input_name == "pedal_cut" && st.sequence == 60) {
+      EXPECT_EQ(st.state, kReleased);
+      EXPECT_EQ(st.cause, +input_event_t::CAUSE_STATE);
+    }
 }
 
 TEST_P(CanE2e, ContactBounceIsFiltered) {
