@@ -19,6 +19,7 @@
 #include "appliance/can/slcan.hpp"
 #include "appliance/can/socketcan_transport.hpp"
 #include "protocol/clock.hpp"
+#include "protocol/guarded_main.hpp"
 
 namespace {
 
@@ -134,7 +135,7 @@ std::ifstream open_log(const std::string& path) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+static int main_body(int argc, char** argv) {
   CLI::App app{"arnav-can: listen to, record, replay and decode CAN traffic (SocketCAN or slcan). docs/can.md"};
   app.require_subcommand(1);
   std::string target, file, config_path;
@@ -252,4 +253,8 @@ int main(int argc, char** argv) {
     std::cerr << "arnav-can: " << e.what() << "\n";
     return 1;
   }
+}
+
+int main(int argc, char** argv) {
+  return arnav::guarded_main("arnav-can", [&] { return main_body(argc, argv); });
 }

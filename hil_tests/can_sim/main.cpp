@@ -16,6 +16,7 @@
 #include <iostream>
 
 #include "hil_tests/can_sim/can_sim.hpp"
+#include "protocol/guarded_main.hpp"
 
 namespace {
 
@@ -54,7 +55,7 @@ int send_control(const std::string& socket_path, const std::string& command) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+static int main_body(int argc, char** argv) {
   using namespace arnav;
   CLI::App app{"arnav-can-sim: simulated CAN pedal and instrument buttons (slcan on a pty, or a SocketCAN bus for the can_shim)"};
   app.footer("Commands (--do AT_S:COMMAND, scenario steps, inject):\n" + hil::commands_help());
@@ -143,4 +144,8 @@ int main(int argc, char** argv) {
     std::cerr << "arnav-can-sim: " << e.what() << "\n";
     return 2;
   }
+}
+
+int main(int argc, char** argv) {
+  return arnav::guarded_main("arnav-can-sim", [&] { return main_body(argc, argv); });
 }

@@ -5,8 +5,9 @@
 #include <CLI/CLI.hpp>
 
 #include "hil_tests/scenarios/ar_error.hpp"
+#include "protocol/guarded_main.hpp"
 
-int main(int argc, char** argv) {
+static int main_body(int argc, char** argv) {
   CLI::App app{"arnav-ar-error: overlay tumour centroid vs the synthetic camera's ground truth (JSON)"};
   std::string session, truth, csv;
   app.add_option("--session", session, "the host's session file")->required();
@@ -24,4 +25,8 @@ int main(int argc, char** argv) {
     return 2;
   }
   return 0;
+}
+
+int main(int argc, char** argv) {
+  return arnav::guarded_main("arnav-ar-error", [&] { return main_body(argc, argv); });
 }

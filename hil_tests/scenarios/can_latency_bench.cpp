@@ -20,6 +20,7 @@
 
 #include "hil_tests/scenarios/can_run.hpp"
 #include "protocol/clock.hpp"
+#include "protocol/guarded_main.hpp"
 
 namespace {
 
@@ -32,7 +33,7 @@ nlohmann::json summary(std::vector<double> v) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+static int main_body(int argc, char** argv) {
   using namespace arnav::hil;
   CLI::App app{"CAN frame -> input_event_t latency on the CAN bench (JSON on stdout). Needs root."};
   int presses = 10000, period_ms = 6;
@@ -129,4 +130,8 @@ int main(int argc, char** argv) {
     std::cerr << "arnav-can-latency: " << e.what() << "\n";
     return 1;
   }
+}
+
+int main(int argc, char** argv) {
+  return arnav::guarded_main("arnav-can-latency", [&] { return main_body(argc, argv); });
 }

@@ -19,8 +19,9 @@
 #include "host/scene/load_error.hpp"
 #include "protocol/clock.hpp"
 #include "protocol/pose_convert.hpp"
+#include "protocol/guarded_main.hpp"
 
-int main(int argc, char** argv) {
+static int main_body(int argc, char** argv) {
   CLI::App app{"arnav-host-latency-bench: capture -> overlay ready latency of the navigation session (JSON)"};
   std::string scene_path;
   int width = 1280, height = 720;
@@ -124,4 +125,8 @@ int main(int argc, char** argv) {
     return 2;
   }
   return 0;
+}
+
+int main(int argc, char** argv) {
+  return arnav::guarded_main("arnav-host-latency-bench", [&] { return main_body(argc, argv); });
 }

@@ -18,6 +18,7 @@
 #include "host/overlay/overlay_renderer.hpp"
 #include "host/scene/load_error.hpp"
 #include "host/scene/scene.hpp"
+#include "protocol/guarded_main.hpp"
 
 namespace {
 
@@ -29,7 +30,7 @@ nlohmann::json stats(std::vector<double> v) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+static int main_body(int argc, char** argv) {
   CLI::App app{"arnav-overlay-bench: overlay render time on the bundled liver (JSON)"};
   std::string scene_path;
   int width = 1280, height = 720, frames = 300, msaa = 0;
@@ -115,4 +116,8 @@ int main(int argc, char** argv) {
     return 2;
   }
   return 0;
+}
+
+int main(int argc, char** argv) {
+  return arnav::guarded_main("arnav-overlay-bench", [&] { return main_body(argc, argv); });
 }

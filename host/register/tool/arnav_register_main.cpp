@@ -22,6 +22,7 @@
 #include "host/scene/load_error.hpp"
 #include "host/scene/mesh_io.hpp"
 #include "host/scene/scene.hpp"
+#include "protocol/guarded_main.hpp"
 
 namespace {
 
@@ -52,7 +53,7 @@ json matrix_json(const Eigen::Isometry3d& X) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+static int main_body(int argc, char** argv) {
   CLI::App app{"arnav-register: register a scene's patient model to an intraoperative surface (docs/register.md)"};
   Inputs in;
   RegistrationRequest rq;
@@ -355,4 +356,8 @@ int main(int argc, char** argv) {
   std::cout << "{\"out\":\"" << in.out_dir << "\",\"deformed\":" << (r.deformed ? "true" : "false") << ",\"residual_rms_mm\":"
             << r.icp.summary.final_rms_mm << ",\"wall_time_s\":" << r.wall_time_s << ",\"exit\":" << exit_code << "}\n";
   return exit_code;
+}
+
+int main(int argc, char** argv) {
+  return arnav::guarded_main("arnav-register", [&] { return main_body(argc, argv); });
 }
