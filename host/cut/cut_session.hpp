@@ -81,6 +81,11 @@ class CutSession {
   CutFrameReport apply_blade(const BladeSegment& blade, bool cutting_enabled);
   StepSummary step(double dt_s) { return model_->step(dt_s); }
 
+  // Attachments (grasp, lobe pull) that survive cuts: re-added to every rebuilt model (their
+  // material points keep their vertex ids: a cut only appends vertices).
+  int add_attachment(const AttachmentSpec& spec);
+  void set_attachment_target(int id, const Eigen::Vector3d& target_World_mm);
+
   TissueModel& model() { return *model_; }
   // Positions and velocities of every vertex of the current (cut) mesh: the model's, plus
   // vertices made since the model was built (background rebuild), interpolated or copied.
@@ -124,6 +129,9 @@ class CutSession {
   bool surface_dirty_ = true;
   std::optional<AttachmentId> push_;
   AttachmentSpec push_spec_;
+  std::vector<AttachmentSpec> attachments_;        // session attachments
+  std::vector<AttachmentId> attachment_ids_;       // their ids in the current model
+  void readd_attachments();
   std::vector<VertexOrigin> origins_;  // of vertices n0_, n0_ + 1, ... (made by cuts)
   int n0_ = 0;
   std::future<std::unique_ptr<TissueModel>> build_;
