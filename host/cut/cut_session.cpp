@@ -310,8 +310,23 @@ CutFrameReport CutSession::apply_blade(const BladeSegment& blade, bool cutting_e
         }
         sweep.from_points = moved;
       }
-      report.cut = cutter_.step(sweep, x, v);
-      absorb(report, x, v);
+      // A blade that moves along itself (plunging in, lifting out) sweeps no area: the strip
+      // between its carried previous position and the new one would only be noise.
+      double moved = 0.0;
+      const Eigen::Vector3d dir = (blade.heel_World_mm - blade.tip_World_mm).normalized();
+      for (std::size_t i = 0; i < sweep.from_points.size(); ++i) {
+        const double u = static_cast<double>(i) / settings_.sweep_strips;
+        const Eigen::Vector3d d = sweep.from_points[i] - ((1 - u) * blade.tip_World_mm + u * blade.heel_World_mm);
+        moved = std::max(moved, (d - d.dot(dir) * dir).norm());
+      }
+      if (sweep.from_points.empty()) {
+        for (const auto& d : {Eigen::Vector3d(previous_blade_->tip_World_mm - blade.tip_World_mm), Eigen::Vector3d(previous_blade_->heel_World_mm - blade.heel_World_mm)})
+          moved = std::max(moved, (d - d.dot(dir) * dir).norm());
+      }
+      if (moved > settings_.min_sweep_mm) {
+        report.cut = cutter_.step(sweep, x, v);
+        absorb(report, x, v);
+      }
       check_events(blade, &sweep, report);
     } else {
       check_events(blade, nullptr, report);

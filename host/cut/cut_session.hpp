@@ -36,6 +36,7 @@ struct CutSessionSettings {
   int sweep_strips = 8;                    // strips of the swept surface (and blade points carried with the tissue)
   double tumour_margin_mm = 10.0;          // safety margin around each tumour
   double push_stiffness_mN_per_mm = 50.0;  // contact spring when cutting is disabled
+  double min_sweep_mm = 0.01;              // a blade moving less than this across itself cuts nothing this frame
   // Rebuild the model on a worker thread after a topology change; the previous model keeps
   // stepping (the cut shows at once, the pieces separate mechanically when the new model is
   // swapped in a few frames later). false: rebuild inline, deterministic.
