@@ -129,7 +129,23 @@ void CutSession::rebuild_model(const CutStepReport& step) {
     return;
   }
   model_ = make_tissue_model(problem_, config_);
+  readd_attachments();
   ++rebuilds_;
+}
+
+int CutSession::add_attachment(const AttachmentSpec& spec) {
+  attachments_.push_back(spec);
+  attachment_ids_.push_back(model_->add_attachment(spec));
+  return static_cast<int>(attachments_.size()) - 1;
+}
+
+void CutSession::set_attachment_target(int id, const Eigen::Vector3d& target_World_mm) {
+  attachments_.at(static_cast<std::size_t>(id)).target_World_mm = target_World_mm;
+  model_->set_attachment_target(attachment_ids_.at(static_cast<std::size_t>(id)), target_World_mm);
+}
+
+void CutSession::readd_attachments() {
+  for (std::size_t i = 0; i < attachments_.size(); ++i) attachment_ids_[i] = model_->add_attachment(attachments_[i]);
 }
 
 Eigen::Matrix3Xd CutSession::extended(const Eigen::Matrix3Xd& m) const {
@@ -156,6 +172,7 @@ double CutSession::poll_build() {
   const int n = next->positions_World_mm().cols();
   next->set_state(extended(model_->positions_World_mm()).leftCols(n), extended(model_->velocities_World_mm_s()).leftCols(n));
   model_ = std::move(next);
+  readd_attachments();
   ++rebuilds_;
   if (push_) push_ = model_->add_attachment(push_spec_);
   if (rebuild_wanted_) launch_build();
@@ -293,8 +310,23 @@ CutFrameReport CutSession::apply_blade(const BladeSegment& blade, bool cutting_e
         }
         sweep.from_points = moved;
       }
-      report.cut = cutter_.step(sweep, x, v);
-      absorb(report, x, v);
+      // A blade that moves along itself (plunging in, lifting out) sweeps no area: the strip
+      // between its carried previous position and the new one would only be noise.
+      double moved = 0.0;
+      const Eigen::Vector3d dir = (blade.heel_World_mm - blade.tip_World_mm).normalized();
+      for (std::size_t i = 0; i < sweep.from_points.size(); ++i) {
+        const double u = static_cast<double>(i) / settings_.sweep_strips;
+        const Eigen::Vector3d d = sweep.from_points[i] - ((1 - u) * blade.tip_World_mm + u * blade.heel_World_mm);
+        moved = std::max(moved, (d - d.dot(dir) * dir).norm());
+      }
+      if (sweep.from_points.empty()) {
+        for (const auto& d : {Eigen::Vector3d(previous_blade_->tip_World_mm - blade.tip_World_mm), Eigen::Vector3d(previous_blade_->heel_World_mm - blade.heel_World_mm)})
+          moved = std::max(moved, (d - d.dot(dir) * dir).norm());
+      }
+      if (moved > settings_.min_sweep_mm) {
+        report.cut = cutter_.step(sweep, x, v);
+        absorb(report, x, v);
+      }
       check_events(blade, &sweep, report);
     } else {
       check_events(blade, nullptr, report);

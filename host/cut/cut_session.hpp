@@ -36,6 +36,7 @@ struct CutSessionSettings {
   int sweep_strips = 8;                    // strips of the swept surface (and blade points carried with the tissue)
   double tumour_margin_mm = 10.0;          // safety margin around each tumour
   double push_stiffness_mN_per_mm = 50.0;  // contact spring when cutting is disabled
+  double min_sweep_mm = 0.01;              // a blade moving less than this across itself cuts nothing this frame
   // Rebuild the model on a worker thread after a topology change; the previous model keeps
   // stepping (the cut shows at once, the pieces separate mechanically when the new model is
   // swapped in a few frames later). false: rebuild inline, deterministic.
@@ -81,6 +82,11 @@ class CutSession {
   CutFrameReport apply_blade(const BladeSegment& blade, bool cutting_enabled);
   StepSummary step(double dt_s) { return model_->step(dt_s); }
 
+  // Attachments (grasp, lobe pull) that survive cuts: re-added to every rebuilt model (their
+  // material points keep their vertex ids: a cut only appends vertices).
+  int add_attachment(const AttachmentSpec& spec);
+  void set_attachment_target(int id, const Eigen::Vector3d& target_World_mm);
+
   TissueModel& model() { return *model_; }
   // Positions and velocities of every vertex of the current (cut) mesh: the model's, plus
   // vertices made since the model was built (background rebuild), interpolated or copied.
@@ -124,6 +130,9 @@ class CutSession {
   bool surface_dirty_ = true;
   std::optional<AttachmentId> push_;
   AttachmentSpec push_spec_;
+  std::vector<AttachmentSpec> attachments_;        // session attachments
+  std::vector<AttachmentId> attachment_ids_;       // their ids in the current model
+  void readd_attachments();
   std::vector<VertexOrigin> origins_;  // of vertices n0_, n0_ + 1, ... (made by cuts)
   int n0_ = 0;
   std::future<std::unique_ptr<TissueModel>> build_;

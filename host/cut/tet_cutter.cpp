@@ -50,6 +50,7 @@ TetCutter::TetCutter(const TetMesh& mesh, const CutSettings& settings) : mesh_(m
   on_cut_.assign(static_cast<std::size_t>(nv), 0);
   side_.assign(static_cast<std::size_t>(nv), 0);
   tip_tet_.assign(mesh_.tets.size(), 0);
+  flat_side_.assign(mesh_.tets.size(), 0);
   origin_.resize(mesh_.tets.size());
   std::iota(origin_.begin(), origin_.end(), 0);
   family_.resize(mesh_.tets.size());
@@ -140,6 +141,7 @@ void TetCutter::begin_stroke() {
   for (int w : sided_) side_[static_cast<std::size_t>(w)] = 0;
   sided_.clear();
   std::fill(tip_tet_.begin(), tip_tet_.end(), 0);
+  std::fill(flat_side_.begin(), flat_side_.end(), 0);
   undecided_faces_.clear();
 }
 
@@ -356,6 +358,7 @@ void TetCutter::split_edge(int a, int b, double t_ab, Eigen::Matrix3Xd& x, Eigen
     mesh_.tet_region.push_back(mesh_.tet_region[static_cast<std::size_t>(t)]);
     origin_.push_back(origin_[static_cast<std::size_t>(t)]);
     tip_tet_.push_back(tip_tet_[static_cast<std::size_t>(t)]);
+    flat_side_.push_back(0);
     family_[static_cast<std::size_t>(origin_[static_cast<std::size_t>(t)])].push_back(n);
     for (int w : child2) vertex_tets_[static_cast<std::size_t>(w)].push_back(n);
     ++r.tets_added;
@@ -657,6 +660,33 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
         new_cut_faces.push_back(key);
     }
   }
+  // Side of a tet from its free vertices (0 when it has none or they are not all known).
+  auto free_side = [&](int t) {
+    int side = 0;
+    for (int w : mesh_.tets[static_cast<std::size_t>(t)]) {
+      if (on_stroke(w)) continue;
+      const int sw = side_[static_cast<std::size_t>(w)];
+      if (sw == 0 || (side != 0 && sw != side)) return 0;
+      side = sw;
+    }
+    return side;
+  };
+  // A flat tet (all four vertices on the cut) nothing else decides joins the side most of its
+  // face neighbours are on: either side keeps the cut closed, as long as it is one.
+  auto neighbours_side = [&](int t) {
+    const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+    int sum = 0, first = 0;
+    for (const auto& fc : kFaces) {
+      int pair[2] = {-1, -1};
+      if (tets_with_face(face_key(tet[static_cast<std::size_t>(fc[0])], tet[static_cast<std::size_t>(fc[1])], tet[static_cast<std::size_t>(fc[2])]), pair) != 2)
+        continue;
+      const int other = pair[0] == t ? pair[1] : pair[0];
+      const int sd = free_side(other);
+      sum += sd;
+      if (first == 0) first = sd;
+    }
+    return sum > 0 ? 1 : (sum < 0 ? -1 : first);
+  };
   auto tet_side = [&](int t) {
     int side = 0;
     bool any_free = false;
@@ -667,11 +697,45 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       if (sw == 0 || (side != 0 && sw != side)) return 0;
       side = sw;
     }
-    if (!any_free) {  // all four vertices on the cut: the side of its centroid
+    if (!any_free) {
+      // All four vertices on the cut (a flat tet in the cut surface): the side of its
+      // centroid, taken while the sweep passes it (kept for the stroke); unknown otherwise.
+      signed char& cached = flat_side_[static_cast<std::size_t>(t)];
+      if (cached != 0) return static_cast<int>(cached);
+      const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+      // The sides its vertices had before they were put on the cut, when they agree.
+      int before = 0;
+      for (int w : tet) before += side_[static_cast<std::size_t>(w)];
+      if (tris.empty()) {
+        if (before != 0) return before > 0 ? 1 : -1;
+        cached = static_cast<signed char>(neighbours_side(t));
+        return static_cast<int>(cached);
+      }
       Eigen::Vector3d c = Eigen::Vector3d::Zero();
-      for (int w : mesh_.tets[static_cast<std::size_t>(t)]) c += x.col(w);
-      const double d = nearest_plane_distance(c / 4.0);
-      return d > 0 ? 1 : (d < 0 ? -1 : 0);
+      double longest = 0.0;
+      for (int i = 0; i < 4; ++i) {
+        c += x.col(tet[static_cast<std::size_t>(i)]) / 4.0;
+        for (int j = i + 1; j < 4; ++j)
+          longest = std::max(longest, (x.col(tet[static_cast<std::size_t>(i)]) - x.col(tet[static_cast<std::size_t>(j)])).norm());
+      }
+      int nearest = 0;
+      double best = 1e300;
+      for (std::size_t i = 0; i < tris.size(); ++i) {
+        const double dist = point_triangle_distance(c, tris[i]);
+        if (dist < best) {
+          best = dist;
+          nearest = static_cast<int>(i);
+        }
+      }
+      if (!(best <= f * longest + vtol)) {
+        if (before != 0) return before > 0 ? 1 : -1;
+        cached = static_cast<signed char>(neighbours_side(t));
+        return static_cast<int>(cached);
+      }
+      const Triangle& near = tris[static_cast<std::size_t>(nearest)];
+      const double d = (near.b - near.a).cross(near.c - near.a).normalized().dot(c - near.a);
+      cached = static_cast<signed char>(d > 0 ? 1 : (d < 0 ? -1 : 0));
+      return static_cast<int>(cached);
     }
     return side;
   };

@@ -109,6 +109,8 @@ class TetCutter {
 
   const TetMesh& mesh() const { return mesh_; }
   const CutSettings& settings() const { return settings_; }
+  // Side of this stroke's cut a vertex lies on (+1/-1; 0: not known yet or on the cut).
+  int side(int vertex) const { return side_[static_cast<std::size_t>(vertex)]; }
   // The vertex lies on a cut (this stroke or an earlier one).
   bool on_cut(int vertex) const { return on_cut_[static_cast<std::size_t>(vertex)] != 0; }
   // Crossings recorded but not yet split (the crack front and tets the cut has entered).
@@ -163,6 +165,7 @@ class TetCutter {
   std::vector<int> sided_;
   std::vector<std::array<int, 3>> undecided_faces_;  // on the cut, sides of their tets not known yet                       // vertices with a side (reset at the next stroke)
   FaceSet cut_faces_;                            // interior faces to separate
+  std::vector<signed char> flat_side_;           // per tet with all vertices on the cut: its side (this stroke)
   std::vector<char> tip_tet_;                    // per tet: a blade end passed through it this stroke
   Eigen::Vector3d last_normal_ = Eigen::Vector3d::UnitZ();  // of the last sweep
   std::vector<int> origin_;                      // per tet: tet of the input mesh
