@@ -138,6 +138,8 @@ class NavigationSession {
   std::set<std::string> active_flags_;
   std::optional<FrameResult> last_;
   std::string render_error_;
+  std::int64_t last_capture_us_ = -1;                   // rendering thread only
+  std::vector<double> camera_gaps_ms_;
   CutTrace cut_trace_;                                  // rendering thread only
   std::vector<std::vector<Eigen::Vector3d>> last_strokes_;
 };

@@ -9,7 +9,8 @@
 //   (capture -> overlay ready), tumour_u_px, tumour_v_px (projected tumour centroid, empty
 //   when not drawn), blade_to_margin_mm (empty without a fresh scalpel), flags
 //   ('|'-separated: reference_lost, reference_stale, scalpel_lost, scalpel_stale,
-//   camera_pose_lost, model_unhealthy, pose_not_matched; empty when all is well).
+//   camera_pose_lost, camera_pose_stale, camera_gap, model_unhealthy, pose_not_matched;
+//   empty when all is well).
 #include <opencv2/core.hpp>
 #include <opencv2/videoio.hpp>
 
