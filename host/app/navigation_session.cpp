@@ -147,6 +147,7 @@ void NavigationSession::stop() {
   if (recorder_) {
     auto rec = std::move(recorder_);
     recorded_files_ = rec->close();
+    video_frames_skipped_ = rec->video_frames_skipped();
   }
 }
 
@@ -491,6 +492,7 @@ nlohmann::json NavigationSession::summary_json(double run_s) {
   j["camera_gaps"] = {{"count", camera_gaps_ms_.size()},
                       {"max_ms", camera_gaps_ms_.empty() ? 0.0 : *std::max_element(camera_gaps_ms_.begin(), camera_gaps_ms_.end())}};
   j["decode_failures"] = decode_failures_;
+  if (!options_.record_dir.empty()) j["video_frames_skipped"] = video_frames_skipped_;
   j["motion_to_photon_ms"] = {{"p50", percentile(latency_ms_, 0.5)}, {"p99", percentile(latency_ms_, 0.99)},
                               {"max", latency_ms_.empty() ? 0.0 : *std::max_element(latency_ms_.begin(), latency_ms_.end())}};
   j["host_latency_ms"] = {{"p50", percentile(host_latency_ms_, 0.5)}, {"p99", percentile(host_latency_ms_, 0.99)}};

@@ -117,6 +117,7 @@ class NavigationSession {
   std::unique_ptr<overlay::OverlayRenderer> renderer_;  // created on the rendering thread
   std::unique_ptr<Recorder> recorder_;
   std::vector<std::string> recorded_files_;
+  std::int64_t video_frames_skipped_ = 0;
 
   std::mutex mutex_;                   // poses, tracker, stats
   ToolFreshnessTracker tracker_;

@@ -54,6 +54,12 @@ class Recorder {
   void add(const FrameRow& row, cv::Mat frame);  // takes the image (no copy)
   // Flushes, writes the contact sheet; returns the files written.
   std::vector<std::string> close();
+  // Video frames left out because encoding fell behind (the CSV has every row).
+  std::int64_t video_frames_skipped() {
+    std::lock_guard lock(mutex_);
+    return video_frames_skipped_;
+  }
+  static constexpr std::size_t kMaxQueuedFrames = 120;
 
  private:
   void run();
@@ -70,6 +76,7 @@ class Recorder {
   std::thread thread_;
   std::vector<std::string> files_;
   std::string error_;
+  std::int64_t video_frames_skipped_ = 0;
 };
 
 }  // namespace arnav::host
