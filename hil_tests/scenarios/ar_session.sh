@@ -37,7 +37,7 @@ url="udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304"
 # The configs name their files relative to themselves; the run writes into OUT.
 data=$(cd "$here/../../data" && pwd)
 cp "$here"/ar_demo/{camera.yaml,marker_board.yaml,X_RefModel.yaml,X_CamNdi.yaml} "$out/"
-sed "s#^scene: .*#scene: $data/liver/liver_coarse.scene.yaml#" "$here/ar_demo/session.yaml" >"$out/session.yaml"
+sed "s#^scene: [^ ]*#scene: $here/ar_demo/liver_navigation.scene.yaml#" "$here/ar_demo/session.yaml" >"$out/session.yaml"
 sed "s#\.\./\.\./\.\./data/#$data/#" "$here/ar_demo/appliance.yaml" >"$out/appliance.yaml"
 sed "s#\.\./\.\./\.\./data/#$data/#" "$here/ar_demo/scalpel_sim.yaml" >"$out/scalpel_sim.yaml"
 
