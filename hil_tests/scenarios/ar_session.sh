@@ -4,7 +4,8 @@
 # Re-executes itself in a private network namespace (root): lcm-logger records the bus,
 # arnav-host ar_demo/session.yaml runs the model and the overlay and records the video,
 # overlay.csv and a contact sheet, arnav-appliance runs the synthetic camera
-# (ar_demo/appliance.yaml) until its frames are done. Then arnav-ar-error compares the
+# and the simulated Polaris tracking the scalpel (ar_demo/appliance.yaml, port: sim) until
+# the camera's frames are done. Then arnav-ar-error compares the
 # overlay with the camera's ground truth and a summary is printed. docs/hil.md.
 set -euo pipefail
 if [ "$#" -lt 2 ]; then
@@ -34,8 +35,11 @@ ip link set lo up
 ip route add 224.0.0.0/4 dev lo
 url="udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304"
 # The configs name their files relative to themselves; the run writes into OUT.
-cp "$here"/ar_demo/{appliance.yaml,camera.yaml,marker_board.yaml,X_RefModel.yaml} "$out/"
-sed "s#^scene: .*#scene: $here/../../data/liver/liver_coarse.scene.yaml#" "$here/ar_demo/session.yaml" >"$out/session.yaml"
+data=$(cd "$here/../../data" && pwd)
+cp "$here"/ar_demo/{camera.yaml,marker_board.yaml,X_RefModel.yaml,X_CamNdi.yaml} "$out/"
+sed "s#^scene: [^ ]*#scene: $here/ar_demo/liver_navigation.scene.yaml#" "$here/ar_demo/session.yaml" >"$out/session.yaml"
+sed "s#\.\./\.\./\.\./data/#$data/#" "$here/ar_demo/appliance.yaml" >"$out/appliance.yaml"
+sed "s#\.\./\.\./\.\./data/#$data/#" "$here/ar_demo/scalpel_sim.yaml" >"$out/scalpel_sim.yaml"
 
 pids=()
 cleanup() { for p in "${pids[@]}"; do kill -TERM "$p" 2>/dev/null || true; done; }
@@ -52,10 +56,20 @@ for _ in $(seq 1 600); do
   sleep 0.1
 done
 grep "session ready" "$out/host.log" || { echo "arnav-host not ready after 60 s" >&2; exit 1; }
-echo "arnav-appliance: synthetic camera, 300 frames at 15 Hz (board leaves the view twice, camera unplugged 1 s at 9 s)"
-app_rc=0
-(cd "$out" && "$appliance" appliance.yaml 2>"$out/appliance.log") || app_rc=$?
+echo "arnav-appliance: synthetic camera, 300 frames at 15 Hz (board leaves the view twice, camera unplugged 1 s at 9 s); simulated Polaris tracking the scalpel"
+# The appliance keeps tracking the scalpel after the camera's last frame: stop it then.
+(cd "$out" && exec "$appliance" appliance.yaml 2>"$out/appliance.log") &
+app_pid=$!
+pids+=("$app_pid")
+for _ in $(seq 1 1800); do
+  grep -q "CAMERA_END" "$out/appliance.log" 2>/dev/null && break
+  kill -0 "$app_pid" 2>/dev/null || break
+  sleep 0.1
+done
 sleep 1
+kill -TERM "$app_pid" 2>/dev/null || true
+app_rc=0
+wait "$app_pid" || app_rc=$?
 kill -TERM "$host_pid"
 wait "$host_pid" || true
 kill -TERM "$logger_pid"
@@ -64,7 +78,7 @@ trap - EXIT
 echo "== arnav-host =="
 sed -n '/^navigation:/,$p' "$out/host.log" | grep -v "^recorded" | sed 's/^/  /'
 echo "== appliance: exit code $app_rc; camera faults and recoveries =="
-grep -E "CAMERA_LOST|CAMERA_RECOVERED|CAMERA_TOOL_LOST|CAMERA_TOOL_FOUND" "$out/appliance.log" | sed 's/^arnav-appliance: /  /' | sort | uniq -c | sed 's/^/  /' || true
+grep -E "CAMERA_LOST|CAMERA_RECOVERED|CAMERA_TOOL_LOST|CAMERA_TOOL_FOUND|NDI_TRACKING_STARTED|NDI_RECOVERED" "$out/appliance.log" | sed 's/^arnav-appliance: /  /' | sort | uniq -c | sed 's/^/  /' || true
 echo "== AR error: overlay tumour centroid vs the synthetic camera's ground truth (arnav-ar-error) =="
 "$ar_error" --session "$out/session.yaml" --ground-truth "$out/ground_truth.csv" --overlay-csv "$out/recording/overlay.csv" \
   | tee "$out/ar_error.json" | python3 -c '
@@ -78,7 +92,15 @@ print("  AR error: mean %.2f mm, p95 %.2f mm, max %.2f mm; mean %.2f px, p95 %.2
 print("  frames with the board clearly visible but no overlay: %d" % j["visible_without_overlay"])
 ' || echo "  (python3 missing: see $out/ar_error.json)"
 echo "  registration FRE/TRE: n/a (registration given as a file; live pointer registration is host/register)"
-echo "  cut-path error: n/a (cutting is host/cut; this session has no scalpel)"
+python3 - "$out/recording/overlay.csv" <<'PY' || true
+import csv, sys
+d = [float(r["blade_to_margin_mm"]) for r in csv.DictReader(open(sys.argv[1])) if r["blade_to_margin_mm"]]
+if d:
+    print("  blade-to-margin: %d frames with the scalpel drawn, closest %.1f mm, inside the margin in %d" % (len(d), min(d), sum(x < 0 for x in d)))
+else:
+    print("  blade-to-margin: no frame with the scalpel and the board both tracked")
+PY
+echo "  cut-path error: n/a (cutting is host/cut: the overlay shows the blade tip's trace only)"
 echo "== files =="
 echo "  video:         $out/recording/overlay.avi"
 echo "  contact sheet: $out/recording/contact_sheet.png"

@@ -147,6 +147,7 @@ void NavigationSession::stop() {
   if (recorder_) {
     auto rec = std::move(recorder_);
     recorded_files_ = rec->close();
+    video_frames_skipped_ = rec->video_frames_skipped();
   }
 }
 
@@ -313,7 +314,7 @@ NavigationSession::Resolved NavigationSession::resolve_poses(const image_frame_t
         }
       }
     } else {
-      const ToolRole cam_role{cam.pose_tool, ref_role.stale_after_ms};
+      const ToolRole cam_role{cam.pose_tool, cam.stale_after_ms};
       if (check(cam_role, "camera marker", "camera_pose", red)) {
         const PoseSample* s = nearest_valid(history(cam.pose_tool), frame.capture_time_mono_us);
         std::optional<Eigen::Isometry3d> X_RefTool = s ? to_ref(*s) : std::nullopt;
@@ -357,6 +358,17 @@ FrameResult NavigationSession::render_frame(const image_frame_t& msg, std::int64
   const overlay::OverlayCamera camera = ensure_renderer(image.cols, image.rows);
 
   Resolved r = resolve_poses(msg, now_us);
+  // A gap in the camera's frames longer than its limit (unplugged, stalled): the first
+  // frame after it says so, and the summary counts it.
+  if (last_capture_us_ >= 0) {
+    const double gap_ms = static_cast<double>(msg.capture_time_mono_us - last_capture_us_) * 1e-3;
+    if (gap_ms > config_.camera->stale_after_ms) {
+      add_flag(r.flags, "camera_gap");
+      std::lock_guard lock(mutex_);
+      camera_gaps_ms_.push_back(gap_ms);
+    }
+  }
+  last_capture_us_ = msg.capture_time_mono_us;
   std::shared_ptr<const ModelSnapshot> snap = model_ ? model_->snapshot() : nullptr;
   out.row.pose_time_mono_us = r.pose_time_us;
   if (snap) out.row.model_step_time_mono_us = snap->step_done_mono_us;
@@ -477,7 +489,10 @@ nlohmann::json NavigationSession::summary_json(double run_s) {
   j["frames_received"] = frames_received_;
   j["frames_displayed"] = frames_displayed_;
   j["frames_dropped"] = frames_dropped_;
+  j["camera_gaps"] = {{"count", camera_gaps_ms_.size()},
+                      {"max_ms", camera_gaps_ms_.empty() ? 0.0 : *std::max_element(camera_gaps_ms_.begin(), camera_gaps_ms_.end())}};
   j["decode_failures"] = decode_failures_;
+  if (!options_.record_dir.empty()) j["video_frames_skipped"] = video_frames_skipped_;
   j["motion_to_photon_ms"] = {{"p50", percentile(latency_ms_, 0.5)}, {"p99", percentile(latency_ms_, 0.99)},
                               {"max", latency_ms_.empty() ? 0.0 : *std::max_element(latency_ms_.begin(), latency_ms_.end())}};
   j["host_latency_ms"] = {{"p50", percentile(host_latency_ms_, 0.5)}, {"p99", percentile(host_latency_ms_, 0.99)}};
@@ -503,7 +518,8 @@ std::string NavigationSession::format_summary(double run_s) {
   const nlohmann::json j = summary_json(run_s);
   std::ostringstream os;
   os << "navigation: " << j["frames_displayed"] << " frames displayed of " << j["frames_received"] << " received, "
-     << j["frames_dropped"] << " dropped, " << j["decode_failures"] << " undecodable\n";
+     << j["frames_dropped"] << " dropped, " << j["decode_failures"] << " undecodable; " << j["camera_gaps"]["count"]
+     << " camera gap(s) over " << config_.camera->stale_after_ms << " ms (longest " << j["camera_gaps"]["max_ms"] << " ms)\n";
   char line[256];
   std::snprintf(line, sizeof line,
                 "  motion-to-photon (capture -> overlay ready): p50 %.1f ms, p99 %.1f ms, max %.1f ms; frame arrival -> ready p50 %.1f ms, "

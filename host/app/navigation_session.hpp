@@ -117,6 +117,7 @@ class NavigationSession {
   std::unique_ptr<overlay::OverlayRenderer> renderer_;  // created on the rendering thread
   std::unique_ptr<Recorder> recorder_;
   std::vector<std::string> recorded_files_;
+  std::int64_t video_frames_skipped_ = 0;
 
   std::mutex mutex_;                   // poses, tracker, stats
   ToolFreshnessTracker tracker_;
@@ -138,6 +139,8 @@ class NavigationSession {
   std::set<std::string> active_flags_;
   std::optional<FrameResult> last_;
   std::string render_error_;
+  std::int64_t last_capture_us_ = -1;                   // rendering thread only
+  std::vector<double> camera_gaps_ms_;
   CutTrace cut_trace_;                                  // rendering thread only
   std::vector<std::vector<Eigen::Vector3d>> last_strokes_;
 };

@@ -48,6 +48,12 @@ Recorder::~Recorder() {
 void Recorder::add(const FrameRow& row, cv::Mat frame) {
   std::lock_guard lock(mutex_);
   if (closing_) return;
+  // Encoding slower than the camera (a loaded machine): the CSV row is always kept, the
+  // video frame is skipped and counted rather than letting the queue grow without bound.
+  if (queue_.size() >= kMaxQueuedFrames && !frame.empty()) {
+    frame = cv::Mat();
+    ++video_frames_skipped_;
+  }
   queue_.emplace_back(row, std::move(frame));
   cv_.notify_one();
 }

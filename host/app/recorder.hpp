@@ -9,7 +9,8 @@
 //   (capture -> overlay ready), tumour_u_px, tumour_v_px (projected tumour centroid, empty
 //   when not drawn), blade_to_margin_mm (empty without a fresh scalpel), flags
 //   ('|'-separated: reference_lost, reference_stale, scalpel_lost, scalpel_stale,
-//   camera_pose_lost, model_unhealthy, pose_not_matched; empty when all is well).
+//   camera_pose_lost, camera_pose_stale, camera_gap, model_unhealthy, pose_not_matched;
+//   empty when all is well).
 #include <opencv2/core.hpp>
 #include <opencv2/videoio.hpp>
 
@@ -53,6 +54,12 @@ class Recorder {
   void add(const FrameRow& row, cv::Mat frame);  // takes the image (no copy)
   // Flushes, writes the contact sheet; returns the files written.
   std::vector<std::string> close();
+  // Video frames left out because encoding fell behind (the CSV has every row).
+  std::int64_t video_frames_skipped() {
+    std::lock_guard lock(mutex_);
+    return video_frames_skipped_;
+  }
+  static constexpr std::size_t kMaxQueuedFrames = 120;
 
  private:
   void run();
@@ -69,6 +76,7 @@ class Recorder {
   std::thread thread_;
   std::vector<std::string> files_;
   std::string error_;
+  std::int64_t video_frames_skipped_ = 0;
 };
 
 }  // namespace arnav::host

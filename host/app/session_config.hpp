@@ -43,7 +43,7 @@ struct CameraSettings {
   std::string pose_tool;
   std::string hand_eye_path;
   Eigen::Isometry3d X_ToolCam = Eigen::Isometry3d::Identity();
-  double stale_after_ms = 150.0;             // no frame for longer: "camera stale" (summary)
+  double stale_after_ms = 150.0;             // frame gap over this: flag camera_gap, counted; also the camera marker's limit
 };
 
 struct ModelSettings {

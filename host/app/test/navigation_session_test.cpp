@@ -146,7 +146,12 @@ TEST_F(SessionRun, BannersWithin200msOfLosingTheReferenceAndGoneOnRecovery) {
   EXPECT_FALSE(lost.row.tumour_px);
   EXPECT_NE(lost.banners[0].find("TRACKING LOST: reference"), std::string::npos);
   EXPECT_TRUE(step(*s, 42).row.tumour_px);
+  // A 0.5 s gap in the camera's frames (limit 150 ms): flagged on the next frame, counted.
+  EXPECT_EQ(step(*s, 42 + 30).row.flags.find("camera_gap") != std::string::npos, true);
+  EXPECT_EQ(step(*s, 42 + 31).row.flags.find("camera_gap"), std::string::npos);
   const auto j = s->summary_json(1.0);
+  EXPECT_EQ(j["camera_gaps"]["count"], 1);
+  EXPECT_NEAR(j["camera_gaps"]["max_ms"].get<double>(), 30 * 16.667, 0.01);
   EXPECT_EQ(j["flags"]["reference_stale"]["episodes"], 1);
   EXPECT_EQ(j["flags"]["reference_lost"]["episodes"], 1);
   EXPECT_GE(j["flags"]["reference_stale"]["spans"][0]["recovered_capture_us"].get<std::int64_t>(), 0);
