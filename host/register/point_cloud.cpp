@@ -14,6 +14,7 @@
 
 #include "arnav/point_cloud_t.hpp"
 #include "host/scene/load_error.hpp"
+#include "host/scene/mesh_formats.hpp"
 #include "host/scene/mesh_io.hpp"
 
 namespace arnav::host {
@@ -193,265 +194,15 @@ PointCloud parse_table(std::string_view content, const std::string& source) {
   return c;
 }
 
-// ---- .ply ----
-enum class PlyType { Int8, UInt8, Int16, UInt16, Int32, UInt32, Float32, Float64 };
-
-std::optional<PlyType> ply_type(std::string_view s) {
-  const std::string t = lower(s);
-  if (t == "char" || t == "int8") return PlyType::Int8;
-  if (t == "uchar" || t == "uint8") return PlyType::UInt8;
-  if (t == "short" || t == "int16") return PlyType::Int16;
-  if (t == "ushort" || t == "uint16") return PlyType::UInt16;
-  if (t == "int" || t == "int32") return PlyType::Int32;
-  if (t == "uint" || t == "uint32") return PlyType::UInt32;
-  if (t == "float" || t == "float32") return PlyType::Float32;
-  if (t == "double" || t == "float64") return PlyType::Float64;
-  return std::nullopt;
-}
-
-std::size_t ply_size(PlyType t) {
-  switch (t) {
-    case PlyType::Int8: case PlyType::UInt8: return 1;
-    case PlyType::Int16: case PlyType::UInt16: return 2;
-    case PlyType::Int32: case PlyType::UInt32: case PlyType::Float32: return 4;
-    case PlyType::Float64: return 8;
-  }
-  return 1;
-}
-
-struct PlyProperty {
-  std::string name;
-  PlyType type = PlyType::Float32;
-  bool is_list = false;
-  PlyType count_type = PlyType::UInt8;
-};
-
-struct PlyElement {
-  std::string name;
-  long long count = 0;
-  int line = 0;
-  std::vector<PlyProperty> props;
-};
-
-template <typename T>
-T read_le(const unsigned char* p) {
-  T v;
-  std::memcpy(&v, p, sizeof(T));  // the host is little-endian (x86-64, arm64)
-  return v;
-}
-
-double decode(PlyType t, const unsigned char* p) {
-  switch (t) {
-    case PlyType::Int8: return static_cast<double>(read_le<std::int8_t>(p));
-    case PlyType::UInt8: return static_cast<double>(read_le<std::uint8_t>(p));
-    case PlyType::Int16: return static_cast<double>(read_le<std::int16_t>(p));
-    case PlyType::UInt16: return static_cast<double>(read_le<std::uint16_t>(p));
-    case PlyType::Int32: return static_cast<double>(read_le<std::int32_t>(p));
-    case PlyType::UInt32: return static_cast<double>(read_le<std::uint32_t>(p));
-    case PlyType::Float32: return static_cast<double>(read_le<float>(p));
-    case PlyType::Float64: return read_le<double>(p);
-  }
-  return 0.0;
-}
-
-PointCloud parse_ply(std::string_view content, const std::string& source) {
-  std::size_t pos = 0;
-  int line_no = 0;
-  auto next_line = [&](std::string_view& out) {
-    if (pos >= content.size()) return false;
-    std::size_t end = content.find('\n', pos);
-    if (end == std::string_view::npos) end = content.size();
-    out = content.substr(pos, end - pos);
-    if (!out.empty() && out.back() == '\r') out.remove_suffix(1);
-    pos = std::min(end + 1, content.size() + 1);
-    ++line_no;
-    return true;
-  };
-  std::string_view line;
-  if (!next_line(line) || trim(line) != "ply")
-    throw_load_error(source, 1, "not a PLY file (the first line must be 'ply')", "export the cloud as PLY, or use .xyz/.csv");
-  enum class Fmt { Ascii, BinaryLE } fmt = Fmt::Ascii;
-  bool have_format = false;
-  std::vector<PlyElement> elements;
-  bool header_done = false;
-  while (next_line(line)) {
-    const std::vector<std::string_view> t = split_fields(trim(line));
-    if (t.empty()) continue;
-    const std::string key = lower(t[0]);
-    if (key == "comment" || key == "obj_info") continue;
-    if (key == "end_header") {
-      header_done = true;
-      break;
-    }
-    if (key == "format") {
-      if (t.size() < 2) throw_load_error(source, line_no, "'format' without a value", "write 'format ascii 1.0' or 'format binary_little_endian 1.0'");
-      const std::string f = lower(t[1]);
-      if (f == "ascii") fmt = Fmt::Ascii;
-      else if (f == "binary_little_endian") fmt = Fmt::BinaryLE;
-      else if (f == "binary_big_endian")
-        throw_load_error(source, line_no, "binary big-endian PLY is not supported",
-                         "convert it, e.g. with Open3D: o3d.io.write_point_cloud('out.ply', pcd, write_ascii=False) (little-endian)");
-      else
-        throw_load_error(source, line_no, "unknown PLY format '" + std::string(t[1]) + "'", "use ascii or binary_little_endian");
-      have_format = true;
-    } else if (key == "element") {
-      if (t.size() != 3) throw_load_error(source, line_no, "'element' needs a name and a count", "write e.g. 'element vertex 1000'");
-      PlyElement e;
-      e.name = std::string(t[1]);
-      e.line = line_no;
-      const auto r = std::from_chars(t[2].data(), t[2].data() + t[2].size(), e.count);
-      if (r.ec != std::errc() || r.ptr != t[2].data() + t[2].size() || e.count < 0)
-        throw_load_error(source, line_no, "element count '" + std::string(t[2]) + "' is not a non-negative integer", "fix the header");
-      elements.push_back(e);
-    } else if (key == "property") {
-      if (elements.empty()) throw_load_error(source, line_no, "'property' before any 'element'", "fix the header");
-      PlyProperty p;
-      if (t.size() >= 2 && lower(t[1]) == "list") {
-        if (t.size() != 5) throw_load_error(source, line_no, "'property list' needs count type, item type and name", "fix the header");
-        const auto ct = ply_type(t[2]);
-        const auto it = ply_type(t[3]);
-        if (!ct || !it) throw_load_error(source, line_no, "unknown PLY type in the property list", "use char/uchar/short/ushort/int/uint/float/double");
-        p.is_list = true;
-        p.count_type = *ct;
-        p.type = *it;
-        p.name = std::string(t[4]);
-      } else {
-        if (t.size() != 3) throw_load_error(source, line_no, "'property' needs a type and a name", "write e.g. 'property float x'");
-        const auto ty = ply_type(t[1]);
-        if (!ty) throw_load_error(source, line_no, "unknown PLY type '" + std::string(t[1]) + "'", "use char/uchar/short/ushort/int/uint/float/double");
-        p.type = *ty;
-        p.name = std::string(t[2]);
-      }
-      elements.back().props.push_back(p);
-    } else {
-      throw_load_error(source, line_no, "unknown PLY header line '" + std::string(trim(line)) + "'", "fix the header");
-    }
-  }
-  if (!header_done) throw_load_error(source, line_no, "the PLY header has no 'end_header'", "the file is truncated or not PLY");
-  if (!have_format) throw_load_error(source, line_no, "the PLY header has no 'format' line", "add 'format ascii 1.0'");
-  const PlyElement* vertex = nullptr;
-  for (const auto& e : elements)
-    if (e.name == "vertex") vertex = &e;
-  if (!vertex) throw_load_error(source, line_no, "the PLY file has no 'element vertex'", "export the points as PLY vertices");
-  int idx[6] = {-1, -1, -1, -1, -1, -1};
-  static const char* names[6] = {"x", "y", "z", "nx", "ny", "nz"};
-  for (std::size_t k = 0; k < vertex->props.size(); ++k)
-    for (int r = 0; r < 6; ++r)
-      if (vertex->props[k].name == names[r] && !vertex->props[k].is_list) idx[r] = static_cast<int>(k);
-  if (idx[0] < 0 || idx[1] < 0 || idx[2] < 0)
-    throw_load_error(source, vertex->line, "the vertex element has no x, y and z properties", "export point coordinates as x, y, z");
-  const bool has_n = idx[3] >= 0 && idx[4] >= 0 && idx[5] >= 0;
-
+// ---- .ply ---- (the scene library's reader: ASCII and binary, both endiannesses)
+PointCloud parse_ply_cloud(std::string_view content, const std::string& source) {
+  PlyPoints ply = parse_ply_points(content, source, /*faces_required=*/false);
   PointCloud c;
   c.source = source;
-  std::vector<double> xyz, nrm;
-  auto store = [&](const std::vector<double>& vals, long long i, int at_line, std::size_t at_offset) {
-    for (int r = 0; r < (has_n ? 6 : 3); ++r) {
-      const double v = vals[static_cast<std::size_t>(idx[r])];
-      if (!std::isfinite(v)) {
-        const std::string what = "vertex " + std::to_string(i) + " has a non-finite " + names[r];
-        if (at_line > 0) throw_load_error(source, at_line, what, "remove invalid points (NaN marks missing depth)");
-        throw_load_error(source, 0, "byte offset " + std::to_string(at_offset) + ": " + what, "remove invalid points (NaN marks missing depth)");
-      }
-      (r < 3 ? xyz : nrm).push_back(v);
-    }
-    c.lines.push_back(at_line);
-  };
-
-  if (fmt == Fmt::Ascii) {
-    for (const auto& e : elements) {
-      const bool is_vertex = &e == vertex;
-      if (is_vertex) {
-        // each value needs at least 2 bytes: guards the reservation against a lying header
-        const auto cap = static_cast<long long>((content.size() - std::min(pos, content.size())) / 2 + 1);
-        xyz.reserve(static_cast<std::size_t>(std::min(e.count, cap)) * 3);
-      }
-      for (long long i = 0; i < e.count; ++i) {
-        if (!next_line(line))
-          throw_load_error(source, line_no, "element '" + e.name + "' declares " + std::to_string(e.count) + " rows, the file ends after " + std::to_string(i),
-                           "the file is truncated, or the count in the header is wrong");
-        const std::vector<std::string_view> f = split_fields(trim(line));
-        std::vector<double> vals;
-        std::size_t k = 0;
-        for (const auto& p : e.props) {
-          if (p.is_list) {
-            if (k >= f.size()) throw_load_error(source, line_no, "row ends before list '" + p.name + "'", "give every row all properties");
-            const auto n = to_double(f[k++]);
-            if (!n || *n < 0 || *n != std::floor(*n) || *n > static_cast<double>(f.size()))
-              throw_load_error(source, line_no, "bad list length for '" + p.name + "'", "fix the row");
-            k += static_cast<std::size_t>(*n);
-            vals.push_back(0.0);
-            continue;
-          }
-          if (k >= f.size())
-            throw_load_error(source, line_no, "row has fewer values than the " + std::to_string(e.props.size()) + " properties of '" + e.name + "'",
-                             "give every row all properties");
-          const auto v = to_double(f[k]);
-          if (!v) throw_load_error(source, line_no, "value '" + std::string(f[k]) + "' is not a number", "fix the row");
-          vals.push_back(*v);
-          ++k;
-        }
-        if (k != f.size())
-          throw_load_error(source, line_no, "row has more values than the properties of '" + e.name + "'", "give every row exactly its properties");
-        if (is_vertex) store(vals, i, line_no, 0);
-      }
-    }
-  } else {
-    std::size_t off = std::min(pos, content.size());
-    const auto* data = reinterpret_cast<const unsigned char*>(content.data());
-    auto need = [&](std::size_t n, const std::string& what) {
-      if (n > content.size() || off > content.size() - n)
-        throw_load_error(source, 0, "byte offset " + std::to_string(off) + ": the data ends inside " + what,
-                         "the file is truncated, or the counts in the header are wrong");
-    };
-    for (const auto& e : elements) {
-      const bool is_vertex = &e == vertex;
-      bool fixed = true;
-      std::size_t stride = 0;
-      for (const auto& p : e.props) {
-        if (p.is_list) fixed = false;
-        stride += ply_size(p.type);
-      }
-      if (fixed && stride > 0) {
-        // the whole element must fit before anything is allocated
-        const std::size_t left = content.size() - off;
-        if (static_cast<unsigned long long>(e.count) > left / stride)
-          throw_load_error(source, 0,
-                           "byte offset " + std::to_string(off) + ": element '" + e.name + "' declares " + std::to_string(e.count) + " rows of " +
-                               std::to_string(stride) + " bytes, only " + std::to_string(left) + " bytes follow",
-                           "the file is truncated, or the count in the header is wrong");
-        if (is_vertex) xyz.reserve(static_cast<std::size_t>(e.count) * 3);
-      }
-      std::vector<double> vals(e.props.size());
-      for (long long i = 0; i < e.count; ++i) {
-        const std::size_t row_off = off;
-        for (std::size_t k = 0; k < e.props.size(); ++k) {
-          const PlyProperty& p = e.props[k];
-          if (p.is_list) {
-            need(ply_size(p.count_type), "a list length of '" + e.name + "'");
-            const double n = decode(p.count_type, data + off);
-            off += ply_size(p.count_type);
-            if (n < 0) throw_load_error(source, 0, "byte offset " + std::to_string(off) + ": negative list length", "fix the file");
-            const std::size_t bytes = static_cast<std::size_t>(n) * ply_size(p.type);
-            need(bytes, "list '" + p.name + "' of '" + e.name + "'");
-            off += bytes;
-            vals[k] = 0.0;
-          } else {
-            need(ply_size(p.type), "element '" + e.name + "' row " + std::to_string(i));
-            vals[k] = decode(p.type, data + off);
-            off += ply_size(p.type);
-          }
-        }
-        if (is_vertex) store(vals, i, 0, row_off);
-        if (i == 0 && !fixed && e.count > 1 && off - row_off > 0 && static_cast<unsigned long long>(e.count) > (content.size() - row_off) / (off - row_off) * 64)
-          throw_load_error(source, 0, "byte offset " + std::to_string(row_off) + ": element '" + e.name + "' declares " + std::to_string(e.count) +
-                                          " rows, far more than the file holds", "the count in the header is wrong");
-      }
-    }
-  }
-  c.points_mm = Eigen::Map<Eigen::Matrix3Xd>(xyz.data(), 3, static_cast<Eigen::Index>(xyz.size() / 3));
-  if (has_n) {
-    c.normals = Eigen::Map<Eigen::Matrix3Xd>(nrm.data(), 3, static_cast<Eigen::Index>(nrm.size() / 3));
+  c.points_mm = std::move(ply.mesh.positions_World_mm);
+  c.lines = std::move(ply.vertex_lines);
+  if (ply.normals.cols() > 0) {
+    c.normals = std::move(ply.normals);
     normalise_normals(c, c.lines);
   }
   if (std::all_of(c.lines.begin(), c.lines.end(), [](int l) { return l == 0; })) c.lines.clear();
@@ -493,7 +244,7 @@ PointCloud from_surface(std::string_view content, const std::string& source, con
 
 PointCloud parse_point_cloud(std::string_view content, const std::string& source, const std::string& format) {
   if (format == "xyz" || format == "txt" || format == "csv") return parse_table(content, source);
-  if (format == "ply") return parse_ply(content, source);
+  if (format == "ply") return parse_ply_cloud(content, source);
   if (format == "obj" || format == "vtk") return from_surface(content, source, format);
   throw_load_error(source, 0, "unknown point-cloud format '." + format + "'", "use .xyz, .txt, .csv, .ply, .obj or .vtk");
 }

@@ -6,6 +6,9 @@
 // Coordinates are taken as mm. Each parser throws LoadError naming source and line.
 #include <string>
 #include <string_view>
+#include <vector>
+
+#include <Eigen/Core>
 
 #include "host/scene/mesh_validation.hpp"
 #include "host/scene/tet_mesh.hpp"
@@ -18,6 +21,16 @@ TriMesh parse_off(std::string_view content, const std::string& source, ElementLi
 // properties are skipped by type. Errors name the header line, body line (ASCII) or byte
 // offset (binary).
 TriMesh parse_ply(std::string_view content, const std::string& source, ElementLines* lines = nullptr);
+
+// The same reader for point clouds (depth cameras, Open3D): vertices with optional normals
+// (nx, ny, nz: all three or none), faces optional unless `faces_required`.
+struct PlyPoints {
+  TriMesh mesh;                    // positions (mm) and the faces, if any
+  Eigen::Matrix3Xd normals;        // per vertex, or 0 columns when the file has none
+  std::vector<int> vertex_lines;   // body line of each vertex (ASCII), 0 for binary files
+};
+PlyPoints parse_ply_points(std::string_view content, const std::string& source, bool faces_required,
+                           ElementLines* face_lines = nullptr);
 
 // TetGen: the node and element files are separate. Indices may start at 0 or 1 (the first
 // node's number decides, as in TetGen). A region attribute per element (tetgen -A) becomes

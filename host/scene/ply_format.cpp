@@ -1,7 +1,8 @@
-// Stanford PLY surfaces: ASCII, binary little- and big-endian. Only the vertex positions
-// (x, y, z) and the face vertex lists (vertex_indices or vertex_index) are kept; every
-// other element and property (normals, colours, texture coordinates, edges, materials) is
-// read past by its declared type. Errors name the header line, the body line (ASCII) or
+// Stanford PLY, ASCII, binary little- and big-endian: surfaces (parse_ply) and point clouds
+// (parse_ply_points, used by host/register). Kept: vertex positions (x, y, z), vertex normals
+// (nx, ny, nz) and the face vertex lists (vertex_indices or vertex_index); every other
+// element and property (colours, texture coordinates, edges, materials) is read past by its
+// declared type. Errors name the header line, the body line (ASCII) or
 // the byte offset (binary).
 #include <algorithm>
 #include <charconv>
@@ -244,7 +245,7 @@ PlyHeader parse_header(std::string_view content, const std::string& source) {
 
 }  // namespace
 
-TriMesh parse_ply(std::string_view content, const std::string& source, ElementLines* lines) {
+PlyPoints parse_ply_points(std::string_view content, const std::string& source, bool faces_required, ElementLines* face_lines) {
   const PlyHeader h = parse_header(content, source);
   const PlyElement* vertex = nullptr;
   const PlyElement* face = nullptr;
@@ -252,27 +253,43 @@ TriMesh parse_ply(std::string_view content, const std::string& source, ElementLi
     if (e.name == "vertex" && !vertex) vertex = &e;
     if (e.name == "face" && !face) face = &e;
   }
-  if (!vertex || !face)
+  if (!vertex) throw_load_error(source, 0, "the header declares no vertex element", "export the points or the surface with 'element vertex N'");
+  if (faces_required && !face)
     throw_load_error(source, 0, "the header declares no vertex or no face element", "a surface needs both ('element vertex N', 'element face M')");
-  int xyz[3] = {-1, -1, -1};
+  // Scalar vertex properties kept: x y z (required) and nx ny nz (all three, or ignored).
+  static const char* const kNames[6] = {"x", "y", "z", "nx", "ny", "nz"};
+  int slot[6] = {-1, -1, -1, -1, -1, -1};
   for (int k = 0; k < static_cast<int>(vertex->properties.size()); ++k) {
     const PlyProperty& p = vertex->properties[k];
-    for (int d = 0; d < 3; ++d)
-      if (p.name == std::string(1, static_cast<char>('x' + d)) && !p.is_list()) xyz[d] = k;
+    for (int d = 0; d < 6; ++d)
+      if (p.name == kNames[d] && !p.is_list()) slot[d] = k;
   }
-  if (xyz[0] < 0 || xyz[1] < 0 || xyz[2] < 0)
+  if (slot[0] < 0 || slot[1] < 0 || slot[2] < 0)
     throw_load_error(source, vertex->line, "the vertex element has no scalar x, y and z properties", "export the positions as x, y, z");
+  const bool has_normals = slot[3] >= 0 && slot[4] >= 0 && slot[5] >= 0;
   int ids_property = -1;
-  for (int k = 0; k < static_cast<int>(face->properties.size()); ++k) {
-    const PlyProperty& p = face->properties[k];
-    if ((p.name == "vertex_indices" || p.name == "vertex_index") && p.is_list()) ids_property = k;
+  if (face) {
+    for (int k = 0; k < static_cast<int>(face->properties.size()); ++k) {
+      const PlyProperty& p = face->properties[k];
+      if ((p.name == "vertex_indices" || p.name == "vertex_index") && p.is_list()) ids_property = k;
+    }
+    if (faces_required && (ids_property < 0 || !is_integer(face->properties[ids_property].type)))
+      throw_load_error(source, face->line, "the face element has no integer list 'vertex_indices'",
+                       "export faces as 'property list uchar int vertex_indices'");
+    if (ids_property >= 0 && !is_integer(face->properties[ids_property].type)) ids_property = -1;
   }
-  if (ids_property < 0 || !is_integer(face->properties[ids_property].type))
-    throw_load_error(source, face->line, "the face element has no integer list 'vertex_indices'",
-                     "export faces as 'property list uchar int vertex_indices'");
+  // Binary: a vertex row takes at least one byte per property, so the count cannot exceed
+  // the bytes left (refuses a lying header before allocating).
+  if (h.format != PlyFormat::kAscii && !vertex->properties.empty() &&
+      static_cast<unsigned long long>(vertex->count) > (content.size() - h.body_offset) / vertex->properties.size())
+    throw_load_error(source, 0,
+                     "the header declares " + std::to_string(vertex->count) + " vertices, but only " +
+                         std::to_string(content.size() - h.body_offset) + " bytes follow the header",
+                     "the file is truncated, or the count in the header is wrong");
 
-  TriMesh out;
-  out.positions_World_mm.resize(3, vertex->count);
+  PlyPoints out;
+  out.mesh.positions_World_mm.resize(3, vertex->count);
+  if (has_normals) out.normals.resize(3, vertex->count);
   PlyBody body(content, h.body_offset, h.body_line, source, h.format);
   for (const PlyElement& e : h.elements) {
     const bool is_vertex = &e == vertex, is_face = &e == face;
@@ -280,14 +297,20 @@ TriMesh parse_ply(std::string_view content, const std::string& source, ElementLi
       for (int k = 0; k < static_cast<int>(e.properties.size()); ++k) {
         const PlyProperty& p = e.properties[k];
         if (!p.is_list()) {
-          if (is_vertex && (k == xyz[0] || k == xyz[1] || k == xyz[2])) {
-            const double v = body.value(p.type, "a vertex coordinate");
-            if (!std::isfinite(v)) body.fail("vertex " + std::to_string(i) + " has a non-finite coordinate", "fix the coordinates (NaN/Inf are not allowed)");
-            const int d = k == xyz[0] ? 0 : (k == xyz[1] ? 1 : 2);
-            out.positions_World_mm(d, i) = v;
-          } else {
+          int d = -1;
+          if (is_vertex)
+            for (int s = 0; s < (has_normals ? 6 : 3); ++s)
+              if (k == slot[s]) d = s;
+          if (d < 0) {
             body.skip(p.type, 1, ("property " + p.name).c_str());
+            continue;
           }
+          const double v = body.value(p.type, d < 3 ? "a vertex coordinate" : "a vertex normal");
+          if (!std::isfinite(v))
+            body.fail("vertex " + std::to_string(i) + " has a non-finite " + kNames[d], "fix the values (NaN/Inf are not allowed; NaN often marks missing depth)");
+          if (d < 3) out.mesh.positions_World_mm(d, i) = v;
+          else out.normals(d - 3, i) = v;
+          if (d == 0) out.vertex_lines.push_back(body.line());
           continue;
         }
         const double n_value = body.value(p.count_type, ("the length of list " + p.name).c_str());
@@ -311,14 +334,18 @@ TriMesh parse_ply(std::string_view content, const std::string& source, ElementLi
           id = static_cast<int>(v);
         }
         for (std::size_t a = 1; a + 1 < ids.size(); ++a) {
-          out.tris.push_back({ids[0], ids[a], ids[a + 1]});
-          if (lines) lines->push_back(line);
+          out.mesh.tris.push_back({ids[0], ids[a], ids[a + 1]});
+          if (face_lines) face_lines->push_back(line);
         }
       }
     }
   }
   body.finish();
   return out;
+}
+
+TriMesh parse_ply(std::string_view content, const std::string& source, ElementLines* lines) {
+  return parse_ply_points(content, source, true, lines).mesh;
 }
 
 }  // namespace arnav::host
