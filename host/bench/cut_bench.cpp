@@ -58,19 +58,8 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
           settings.sweep_strips = scene.cutting->sweep_strips;
           settings.tumour_margin_mm = scene.cutting->tumour_margin_mm;
         }
-        std::vector<CarriedPoints> tumours;
-        std::vector<std::vector<std::array<int, 3>>> tumour_tris;
-        for (const auto& t : scene.tumours) {
-          tumours.push_back({t.name, t.rest.positions_World_mm, t.embedding});
-          tumour_tris.push_back(t.rest.tris);
-        }
-        std::optional<CarriedPoints> vessels;
-        std::vector<std::array<int, 2>> segments;
-        if (scene.vessels) {
-          vessels = CarriedPoints{"vessels", scene.vessels->rest.nodes_World_mm, scene.vessels->embedding};
-          segments = scene.vessels->rest.segments;
-        }
-        CutSession session(scene.problem, variant.config, settings, tumours, tumour_tris, vessels, segments);
+        const std::unique_ptr<CutSession> session_ptr = make_cut_session(scene, variant.config, settings);
+        CutSession& session = *session_ptr;
         CutBenchRow row;
         row.mesh = mesh_name;
         row.scenario = scenario;

@@ -1,5 +1,7 @@
 #include "host/cut/cut_session.hpp"
 
+#include "host/scene/scene.hpp"
+
 #include <Eigen/LU>
 #include <algorithm>
 #include <chrono>
@@ -373,6 +375,22 @@ CutFrameReport CutSession::apply_blade(const BladeSegment& blade, bool cutting_e
   previous_cutting_ = cutting_enabled;
   x_at_blade_ = positions_World_mm();
   return report;
+}
+
+std::unique_ptr<CutSession> make_cut_session(const Scene& scene, const ModelConfig& config, const CutSessionSettings& settings) {
+  std::vector<CarriedPoints> tumours;
+  std::vector<std::vector<std::array<int, 3>>> tumour_tris;
+  for (const auto& t : scene.tumours) {
+    tumours.push_back({t.name, t.rest.positions_World_mm, t.embedding});
+    tumour_tris.push_back(t.rest.tris);
+  }
+  std::optional<CarriedPoints> vessels;
+  std::vector<std::array<int, 2>> segments;
+  if (scene.vessels) {
+    vessels = CarriedPoints{"vessels", scene.vessels->rest.nodes_World_mm, scene.vessels->embedding};
+    segments = scene.vessels->rest.segments;
+  }
+  return std::make_unique<CutSession>(scene.problem, config, settings, tumours, tumour_tris, vessels, segments);
 }
 
 }  // namespace arnav::host::cut

@@ -26,6 +26,7 @@
 #include "host/cut/bvh.hpp"
 #include "host/cut/tet_cutter.hpp"
 #include "host/scene/embedding.hpp"
+#include "host/scene/scene.hpp"
 #include "host/sim/model_config.hpp"
 #include "host/sim/tissue_model.hpp"
 
@@ -140,5 +141,9 @@ class CutSession {
   int frame_ = 0;
   int rebuilds_ = 0;
 };
+
+// A cut session on a loaded scene: its tumours and vessels carried through the cuts (one
+// place for arnav-sim --scalpel and arnav-bench cut).
+std::unique_ptr<CutSession> make_cut_session(const Scene& scene, const ModelConfig& config, const CutSessionSettings& settings);
 
 }  // namespace arnav::host::cut

@@ -60,19 +60,8 @@ SimRunResult run_scene_with_scalpel(const Scene& scene, const SimRunOptions& o, 
   settings.sweep_strips = spec.sweep_strips;
   settings.tumour_margin_mm = spec.tumour_margin_mm;
   settings.push_stiffness_mN_per_mm = spec.push_stiffness_mN_per_mm;
-  std::vector<CarriedPoints> tumours;
-  std::vector<std::vector<std::array<int, 3>>> tumour_tris;
-  for (const auto& t : scene.tumours) {
-    tumours.push_back({t.name, t.rest.positions_World_mm, t.embedding});
-    tumour_tris.push_back(t.rest.tris);
-  }
-  std::optional<CarriedPoints> vessels;
-  std::vector<std::array<int, 2>> segments;
-  if (scene.vessels) {
-    vessels = CarriedPoints{"vessels", scene.vessels->rest.nodes_World_mm, scene.vessels->embedding};
-    segments = scene.vessels->rest.segments;
-  }
-  CutSession session(scene.problem, scene.model, settings, tumours, tumour_tris, vessels, segments);
+  const std::unique_ptr<CutSession> session_ptr = make_cut_session(scene, scene.model, settings);
+  CutSession& session = *session_ptr;
   std::ofstream events;
   if (!o.out_dir.empty()) {
     events.open(o.out_dir + "/cut_events.csv");
@@ -92,16 +81,16 @@ SimRunResult run_scene_with_scalpel(const Scene& scene, const SimRunOptions& o, 
     for (std::size_t k = 0; k < session.tumours().size(); ++k) {
       const Eigen::Matrix3Xd p = session.tumours()[k].embedding.apply(mesh, x);
       const std::string stem = "tumour_" + session.tumours()[k].name;
-      if (o.format == "obj") write_obj(numbered(o.out_dir, stem, frame, "obj"), p, tumour_tris[k]);
-      else write_vtk_surface(numbered(o.out_dir, stem, frame, "vtk"), p, tumour_tris[k]);
+      if (o.format == "obj") write_obj(numbered(o.out_dir, stem, frame, "obj"), p, scene.tumours[k].rest.tris);
+      else write_vtk_surface(numbered(o.out_dir, stem, frame, "vtk"), p, scene.tumours[k].rest.tris);
     }
     if (session.vessels() && o.format != "obj")
-      write_vtk_lines(numbered(o.out_dir, "vessels", frame, "vtk"), session.vessels()->embedding.apply(mesh, x), segments,
+      write_vtk_lines(numbered(o.out_dir, "vessels", frame, "vtk"), session.vessels()->embedding.apply(mesh, x), scene.vessels->rest.segments,
                       scene.vessels->rest.radius_mm);
   };
-  const bool has_tumour = !tumours.empty();
+  const bool has_tumour = !scene.tumours.empty();
   auto tumour_centroid = [&]() {
-    return closed_surface_centroid(session.tumours()[0].embedding.apply(session.mesh(), session.positions_World_mm()), tumour_tris[0]);
+    return closed_surface_centroid(session.tumours()[0].embedding.apply(session.mesh(), session.positions_World_mm()), scene.tumours[0].rest.tris);
   };
   const Eigen::Vector3d tumour0 = has_tumour ? tumour_centroid() : Eigen::Vector3d::Zero();
   csv << "frame,time_s,wall_ms,iterations,initial_residual,final_residual,termination,kinetic_energy,elastic_energy,"
