@@ -2,53 +2,23 @@
 // summaries, configuration errors (exit 2, file:line), arnav-can usage, log and bus errors.
 #include <gtest/gtest.h>
 
-#include <sys/wait.h>
-#include <unistd.h>
-
-#include <array>
-#include <cstdio>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
+
+#include "protocol/testing/child_process.hpp"
 
 #include "appliance/can/test/test_config.hpp"
 
 namespace {
 
-struct Result {
-  int code = -1;
-  std::string output;
-};
+using Result = arnav::testing::CommandResult;
+using arnav::testing::data_dir;
 
-Result run(const std::string& command) {
-  Result r;
-  FILE* p = ::popen((command + " 2>&1").c_str(), "r");
-  if (!p) return r;
-  std::array<char, 4096> buf{};
-  std::size_t n;
-  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
-  const int status = ::pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
-
-std::string bin(const std::string& rel) {
-  const char* dir = std::getenv("ARNAV_BINARY_DIR");
-  if (!dir) throw std::runtime_error("ARNAV_BINARY_DIR is not set (run the test through ctest)");
-  return std::string(dir) + "/" + rel;
-}
-
-std::string data_dir() {
-  const char* dir = std::getenv("ARNAV_DATA_DIR");
-  if (!dir) throw std::runtime_error("ARNAV_DATA_DIR is not set (run the test through ctest)");
-  return dir;
-}
-
+Result run(const std::string& command) { return arnav::testing::run_command(command); }
+std::string bin(const std::string& rel) { return arnav::testing::binary_path(rel); }
 std::filesystem::path temp_file(const std::string& name, const std::string& content) {
-  auto p = std::filesystem::temp_directory_path() / ("arnav_can_cli_" + std::to_string(::getpid()) + "_" + name);
-  std::ofstream(p, std::ios::binary) << content;
-  return p;
+  return arnav::testing::write_temp_file("arnav_can_cli", name, content);
 }
 
 TEST(ApplianceCan, CheckCanOnlyAndNdiPlusCan) {

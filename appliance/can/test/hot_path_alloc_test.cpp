@@ -1,26 +1,14 @@
 // The per-frame path (slcan reader + input decoder) must not allocate once warmed up:
-// counted with a replacement global operator new in this test binary only.
+// counted by the test-support operator new (protocol/testing/allocation_counter).
 #include <gtest/gtest.h>
 
-#include <atomic>
-#include <cstdlib>
-#include <new>
+#include "protocol/testing/allocation_counter.hpp"
+
 
 #include "appliance/can/input_decoder.hpp"
 #include "appliance/can/slcan.hpp"
 #include "appliance/can/test/test_config.hpp"
 
-namespace {
-std::atomic<long> g_allocations{0};
-}
-
-void* operator new(std::size_t n) {
-  ++g_allocations;
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 namespace arnav::can {
 namespace {
@@ -55,9 +43,9 @@ TEST(HotPath, SlcanReaderAndDecoderDoNotAllocatePerFrame) {
     }
   };
   run(5);  // warm-up: buffers reach their size
-  const long before = g_allocations.load();
+  const long before = arnav::testing::allocation_count();
   run(200);
-  EXPECT_EQ(g_allocations.load() - before, 0);
+  EXPECT_EQ(arnav::testing::allocation_count() - before, 0);
   EXPECT_GT(sink.inputs, 200);
   EXPECT_GT(decoder.counters().frames, 1000);
 }

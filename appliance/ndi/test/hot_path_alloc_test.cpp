@@ -1,25 +1,13 @@
 // The per-frame receive path (FrameReader + parse_bx) must not allocate: counted with a
-// replacement global operator new in this test binary only.
+// test-support operator new (protocol/testing/allocation_counter).
 #include <gtest/gtest.h>
 
-#include <atomic>
-#include <cstdlib>
-#include <new>
+#include "protocol/testing/allocation_counter.hpp"
+
 
 #include "appliance/ndi/bx.hpp"
 #include "appliance/ndi/frame_reader.hpp"
 
-namespace {
-std::atomic<long> g_allocations{0};
-}
-
-void* operator new(std::size_t n) {
-  ++g_allocations;
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 namespace arnav::ndi {
 namespace {
@@ -45,7 +33,7 @@ TEST(HotPath, ReaderAndBxParseDoNotAllocatePerFrame) {
     reader.feed(frame);
     ASSERT_TRUE(reader.next(f));
   }
-  const long before = g_allocations.load();
+  const long before = arnav::testing::allocation_count();
   int good = 0;
   for (int i = 0; i < 2000; ++i) {
     if (i % 7 == 0) reader.feed(garbage);
@@ -54,7 +42,7 @@ TEST(HotPath, ReaderAndBxParseDoNotAllocatePerFrame) {
     while (reader.next(f))
       if (f.crc_ok && parse_bx(f.bytes, out, BxCrc::AlreadyChecked) == ParseError::None) ++good;
   }
-  EXPECT_EQ(g_allocations.load() - before, 0);
+  EXPECT_EQ(arnav::testing::allocation_count() - before, 0);
   EXPECT_EQ(good, 2000);
   EXPECT_GT(reader.counters().garbage_bytes, 0);
 }
