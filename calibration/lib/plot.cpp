@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <utility>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -125,6 +126,20 @@ void write_chart(const std::filesystem::path& png, const Chart& chart) {
   if (!cv::imwrite(png.string(), render_chart(chart))) {
     throw CalibError(png.string() + ": cannot write the plot");
   }
+}
+
+Chart residual_chart(std::string title, std::string x_label, std::string y_label,
+                     const std::vector<double>& residuals, double rms) {
+  Chart chart;
+  chart.title = std::move(title);
+  chart.x_label = std::move(x_label);
+  chart.y_label = std::move(y_label);
+  PlotSeries s{"residual", {}, residuals, {}, SeriesStyle::Points, cv::Scalar(200, 90, 20)};
+  for (std::size_t i = 0; i < residuals.size(); ++i) s.x.push_back(static_cast<double>(i));
+  chart.series.push_back(std::move(s));
+  chart.reference_y = rms;
+  chart.reference_label = "RMS";
+  return chart;
 }
 
 }  // namespace arnav::calib

@@ -34,6 +34,11 @@ struct Chart {
 };
 
 cv::Mat render_chart(const Chart& chart);
+
+// A per-sample residual chart (x = sample index, points) with the RMS as reference line:
+// the residual plot every calibration report carries.
+Chart residual_chart(std::string title, std::string x_label, std::string y_label,
+                     const std::vector<double>& residuals, double rms);
 // Throws CalibError when the file cannot be written.
 void write_chart(const std::filesystem::path& png, const Chart& chart);
 

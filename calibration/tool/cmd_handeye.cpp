@@ -125,15 +125,8 @@ Run add_handeye_command(CLI::App& app) {
     write_transform(dir / (tool_board.name() + ".yaml"), tool_board);
     r.file(dir / "X_CamNdi.yaml", "camera <- tracker");
     r.file(dir / (tool_board.name() + ".yaml"), "hybrid target: tool <- board");
-    Chart chart;
-    chart.title = "Hand-eye residual per pose (" + to_string(o.method) + ")";
-    chart.x_label = "pose";
-    chart.y_label = "|t_pred - t_cam| mm";
-    PlotSeries s{"translation residual", {}, res.translation_residual_mm, {}, SeriesStyle::Points, cv::Scalar(200, 90, 20)};
-    for (std::size_t i = 0; i < res.translation_residual_mm.size(); ++i) s.x.push_back(static_cast<double>(i));
-    chart.series.push_back(s);
-    chart.reference_y = res.rms_mm;
-    chart.reference_label = "RMS";
+    const Chart chart = residual_chart("Hand-eye residual per pose (" + to_string(o.method) + ")", "pose",
+                                       "|t_pred - t_cam| mm", res.translation_residual_mm, res.rms_mm);
     write_chart(dir / "handeye_residuals.png", chart);
     r.file(dir / "handeye_residuals.png", "residual plot");
     r.save();

@@ -88,15 +88,8 @@ Run add_pivot_command(CLI::App& app) {
     write_transform(tip_path, tip);
     r.file(tip_path, "X_" + a->tool + "Tip: tip point, axes parallel to the tool frame");
 
-    Chart chart;
-    chart.title = "Pivot residual per pose (" + to_string(o.method) + ")";
-    chart.x_label = "pose (file order)";
-    chart.y_label = "|R p_tip + t - p_pivot| mm";
-    PlotSeries s{"residual", {}, res.residual_mm, {}, SeriesStyle::Points, cv::Scalar(200, 90, 20)};
-    for (std::size_t i = 0; i < res.residual_mm.size(); ++i) s.x.push_back(static_cast<double>(i));
-    chart.series.push_back(s);
-    chart.reference_y = res.rms_mm;
-    chart.reference_label = "RMS";
+    const Chart chart = residual_chart("Pivot residual per pose (" + to_string(o.method) + ")", "pose (file order)",
+                                       "|R p_tip + t - p_pivot| mm", res.residual_mm, res.rms_mm);
     write_chart(dir / "pivot_residuals.png", chart);
     r.file(dir / "pivot_residuals.png", "residual plot");
     r.save();
