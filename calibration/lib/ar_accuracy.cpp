@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "calibration/lib/calib_error.hpp"
+#include "calibration/lib/numeric_lines.hpp"
 #include "calibration/lib/plot.hpp"
 
 namespace arnav::calib {
@@ -63,30 +64,8 @@ std::vector<ArAngleStats> summarize_ar_trials(const std::vector<ArTrial>& trials
 
 std::vector<ArTrial> parse_ar_measurements(const std::string& text, const std::string& source) {
   std::vector<ArTrial> trials;
-  std::istringstream in(text);
-  std::string line;
-  int line_no = 0;
-  while (std::getline(in, line)) {
-    ++line_no;
-    for (char& c : line) {
-      if (c == ',' || c == '\t' || c == '\r' || c == ';') c = ' ';
-    }
-    const auto first = line.find_first_not_of(' ');
-    if (first == std::string::npos || line[first] == '#') continue;
-    if (std::isalpha(static_cast<unsigned char>(line[first])) && trials.empty()) continue;  // header
-    std::istringstream fields(line);
-    std::string f;
-    std::vector<double> v;
-    const std::string at = source + ":" + std::to_string(line_no) + ": ";
-    while (fields >> f) {
-      char* end = nullptr;
-      errno = 0;
-      const double x = std::strtod(f.c_str(), &end);
-      if (end == f.c_str() || *end != '\0' || errno == ERANGE || !std::isfinite(x)) {
-        throw CalibError(at + "'" + f.substr(0, 40) + "' is not a finite number");
-      }
-      v.push_back(x);
-    }
+  const NumericLineOptions options{.semicolons = true, .header_line = true};
+  for_each_numeric_line(text, source, [&](const std::vector<double>& v, int, const std::string& at) {
     if (v.size() != 7) {
       throw CalibError(at + "expected 7 columns (view_angle_deg, x/y/z of the virtual target, x/y/z of "
                             "the realigned ball, mm), found " + std::to_string(v.size()));
@@ -95,7 +74,7 @@ std::vector<ArTrial> parse_ar_measurements(const std::string& text, const std::s
     t.view_angle_deg = v[0];
     t.error_mm = (Eigen::Vector3d(v[1], v[2], v[3]) - Eigen::Vector3d(v[4], v[5], v[6])).norm();
     trials.push_back(t);
-  }
+  }, options);
   if (trials.empty()) throw CalibError(source + ": no measurements (7 numbers per line)");
   return trials;
 }

@@ -10,43 +10,10 @@
 #include <Eigen/SVD>
 
 #include "calibration/lib/calib_error.hpp"
+#include "calibration/lib/numeric_lines.hpp"
 
 namespace arnav::calib {
 
-namespace {
-
-// Calls row(values, line_no) for every data line: numbers separated by spaces, tabs or
-// commas; blank lines and '#' comments skipped.
-template <typename Row>
-void for_each_numeric_line(const std::string& text, const std::string& source, Row&& row) {
-  std::istringstream in(text);
-  std::string line;
-  int line_no = 0;
-  while (std::getline(in, line)) {
-    ++line_no;
-    for (char& c : line) {
-      if (c == ',' || c == '\t' || c == '\r') c = ' ';
-    }
-    const auto first = line.find_first_not_of(' ');
-    if (first == std::string::npos || line[first] == '#') continue;
-    const std::string at = source + ":" + std::to_string(line_no) + ": ";
-    std::vector<double> values;
-    std::istringstream fields(line);
-    std::string field;
-    while (fields >> field) {
-      char* end = nullptr;
-      errno = 0;
-      const double v = std::strtod(field.c_str(), &end);
-      if (end == field.c_str() || *end != '\0' || errno == ERANGE || !std::isfinite(v)) {
-        throw CalibError(at + "'" + field.substr(0, 40) + "' is not a finite number");
-      }
-      values.push_back(v);
-    }
-    row(values, line_no, at);
-  }
-}
-
-}  // namespace
 
 std::vector<Eigen::Vector3d> parse_point_list(const std::string& text, const std::string& source) {
   std::vector<Eigen::Vector3d> points;
