@@ -191,8 +191,14 @@ PhantomRecording parse_phantom_recording(const std::string& text, const std::str
   check_names(in, tok, rec.target_names, "target");
   in.expect(tok, "vertices", 1, fix);
   rec.vertex_count = static_cast<int>(in.integer(tok[1], 3, kMaxVertices, "vertex count"));
+  // Each 'v' line takes at least 8 bytes: refuse counts the text cannot hold before allocating.
+  if (static_cast<std::size_t>(rec.vertex_count) * 8 > text.size())
+    in.fail("vertex count " + std::to_string(rec.vertex_count) + " cannot fit in a " + std::to_string(text.size()) +
+            "-byte file (truncated recording?)");
   in.expect(tok, "faces", 1, fix);
   const long faces = in.integer(tok[1], 1, kMaxFaces, "face count");
+  if (static_cast<std::size_t>(faces) * 8 > text.size())
+    in.fail("face count " + std::to_string(faces) + " cannot fit in a " + std::to_string(text.size()) + "-byte file (truncated recording?)");
   for (long f = 0; f < faces; ++f) {
     in.expect(tok, "f", 3, "face " + std::to_string(f) + " of " + std::to_string(faces));
     Eigen::Vector3i v;

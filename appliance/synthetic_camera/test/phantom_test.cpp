@@ -113,6 +113,7 @@ TEST(PhantomRecording, BadFilesNameTheLine) {
   expect_error(with_line(good, 3, "tools 2 grasper"), "ph.txt:3:");
   expect_error(with_line(good, 4, "targets 2 a a"), "ph.txt:4: target 'a' is declared twice");
   expect_error(with_line(good, 5, "vertices -3"), "ph.txt:5: vertex count -3");
+  expect_error(with_line(good, 5, "vertices 1000000"), "ph.txt:5: vertex count 1000000 cannot fit");
   expect_error(with_line(good, 7, "f 0 0 1"), "ph.txt:7: face uses a vertex twice");
   expect_error(with_line(good, 8, "f 0 1 8"), "ph.txt:8: vertex index 8 is outside");
   expect_error(with_line(good, 21, "tool grasper 1 2 3 2 0 0 0"), "ph.txt:21: tool quaternion is not unit");
