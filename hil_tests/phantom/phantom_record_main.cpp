@@ -2,6 +2,7 @@
 // phantom; hil_tests/phantom/phantom_record.hpp) and writes the phantom recording the
 // synthetic camera films and the simulated Polaris tracks (docs/hil.md, "Deforming
 // phantom"). Prints a JSON summary. Exit 2 on bad input.
+#include <filesystem>
 #include <iostream>
 
 #include <CLI/CLI.hpp>
@@ -40,6 +41,11 @@ static int main_body(int argc, char** argv) {
   }
   s.grasp_near_mm = Eigen::Vector3d(near[0], near[1], near[2]);
   s.pull_mm = Eigen::Vector3d(pull[0], pull[1], pull[2]);
+  const std::filesystem::path out_dir = std::filesystem::path(out).parent_path();
+  if (!out_dir.empty() && !std::filesystem::is_directory(out_dir)) {
+    std::cerr << "arnav-phantom-record: --out " << out << ": folder " << out_dir << " does not exist (create it first)\n";
+    return 2;
+  }
   arnav::hil::PhantomRecordStats st;
   try {
     const auto rec = arnav::hil::record_phantom(scene, s, st, [&](int k, int n) {
