@@ -162,4 +162,29 @@ camera_sim::PhantomRecording record_phantom(const std::string& scene_path, const
   return rec;
 }
 
+CentroidComparison compare_tumour_centroids(const camera_sim::PhantomRecording& reference, const camera_sim::PhantomRecording& model) {
+  if (reference.frames.size() != model.frames.size() || reference.frames.empty())
+    throw std::invalid_argument("compare: the recordings have different frame counts");
+  std::vector<double> m, r;
+  const Eigen::Vector3d rest = reference.frames.front().targets_Model_mm.at(0);
+  for (std::size_t k = 0; k < reference.frames.size(); ++k) {
+    if (std::abs(reference.frames[k].t_s - model.frames[k].t_s) > 1e-9) throw std::invalid_argument("compare: frame times differ");
+    const Eigen::Vector3d truth = reference.frames[k].targets_Model_mm.at(0);
+    m.push_back((model.frames[k].targets_Model_mm.at(0) - truth).norm());
+    r.push_back((rest - truth).norm());
+  }
+  const auto summarise = [](std::vector<double> v, double& mean, double& p95, double& max) {
+    double sum = 0;
+    for (double x : v) sum += x;
+    mean = sum / static_cast<double>(v.size());
+    std::sort(v.begin(), v.end());
+    p95 = v[std::min(v.size() - 1, static_cast<std::size_t>(0.95 * static_cast<double>(v.size() - 1) + 0.5))];
+    max = v.back();
+  };
+  CentroidComparison c;
+  summarise(m, c.model_mean_mm, c.model_p95_mm, c.model_max_mm);
+  summarise(r, c.rigid_mean_mm, c.rigid_p95_mm, c.rigid_max_mm);
+  return c;
+}
+
 }  // namespace arnav::hil

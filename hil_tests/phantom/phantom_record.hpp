@@ -54,4 +54,14 @@ camera_sim::PhantomRecording record_phantom(const std::string& scene_path, const
                                             PhantomRecordStats& stats,
                                             const std::function<void(int, int)>& progress = {});
 
+// Tumour centroid (target 0) of `model` against `reference`, frame by frame (same script,
+// same times): how far a model that does deform under the same grasp is from the reference
+// (mesh/model/material mismatch), next to a rigid model (the rest centroid). mm, 3D.
+struct CentroidComparison {
+  double model_mean_mm = 0, model_p95_mm = 0, model_max_mm = 0;
+  double rigid_mean_mm = 0, rigid_p95_mm = 0, rigid_max_mm = 0;
+};
+// Throws std::invalid_argument when the frame times differ.
+CentroidComparison compare_tumour_centroids(const camera_sim::PhantomRecording& reference, const camera_sim::PhantomRecording& model);
+
 }  // namespace arnav::hil

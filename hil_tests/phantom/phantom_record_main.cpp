@@ -18,6 +18,8 @@ static int main_body(int argc, char** argv) {
   std::vector<double> near{s.grasp_near_mm.x(), s.grasp_near_mm.y(), s.grasp_near_mm.z()};
   std::vector<double> pull{s.pull_mm.x(), s.pull_mm.y(), s.pull_mm.z()};
   bool quiet = false;
+  std::string compare_scene;
+  int compare_substeps = 6;
   app.add_option("--scene", scene, "reference scene (another mesh/model/material than the host's), e.g. "
                                    "hil_tests/scenarios/ar_demo/phantom_reference.scene.yaml")->required();
   app.add_option("--out", out, "phantom recording to write")->required();
@@ -34,6 +36,10 @@ static int main_body(int argc, char** argv) {
   app.add_option("--substeps", s.substeps, "model steps per recorded frame")->capture_default_str();
   app.add_flag("--gravity", s.gravity, "apply the scene's gravity (default off: frame 0 is the rest shape the host registered)");
   app.add_flag("--quiet", quiet, "no progress on stderr");
+  app.add_option("--compare-scene", compare_scene,
+                 "also run this scene (e.g. the host's) under the same grasp and report how far its tumour centroid is from "
+                 "the reference's, next to a rigid (non-deforming) model");
+  app.add_option("--compare-substeps", compare_substeps, "model steps per recorded frame for --compare-scene")->capture_default_str();
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -47,11 +53,28 @@ static int main_body(int argc, char** argv) {
     return 2;
   }
   arnav::hil::PhantomRecordStats st;
+  nlohmann::json compare;
   try {
     const auto rec = arnav::hil::record_phantom(scene, s, st, [&](int k, int n) {
       if (!quiet && (k % 15 == 0 || k + 1 == n)) std::cerr << "arnav-phantom-record: frame " << k + 1 << " of " << n << "\n";
     });
     arnav::camera_sim::write_phantom_recording(out, rec);
+    if (!compare_scene.empty()) {
+      arnav::hil::PhantomScript cs = s;
+      cs.substeps = compare_substeps;
+      arnav::hil::PhantomRecordStats cst;
+      const auto other = arnav::hil::record_phantom(compare_scene, cs, cst, [&](int k, int n) {
+        if (!quiet && (k % 15 == 0 || k + 1 == n)) std::cerr << "arnav-phantom-record: compare frame " << k + 1 << " of " << n << "\n";
+      });
+      const auto cmp = arnav::hil::compare_tumour_centroids(rec, other);
+      compare = {{"scene", compare_scene},
+                 {"model", cst.model},
+                 {"volume_vertices", cst.volume_vertices},
+                 {"median_step_ms", cst.median_step_ms},
+                 {"healthy", cst.healthy},
+                 {"model_vs_reference_mm", {{"mean", cmp.model_mean_mm}, {"p95", cmp.model_p95_mm}, {"max", cmp.model_max_mm}}},
+                 {"rigid_vs_reference_mm", {{"mean", cmp.rigid_mean_mm}, {"p95", cmp.rigid_p95_mm}, {"max", cmp.rigid_max_mm}}}};
+    }
   } catch (const std::exception& e) {
     std::cerr << "arnav-phantom-record: " << e.what() << "\n";
     return 2;
@@ -72,6 +95,7 @@ static int main_body(int argc, char** argv) {
                    {"grasp_centre_mm", {st.grasp_centre_mm.x(), st.grasp_centre_mm.y(), st.grasp_centre_mm.z()}},
                    {"healthy", st.healthy},
                    {"warning", st.warning}};
+  if (!compare.is_null()) j["compare"] = compare;
   std::cout << j.dump(2) << std::endl;
   return st.healthy ? 0 : 1;
 }

@@ -4,7 +4,9 @@
 # 1. arnav-phantom-record runs the reference deformation (ar_demo/phantom_reference.scene.yaml:
 #    finer mesh, co-rotational FEM, heterogeneous material; a grasper pulls the underside of
 #    the liver twice) and writes OUT/phantom.txt (deterministic; about 1-2 min, 20 MB, not
-#    committed). An existing OUT/phantom.txt is reused.
+#    committed). An existing OUT/phantom.txt is reused. It also runs the host's scene under
+#    the same grasp (--compare-scene): how close the host's model would be if it coupled
+#    the tool, next to a rigid model.
 # 2. Re-executes itself in a private network namespace (root): lcm-logger, arnav-host
 #    ar_demo/session_phantom.yaml (mass-spring model, registered to the phantom's board),
 #    arnav-appliance ar_demo/appliance_phantom.yaml (synthetic camera filming the deforming
@@ -13,7 +15,7 @@
 #    a rigid overlay would score. FRAMES: camera frames at 15 Hz (default 255, 17 s).
 set -euo pipefail
 if [ "$#" -lt 2 ]; then
-  sed -n '2,14p' "$0" >&2
+  sed -n '2,17p' "$0" >&2
   exit 2
 fi
 here=$(cd "$(dirname "$0")" && pwd)
@@ -37,8 +39,19 @@ if [ "${ARNAV_AR_INSIDE:-}" != "1" ]; then
     duration=$(python3 -c "print(round($frames / 15.0, 3))" 2>/dev/null || echo 17)
     echo "arnav-phantom-record: reference deformation, ${duration} s at 10 Hz (co-rotational FEM, fine mesh)"
     "$record" --scene "$here/ar_demo/phantom_reference.scene.yaml" --out "$out/phantom.txt" --fps 10 --duration "$duration" \
-      --pull 20 10 -15 --grasp-radius 15 --quiet >"$out/phantom_record.json"
-    grep -E '"(model|max_tumour_displacement_mm|max_surface_displacement_mm|median_step_ms)"' "$out/phantom_record.json" | sed 's/^ */  /'
+      --pull 20 10 -15 --grasp-radius 15 --quiet --compare-scene "$here/ar_demo/liver_navigation.scene.yaml" >"$out/phantom_record.json"
+    python3 - "$out/phantom_record.json" <<'PY' || cat "$out/phantom_record.json"
+import json, sys
+j = json.load(open(sys.argv[1]))
+print("  reference: %s, %d vertices / %d tets, median step %.0f ms; surface moved up to %.1f mm, tumour up to %.1f mm"
+      % (j["model"], j["volume_vertices"], j["volume_tets"], j["median_step_ms"], j["max_surface_displacement_mm"], j["max_tumour_displacement_mm"]))
+c = j["compare"]
+m, r = c["model_vs_reference_mm"], c["rigid_vs_reference_mm"]
+print("  the host's scene (%s) under the same grasp: tumour centroid off the reference by mean %.2f, p95 %.2f, max %.2f mm"
+      % (c["model"], m["mean"], m["p95"], m["max"]))
+print("  a rigid model: mean %.2f, p95 %.2f, max %.2f mm (what an overlay that ignores the grasp is off by, before projection)"
+      % (r["mean"], r["p95"], r["max"]))
+PY
   fi
   export ARNAV_AR_INSIDE=1
   exec unshare --net "$0" "$@"

@@ -77,6 +77,26 @@ TEST(PhantomRecord, NoPullNoMotion) {
   EXPECT_LT(st.max_tumour_displacement_mm, 1e-6);
 }
 
+TEST(PhantomRecord, CompareTumourCentroidsAgainstTheReference) {
+  camera_sim::PhantomRecording ref, model;
+  for (int k = 0; k < 5; ++k) {
+    camera_sim::PhantomFrame f;
+    f.t_s = 0.1 * k;
+    f.targets_Model_mm = {Eigen::Vector3d(2.0 * k, 0, 0)};  // the reference tumour moves 2 mm per frame
+    ref.frames.push_back(f);
+    f.targets_Model_mm = {Eigen::Vector3d(2.0 * k, 1.0, 0)};  // the model: 1 mm off throughout
+    model.frames.push_back(f);
+  }
+  const CentroidComparison c = compare_tumour_centroids(ref, model);
+  EXPECT_NEAR(c.model_mean_mm, 1.0, 1e-12);
+  EXPECT_NEAR(c.model_max_mm, 1.0, 1e-12);
+  EXPECT_NEAR(c.rigid_mean_mm, 4.0, 1e-12);  // (0 + 2 + 4 + 6 + 8) / 5
+  EXPECT_NEAR(c.rigid_max_mm, 8.0, 1e-12);
+  EXPECT_NEAR(c.rigid_p95_mm, 8.0, 1e-12);
+  model.frames.pop_back();
+  EXPECT_THROW(compare_tumour_centroids(ref, model), std::invalid_argument);
+}
+
 TEST(PhantomRecord, BadScriptsAndScenesAreRefused) {
   PhantomRecordStats st;
   PhantomScript s;
