@@ -20,7 +20,7 @@ struct PhantomToolPath {
   std::shared_ptr<const camera_sim::PhantomRecording> recording;
   int tool = 0;                                    // index into recording->tool_names
   Eigen::Isometry3d X_NdiModel = Eigen::Isometry3d::Identity();
-  double t0_s = 0.0;                               // device time of recording time start_s
+  double t0_s = 0.0;                               // device time of recording time start_s (first_frame / rate: the boot)
   double start_s = 0.0;
 };
 
