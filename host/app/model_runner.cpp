@@ -136,8 +136,15 @@ void ModelRunner::step_once(std::int64_t now_us) {
           sweep.to = {(*blade)[0], (*blade)[1]};
           sweep.strips = 8;
           if (!sweep.degenerate(1e-6)) {
-            sweeps_.push_back(sweep.triangles());
-            if (sweeps_.size() > 120) sweeps_.pop_front();
+            Sweep sw;
+            sw.tris = sweep.triangles();
+            for (const auto& t : sw.tris) {
+              sw.box.extend(t.a);
+              sw.box.extend(t.b);
+              sw.box.extend(t.c);
+            }
+            sweeps_.push_back(std::move(sw));
+            if (sweeps_.size() > static_cast<std::size_t>(600 * rate_hz_)) sweeps_.pop_front();
           }
         }
         previous_blade_ = blade;
@@ -189,8 +196,11 @@ void ModelRunner::step_once(std::int64_t now_us) {
         on_cut_face_[static_cast<std::size_t>(v)] = 1;
         ++fresh;
         double best = 1e300;
-        for (const auto& sweep : sweeps_)
-          for (const auto& t : sweep) best = std::min(best, cut::point_triangle_distance(x.col(v), t));
+        const Eigen::Vector3d p = x.col(v);
+        for (auto it = sweeps_.rbegin(); it != sweeps_.rend(); ++it) {
+          if (it->box.exteriorDistance(p) >= best) continue;  // newest first: the bound tightens fast
+          for (const auto& t : it->tris) best = std::min(best, cut::point_triangle_distance(p, t));
+        }
         if (best < 1e299) worst = std::max(worst, best);
       }
     if (fresh > 0 && worst >= 0.0) {

@@ -13,6 +13,7 @@
 // that was missing (scalpel stale or lost) only re-places itself on its first step back,
 // so a tracking gap never sweeps a cut across the organ.
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <array>
 #include <atomic>
@@ -61,7 +62,7 @@ struct ModelCutEvent {
 
 // Per step that put new vertices on the cut faces: the cut-path error, the largest distance
 // of those vertices (after the step) from the surface the blade swept while cutting (the
-// last 120 cutting steps' swept triangles, in Model at the time of the sweep). Measured
+// cutting steps' swept triangles of the last 10 minutes, in Model at the time of the sweep). Measured
 // here, independently of the cutter's own bookkeeping (CutStepReport::max_path_deviation_mm,
 // kept as cutter_path_error_mm).
 struct CutStepRecord {
@@ -114,7 +115,11 @@ class ModelRunner {
   std::vector<ModelCutEvent> events_;
   std::vector<CutStepRecord> cut_steps_;
   std::optional<std::array<Eigen::Vector3d, 2>> previous_blade_;
-  std::deque<std::vector<cut::Triangle>> sweeps_;  // swept triangles of the last cutting steps
+  struct Sweep {
+    Eigen::AlignedBox3d box;
+    std::vector<cut::Triangle> tris;
+  };
+  std::deque<Sweep> sweeps_;                        // swept triangles of the cutting steps (last 10 min)
   std::vector<char> on_cut_face_;                   // vertex already seen on a cut face
   mutable std::mutex mutex_;
   std::shared_ptr<const ModelSnapshot> snapshot_;
