@@ -266,7 +266,7 @@ int run_session(const Cli& cli) {
   std::cout << format_status_table(tracker, now) << std::flush;
   if (cli.print_summary) {
     std::cout << format_summary(tracker, run_s);
-    if (config.camera) std::cout << session->format_summary(run_s);
+    if (config.camera || session->has_model()) std::cout << session->format_summary(run_s);
     std::cout << std::flush;
   }
   for (const auto& f : session->recorded_files()) std::cout << "recorded: " << f << "\n";

@@ -188,6 +188,9 @@ void NavigationSession::on_pose(const tool_pose_t& msg, std::int64_t now_us) {
   PoseHistory& h = poses_[msg.tool_name];
   h.recent.push_back({msg, now_us});
   if (h.recent.size() > kHistory) h.recent.pop_front();
+  // Without a camera the scalpel's poses themselves drive the cutting stage.
+  if (!config_.camera && config_.scalpel && model_ && model_->cutting() && msg.tool_name == config_.scalpel->name)
+    blade_without_camera(msg, now_us);
 }
 
 void NavigationSession::on_health(const device_health_t& msg, std::int64_t now_us) {
@@ -242,6 +245,86 @@ std::vector<TipSample> NavigationSession::pointer_tips_Ref(std::int64_t now_us) 
     out.push_back({s.arrival_us, X_RefPointer * l.tip_Tool_mm});
   }
   return out;
+}
+
+bool NavigationSession::cutting_armed(std::int64_t now_us, std::string* banner) {
+  if (config_.cutting.mode == "always") return true;
+  if (config_.cutting.mode != "input") return false;
+  const InputBinding& b = *config_.inputs.cut_enable;
+  const HeldState h = inputs_.held(b.input, b.state_stale_after_ms, now_us);
+  const bool stale = h == HeldState::kStale || h == HeldState::kNeverSeen;
+  const InputLevel* l = inputs_.level(b.input);
+  if (stale) {
+    char text[200];
+    if (!l)
+      std::snprintf(text, sizeof text, "INPUT: cut_enable '%s' - no state yet: cutting disarmed", b.input.c_str());
+    else
+      std::snprintf(text, sizeof text, "INPUT STALE: cut_enable '%s' - no state for %.0f ms (limit %.0f): cutting disarmed", b.input.c_str(),
+                    static_cast<double>(now_us - l->last_seen_us) * 1e-3, b.state_stale_after_ms);
+    if (banner) *banner = text;
+    if (l && !disarmed_) {
+      ++disarm_episodes_;
+      say(text);
+    }
+  }
+  disarmed_ = stale && l != nullptr;
+  if (disarmed_) ++disarmed_frames_;
+  return h == HeldState::kHeld;
+}
+
+void NavigationSession::drain_cut(FrameRow* row) {
+  if (!model_ || !model_->cutting()) return;
+  if (const auto snap = model_->snapshot()) {
+    std::lock_guard lock(mutex_);
+    last_cut_faces_ = snap->cut_faces;
+    last_cut_area_mm2_ = snap->cut_area_mm2;
+    last_cut_surface_ = snap->cut_surface;
+  }
+  const auto steps = model_->cut_steps(cut_steps_seen_);
+  cut_steps_seen_ += steps.size();
+  const auto events = model_->events(events_seen_);
+  events_seen_ += events.size();
+  std::lock_guard lock(mutex_);
+  for (const auto& st : steps) {
+    if (st.new_cut_vertices == 0) continue;
+    cut_path_error_mm_.push_back(st.path_error_mm);
+    if (row) row->cut_path_error_mm = std::max(row->cut_path_error_mm.value_or(0.0), st.path_error_mm);
+  }
+  for (const auto& e : events) {
+    if (row) row->cut_events += (row->cut_events.empty() ? "" : ";") + e.event.kind + ":" + e.event.structure;
+    char text[200];
+    std::snprintf(text, sizeof text, "cut event: %s %s at model step %lld (blade %.1f mm from the tumour; at [%.1f, %.1f, %.1f] mm in Model)",
+                  e.event.kind.c_str(), e.event.structure.c_str(), static_cast<long long>(e.step), e.event.distance_mm,
+                  e.event.location_World_mm.x(), e.event.location_World_mm.y(), e.event.location_World_mm.z());
+    say(text);
+    cut_events_.push_back(e);
+  }
+}
+
+void NavigationSession::blade_without_camera(const tool_pose_t& msg, std::int64_t now_us) {
+  std::optional<std::array<Eigen::Vector3d, 2>> blade;
+  if (msg.status == tool_pose_t::STATUS_VALID && X_RefModel_) {
+    std::optional<Eigen::Isometry3d> X_RefTool;
+    if (msg.frame_parent == "Ref") {
+      X_RefTool = get_pose(msg);
+    } else if (auto it = poses_.find(config_.reference->name); it != poses_.end()) {
+      const PoseSample* best = nullptr;
+      for (const auto& r : it->second.recent) {
+        if (r.msg.status != tool_pose_t::STATUS_VALID || r.msg.frame_parent != msg.frame_parent || r.arrival_us > now_us) continue;
+        if (!best || std::llabs(r.msg.receive_time_mono_us - msg.receive_time_mono_us) < std::llabs(best->msg.receive_time_mono_us - msg.receive_time_mono_us))
+          best = &r;
+      }
+      if (best && std::llabs(best->msg.receive_time_mono_us - msg.receive_time_mono_us) <= 50'000)
+        X_RefTool = get_pose(best->msg).inverse() * get_pose(msg);
+    }
+    if (X_RefTool) {
+      const Eigen::Isometry3d X_ModelTool = X_RefModel_->inverse() * *X_RefTool;
+      blade = std::array<Eigen::Vector3d, 2>{X_ModelTool * config_.scalpel->tip_Tool_mm, X_ModelTool * config_.scalpel->heel_Tool_mm};
+    }
+  }
+  const bool enabled = cutting_armed(now_us, nullptr) && blade.has_value();
+  if (enabled) ++cutting_frames_;
+  model_->set_scalpel(blade, enabled);
 }
 
 void NavigationSession::on_input(const input_event_t& msg, std::int64_t now_us) {
@@ -483,30 +566,11 @@ FrameResult NavigationSession::render_frame(const image_frame_t& msg, std::int64
     X_RefModel = X_RefModel_;
     if (live_) registration_status = live_->status();
     if (cut_model) {
-      if (config_.cutting.mode == "always") {
-        cutting_enabled = true;
-      } else if (config_.cutting.mode == "input") {
-        const InputBinding& b = *config_.inputs.cut_enable;
-        const HeldState h = inputs_.held(b.input, b.state_stale_after_ms, now_us);
-        cutting_enabled = h == HeldState::kHeld;
-        const bool stale = h == HeldState::kStale || h == HeldState::kNeverSeen;
-        if (stale) {
-          add_flag(r.flags, "input_stale");
-          const InputLevel* l = inputs_.level(b.input);
-          char text[200];
-          if (!l)
-            std::snprintf(text, sizeof text, "INPUT: cut_enable '%s' - no state yet: cutting disarmed", b.input.c_str());
-          else
-            std::snprintf(text, sizeof text, "INPUT STALE: cut_enable '%s' - no state for %.0f ms (limit %.0f): cutting disarmed",
-                          b.input.c_str(), static_cast<double>(now_us - l->last_seen_us) * 1e-3, b.state_stale_after_ms);
-          r.banners.push_back({text, cv::Scalar(0, 140, 230)});
-          if (l && !disarmed_) {
-            ++disarm_episodes_;
-            say(text);
-          }
-        }
-        disarmed_ = stale && inputs_.level(b.input) != nullptr;
-        if (disarmed_) ++disarmed_frames_;
+      std::string banner;
+      cutting_enabled = cutting_armed(now_us, &banner);
+      if (!banner.empty()) {
+        add_flag(r.flags, "input_stale");
+        r.banners.push_back({banner, cv::Scalar(0, 140, 230)});
       }
     }
   }
@@ -570,27 +634,7 @@ FrameResult NavigationSession::render_frame(const image_frame_t& msg, std::int64
     // Cut statistics of the model state drawn, events and cutting steps since the last frame.
     out.row.cut_faces = snap->cut_faces;
     out.row.cut_area_mm2 = snap->cut_area_mm2;
-    last_cut_faces_ = snap->cut_faces;
-    last_cut_area_mm2_ = snap->cut_area_mm2;
-    last_cut_surface_ = snap->cut_surface;
-    const auto steps = model_->cut_steps(cut_steps_seen_);
-    cut_steps_seen_ += steps.size();
-    for (const auto& st : steps)
-      if (st.new_cut_vertices > 0) out.row.cut_path_error_mm = std::max(out.row.cut_path_error_mm.value_or(0.0), st.path_error_mm);
-    const auto events = model_->events(events_seen_);
-    events_seen_ += events.size();
-    std::lock_guard lock(mutex_);
-    for (const auto& st : steps)
-      if (st.new_cut_vertices > 0) cut_path_error_mm_.push_back(st.path_error_mm);
-    for (const auto& e : events) {
-      out.row.cut_events += (out.row.cut_events.empty() ? "" : ";") + e.event.kind + ":" + e.event.structure;
-      char text[200];
-      std::snprintf(text, sizeof text, "cut event: %s %s at model step %lld (blade %.1f mm from the tumour; at [%.1f, %.1f, %.1f] mm in Model)",
-                    e.event.kind.c_str(), e.event.structure.c_str(), static_cast<long long>(e.step), e.event.distance_mm,
-                    e.event.location_World_mm.x(), e.event.location_World_mm.y(), e.event.location_World_mm.z());
-      say(text);
-      cut_events_.push_back(e);
-    }
+    drain_cut(&out.row);
   }
   out.row.blade_to_margin_mm = distance;
   char footer[300];
@@ -664,6 +708,7 @@ std::string NavigationSession::status_table(std::int64_t now_us) {
 }
 
 nlohmann::json NavigationSession::summary_json(double run_s) {
+  if (!config_.camera) drain_cut(nullptr);  // no rendering thread: the caller's thread takes the model's reports
   std::lock_guard lock(mutex_);
   nlohmann::json j;
   j["frames_received"] = frames_received_;
@@ -740,10 +785,14 @@ nlohmann::json NavigationSession::summary_json(double run_s) {
 std::string NavigationSession::format_summary(double run_s) {
   const nlohmann::json j = summary_json(run_s);
   std::ostringstream os;
-  os << "navigation: " << j["frames_displayed"] << " frames displayed of " << j["frames_received"] << " received, "
+  if (config_.camera)
+    os << "navigation: " << j["frames_displayed"] << " frames displayed of " << j["frames_received"] << " received, "
      << j["frames_dropped"] << " dropped, " << j["decode_failures"] << " undecodable; " << j["camera_gaps"]["count"]
      << " camera gap(s) over " << config_.camera->stale_after_ms << " ms (longest " << j["camera_gaps"]["max_ms"] << " ms)\n";
+  else
+    os << "navigation: no camera (model only)\n";
   char line[256];
+  if (config_.camera) {
   std::snprintf(line, sizeof line,
                 "  motion-to-photon (capture -> overlay ready): p50 %.1f ms, p99 %.1f ms, max %.1f ms; frame arrival -> ready p50 %.1f ms, "
                 "p99 %.1f ms\n",
@@ -751,6 +800,7 @@ std::string NavigationSession::format_summary(double run_s) {
                 j["motion_to_photon_ms"]["max"].get<double>(), j["host_latency_ms"]["p50"].get<double>(),
                 j["host_latency_ms"]["p99"].get<double>());
   os << line;
+  }
   if (j.contains("model")) {
     std::snprintf(line, sizeof line, "  model: %lld steps, %.1f Hz, step p50 %.2f ms, p99 %.2f ms\n",
                   static_cast<long long>(j["model"]["steps"].get<std::int64_t>()), j["model"]["rate_hz"].get<double>(),

@@ -124,6 +124,14 @@ class NavigationSession {
   overlay::OverlayCamera ensure_renderer(int width, int height);
   void note_flags(const FrameRow& row);
   void say(const std::string& text);  // with mutex_ held
+  // Cutting armed now (mode always, or cut_enable held with a fresh state); sets *banner
+  // when the input is stale; counts disarms. With mutex_ held.
+  bool cutting_armed(std::int64_t now_us, std::string* banner);
+  // Takes the model's cutting steps and events since the last call (rendering thread, or
+  // the caller's without a camera); fills row's cut columns when given.
+  void drain_cut(FrameRow* row);
+  // No camera: every scalpel pose hands the blade to the model (with mutex_ held).
+  void blade_without_camera(const tool_pose_t& msg, std::int64_t now_us);
   std::vector<TipSample> pointer_tips_Ref(std::int64_t now_us);  // with mutex_ held
 
   SessionConfig config_;

@@ -301,6 +301,39 @@ TEST_F(CuttingRun, ModeAlwaysAndOffWithoutInputs) {
   }
 }
 
+// Without a camera (no overlay) the scalpel's poses drive the cutting stage themselves.
+TEST_F(CuttingRun, WithoutACameraTheScalpelPosesCut) {
+  SessionFolder f("nocamera");
+  const std::string text = "arnav_session_version: 1\nlcm_url: \"memq://\"\nscene: " + data_dir() +
+                           "/liver/liver_coarse_cut.scene.yaml\nregistration: X_RefModel.yaml\n"
+                           "tools:\n  reference: {name: liver_marker}\n"
+                           "  scalpel: {name: scalpel, blade: {tip_mm: [0, 0, 0], heel_mm: [0, 0, 60]}}\n"
+                           "inputs: {cut_enable: pedal_right}\nmodel: {rate_hz: 60, gravity: false}\n";
+  SessionOptions o;
+  o.threaded = false;
+  NavigationSession s(load_session(f.write("nocam.yaml", text)), std::make_unique<Scene>(*scene_), o);
+  std::int64_t k = 0;
+  const auto run = [&](int from, int to, bool pedal) {
+    for (int i = from; i <= to; ++i, ++k) {
+      s.on_input(input_msg("pedal_right", pedal, pedal ? 1 : 2, time_of(k), true), time_of(k) + 200);
+      scalpel_at(s, k, X_ModelTool(i));
+      s.advance_model(time_of(k) + 4000);
+    }
+  };
+  run(0, 20, false);
+  EXPECT_EQ(s.summary_json(1.0)["cutting"]["cut_steps"].get<int>(), 0) << "pedal up: no cut";
+  run(21, 40, true);
+  s.on_input(input_msg("pedal_right", false, 3, time_of(k)), time_of(k) + 200);
+  scalpel_at(s, k, X_ModelTool(40));
+  s.advance_model(time_of(k) + 4000);
+  s.advance_model(time_of(k + 1) + 4000);
+  const auto j = s.summary_json(1.0);
+  EXPECT_GT(j["cutting"]["cut_steps"].get<int>(), 0);
+  EXPECT_GT(j["cutting"]["cut_faces"].get<int>(), 0);
+  EXPECT_EQ(j["cutting"]["frames_cutting"].get<int>(), 20);
+  EXPECT_NE(s.format_summary(1.0).find("cutting (input)"), std::string::npos);
+}
+
 // Live registration: four landmarks touched with the pointer, accepted by button presses.
 TEST(LiveRegistration, PointerLandmarksRecoverAKnownRegistration) {
   SessionFolder f("live");
