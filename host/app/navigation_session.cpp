@@ -83,7 +83,10 @@ NavigationSession::NavigationSession(const SessionConfig& config, std::unique_pt
     settings.sweep_strips = spec.sweep_strips;
     settings.tumour_margin_mm = spec.tumour_margin_mm;
     settings.push_stiffness_mN_per_mm = spec.push_stiffness_mN_per_mm;
-    settings.rebuild_in_background = false;  // deterministic (replay == live)
+    // Live: the model is rebuilt on the new mesh on a worker thread while the previous one
+    // keeps stepping (the cut shows at once; a bundled-liver rebuild takes ~0.5 s here).
+    // Replay (unthreaded): inline, so every replay of a log cuts the same way.
+    settings.rebuild_in_background = options_.threaded;
     cutting = settings;
   } else if (!config_.cutting.mode.empty() && config_.cutting.line > 0) {
     throw SessionError(at_cutting + (scene_ ? "the scene " + *config_.scene_path + " declares no 'cutting:' section (docs/cut.md): add it there"
@@ -280,11 +283,11 @@ void NavigationSession::drain_cut(FrameRow* row) {
     last_cut_area_mm2_ = snap->cut_area_mm2;
     last_cut_surface_ = snap->cut_surface;
   }
-  const auto steps = model_->cut_steps(cut_steps_seen_);
-  cut_steps_seen_ += steps.size();
+  const auto steps = model_->cut_steps(cut_steps_seen_);  // the counters are written by this thread only
   const auto events = model_->events(events_seen_);
+  std::lock_guard lock(mutex_);  // summary_json reads them
+  cut_steps_seen_ += steps.size();
   events_seen_ += events.size();
-  std::lock_guard lock(mutex_);
   for (const auto& st : steps) {
     if (st.new_cut_vertices == 0) continue;
     cut_path_error_mm_.push_back(st.path_error_mm);
