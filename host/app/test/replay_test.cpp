@@ -7,6 +7,7 @@
 
 #include <cstdio>
 #include <fstream>
+#include <regex>
 #include <sstream>
 
 #include <lcm/lcm-cpp.hpp>
@@ -50,6 +51,13 @@ void log_event(lcm::LogFile& log, const std::string& channel, const Msg& msg, st
   ev.datalen = static_cast<std::int32_t>(buf.size());
   ev.data = buf.data();
   log.writeEvent(&ev);
+}
+
+std::string slurp_file(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
 }
 
 std::vector<std::vector<std::string>> read_csv(const std::string& path) {
@@ -193,6 +201,15 @@ TEST(Replay, DeterministicWithCuttingAndThePedal) {
   }
   EXPECT_GE(cutting, 40);
   EXPECT_GT(std::stoi(a.back()[11]), 0) << "cut faces at the end";
+  // Bad inputs/cutting declarations: exit 2 naming file:line and the fix.
+  std::string text = slurp_file(session);
+  const std::string bad_key = f.write("bad_inputs.yaml", std::regex_replace(text, std::regex("cut_enable: pedal_right"), "cut_enabel: pedal_right"));
+  EXPECT_EQ(run(arnav_host() + " " + bad_key + " --replay " + log_path, &out), 2);
+  EXPECT_NE(out.find("bad_inputs.yaml:8: key 'inputs.cut_enabel': unknown key (known keys: accept, cut_enable)"), std::string::npos) << out;
+  const std::string no_mode = f.write("no_mode.yaml", std::regex_replace(text, std::regex("inputs: \\{cut_enable: pedal_right\\}\n"), ""));
+  EXPECT_EQ(run(arnav_host() + " " + no_mode + " --replay " + log_path, &out), 2);
+  EXPECT_NE(out.find("no_mode.yaml:3: key 'scene': "), std::string::npos) << out;
+  EXPECT_NE(out.find("say when the scalpel cuts"), std::string::npos) << out;
 }
 
 }  // namespace
