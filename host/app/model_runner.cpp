@@ -1,6 +1,8 @@
 #include "host/app/model_runner.hpp"
 
+#include <algorithm>
 #include <chrono>
+#include <set>
 
 #include <sys/resource.h>
 #include <unistd.h>
@@ -207,6 +209,20 @@ void ModelRunner::step_once(std::int64_t now_us) {
       if (!cut_record) cut_record = CutStepRecord{};
       cut_record->path_error_mm = worst;
       cut_record->new_cut_vertices = fresh;
+    }
+    // The cut's rim on the organ surface: cut-face edges shared with an uncut boundary face.
+    if (!cut_faces.tris.empty()) {
+      std::set<std::pair<int, int>> outer;
+      const auto key = [](int a, int b) { return std::make_pair(std::min(a, b), std::max(a, b)); };
+      const auto& c = cut_->cutter();
+      for (const auto& f : surface)
+        if (!(c.on_cut(f[0]) && c.on_cut(f[1]) && c.on_cut(f[2])))
+          for (int e = 0; e < 3; ++e) outer.insert(key(f[e], f[(e + 1) % 3]));
+      std::set<std::pair<int, int>> rim;
+      for (const auto& f : cut_faces.tris)
+        for (int e = 0; e < 3; ++e)
+          if (const auto k = key(f[e], f[(e + 1) % 3]); outer.count(k)) rim.insert(k);
+      for (const auto& [a, b] : rim) snap->cut_rim_mm.push_back({x.col(a), x.col(b)});
     }
     snap->cut_faces = static_cast<int>(cut_faces.tris.size());
     snap->cut_area_mm2 = 0.25 * area2;  // half of each face's |cross|, half of the faces (two sides)

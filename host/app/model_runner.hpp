@@ -48,6 +48,7 @@ struct ModelSnapshot {
   // Cutting only:
   bool cutting = false;                 // the model is a cut session
   int cut_faces = 0;                    // cut faces on the boundary (both sides of every cut)
+  std::vector<std::array<Eigen::Vector3d, 2>> cut_rim_mm;  // where the cut meets the organ surface (segments)
   double cut_area_mm2 = 0.0;            // area of the cut (half the cut faces' area)
   std::int64_t events_total = 0;        // margin/vessel events so far (ModelRunner::events())
   std::int64_t cut_steps_total = 0;     // steps that cut (topology changed)

@@ -282,6 +282,7 @@ void NavigationSession::drain_cut(FrameRow* row) {
     last_cut_faces_ = snap->cut_faces;
     last_cut_area_mm2_ = snap->cut_area_mm2;
     last_cut_surface_ = snap->cut_surface;
+    last_cut_rim_ = snap->cut_rim_mm;
   }
   const auto steps = model_->cut_steps(cut_steps_seen_);  // the counters are written by this thread only
   const auto events = model_->events(events_seen_);
@@ -617,6 +618,8 @@ FrameResult NavigationSession::render_frame(const image_frame_t& msg, std::int64
       // Without cutting the overlay shows the blade tip's trace through the tissue.
       if (!cut_model) cut_trace_.add(scene_->problem.mesh, snap->volume_positions_mm, tip);
     }
+    if (cut_model)
+      for (const auto& seg : snap->cut_rim_mm) content.cut_paths_mm.push_back({seg[0], seg[1]});
     if (!cut_model && cut_trace_.size() > 0) {
       last_strokes_ = cut_trace_.strokes(snap->volume_positions_mm, scene_->problem.mesh);
       content.cut_paths_mm = last_strokes_;

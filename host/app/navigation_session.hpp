@@ -103,6 +103,8 @@ class NavigationSession {
   std::vector<std::vector<Eigen::Vector3d>> cut_strokes() const { return last_strokes_; }
   // Cutting sessions: the cut faces drawn last (Model, mm; empty before the first cut).
   std::optional<TriMesh> cut_surface() const;
+  // ... and its rim on the organ surface (segments, Model, mm).
+  std::vector<std::array<Eigen::Vector3d, 2>> cut_rim() const { return last_cut_rim_; }
   // The registration in use (file or live, once complete).
   std::optional<Eigen::Isometry3d> X_RefModel();
   const LiveRegistration* live_registration() const { return live_.get(); }
@@ -177,6 +179,7 @@ class NavigationSession {
   std::int64_t cutting_frames_ = 0, disarmed_frames_ = 0, disarm_episodes_ = 0;
   bool disarmed_ = false;
   std::optional<TriMesh> last_cut_surface_;
+  std::vector<std::array<Eigen::Vector3d, 2>> last_cut_rim_;
   double last_cut_area_mm2_ = 0.0;
   int last_cut_faces_ = 0;
   std::vector<std::vector<Eigen::Vector3d>> last_strokes_;

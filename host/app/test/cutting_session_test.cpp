@@ -156,6 +156,14 @@ TEST_F(CuttingRun, PedalHeldCutsAlongTheScalpelPathAndTheOverlayShowsIt) {
         longest_edge = std::max(longest_edge, (mesh.rest_positions_World_mm.col(t[a]) - mesh.rest_positions_World_mm.col(t[b])).norm());
   const double bound_mm = 0.1 * longest_edge + 0.05;
   EXPECT_LT(worst_plane, bound_mm) << "cut faces off the swept surface (longest edge " << longest_edge << " mm)";
+  // The rim (where the cut opens on the organ surface) lies on the swept plane too, above the tip.
+  const auto rim = s->cut_rim();
+  EXPECT_GE(rim.size(), 4u);
+  for (const auto& seg : rim)
+    for (const auto& p : seg) {
+      EXPECT_LT(std::abs((p - origin).dot(normal)), bound_mm);
+      EXPECT_GT((p - origin).dot(blade_dir), 1.0) << "the rim is on the organ's surface, above the tip inside it";
+    }
   EXPECT_NEAR(last.row.cut_area_mm2, area / 2, 1e-6 * area + 0.01);
   // The swept area inside the organ: path 44.7 mm x blade 60 mm at most.
   EXPECT_GT(last.row.cut_area_mm2, 200.0);
