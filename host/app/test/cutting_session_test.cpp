@@ -10,6 +10,7 @@
 #include <random>
 
 #include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "arnav/input_event_t.hpp"
 #include "host/app/navigation_session.hpp"
@@ -184,6 +185,7 @@ TEST_F(CuttingRun, PedalHeldCutsAlongTheScalpelPathAndTheOverlayShowsIt) {
     green += bgr[1] > bgr[2] + 20 ? 1 : 0;
   }
   EXPECT_GE(green, probed * 7 / 10) << green << " of " << probed;
+  if (std::getenv("ARNAV_KEEP")) cv::imwrite((f.dir / "cut.png").string(), last.image);
   // Events: the blade came within the scene's 10 mm tumour margin (8 mm above the tumour).
   const auto j = s->summary_json(1.0);
   ASSERT_TRUE(j.contains("cutting"));
