@@ -13,6 +13,7 @@
 #include "host/sim/element_measure.hpp"
 #include "host/sim/fem/blas_threads.hpp"
 #include "host/sim/fem/rotation_extraction.hpp"
+#include "host/sim/fem/stable_neo_hookean_fem.hpp"
 #include "host/sim/tet_geometry.hpp"
 
 namespace arnav::host {
@@ -630,6 +631,10 @@ std::vector<ElementMeasure> CorotationalFem::element_measures() const {
 }
 
 std::unique_ptr<TissueModel> make_corotational_fem(const SimProblem& problem, const ModelConfig& config) {
+  if (config.material_model == "stable_neo_hookean") return std::make_unique<StableNeoHookeanFem>(problem, config);
+  if (!config.material_model.empty() && config.material_model != "corotational_linear")
+    throw std::invalid_argument("corotational_fem: unknown material_model '" + config.material_model +
+                                "' (use corotational_linear or stable_neo_hookean)");
   return std::make_unique<CorotationalFem>(problem, config);
 }
 
