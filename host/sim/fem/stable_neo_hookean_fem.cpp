@@ -3,6 +3,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
+#include <Eigen/SVD>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -61,10 +62,58 @@ Matrix9d hessian(const Eigen::Matrix3d& F, double mu, double lambda, bool projec
   if (projected) *projected = false;
   if (!project) return H;
   // Most elements are (numerically) semi-definite already: the infinitesimal rotations have
-  // zero stiffness, hence the small shift in the test. The others: clamp the eigenvalues.
+  // zero stiffness, hence the small shift in the test.
   const Eigen::LLT<Matrix9d> llt(H + (1e-9 * mu) * Matrix9d::Identity());
   if (llt.info() == Eigen::Success) return H;
   if (projected) *projected = true;
+  // Analytic eigensystem (Smith, de Goes & Kim 2019) in the rotation-variant SVD
+  // F = U diag(s) V^T (U, V rotations, s2 may be negative): with r = lambda' (J - 1) - mu,
+  //   twist  U (e_i e_j^T - e_j e_i^T) V^T / sqrt2:  mu + r s_k
+  //   flip   U (e_i e_j^T + e_j e_i^T) V^T / sqrt2:  mu - r s_k      ({i, j, k} = {0, 1, 2})
+  //   scaling U diag(w) V^T, w an eigenvector of mu I + lambda' c c^T + r [s_k off the diagonal],
+  //   c_i = prod_{j != i} s_j.
+  // The negative modes are removed from H: H + sum_{l < 0} (-l) q q^T.
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d U = svd.matrixU(), V = svd.matrixV();
+  Eigen::Vector3d sv = svd.singularValues();
+  if (U.determinant() < 0) {
+    U.col(2) *= -1.0;
+    sv[2] *= -1.0;
+  }
+  if (V.determinant() < 0) {
+    V.col(2) *= -1.0;
+    sv[2] *= -1.0;
+  }
+  auto add_mode = [&](const Eigen::Matrix3d& D, double eigenvalue) {
+    if (eigenvalue >= 0.0) return;
+    const Eigen::Matrix3d Q = U * D * V.transpose();
+    const Eigen::Map<const Eigen::Matrix<double, 9, 1>> q(Q.data());
+    H.noalias() -= eigenvalue * q * q.transpose();
+  };
+  const double inv_sqrt2 = 1.0 / std::sqrt(2.0);
+  for (int k = 0; k < 3; ++k) {
+    const int i = (k + 1) % 3, j = (k + 2) % 3;
+    Eigen::Matrix3d T = Eigen::Matrix3d::Zero();
+    T(i, j) = inv_sqrt2;
+    T(j, i) = -inv_sqrt2;
+    add_mode(T, mu + s * sv[k]);
+    T(j, i) = inv_sqrt2;
+    add_mode(T, mu - s * sv[k]);
+  }
+  const Eigen::Vector3d c(sv[1] * sv[2], sv[0] * sv[2], sv[0] * sv[1]);
+  Eigen::Matrix3d A = mu * Eigen::Matrix3d::Identity() + lp * c * c.transpose();
+  A(0, 1) += s * sv[2];
+  A(1, 0) += s * sv[2];
+  A(0, 2) += s * sv[1];
+  A(2, 0) += s * sv[1];
+  A(1, 2) += s * sv[0];
+  A(2, 1) += s * sv[0];
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(A);
+  for (int m = 0; m < 3; ++m) add_mode(Eigen::Matrix3d(eig.eigenvectors().col(m).asDiagonal()), eig.eigenvalues()[m]);
+  return H;
+}
+
+Matrix9d project_numerically(const Matrix9d& H) {
   const Eigen::SelfAdjointEigenSolver<Matrix9d> eig(H);
   const Eigen::Matrix<double, 9, 1> d = eig.eigenvalues().cwiseMax(0.0);
   return eig.eigenvectors() * d.asDiagonal() * eig.eigenvectors().transpose();
@@ -314,7 +363,12 @@ StepSummary StableNeoHookeanFem::substep(double h) {
   double load_scale = 0.0, gnorm0 = 0.0, gnorm = 0.0;
   int it = 0;
   std::string termination = "max_iterations";
+  timing_ = {};
+  auto ms_since = [](std::chrono::steady_clock::time_point t) {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+  };
   for (; it < newton_iterations_; ++it) {
+    const auto t_assemble = std::chrono::steady_clock::now();
     const double psi = assemble_elastic(x, dynamic && it == 0 && any_beta);
     external(x, &f_ext);
     grad = -hh * (f_el_ + f_ext);
@@ -375,7 +429,13 @@ StepSummary StableNeoHookeanFem::substep(double h) {
       }
     const Eigen::VectorXd rhs = -grad;
     sol_.setZero(rhs.size());
+    const auto t_solve = std::chrono::steady_clock::now();
+    timing_.assemble_ms += std::chrono::duration<double, std::milli>(t_solve - t_assemble).count();
     const LinearSolveSummary ls = solver_.solve(A_, rhs, sol_, gnorm0);
+    timing_.solve_ms += ms_since(t_solve);
+    timing_.linear_iterations += ls.iterations;
+    timing_.factorizations += ls.factorized ? 1 : 0;
+    const auto t_line = std::chrono::steady_clock::now();
     if (!ls.ok || !sol_.allFinite()) {
       summary.healthy = false;
       summary.warning = "Newton: linear solve failed (" + (ls.ok ? std::string("non-finite solution") : ls.message) + "); state kept";
@@ -394,6 +454,7 @@ StepSummary StableNeoHookeanFem::substep(double h) {
       accepted = std::isfinite(e1) && e1 <= e0 + 1e-4 * alpha * slope;
       if (!accepted) alpha *= 0.5;
     }
+    timing_.line_search_ms += ms_since(t_line);
     if (!accepted) {
       if (-slope <= 1e-12 * (std::abs(e0) + 1.0)) {
         termination = "at_equilibrium";  // the predicted decrease is below the round-off of E

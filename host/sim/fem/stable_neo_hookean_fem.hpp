@@ -10,8 +10,9 @@
 // P = dPsi/dF = mu F + (lambda' (J - 1) - mu) cof(F); the 9x9 Hessian
 //   mu I + lambda' vec(cof F) vec(cof F)^T + (lambda' (J - 1) - mu) d2J/dF2
 // is indefinite under compression and inversion; each element's Hessian is projected to
-// positive semi-definite (a Cholesky test first; if it fails, the eigen-decomposition with
-// negative eigenvalues clamped to zero), so every Newton system is positive definite.
+// positive semi-definite (a Cholesky test first; if it fails, the negative modes of the
+// analytic eigensystem, Smith, de Goes & Kim 2019, are removed), so every Newton system is
+// positive definite.
 //
 // Integrators (ModelConfig.integrator):
 //   implicit_euler  minimises the incremental potential of backward Euler
@@ -48,6 +49,8 @@ Eigen::Matrix3d first_piola(const Eigen::Matrix3d& F, double mu, double lambda);
 // d2Psi/dF2 in column-major vec(F) order; `project`: clamped to positive semi-definite.
 // `projected` (optional) tells whether the eigen-decomposition was needed.
 Matrix9d hessian(const Eigen::Matrix3d& F, double mu, double lambda, bool project, bool* projected = nullptr);
+// Reference projection for the tests: full 9x9 eigen-decomposition, negative eigenvalues -> 0.
+Matrix9d project_numerically(const Matrix9d& H);
 }  // namespace stable_neo_hookean
 
 class StableNeoHookeanFem final : public TissueModel {
@@ -76,6 +79,13 @@ class StableNeoHookeanFem final : public TissueModel {
   int last_newton_iterations() const { return last_newton_; }
   int last_projected_elements() const { return last_projected_; }  // eigen-projected in the last assembly
   double elastic_energy() const;                                     // Psi summed over the tets, mN*mm
+  // Where the last (sub-)step's time went (wall ms, summed over its Newton iterations) and
+  // the linear solver's iterations (PCG) in it.
+  struct Timing {
+    double assemble_ms = 0, solve_ms = 0, line_search_ms = 0;
+    int linear_iterations = 0, factorizations = 0;
+  };
+  const Timing& last_timing() const { return timing_; }
 
  private:
   struct Tet {
@@ -115,6 +125,7 @@ class StableNeoHookeanFem final : public TissueModel {
   Eigen::VectorXd f_el_, sol_;
   FemLinearSolver solver_;
   InversionMonitor inversions_;
+  Timing timing_;
   int last_newton_ = 0;
   int last_projected_ = 0;
   double last_dt_ = -1.0;
