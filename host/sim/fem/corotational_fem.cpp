@@ -167,6 +167,9 @@ CorotationalFem::CorotationalFem(const SimProblem& problem, const ModelConfig& c
   for (int v : problem.fixed_vertices) fixed_[v] = 1;
   solver_.set_refresh_residual(options_.refresh_residual);
   solver_.set_background_refactor(config.refactor_in_background);
+  if (options_.background_nice < 0 || options_.background_nice > 19)
+    throw std::invalid_argument("corotational_fem: background_nice must be in [0, 19]");
+  solver_.set_background_nice(options_.background_nice);
   if (config.single_precision_preconditioner && solver_.kind() != FemLinearSolver::Kind::PcgFactor) {
     throw std::invalid_argument("corotational_fem: single_precision_preconditioner needs linear_solver pcg");
   }
