@@ -216,6 +216,21 @@ std::vector<Setting> settings(bool quick, bool fine, int threads) {
       c.refactor_every = 30;
       add("fem implicit pcg3 background r30 float", c);
     }
+    // Stable Neo-Hookean material, projected Newton (docs/sim.md): up to 3 Newton
+    // iterations per frame with exact CHOLMOD solves, and 1 iteration per frame solved by
+    // PCG on a lagged factor (refreshed every 30 frames).
+    ModelConfig n;
+    n.kind = "corotational_fem";
+    n.material_model = "stable_neo_hookean";
+    n.integrator = "implicit_euler";
+    n.linear_solver = "cholmod";
+    n.iterations = 3;
+    n.tolerance = 1e-3;
+    if (!fine) add("fem snh newton3 cholmod", n);
+    n.linear_solver = "pcg";
+    n.iterations = 1;
+    n.refactor_every = 30;
+    add("fem snh newton1 pcg r30", n);
   }
   return out;
 }

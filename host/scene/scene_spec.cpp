@@ -358,7 +358,7 @@ SceneSpec parse_scene_spec(const std::string& yaml_text, const std::string& sour
 
   const YAML::Node model = r.require(root, "model", "the scene");
   r.keys(model, {"kind", "integrator", "energy", "linear_solver", "iterations", "substeps", "tolerance", "refactor_every", "threads",
-                  "refactor_in_background", "blas_threads", "single_precision_preconditioner"}, "model");
+                  "refactor_in_background", "blas_threads", "single_precision_preconditioner", "material_model"}, "model");
   s.model_line = model.Mark().line + 1;
   s.model.kind = r.string(r.require(model, "kind", "model"), "model.kind");
   if (s.model.kind != "mass_spring" && s.model.kind != "xpbd" && s.model.kind != "corotational_fem")
@@ -369,6 +369,14 @@ SceneSpec parse_scene_spec(const std::string& yaml_text, const std::string& sour
     if (s.model.kind != "xpbd") r.fail(model["energy"], "model.energy applies to kind xpbd only", "remove it or use kind: xpbd");
     if (s.model.energy != "corotated" && s.model.energy != "neo_hookean")
       r.fail(model["energy"], "unknown model.energy '" + s.model.energy + "'", "use corotated or neo_hookean (one sweep per substep: iterations: 1)");
+  }
+  if (model["material_model"]) {
+    s.model.material_model = r.string(model["material_model"], "model.material_model");
+    if (s.model.kind != "corotational_fem")
+      r.fail(model["material_model"], "model.material_model applies to kind corotational_fem only", "remove it or use kind: corotational_fem");
+    if (s.model.material_model != "corotational_linear" && s.model.material_model != "stable_neo_hookean")
+      r.fail(model["material_model"], "unknown model.material_model '" + s.model.material_model + "'",
+             "use corotational_linear (default) or stable_neo_hookean (projected Newton; iterations = Newton iterations)");
   }
   if (model["linear_solver"]) s.model.linear_solver = r.string(model["linear_solver"], "model.linear_solver");
   if (model["iterations"]) s.model.iterations = static_cast<int>(r.integer(model["iterations"], "model.iterations", 1, 100000));

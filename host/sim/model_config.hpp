@@ -10,6 +10,9 @@ struct ModelConfig {
   std::string integrator;             // mass_spring: "explicit" | "semi_implicit" | "local_global";
                                       // corotational_fem: "implicit_euler" | "quasi_static"
   std::string energy{};               // xpbd: "corotated" (default when empty) | "neo_hookean"
+  std::string material_model{};       // corotational_fem: "corotational_linear" (default when empty) |
+                                      // "stable_neo_hookean" (projected Newton; iterations = Newton
+                                      // iterations per step; stable_neo_hookean_fem.hpp)
   std::string linear_solver;          // corotational_fem: "cholmod" | "eigen_ldlt" | "pcg" | "pcg_jacobi";
                                       // mass_spring semi_implicit: "jacobi" (default) | "laplacian"
   int iterations = 10;                // XPBD iterations per substep; PCG max iterations;

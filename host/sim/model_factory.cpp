@@ -100,6 +100,18 @@ std::vector<ModelVariant> model_variants() {
     c.tolerance = 1e-4;
     c.refactor_every = 30;
     out.push_back({"corotational_fem/implicit_euler", c});
+    // Stable Neo-Hookean material, projected Newton (docs/sim.md): up to 2 Newton iterations
+    // per step, each solved by PCG on a CHOLMOD factor of the projected (positive definite)
+    // system refreshed every 30 steps (and whenever PCG stalls).
+    ModelConfig n;
+    n.kind = "corotational_fem";
+    n.material_model = "stable_neo_hookean";
+    n.integrator = "implicit_euler";
+    n.linear_solver = "pcg";
+    n.refactor_every = 30;
+    n.iterations = 2;
+    n.tolerance = 1e-3;
+    out.push_back({"corotational_fem/stable_neo_hookean/implicit_euler", n});
   }
 #endif
   return out;

@@ -147,6 +147,15 @@ TEST(SceneFile, XpbdEnergyIsRead) {
   EXPECT_EQ(load_scene(write_file(dir, "default.scene.yaml", kBase)).model.energy, "");
 }
 
+TEST(SceneFile, FemMaterialModelIsRead) {
+  const std::string dir = make_box_files(scratch("material_model"));
+  std::string fem = kBase;
+  fem.replace(fem.find("kind: xpbd"), 10, "kind: corotational_fem");
+  const Scene s = load_scene(write_file(dir, "snh.scene.yaml", fem + "  material_model: stable_neo_hookean\n  iterations: 3\n"));
+  EXPECT_EQ(s.model.material_model, "stable_neo_hookean");
+  EXPECT_EQ(load_scene(write_file(dir, "default.scene.yaml", fem)).model.material_model, "");
+}
+
 TEST(SceneFile, VesselsForDisplayOnlyAreNotGivenToTheModel) {
   const std::string dir = make_box_files(scratch("display"));
   const std::string text = kBase + "structures:\n  vessels:\n    nodes_mm: [[2, 10, 10], [20, 10, 10]]\n    radius_mm: [2, 1]\n"
@@ -230,6 +239,7 @@ TEST(SceneFile, SchemaErrorsNameFileAndLine) {
       {kBase + "  refactor_in_background: sometimes\n", 9, "model.refactor_in_background"},
       {kBase + "  blas_threads: -1\n", 9, "model.blas_threads"},
       {kBase + "  energy: neohookean\n", 9, "unknown model.energy"},
+      {kBase + "  material_model: stable_neo_hookean\n", 9, "applies to kind corotational_fem only"},
       {"organ: {surface: block.obj}\nvolume: {file: block.vtk}\nmaterials:\n  default: {youngs_modulus_kPa: 5, poisson_ratio: 0.45, "
        "density_kg_per_mm3: 1e-6}\nmodel: {kind: fem}\n",
        5, "unknown model kind 'fem'"},

@@ -13,6 +13,7 @@
 #include "host/sim/element_measure.hpp"
 #include "host/sim/fem/blas_threads.hpp"
 #include "host/sim/fem/rotation_extraction.hpp"
+#include "host/sim/fem/stable_neo_hookean_fem.hpp"
 #include "host/sim/tet_geometry.hpp"
 
 namespace arnav::host {
@@ -166,6 +167,9 @@ CorotationalFem::CorotationalFem(const SimProblem& problem, const ModelConfig& c
   for (int v : problem.fixed_vertices) fixed_[v] = 1;
   solver_.set_refresh_residual(options_.refresh_residual);
   solver_.set_background_refactor(config.refactor_in_background);
+  if (options_.background_nice < 0 || options_.background_nice > 19)
+    throw std::invalid_argument("corotational_fem: background_nice must be in [0, 19]");
+  solver_.set_background_nice(options_.background_nice);
   if (config.single_precision_preconditioner && solver_.kind() != FemLinearSolver::Kind::PcgFactor) {
     throw std::invalid_argument("corotational_fem: single_precision_preconditioner needs linear_solver pcg");
   }
@@ -630,6 +634,10 @@ std::vector<ElementMeasure> CorotationalFem::element_measures() const {
 }
 
 std::unique_ptr<TissueModel> make_corotational_fem(const SimProblem& problem, const ModelConfig& config) {
+  if (config.material_model == "stable_neo_hookean") return std::make_unique<StableNeoHookeanFem>(problem, config);
+  if (!config.material_model.empty() && config.material_model != "corotational_linear")
+    throw std::invalid_argument("corotational_fem: unknown material_model '" + config.material_model +
+                                "' (use corotational_linear or stable_neo_hookean)");
   return std::make_unique<CorotationalFem>(problem, config);
 }
 

@@ -40,6 +40,8 @@ struct FemOptions {
   double strain_warning = 0.3;      // co-rotated strain beyond which linear elasticity is
                                     // reported as out of range (warning, still healthy)
   VesselBeamOptions beams;          // used only when the problem declares vessels
+  int background_nice = 5;          // refactor_in_background: nice level of the worker thread
+                                    // (FemLinearSolver::set_background_nice)
 };
 
 class CorotationalFem final : public TissueModel {

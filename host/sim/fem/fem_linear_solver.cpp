@@ -14,6 +14,8 @@
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
+#include <sys/resource.h>
+#include <unistd.h>
 
 namespace arnav::host {
 
@@ -171,7 +173,11 @@ void FemLinearSolver::start_background(const SparseMatrixLower& A, LinearSolveSu
   Cholmod* L = f_->pending.get();
   SinglePrecisionFactor* single = single_precision_ ? &f_->single_pending : nullptr;
   const SparseMatrixLower* M = &f_->snapshot;
-  job_ = std::async(std::launch::async, [L, single, M, analyze] {
+  const int nice_level = background_nice_;
+  job_ = std::async(std::launch::async, [L, single, M, analyze, nice_level] {
+    // The worker yields the core to the stepping thread whenever they compete (a loaded
+    // machine): Linux applies setpriority to the calling thread only (a fresh thread per job).
+    if (nice_level > 0) setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), nice_level);
     const SerialOpenMpRegions serial;
     if (analyze) L->analyzePattern(*M);
     L->factorize(*M);

@@ -57,6 +57,11 @@ class FemLinearSolver {
   // worker is (not bit-reproducible); off (default) is deterministic.
   void set_background_refactor(bool on);
   bool background_refactor() const { return background_; }
+  // Nice level (0-19) of the background worker thread: on a machine with more runnable
+  // threads than cores the stepping thread gets most of a core and the refactorisation
+  // the rest (default 5: about 3:1 against the stepping thread, ahead of niced builds; 19
+  // starves the worker under load and the lagged factor ages; docs/sim-fem.md).
+  void set_background_nice(int nice_level) { background_nice_ = nice_level; }
   // Waits until a running background factorisation is done (for tests).
   void wait_for_background();
 
@@ -101,6 +106,7 @@ class FemLinearSolver {
   bool have_factor_ = false;
   int steps_since_factor_ = 0;
   bool background_ = false;
+  int background_nice_ = 5;
   bool single_precision_ = false;
   bool refresh_requested_ = false;  // background mode: force_refactor() asked for a new factor
   long solves_ = 0;                 // solve() calls so far

@@ -177,7 +177,7 @@ MassSpringModel::MassSpringModel(const SimProblem& problem, Integrator integrato
 
   thread_buffers_.assign(static_cast<std::size_t>(threads_), Eigen::Matrix3Xd::Zero(3, n));
   for (Eigen::Matrix3Xd* m : {&f_, &rhs_, &dv_, &r_, &z_, &p_, &q_, &diag_}) *m = Eigen::Matrix3Xd::Zero(3, n);
-  if (integrator_ == Integrator::kSemiImplicit) {
+  {  // semi-implicit buffers: also the fallback of the explicit and local/global integrators
     spring_dir_.resize(springs_.ends.size());
     spring_s1_.resize(springs_.ends.size());
     spring_s2_.resize(springs_.ends.size());
@@ -591,6 +591,50 @@ StepSummary MassSpringModel::semi_implicit_substep(double h) {
 
 StepSummary MassSpringModel::step(double dt_s) {
   check_dt(dt_s);
+  if (integrator_ == Integrator::kSemiImplicit) return step_unguarded(dt_s);
+  // Fallback (docs/sim.md): the explicit and local/global integrators diverge on extreme
+  // boundaries (an organ hanging from a small patch: nearly every tet flips within
+  // 0.1-0.6 s). A step that ends unhealthy (non-finite state, energy created, collapse) is
+  // undone and redone with the semi-implicit integrator (unconditionally stable), which
+  // then also takes the next kFallbackSpan_s of simulated time; named in the warning.
+  constexpr double kFallbackSpan_s = 1.0;
+  auto semi_implicit_step = [&]() {
+    const Integrator integrator = integrator_;
+    const ModelConfig config = config_;
+    integrator_ = Integrator::kSemiImplicit;
+    config_.substeps = 1;
+    config_.iterations = 20;
+    config_.tolerance = 1e-4;
+    StepSummary s = step_unguarded(dt_s);
+    integrator_ = integrator;
+    config_ = config;
+    return s;
+  };
+  if (fallback_left_s_ > 0.0) {
+    StepSummary s = semi_implicit_step();
+    fallback_left_s_ -= dt_s;
+    if (s.healthy)
+      report(s, "fallback: semi_implicit integrator for another " + std::to_string(std::max(fallback_left_s_, 0.0)) + " s", false);
+    return s;
+  }
+  const Eigen::Matrix3Xd x0 = x_, v0 = v_;
+  const InversionMonitor inversions0 = inversions_;
+  StepSummary first = step_unguarded(dt_s);
+  if (first.healthy || first.termination == "refused_unstable_dt") return first;
+  x_ = x0;
+  v_ = v0;
+  inversions_ = inversions0;
+  StepSummary s = semi_implicit_step();
+  ++fallbacks_;
+  if (s.healthy) {
+    fallback_left_s_ = kFallbackSpan_s - dt_s;
+    report(s, name() + " diverged (" + first.warning.substr(0, 160) + "): step undone and redone with the semi_implicit "
+                        "integrator, which takes the next " + std::to_string(kFallbackSpan_s) + " s (fallback)", false);
+  }
+  return s;
+}
+
+StepSummary MassSpringModel::step_unguarded(double dt_s) {
   const auto start = std::chrono::steady_clock::now();
   StepSummary summary;
   const double h = dt_s / config_.substeps;

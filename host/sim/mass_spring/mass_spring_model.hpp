@@ -21,6 +21,8 @@
 //    of the geometric stiffness so the matrix stays SPD: unconditionally stable for any
 //    dt, with numerical damping that grows with dt. linear_solver "laplacian" replaces the
 //    Jacobi preconditioner by the prefactored local/global matrix below.
+//  Fallback: an explicit or local/global step that ends unhealthy (diverged) is undone and
+//  redone semi-implicitly, and the semi-implicit integrator takes the next 1 s (warning).
 //  - "local_global": backward Euler solved by `iterations` local/global iterations with a
 //    constant matrix factored once by CHOLMOD (fast mass-spring, Liu et al. 2013; see
 //    local_global_step.cpp). Refactored only when h, the fixed set or the attachments
@@ -77,8 +79,12 @@ class MassSpringModel final : public TissueModel {
   // local_global: numeric factorisations so far, and the last one's wall time (ms).
   int refactorizations() const { return refactorizations_; }
   double last_factor_ms() const { return system_.last_factor_ms(); }
+  // explicit / local_global: steps redone with the semi-implicit integrator after they
+  // diverged (step() below; docs/sim.md).
+  int fallbacks() const { return fallbacks_; }
 
  private:
+  StepSummary step_unguarded(double dt_s);  // one step with integrator_ and config_
   void explicit_substep(double h);
   StepSummary semi_implicit_substep(double h);
   StepSummary local_global_substep(double h);
@@ -124,6 +130,8 @@ class MassSpringModel final : public TissueModel {
   double zeta_ = 0.0;       // damping ratio of that mode
   double current_h_ = 0.0;  // substep of the current semi-implicit solve
   InversionMonitor inversions_;  // inverted tets: counted warning (step_health.hpp)
+  double fallback_left_s_ = 0.0;  // simulated time the semi-implicit fallback still runs
+  int fallbacks_ = 0;
   EnergyLedger ledger_;
 
   // Work buffers, sized once (no allocation per step).

@@ -101,6 +101,7 @@ struct Outcome {
   int frames_with_inverted = 0, peak_inverted = 0;
   double worst_inverted_run_s = 0.0, peak_strain = 0.0, max_displacement_mm = 0.0;
   double median_ms = 0.0;
+  int fallback_frames = 0;  // steps whose warning names the mass-spring semi-implicit fallback
 };
 
 // The free surface vertices within radius of `centre` (a surface vertex).
@@ -171,6 +172,7 @@ Outcome run_case(const Scene& sc, const ModelVariant& variant, const std::string
     for (std::size_t j = 0; j < ids.size(); ++j) model->set_attachment_target(ids[j], p.col(patch[j]) + ramp * move);
     const StepSummary s = model->step(dt);
     wall.push_back(s.wall_time_ms);
+    if (s.warning.find("fallback") != std::string::npos) ++o.fallback_frames;
     const Eigen::Matrix3Xd& x = model->positions_World_mm();
     if (!x.allFinite()) o.finite = false;
     if (!s.healthy && o.healthy) {
@@ -195,16 +197,25 @@ Outcome run_case(const Scene& sc, const ModelVariant& variant, const std::string
   return o;
 }
 
-// Known limit, detected at run time (healthy=false with a warning, the run stops): the
-// mass-spring network with the explicit integrator (at its stable substep) and with the
-// local/global one (10 iterations per frame) diverges in some cases where the organ hangs
-// from a small patch or lies on a support and flops: within 0.1-0.6 s most tets flip and
-// the state turns non-finite. The semi-implicit integrator on the same network survives
-// them; switching the local/global Chebyshev acceleration off when its residual grows did
-// not help (tried). Use semi_implicit, XPBD or the FEM for such boundaries (docs/sim.md).
-bool known_limit(const std::string& variant, const std::string& boundary) {
-  return (variant == "mass_spring/local_global" || variant == "mass_spring/explicit") &&
-         (boundary == "posterior_patch" || boundary == "supported_below");
+// The mass-spring fallback on one case where the local/global and the explicit integrator
+// diverge (the SOFA liver hanging from its posterior patch, its far lobe pulled 40 mm): the
+// diverging step is undone and redone semi-implicitly, named in the warning; the run stays
+// healthy and finite. (Before the fallback, 9 explicit and 11 local/global runs of the 18
+// posterior_patch / supported_below cases of the suite diverged; docs/sim.md.)
+TEST(PatientMeshFallback, DivergingMassSpringStepsAreRedoneSemiImplicitly) {
+  const Scene sc = patient_scene(patient_meshes()[0], "posterior_patch");
+  int ran = 0;
+  for (const ModelVariant& variant : model_variants()) {
+    if (variant.label != "mass_spring/local_global" && variant.label != "mass_spring/explicit") continue;
+    ++ran;
+    const Outcome o = run_case(sc, variant, "lobe_pull", 1.5);
+    std::printf("[fallback] %s healthy=%d fallback_frames=%d peak_inverted=%d max_disp=%.1f mm %s\n", variant.label.c_str(),
+                o.healthy, o.fallback_frames, o.peak_inverted, o.max_displacement_mm, o.first_warning.substr(0, 200).c_str());
+    EXPECT_TRUE(o.finite) << variant.label;
+    EXPECT_TRUE(o.healthy) << variant.label << ": " << o.first_warning;
+    EXPECT_GT(o.fallback_frames, 0) << variant.label << ": the case no longer diverges (pick another for this test)";
+  }
+  EXPECT_EQ(ran, 2);
 }
 
 class PatientMeshes : public ::testing::TestWithParam<PatientMesh> {};
@@ -232,13 +243,6 @@ TEST_P(PatientMeshes, EveryModelRunsHealthyUnderEveryBoundaryAndLoad) {
         const std::string what = pm.name + " " + boundary + " " + load + " " + variant.label;
         // A non-finite state must never be reported healthy (a silent NaN).
         EXPECT_TRUE(o.finite || !o.healthy) << what << ": non-finite state in a step reported healthy";
-        if (known_limit(variant.label, boundary)) {
-          // Known limit (docs/sim.md): it may diverge, but must then say so.
-          if (!o.healthy) {
-            EXPECT_FALSE(o.first_warning.empty()) << what;
-          }
-          continue;
-        }
         EXPECT_TRUE(o.finite) << what;
         EXPECT_TRUE(o.healthy) << what << ": " << o.first_warning;
         // Sane: a heavy organ hanging from a small patch may swing round it, but no vertex

@@ -166,6 +166,17 @@ TEST(FemBackgroundRefactor, OnlyForPcgAndBadBlasThreadsAreRejected) {
   f.linear_solver = "cholmod";
   f.single_precision_preconditioner = true;
   EXPECT_THROW(CorotationalFem(problem, f), std::invalid_argument);
+  // The worker's nice level: 0-19 (a background run at 19 still steps and swaps factors).
+  EXPECT_THROW(CorotationalFem(problem, pcg(4, 10, 1e-6, true), FemOptions{.background_nice = 20}), std::invalid_argument);
+  EXPECT_THROW(CorotationalFem(problem, pcg(4, 10, 1e-6, true), FemOptions{.background_nice = -1}), std::invalid_argument);
+  CorotationalFem low(problem, pcg(2, 10, 1e-6, true), FemOptions{.background_nice = 19});
+  bool swapped = false;
+  for (int k = 0; k < 8; ++k) {
+    ASSERT_TRUE(low.step(1.0 / 60).healthy);
+    low.wait_for_background();
+    swapped = swapped || low.last_linear_solve().background_swapped;
+  }
+  EXPECT_TRUE(swapped);
 }
 
 TEST(FemBlas, ThreadSettingIsAppliedOrReported) {

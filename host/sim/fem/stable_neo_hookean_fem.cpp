@@ -1,0 +1,583 @@
+#include "host/sim/fem/stable_neo_hookean_fem.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
+#include <Eigen/SVD>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "host/sim/element_measure.hpp"
+#include "host/sim/model_setup.hpp"
+#include "host/sim/tet_geometry.hpp"
+
+namespace arnav::host {
+
+namespace stable_neo_hookean {
+namespace {
+Eigen::Matrix3d cofactor(const Eigen::Matrix3d& F) {
+  Eigen::Matrix3d C;
+  C.col(0) = F.col(1).cross(F.col(2));
+  C.col(1) = F.col(2).cross(F.col(0));
+  C.col(2) = F.col(0).cross(F.col(1));
+  return C;
+}
+Eigen::Matrix3d skew(const Eigen::Vector3d& a) {
+  Eigen::Matrix3d S;
+  S << 0, -a.z(), a.y(), a.z(), 0, -a.x(), -a.y(), a.x(), 0;
+  return S;
+}
+}  // namespace
+
+double energy_density(const Eigen::Matrix3d& F, double mu, double lambda) {
+  const double lp = lambda + mu;
+  const double J = F.determinant();
+  return 0.5 * mu * (F.squaredNorm() - 3.0) - mu * (J - 1.0) + 0.5 * lp * (J - 1.0) * (J - 1.0);
+}
+
+Eigen::Matrix3d first_piola(const Eigen::Matrix3d& F, double mu, double lambda) {
+  const double lp = lambda + mu;
+  const double J = F.determinant();
+  return mu * F + (lp * (J - 1.0) - mu) * cofactor(F);
+}
+
+Matrix9d hessian(const Eigen::Matrix3d& F, double mu, double lambda, bool project, bool* projected) {
+  const double lp = lambda + mu;
+  const double J = F.determinant();
+  const Eigen::Matrix3d C = cofactor(F);
+  const Eigen::Map<const Eigen::Matrix<double, 9, 1>> g(C.data());
+  Matrix9d H = mu * Matrix9d::Identity() + lp * g * g.transpose();
+  // d2J/dF2: block (i, j) = d(cof column i)/d(column j) of F.
+  const double s = lp * (J - 1.0) - mu;
+  const Eigen::Matrix3d S0 = s * skew(F.col(0)), S1 = s * skew(F.col(1)), S2 = s * skew(F.col(2));
+  H.block<3, 3>(0, 3) -= S2;
+  H.block<3, 3>(0, 6) += S1;
+  H.block<3, 3>(3, 0) += S2;
+  H.block<3, 3>(3, 6) -= S0;
+  H.block<3, 3>(6, 0) -= S1;
+  H.block<3, 3>(6, 3) += S0;
+  if (projected) *projected = false;
+  if (!project) return H;
+  // Most elements are (numerically) semi-definite already: the infinitesimal rotations have
+  // zero stiffness, hence the small shift in the test.
+  const Eigen::LLT<Matrix9d> llt(H + (1e-9 * mu) * Matrix9d::Identity());
+  if (llt.info() == Eigen::Success) return H;
+  if (projected) *projected = true;
+  // Analytic eigensystem (Smith, de Goes & Kim 2019) in the rotation-variant SVD
+  // F = U diag(s) V^T (U, V rotations, s2 may be negative): with r = lambda' (J - 1) - mu,
+  //   twist  U (e_i e_j^T - e_j e_i^T) V^T / sqrt2:  mu + r s_k
+  //   flip   U (e_i e_j^T + e_j e_i^T) V^T / sqrt2:  mu - r s_k      ({i, j, k} = {0, 1, 2})
+  //   scaling U diag(w) V^T, w an eigenvector of mu I + lambda' c c^T + r [s_k off the diagonal],
+  //   c_i = prod_{j != i} s_j.
+  // The negative modes are removed from H: H + sum_{l < 0} (-l) q q^T.
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d U = svd.matrixU(), V = svd.matrixV();
+  Eigen::Vector3d sv = svd.singularValues();
+  if (U.determinant() < 0) {
+    U.col(2) *= -1.0;
+    sv[2] *= -1.0;
+  }
+  if (V.determinant() < 0) {
+    V.col(2) *= -1.0;
+    sv[2] *= -1.0;
+  }
+  auto add_mode = [&](const Eigen::Matrix3d& D, double eigenvalue) {
+    if (eigenvalue >= 0.0) return;
+    const Eigen::Matrix3d Q = U * D * V.transpose();
+    const Eigen::Map<const Eigen::Matrix<double, 9, 1>> q(Q.data());
+    H.noalias() -= eigenvalue * q * q.transpose();
+  };
+  const double inv_sqrt2 = 1.0 / std::sqrt(2.0);
+  for (int k = 0; k < 3; ++k) {
+    const int i = (k + 1) % 3, j = (k + 2) % 3;
+    Eigen::Matrix3d T = Eigen::Matrix3d::Zero();
+    T(i, j) = inv_sqrt2;
+    T(j, i) = -inv_sqrt2;
+    add_mode(T, mu + s * sv[k]);
+    T(j, i) = inv_sqrt2;
+    add_mode(T, mu - s * sv[k]);
+  }
+  const Eigen::Vector3d c(sv[1] * sv[2], sv[0] * sv[2], sv[0] * sv[1]);
+  Eigen::Matrix3d A = mu * Eigen::Matrix3d::Identity() + lp * c * c.transpose();
+  A(0, 1) += s * sv[2];
+  A(1, 0) += s * sv[2];
+  A(0, 2) += s * sv[1];
+  A(2, 0) += s * sv[1];
+  A(1, 2) += s * sv[0];
+  A(2, 1) += s * sv[0];
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(A);
+  for (int m = 0; m < 3; ++m) add_mode(Eigen::Matrix3d(eig.eigenvectors().col(m).asDiagonal()), eig.eigenvalues()[m]);
+  return H;
+}
+
+Matrix9d project_numerically(const Matrix9d& H) {
+  const Eigen::SelfAdjointEigenSolver<Matrix9d> eig(H);
+  const Eigen::Matrix<double, 9, 1> d = eig.eigenvalues().cwiseMax(0.0);
+  return eig.eigenvectors() * d.asDiagonal() * eig.eigenvectors().transpose();
+}
+}  // namespace stable_neo_hookean
+
+namespace {
+Eigen::Map<Eigen::VectorXd> flat(Eigen::Matrix3Xd& m) { return {m.data(), m.size()}; }
+Eigen::Map<const Eigen::VectorXd> flat(const Eigen::Matrix3Xd& m) { return {m.data(), m.size()}; }
+
+inline void scatter(double* values, const int* map, const Eigen::Matrix3d& B) {
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c)
+      if (map[3 * r + c] >= 0) values[map[3 * r + c]] += B(r, c);
+}
+}  // namespace
+
+StableNeoHookeanFem::StableNeoHookeanFem(const SimProblem& problem, const ModelConfig& config, const FemOptions& options)
+    : integrator_(config.integrator.empty() ? "implicit_euler" : config.integrator),
+      options_(options),
+      threads_(config.threads),
+      substeps_(config.substeps),
+      newton_iterations_(config.iterations),
+      tolerance_(config.tolerance),
+      gravity_(problem.gravity_World_mm_s2),
+      solver_(FemLinearSolver::parse(config.linear_solver.empty() ? "cholmod" : config.linear_solver),
+              config.refactor_every, 100, 1e-4) {
+  const std::string who = "corotational_fem (material_model stable_neo_hookean)";
+  if (integrator_ != "implicit_euler" && integrator_ != "quasi_static")
+    throw std::invalid_argument(who + ": unknown integrator '" + integrator_ + "' (use implicit_euler or quasi_static)");
+  if (threads_ < 1 || substeps_ < 1 || newton_iterations_ < 1)
+    throw std::invalid_argument(who + ": threads, substeps and iterations (Newton) must be >= 1");
+  if (!(tolerance_ >= 0.0)) throw std::invalid_argument(who + ": tolerance must be >= 0");
+  if (config.single_precision_preconditioner || config.refactor_in_background)
+    throw std::invalid_argument(who + ": single_precision_preconditioner and refactor_in_background are options of the "
+                                      "co-rotational material only (remove them)");
+  const TetMesh& mesh = problem.mesh;
+  if (mesh.num_tets() == 0) throw std::invalid_argument(who + ": the mesh has no tetrahedra");
+  if (!gravity_.allFinite()) throw std::invalid_argument(who + ": gravity is not finite");
+  X_ = mesh.rest_positions_World_mm;
+  x_ = X_;
+  v_ = Eigen::Matrix3Xd::Zero(3, X_.cols());
+  mass_ = checked_masses_kg(problem, "corotational_fem");
+  const int nv = mesh.num_vertices();
+  mass_alpha_ = Eigen::VectorXd::Zero(nv);
+  tets_.resize(mesh.tets.size());
+  for (int t = 0; t < mesh.num_tets(); ++t) {
+    Tet& e = tets_[t];
+    e.v = mesh.tets[t];
+    const Material& m = problem.region_materials[mesh.tet_region.empty() ? 0 : mesh.tet_region[t]];
+    const Lame lame = lame_from(m);
+    e.mu = lame.mu_kPa;
+    e.lambda = lame.lambda_kPa;
+    e.beta = m.damping_stiffness_s;
+    e.volume = signed_volume_mm3(X_, e.v);
+    e.Dm_inv = edge_matrix(X_, e.v).inverse();
+    std::array<Eigen::Vector3d, 4> g;
+    for (int k = 0; k < 3; ++k) g[k + 1] = e.Dm_inv.row(k).transpose();
+    g[0] = -(g[1] + g[2] + g[3]);
+    e.dFdx.setZero();
+    for (int a = 0; a < 4; ++a)
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) e.dFdx(i + 3 * j, 3 * a + i) = g[a][j];
+    for (int v : e.v) mass_alpha_[v] += 0.25 * e.volume * m.density_kg_per_mm3 * m.damping_mass_per_s;
+  }
+  if (problem.vessels && !problem.vessels->segments.empty())
+    note_ = "vessel tree ignored: the stable_neo_hookean material has no beam coupling (use material_model corotational_linear)";
+  check_vertex_indices(problem.fixed_vertices, nv, "corotational_fem: fixed vertices");
+  fixed_.assign(nv, 0);
+  for (int v : problem.fixed_vertices) fixed_[v] = 1;
+  solver_.set_refresh_residual(options_.refresh_residual);
+  build_pattern();
+}
+
+StableNeoHookeanFem::~StableNeoHookeanFem() = default;
+
+void StableNeoHookeanFem::build_pattern() {
+  std::vector<std::vector<int>> elements;
+  for (const Tet& t : tets_) elements.emplace_back(t.v.begin(), t.v.end());
+  std::vector<std::vector<int>> groups = elements;
+  for (const auto& a : attachments_)
+    if (a) groups.push_back(a->spec.point.vertices);
+  pattern_ = std::make_unique<SymmetricPattern>(static_cast<int>(X_.cols()), groups);
+  tet_map_.resize(90 * tets_.size());
+  for (std::size_t t = 0; t < tets_.size(); ++t) {
+    const std::vector<int> m = pattern_->block_map(elements[t]);
+    std::copy(m.begin(), m.end(), tet_map_.begin() + 90 * static_cast<std::ptrdiff_t>(t));
+  }
+  for (auto& a : attachments_)
+    if (a) a->map = pattern_->block_map(a->spec.point.vertices);
+  partition_ = partition_elements(X_, elements, threads_);
+  A_ = pattern_->matrix();
+  K_ = A_;
+  D_ = A_;
+  solver_.pattern_changed();
+}
+
+double StableNeoHookeanFem::assemble_elastic(const Eigen::Matrix3Xd& x, bool damping_matrix) {
+  double* k_values = K_.valuePtr();
+  double* d_values = D_.valuePtr();
+  std::fill(k_values, k_values + K_.nonZeros(), 0.0);
+  if (damping_matrix) std::fill(d_values, d_values + D_.nonZeros(), 0.0);
+  f_el_.setZero(x.size());
+  double energy = 0.0;
+  int projected = 0;
+  auto element = [&](int id, double& e_sum, int& n_proj) {
+    const Tet& e = tets_[id];
+    const Eigen::Matrix3d F = edge_matrix(x, e.v) * e.Dm_inv;
+    e_sum += e.volume * stable_neo_hookean::energy_density(F, e.mu, e.lambda);
+    const Eigen::Matrix3d P = stable_neo_hookean::first_piola(F, e.mu, e.lambda);
+    const Eigen::Map<const Eigen::Matrix<double, 9, 1>> vecP(P.data());
+    const Eigen::Matrix<double, 12, 1> grad = e.volume * e.dFdx.transpose() * vecP;
+    for (int a = 0; a < 4; ++a) f_el_.segment<3>(3 * e.v[a]) -= grad.segment<3>(3 * a);
+    bool proj = false;
+    const stable_neo_hookean::Matrix9d H = stable_neo_hookean::hessian(F, e.mu, e.lambda, true, &proj);
+    if (proj) ++n_proj;
+    const Eigen::Matrix<double, 12, 12> K = e.volume * e.dFdx.transpose() * H * e.dFdx;
+    const int* map = tet_map_.data() + 90 * static_cast<std::ptrdiff_t>(id);
+    for (int a = 0, pair = 0; a < 4; ++a)
+      for (int b = a; b < 4; ++b, ++pair) {
+        const Eigen::Matrix3d B = K.block<3, 3>(3 * a, 3 * b);
+        scatter(k_values, map + 9 * pair, B);
+        if (damping_matrix && e.beta != 0.0) scatter(d_values, map + 9 * pair, e.beta * B);
+      }
+  };
+  const int parts = static_cast<int>(partition_.parts.size());
+#pragma omp parallel for schedule(static, 1) reduction(+ : energy, projected) num_threads(threads_) if (threads_ > 1)
+  for (int part = 0; part < parts; ++part)
+    for (int id : partition_.parts[part]) element(id, energy, projected);
+  for (int id : partition_.shared) element(id, energy, projected);
+  last_projected_ = projected;
+  return energy;
+}
+
+double StableNeoHookeanFem::elastic_energy_of(const Eigen::Matrix3Xd& x) const {
+  const int n = static_cast<int>(tets_.size());
+  double energy = 0.0;
+#pragma omp parallel for schedule(static) reduction(+ : energy) num_threads(threads_) if (threads_ > 1)
+  for (int t = 0; t < n; ++t) {
+    const Tet& e = tets_[t];
+    energy += e.volume * stable_neo_hookean::energy_density(edge_matrix(x, e.v) * e.Dm_inv, e.mu, e.lambda);
+  }
+  return energy;
+}
+
+double StableNeoHookeanFem::elastic_energy() const { return elastic_energy_of(x_); }
+
+double StableNeoHookeanFem::attachment_energy(const Eigen::Matrix3Xd& x) const {
+  double e = 0.0;
+  for (const auto& att : attachments_) {
+    if (!att) continue;
+    Eigen::Vector3d pos = Eigen::Vector3d::Zero();
+    for (std::size_t a = 0; a < att->spec.point.vertices.size(); ++a)
+      pos += att->spec.point.weights[a] * x.col(att->spec.point.vertices[a]);
+    e += 0.5 * att->spec.stiffness_mN_per_mm * (att->spec.target_World_mm - pos).squaredNorm();
+  }
+  return e;
+}
+
+StepSummary StableNeoHookeanFem::step(double dt_s) {
+  check_dt(dt_s);
+  if (substeps_ == 1) return substep(dt_s);
+  StepSummary total;
+  for (int k = 0; k < substeps_; ++k) {
+    const StepSummary s = substep(dt_s / substeps_);
+    total.iterations += s.iterations;
+    if (k == 0) total.initial_residual = s.initial_residual;
+    total.final_residual = s.final_residual;
+    total.termination = s.termination;
+    total.wall_time_ms += s.wall_time_ms;
+    total.kinetic_energy = s.kinetic_energy;
+    total.elastic_energy = s.elastic_energy;
+    total.inverted_elements = s.inverted_elements;
+    if (!s.warning.empty()) report(total, "substep " + std::to_string(k) + ": " + s.warning, !s.healthy);
+    if (!s.healthy) break;
+  }
+  return total;
+}
+
+StepSummary StableNeoHookeanFem::substep(double h) {
+  const auto t0 = std::chrono::steady_clock::now();
+  StepSummary summary;
+  auto finish = [&]() {
+    summary.wall_time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    return summary;
+  };
+  const bool dynamic = integrator_ == "implicit_euler";
+  const int nv = static_cast<int>(X_.cols());
+  const bool any_attachment = std::any_of(attachments_.begin(), attachments_.end(), [](const auto& a) { return a.has_value(); });
+  if (!dynamic && !any_attachment && std::none_of(fixed_.begin(), fixed_.end(), [](char f) { return f != 0; })) {
+    summary.healthy = false;
+    summary.termination = "not_run";
+    summary.warning = "quasi_static needs fixed vertices or attachments: rigid motions make K singular";
+    return finish();
+  }
+  if (h != last_dt_) {
+    if (dynamic) solver_.force_refactor();
+    last_dt_ = h;
+  }
+  bool any_beta = false;
+  for (const Tet& e : tets_) any_beta = any_beta || e.beta != 0.0;
+
+  const Eigen::Matrix3Xd x_n = x_;
+  Eigen::Matrix3Xd x_hat = x_n + h * v_;
+  for (int i = 0; i < nv; ++i)
+    if (fixed_[i]) x_hat.col(i) = x_n.col(i);
+  Eigen::Matrix3Xd x = x_n;
+  const double hh = dynamic ? h * h : 1.0;  // weight of the potential in the objective
+
+  auto external = [&](const Eigen::Matrix3Xd& y, Eigen::VectorXd* f_ext) {
+    double u = 0.0;
+    for (int i = 0; i < nv; ++i) u -= mass_[i] * gravity_.dot(y.col(i));
+    u += attachment_energy(y);
+    if (f_ext) {
+      f_ext->setZero(y.size());
+      for (int i = 0; i < nv; ++i) f_ext->segment<3>(3 * i) = mass_[i] * gravity_;
+      for (const auto& att : attachments_) {
+        if (!att) continue;
+        const MaterialPoint& p = att->spec.point;
+        Eigen::Vector3d pos = Eigen::Vector3d::Zero();
+        for (std::size_t a = 0; a < p.vertices.size(); ++a) pos += p.weights[a] * y.col(p.vertices[a]);
+        const Eigen::Vector3d pull = att->spec.stiffness_mN_per_mm * (att->spec.target_World_mm - pos);
+        for (std::size_t a = 0; a < p.vertices.size(); ++a) f_ext->segment<3>(3 * p.vertices[a]) += p.weights[a] * pull;
+      }
+    }
+    return u;
+  };
+  // Objective (implicit Euler: the incremental potential scaled by h^2; quasi-static: the
+  // total potential) at y with elastic energy psi.
+  auto objective = [&](const Eigen::Matrix3Xd& y, double psi) {
+    double e = hh * (psi + external(y, nullptr));
+    if (dynamic) {
+      for (int i = 0; i < nv; ++i) {
+        e += 0.5 * mass_[i] * (y.col(i) - x_hat.col(i)).squaredNorm();
+        e += 0.5 * h * mass_alpha_[i] * (y.col(i) - x_n.col(i)).squaredNorm();
+      }
+      if (any_beta) {
+        const Eigen::VectorXd u = flat(y) - flat(x_n);
+        const Eigen::VectorXd Du = D_.selfadjointView<Eigen::Lower>() * u;
+        e += 0.5 * h * u.dot(Du);
+      }
+    }
+    return e;
+  };
+
+  Eigen::VectorXd f_ext, grad;
+  double load_scale = 0.0, gnorm0 = 0.0, gnorm = 0.0;
+  int it = 0;
+  std::string termination = "max_iterations";
+  timing_ = {};
+  auto ms_since = [](std::chrono::steady_clock::time_point t) {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+  };
+  for (; it < newton_iterations_; ++it) {
+    const auto t_assemble = std::chrono::steady_clock::now();
+    const double psi = assemble_elastic(x, dynamic && it == 0 && any_beta);
+    external(x, &f_ext);
+    grad = -hh * (f_el_ + f_ext);
+    if (dynamic) {
+      for (int i = 0; i < nv; ++i)
+        grad.segment<3>(3 * i) += mass_[i] * (x.col(i) - x_hat.col(i)) + h * mass_alpha_[i] * (x.col(i) - x_n.col(i));
+      if (any_beta) {
+        const Eigen::VectorXd u = flat(x) - flat(x_n);
+        const Eigen::VectorXd Du = D_.selfadjointView<Eigen::Lower>() * u;
+        grad += h * Du;
+      }
+    }
+    for (int i = 0; i < nv; ++i)
+      if (fixed_[i]) grad.segment<3>(3 * i).setZero();
+    gnorm = grad.norm();
+    if (it == 0) {
+      // The load of this step: momentum and external forces (what the residual is relative to).
+      for (int i = 0; i < nv; ++i)
+        if (!fixed_[i]) {
+          const Eigen::Vector3d l = hh * f_ext.segment<3>(3 * i) + (dynamic ? Eigen::Vector3d(h * mass_[i] * v_.col(i)) : Eigen::Vector3d::Zero());
+          load_scale += l.squaredNorm();
+        }
+      load_scale = std::sqrt(load_scale);
+      gnorm0 = gnorm;
+      if (it == 0 && !std::isfinite(gnorm)) {
+        summary.healthy = false;
+        summary.warning = "non-finite forces (NaN/Inf); state kept";
+        return finish();
+      }
+    }
+    if (gnorm <= tolerance_ * std::max(load_scale, 1e-300)) {
+      termination = "converged";
+      break;
+    }
+    // System: M (1 + alpha h) + h D + h^2 (K + K_att)  (quasi-static: K + K_att).
+    const double* kv = K_.valuePtr();
+    const double* dv = D_.valuePtr();
+    double* av = A_.valuePtr();
+    const Eigen::Index nnz = A_.nonZeros();
+    for (Eigen::Index k = 0; k < nnz; ++k) av[k] = hh * kv[k] + (dynamic && any_beta ? h * dv[k] : 0.0);
+    for (const auto& att : attachments_) {
+      if (!att) continue;
+      const MaterialPoint& p = att->spec.point;
+      const int nb = static_cast<int>(p.vertices.size());
+      for (int a = 0, pair = 0; a < nb; ++a)
+        for (int b = a; b < nb; ++b, ++pair)
+          scatter(av, att->map.data() + 9 * pair,
+                  (hh * att->spec.stiffness_mN_per_mm * p.weights[a] * p.weights[b]) * Eigen::Matrix3d::Identity());
+    }
+    if (dynamic)
+      for (int i = 0; i < nv; ++i)
+        for (int d = 0; d < 3; ++d) av[pattern_->diagonal()[3 * i + d]] += mass_[i] + h * mass_alpha_[i];
+    // Dirichlet: identity rows and columns for the fixed DOFs.
+    for (int c = 0; c < A_.outerSize(); ++c)
+      for (int k = A_.outerIndexPtr()[c]; k < A_.outerIndexPtr()[c + 1]; ++k) {
+        const int r = A_.innerIndexPtr()[k];
+        if (fixed_[r / 3] || fixed_[c / 3]) av[k] = r == c ? 1.0 : 0.0;
+      }
+    const Eigen::VectorXd rhs = -grad;
+    sol_.setZero(rhs.size());
+    const auto t_solve = std::chrono::steady_clock::now();
+    timing_.assemble_ms += std::chrono::duration<double, std::milli>(t_solve - t_assemble).count();
+    const LinearSolveSummary ls = solver_.solve(A_, rhs, sol_, gnorm0);
+    timing_.solve_ms += ms_since(t_solve);
+    timing_.linear_iterations += ls.iterations;
+    timing_.factorizations += ls.factorized ? 1 : 0;
+    const auto t_line = std::chrono::steady_clock::now();
+    if (!ls.ok || !sol_.allFinite()) {
+      summary.healthy = false;
+      summary.warning = "Newton: linear solve failed (" + (ls.ok ? std::string("non-finite solution") : ls.message) + "); state kept";
+      return finish();
+    }
+    // Backtracking (Armijo) line search on the objective: the direction is a descent
+    // direction because the projected system is positive definite.
+    const double slope = grad.dot(sol_);
+    const double e0 = objective(x, psi);
+    Eigen::Matrix3Xd trial = x;
+    double alpha = 1.0;
+    bool accepted = false;
+    for (int k = 0; k < 30 && !accepted; ++k) {
+      flat(trial) = flat(x) + alpha * sol_;
+      const double e1 = objective(trial, elastic_energy_of(trial));
+      accepted = std::isfinite(e1) && e1 <= e0 + 1e-4 * alpha * slope;
+      if (!accepted) alpha *= 0.5;
+    }
+    timing_.line_search_ms += ms_since(t_line);
+    if (!accepted) {
+      if (-slope <= 1e-12 * (std::abs(e0) + 1.0)) {
+        termination = "at_equilibrium";  // the predicted decrease is below the round-off of E
+        break;
+      }
+      summary.healthy = false;
+      summary.warning = "Newton: no decrease of the incremental potential along the update (not converging); state kept";
+      return finish();
+    }
+    x = trial;
+  }
+  last_newton_ = it;
+  summary.iterations = it;
+  summary.termination = termination;
+  summary.initial_residual = gnorm0 / std::max(load_scale, 1e-300);
+  summary.final_residual = gnorm / std::max(load_scale, 1e-300);
+  Eigen::Matrix3Xd v_new = (x - x_n) / h;
+  double max_speed = 0.0;
+  for (int i = 0; i < nv; ++i) max_speed = std::max(max_speed, v_new.col(i).norm());
+  if (!x.allFinite() || (dynamic && max_speed > options_.max_speed_mm_s)) {
+    summary.healthy = false;
+    summary.warning = "unstable: vertex speed " + std::to_string(max_speed) + " mm/s exceeds " +
+                      std::to_string(options_.max_speed_mm_s) + " mm/s; state kept";
+    return finish();
+  }
+  x_ = x;
+  v_ = v_new;
+  if (termination == "max_iterations" && newton_iterations_ > 1)
+    report(summary, "Newton stopped at " + std::to_string(it) + " iterations, relative gradient " + std::to_string(summary.final_residual), false);
+  if (!note_.empty()) {
+    report(summary, note_, false);
+    note_.clear();
+  }
+  int inverted = 0;
+  for (const Tet& e : tets_)
+    if ((edge_matrix(x_, e.v) * e.Dm_inv).determinant() <= 0.0) ++inverted;
+  inversions_.update(inverted, static_cast<int>(tets_.size()), h, summary);
+  summary.elastic_energy = elastic_energy_of(x_);
+  summary.kinetic_energy = kinetic_energy(mass_, v_);
+  return finish();
+}
+
+AttachmentId StableNeoHookeanFem::add_attachment(const AttachmentSpec& spec) {
+  const auto& p = spec.point;
+  const int nv = static_cast<int>(X_.cols());
+  const std::string who = "corotational_fem: attachment " + std::to_string(attachments_.size());
+  if (p.vertices.empty() || p.vertices.size() != p.weights.size())
+    throw std::invalid_argument(who + " needs as many weights as vertices (and at least one)");
+  check_vertex_indices(p.vertices, nv, who.c_str());
+  for (double w : p.weights)
+    if (!std::isfinite(w)) throw std::invalid_argument(who + " has a non-finite weight");
+  if (!(spec.stiffness_mN_per_mm >= 0.0) || !std::isfinite(spec.stiffness_mN_per_mm) || !spec.target_World_mm.allFinite())
+    throw std::invalid_argument(who + " needs a finite stiffness >= 0 mN/mm and a finite target");
+  std::vector<int> sorted = p.vertices;
+  std::sort(sorted.begin(), sorted.end());
+  if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) throw std::invalid_argument(who + " lists a vertex twice");
+  attachments_.push_back(Attachment{spec, {}});
+  if (pattern_->covers(p.vertices)) {
+    attachments_.back()->map = pattern_->block_map(p.vertices);
+  } else {
+    build_pattern();
+  }
+  solver_.force_refactor();
+  return static_cast<AttachmentId>(attachments_.size() - 1);
+}
+
+namespace {
+template <class V>
+auto& checked_attachment(V& attachments, AttachmentId id) {
+  if (id < 0 || id >= static_cast<int>(attachments.size()) || !attachments[id])
+    throw std::invalid_argument("corotational_fem: no attachment with id " + std::to_string(id));
+  return *attachments[id];
+}
+}  // namespace
+
+void StableNeoHookeanFem::set_attachment_target(AttachmentId id, const Eigen::Vector3d& target_World_mm) {
+  if (!target_World_mm.allFinite()) throw std::invalid_argument("corotational_fem: non-finite attachment target");
+  checked_attachment(attachments_, id).spec.target_World_mm = target_World_mm;
+}
+
+void StableNeoHookeanFem::set_attachment_stiffness(AttachmentId id, double stiffness_mN_per_mm) {
+  if (!(stiffness_mN_per_mm >= 0.0) || !std::isfinite(stiffness_mN_per_mm))
+    throw std::invalid_argument("corotational_fem: attachment stiffness must be finite and >= 0 mN/mm");
+  checked_attachment(attachments_, id).spec.stiffness_mN_per_mm = stiffness_mN_per_mm;
+  solver_.force_refactor();
+}
+
+void StableNeoHookeanFem::remove_attachment(AttachmentId id) {
+  checked_attachment(attachments_, id);
+  attachments_[id].reset();
+  solver_.force_refactor();
+}
+
+void StableNeoHookeanFem::set_fixed_vertices(const std::vector<int>& vertices) {
+  const int nv = static_cast<int>(X_.cols());
+  check_vertex_indices(vertices, nv, "corotational_fem: set_fixed_vertices");
+  std::vector<char> fixed(nv, 0);
+  for (int v : vertices) fixed[v] = 1;
+  fixed_ = std::move(fixed);
+  for (int i = 0; i < nv; ++i)
+    if (fixed_[i]) v_.col(i).setZero();
+  solver_.force_refactor();
+}
+
+void StableNeoHookeanFem::set_state(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v) {
+  check_state_shape(x, v, static_cast<int>(X_.cols()));
+  x_ = x;
+  v_ = v;
+  inversions_.reset_episode();
+}
+
+std::vector<ElementMeasure> StableNeoHookeanFem::element_measures() const {
+  std::vector<ElementMeasure> out(tets_.size());
+  for (std::size_t t = 0; t < tets_.size(); ++t) {
+    const Tet& e = tets_[t];
+    const Eigen::Matrix3d F = edge_matrix(x_, e.v) * e.Dm_inv;
+    // Cauchy stress P F^T / J; for nearly flat and inverted tets J is floored at 0.05 (the
+    // display shows a bounded stress there, the volume ratio tells the state).
+    const double J = F.determinant();
+    const Eigen::Matrix3d sigma = stable_neo_hookean::first_piola(F, e.mu, e.lambda) * F.transpose() / std::max(J, 0.05);
+    out[t] = element_measure_from(F, sigma);
+  }
+  return out;
+}
+
+}  // namespace arnav::host
