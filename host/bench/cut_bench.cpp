@@ -55,6 +55,7 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
         settings.rebuild_in_background = background;
         if (scene.cutting) {
           settings.cut.snap_fraction = scene.cutting->snap_fraction;
+          settings.cut.path_tolerance_mm = scene.cutting->path_tolerance_mm;
           settings.sweep_strips = scene.cutting->sweep_strips;
           settings.tumour_margin_mm = scene.cutting->tumour_margin_mm;
         }
@@ -78,6 +79,7 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
           row.frames = f;
           row.events += static_cast<int>(cr.events.size());
           row.path_fidelity_mm = std::max(row.path_fidelity_mm, cr.cut.max_path_deviation_mm);
+          row.completion_deviation_mm = std::max(row.completion_deviation_mm, cr.cut.max_completion_deviation_mm);
           row.completed_tets += cr.cut.tets_completed;
           if (cr.cut.topology_changed) {
             ++row.topology_changes;
@@ -127,7 +129,7 @@ void write_cut_csv(const std::string& path, const std::vector<CutBenchRow>& rows
   if (!out) throw std::runtime_error("cannot write " + path + ": check the folder");
   out << "mesh,scenario,model,background_rebuild,tets_before,tets_after,vertices_after,frames,topology_changes,new_tets,topology_median_ms,topology_p99_ms,"
          "topology_max_ms,frame_median_ms,frame_p99_ms,rebuild_median_ms,rebuild_p99_ms,min_dihedral_input_deg,min_dihedral_deg,"
-         "volume_change_rel,path_fidelity_mm,completed_tets,pieces,free_pieces,events,mesh_valid,healthy,warning\n";
+         "volume_change_rel,path_fidelity_mm,completion_deviation_mm,completed_tets,pieces,free_pieces,events,mesh_valid,healthy,warning\n";
   for (const auto& r : rows) {
     std::string warning = r.warning;
     std::replace(warning.begin(), warning.end(), ',', ';');
@@ -135,7 +137,7 @@ void write_cut_csv(const std::string& path, const std::vector<CutBenchRow>& rows
         << r.frames << ',' << r.topology_changes << ',' << r.new_tets << ',' << r.topology_median_ms << ',' << r.topology_p99_ms << ','
         << r.topology_max_ms << ',' << r.frame_median_ms << ',' << r.frame_p99_ms << ',' << r.rebuild_median_ms << ',' << r.rebuild_p99_ms
         << ',' << r.min_dihedral_input_deg << ',' << r.min_dihedral_deg << ',' << r.volume_change_rel << ',' << r.path_fidelity_mm << ','
-        << r.completed_tets << ',' << r.pieces << ',' << r.free_pieces << ',' << r.events << ',' << (r.mesh_valid ? 1 : 0) << ','
+        << r.completion_deviation_mm << ',' << r.completed_tets << ',' << r.pieces << ',' << r.free_pieces << ',' << r.events << ',' << (r.mesh_valid ? 1 : 0) << ','
         << (r.healthy ? 1 : 0) << ',' << warning << '\n';
   }
 }

@@ -27,7 +27,8 @@ struct CutBenchRow {
   double rebuild_median_ms = 0, rebuild_p99_ms = 0;  // over frames with a topology change
   double min_dihedral_input_deg = 0, min_dihedral_deg = 0;
   double volume_change_rel = 0;                      // rest volume after / before - 1
-  double path_fidelity_mm = 0;                       // largest distance of a cut point from the swept surface
+  double path_fidelity_mm = 0;                       // largest distance of a cut point from the swept surface (same instant)
+  double completion_deviation_mm = 0;                // completed tets: largest distance of a point from their recorded points' plane
   int completed_tets = 0;                            // tets completed from vertex sides (tissue moved)
   int pieces = 1, free_pieces = 0, events = 0;
   bool healthy = true, mesh_valid = true;
