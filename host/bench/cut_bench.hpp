@@ -31,6 +31,9 @@ struct CutBenchRow {
   double completion_deviation_mm = 0;                // completed tets: largest distance of a point from their recorded points' plane
   int completed_tets = 0;                            // tets completed from vertex sides (tissue moved)
   int pieces = 1, free_pieces = 0, events = 0;
+  int tumours_freed = 0;        // tumours lying entirely in one free piece (cut out)
+  int local_updates = 0, rebuilds = 0;  // model updated in place / rebuilt after a cut
+  double local_median_ms = 0, local_p99_ms = 0;  // model update time of the local updates
   bool healthy = true, mesh_valid = true;
   std::string warning;
 };

@@ -320,7 +320,7 @@ CutFrameReport CutSession::apply_blade(const BladeSegment& blade, bool cutting_e
           const double u = static_cast<double>(i) / n;
           start[static_cast<std::size_t>(i)] = (1 - u) * previous_blade_->tip_World_mm + u * previous_blade_->heel_World_mm;
           Eigen::Vector4d w;
-          const int t = cutter_.locate(start[static_cast<std::size_t>(i)], x_at_blade_, w);
+          const int t = cutter_.locate(start[static_cast<std::size_t>(i)], x_at_blade_, w, i == 0);  // one refit for all points
           if (t >= 0 && w.minCoeff() >= -1e-9) {
             const auto& tet = cutter_.mesh().tets[static_cast<std::size_t>(t)];
             moved[static_cast<std::size_t>(i)].setZero();

@@ -61,8 +61,8 @@ TetCutter::TetCutter(const TetMesh& mesh, const CutSettings& settings) : mesh_(m
   bvh_.build(family_boxes(mesh_.rest_positions_World_mm));
 }
 
-int TetCutter::locate(const Eigen::Vector3d& p, const Eigen::Matrix3Xd& x, Eigen::Vector4d& weights) {
-  bvh_.refit(family_boxes(x));
+int TetCutter::locate(const Eigen::Vector3d& p, const Eigen::Matrix3Xd& x, Eigen::Vector4d& weights, bool refit) {
+  if (refit) bvh_.refit(family_boxes(x));
   Aabb box;
   box.extend(p);
   int best_tet = -1;

@@ -109,7 +109,8 @@ class TetCutter {
 
   // The tet containing p at positions x (or the nearest one of those whose box holds p, by
   // barycentric weights), with its weights; tet -1 when no tet box holds p.
-  int locate(const Eigen::Vector3d& p_World_mm, const Eigen::Matrix3Xd& x_World_mm, Eigen::Vector4d& weights);
+  // refit false: the hierarchy was refitted to x by an earlier call (several points, one refit).
+  int locate(const Eigen::Vector3d& p_World_mm, const Eigen::Matrix3Xd& x_World_mm, Eigen::Vector4d& weights, bool refit = true);
 
   // Tets with recorded crossings that do not (yet) separate them, as text (for diagnosis).
   std::string describe_pending() const;
