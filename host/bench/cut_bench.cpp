@@ -126,7 +126,8 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
         row.local_p99_ms = percentile(local, 0.99);
         std::cerr << "arnav-bench cut: " << mesh_name << " " << scenario << " " << variant.label << (background ? " (background rebuild)" : "") << ": " << row.frames << " frames, frame "
                   << row.frame_median_ms << "/" << row.frame_p99_ms << " ms (median/p99), topology " << row.topology_median_ms << "/"
-                  << row.topology_p99_ms << " ms, rebuild " << row.rebuild_median_ms << " ms, pieces " << row.pieces
+                  << row.topology_p99_ms << " ms, local update " << row.local_median_ms << "/" << row.local_p99_ms << " ms (" << row.local_updates
+                  << "), rebuild " << row.rebuild_median_ms << " ms (" << row.rebuilds << "), pieces " << row.pieces << ", tumours freed " << row.tumours_freed
                   << (row.healthy ? "" : " UNHEALTHY: " + row.warning) << "\n";
         rows.push_back(row);
       }
