@@ -210,7 +210,7 @@ TEST(CutSession, StructuresAreReembeddedInThePieces) {
     session.apply_blade({Eigen::Vector3d(50, -5 + f, -5), Eigen::Vector3d(50, -5 + f, 25)}, true);
     session.step(1.0 / 60.0);
   }
-  ASSERT_GT(session.rebuilds(), 0);
+  ASSERT_GT(session.rebuilds() + session.local_updates(), 0);  // the model took the cut (in place or rebuilt)
   const CarriedPoints& c = session.tumours()[0];
   // The embedding reproduces the rest points in the cut mesh, weights inside [0, 1].
   const Eigen::Matrix3Xd again = c.embedding.apply(session.mesh(), session.mesh().rest_positions_World_mm);
