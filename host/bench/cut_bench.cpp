@@ -55,6 +55,7 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
         settings.rebuild_in_background = background;
         if (scene.cutting) {
           settings.cut.snap_fraction = scene.cutting->snap_fraction;
+          settings.cut.path_tolerance_mm = scene.cutting->path_tolerance_mm;
           settings.sweep_strips = scene.cutting->sweep_strips;
           settings.tumour_margin_mm = scene.cutting->tumour_margin_mm;
         }
@@ -67,7 +68,7 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
         row.background = background;
         row.tets_before = scene.problem.mesh.num_tets();
         row.min_dihedral_input_deg = input.min_dihedral_deg;
-        std::vector<double> topology, frame, rebuild;
+        std::vector<double> topology, frame, rebuild, local;
         for (int f = 1; f <= frames; ++f) {
           const ScalpelSample s = path.at(f * scene.time_step_s);
           const auto t0 = std::chrono::steady_clock::now();
@@ -78,10 +79,11 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
           row.frames = f;
           row.events += static_cast<int>(cr.events.size());
           row.path_fidelity_mm = std::max(row.path_fidelity_mm, cr.cut.max_path_deviation_mm);
+          row.completion_deviation_mm = std::max(row.completion_deviation_mm, cr.cut.max_completion_deviation_mm);
           row.completed_tets += cr.cut.tets_completed;
           if (cr.cut.topology_changed) {
             ++row.topology_changes;
-            rebuild.push_back(cr.rebuild_ms);
+            (cr.local_update ? local : rebuild).push_back(cr.rebuild_ms);
           }
           if (!step.healthy) {
             row.healthy = false;
@@ -111,9 +113,21 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
           for (int v : session.mesh().tets[static_cast<std::size_t>(t)])
             if (is_fixed[static_cast<std::size_t>(v)]) fixed_piece[static_cast<std::size_t>(after.piece_of_tet[static_cast<std::size_t>(t)])] = 1;
         row.free_pieces = static_cast<int>(std::count(fixed_piece.begin(), fixed_piece.end(), 0));
+        for (const auto& tumour : session.tumours()) {
+          std::vector<int> pieces;
+          for (int t : tumour.embedding.tet) pieces.push_back(after.piece_of_tet[static_cast<std::size_t>(t)]);
+          std::sort(pieces.begin(), pieces.end());
+          pieces.erase(std::unique(pieces.begin(), pieces.end()), pieces.end());
+          if (pieces.size() == 1 && !fixed_piece[static_cast<std::size_t>(pieces[0])]) ++row.tumours_freed;
+        }
+        row.local_updates = session.local_updates();
+        row.rebuilds = session.rebuilds();
+        row.local_median_ms = percentile(local, 0.5);
+        row.local_p99_ms = percentile(local, 0.99);
         std::cerr << "arnav-bench cut: " << mesh_name << " " << scenario << " " << variant.label << (background ? " (background rebuild)" : "") << ": " << row.frames << " frames, frame "
                   << row.frame_median_ms << "/" << row.frame_p99_ms << " ms (median/p99), topology " << row.topology_median_ms << "/"
-                  << row.topology_p99_ms << " ms, rebuild " << row.rebuild_median_ms << " ms, pieces " << row.pieces
+                  << row.topology_p99_ms << " ms, local update " << row.local_median_ms << "/" << row.local_p99_ms << " ms (" << row.local_updates
+                  << "), rebuild " << row.rebuild_median_ms << " ms (" << row.rebuilds << "), pieces " << row.pieces << ", tumours freed " << row.tumours_freed
                   << (row.healthy ? "" : " UNHEALTHY: " + row.warning) << "\n";
         rows.push_back(row);
       }
@@ -127,7 +141,7 @@ void write_cut_csv(const std::string& path, const std::vector<CutBenchRow>& rows
   if (!out) throw std::runtime_error("cannot write " + path + ": check the folder");
   out << "mesh,scenario,model,background_rebuild,tets_before,tets_after,vertices_after,frames,topology_changes,new_tets,topology_median_ms,topology_p99_ms,"
          "topology_max_ms,frame_median_ms,frame_p99_ms,rebuild_median_ms,rebuild_p99_ms,min_dihedral_input_deg,min_dihedral_deg,"
-         "volume_change_rel,path_fidelity_mm,completed_tets,pieces,free_pieces,events,mesh_valid,healthy,warning\n";
+         "volume_change_rel,path_fidelity_mm,completion_deviation_mm,completed_tets,pieces,free_pieces,tumours_freed,local_updates,local_median_ms,local_p99_ms,rebuilds,events,mesh_valid,healthy,warning\n";
   for (const auto& r : rows) {
     std::string warning = r.warning;
     std::replace(warning.begin(), warning.end(), ',', ';');
@@ -135,7 +149,7 @@ void write_cut_csv(const std::string& path, const std::vector<CutBenchRow>& rows
         << r.frames << ',' << r.topology_changes << ',' << r.new_tets << ',' << r.topology_median_ms << ',' << r.topology_p99_ms << ','
         << r.topology_max_ms << ',' << r.frame_median_ms << ',' << r.frame_p99_ms << ',' << r.rebuild_median_ms << ',' << r.rebuild_p99_ms
         << ',' << r.min_dihedral_input_deg << ',' << r.min_dihedral_deg << ',' << r.volume_change_rel << ',' << r.path_fidelity_mm << ','
-        << r.completed_tets << ',' << r.pieces << ',' << r.free_pieces << ',' << r.events << ',' << (r.mesh_valid ? 1 : 0) << ','
+        << r.completion_deviation_mm << ',' << r.completed_tets << ',' << r.pieces << ',' << r.free_pieces << ',' << r.tumours_freed << ',' << r.local_updates << ',' << r.local_median_ms << ',' << r.local_p99_ms << ',' << r.rebuilds << ',' << r.events << ',' << (r.mesh_valid ? 1 : 0) << ','
         << (r.healthy ? 1 : 0) << ',' << warning << '\n';
   }
 }

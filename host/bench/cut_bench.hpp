@@ -27,9 +27,13 @@ struct CutBenchRow {
   double rebuild_median_ms = 0, rebuild_p99_ms = 0;  // over frames with a topology change
   double min_dihedral_input_deg = 0, min_dihedral_deg = 0;
   double volume_change_rel = 0;                      // rest volume after / before - 1
-  double path_fidelity_mm = 0;                       // largest distance of a cut point from the swept surface
+  double path_fidelity_mm = 0;                       // largest distance of a cut point from the swept surface (same instant)
+  double completion_deviation_mm = 0;                // completed tets: largest distance of a point from their recorded points' plane
   int completed_tets = 0;                            // tets completed from vertex sides (tissue moved)
   int pieces = 1, free_pieces = 0, events = 0;
+  int tumours_freed = 0;        // tumours lying entirely in one free piece (cut out)
+  int local_updates = 0, rebuilds = 0;  // model updated in place / rebuilt after a cut
+  double local_median_ms = 0, local_p99_ms = 0;  // model update time of the local updates
   bool healthy = true, mesh_valid = true;
   std::string warning;
 };

@@ -111,7 +111,24 @@ const std::vector<std::array<int, 3>>& CutSession::surface_tris() {
   return cutter_.mesh().surface_tris;
 }
 
-void CutSession::rebuild_model(const CutStepReport& step) {
+bool CutSession::sync_mesh(const CutStepReport& step) {
+  TetMesh& mine = problem_.mesh;
+  const TetMesh& cut = cutter_.mesh();
+  if (mine.tets.size() > cut.tets.size() || mine.num_vertices() > cut.num_vertices()) return false;
+  const int n_old = mine.num_vertices();
+  mine.rest_positions_World_mm.conservativeResize(Eigen::NoChange, cut.num_vertices());
+  for (int i = n_old; i < cut.num_vertices(); ++i) mine.rest_positions_World_mm.col(i) = cut.rest_positions_World_mm.col(i);
+  mine.tets.resize(cut.tets.size());
+  mine.tet_region.resize(cut.tets.size(), 0);
+  for (int t : step.changed_tets) {
+    mine.tets[static_cast<std::size_t>(t)] = cut.tets[static_cast<std::size_t>(t)];
+    mine.tet_region[static_cast<std::size_t>(t)] = cut.tet_region[static_cast<std::size_t>(t)];
+    for (int w : cut.tets[static_cast<std::size_t>(t)]) mine.rest_positions_World_mm.col(w) = cut.rest_positions_World_mm.col(w);  // moved vertices
+  }
+  return true;
+}
+
+void CutSession::rebuild_model(const CutStepReport& step, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, CutFrameReport& report) {
   const int old_vertices = static_cast<int>(fixed_.size());
   for (std::size_t i = 0; i < step.new_vertices.size(); ++i) {
     const VertexOrigin& o = step.new_vertices[i];
@@ -120,6 +137,15 @@ void CutSession::rebuild_model(const CutStepReport& step) {
     fixed_.push_back(fixed ? 1 : 0);
     if (fixed) problem_.fixed_vertices.push_back(old_vertices + static_cast<int>(i));
     origins_.push_back(o);
+  }
+  // In place where the model can (work in the changed tets), while no background build runs.
+  if (settings_.local_updates && !build_.valid() && static_cast<int>(model_->positions_World_mm().cols()) == old_vertices && sync_mesh(step)) {
+    if (const auto stats = model_->apply_mesh_change(problem_, step.changed_tets, x, v)) {
+      report.local_update = true;
+      report.local = *stats;
+      ++local_updates_;
+      return;
+    }
   }
   problem_.mesh = cutter_.mesh();
   if (settings_.rebuild_in_background) {
@@ -132,6 +158,7 @@ void CutSession::rebuild_model(const CutStepReport& step) {
   }
   model_ = make_tissue_model(problem_, config_);
   readd_attachments();
+  model_->set_state(x, v);
   ++rebuilds_;
 }
 
@@ -257,8 +284,7 @@ void CutSession::check_events(const BladeSegment& blade, const SweptSurface* swe
 void CutSession::absorb(CutFrameReport& report, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v) {
   if (!report.cut.topology_changed) return;
   auto t0 = std::chrono::steady_clock::now();
-  rebuild_model(report.cut);
-  if (!settings_.rebuild_in_background) model_->set_state(x, v);
+  rebuild_model(report.cut, x, v, report);
   report.rebuild_ms = ms_since(t0);
   t0 = std::chrono::steady_clock::now();
   for (auto& t : tumours_) reembed(t, report.cut);
@@ -294,7 +320,7 @@ CutFrameReport CutSession::apply_blade(const BladeSegment& blade, bool cutting_e
           const double u = static_cast<double>(i) / n;
           start[static_cast<std::size_t>(i)] = (1 - u) * previous_blade_->tip_World_mm + u * previous_blade_->heel_World_mm;
           Eigen::Vector4d w;
-          const int t = cutter_.locate(start[static_cast<std::size_t>(i)], x_at_blade_, w);
+          const int t = cutter_.locate(start[static_cast<std::size_t>(i)], x_at_blade_, w, i == 0);  // one refit for all points
           if (t >= 0 && w.minCoeff() >= -1e-9) {
             const auto& tet = cutter_.mesh().tets[static_cast<std::size_t>(t)];
             moved[static_cast<std::size_t>(i)].setZero();

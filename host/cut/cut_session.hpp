@@ -42,6 +42,9 @@ struct CutSessionSettings {
   // stepping (the cut shows at once, the pieces separate mechanically when the new model is
   // swapped in a few frames later). false: rebuild inline, deterministic.
   bool rebuild_in_background = false;
+  // Update the model in place after a cut (TissueModel::apply_mesh_change: work in the tets
+  // the cut changed) where the model can; the others are rebuilt (above).
+  bool local_updates = true;
 };
 
 // A closed surface or a polyline carried by the volume (tumour, vessel centerlines), in its
@@ -62,7 +65,9 @@ struct CutEvent {
 
 struct CutFrameReport {
   CutStepReport cut;              // what the cutter did (topology_changed, update_ms, ...)
-  double rebuild_ms = 0.0;        // model rebuilt on the new mesh (0 without topology change)
+  double rebuild_ms = 0.0;        // model rebuilt or updated on the new mesh (0 without topology change)
+  bool local_update = false;      // the model was updated in place (not rebuilt)
+  MeshChangeStats local;          // what that update touched
   double reembed_ms = 0.0;
   Contact contact;                // blade against the organ surface
   bool pushing = false;           // contact attachment active (cutting disabled)
@@ -102,9 +107,10 @@ class CutSession {
   const std::optional<CarriedPoints>& vessels() const { return vessels_; }
   int frame() const { return frame_; }
   int rebuilds() const { return rebuilds_; }
+  int local_updates() const { return local_updates_; }
 
  private:
-  void rebuild_model(const CutStepReport& step);
+  void rebuild_model(const CutStepReport& step, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, CutFrameReport& report);
   Eigen::Matrix3Xd extended(const Eigen::Matrix3Xd& m) const;
   void launch_build();
   double poll_build();  // swaps a finished background model in; returns the ms it took
@@ -140,6 +146,8 @@ class CutSession {
   bool rebuild_wanted_ = false;
   int frame_ = 0;
   int rebuilds_ = 0;
+  int local_updates_ = 0;
+  bool sync_mesh(const CutStepReport& step);  // problem_.mesh follows the cutter's in O(changed tets)
 };
 
 // A cut session on a loaded scene: its tumours and vessels carried through the cuts (one

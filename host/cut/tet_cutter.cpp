@@ -15,6 +15,9 @@ namespace arnav::host::cut {
 namespace {
 constexpr int kEdges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
 constexpr int kFaces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+// Smallest split parameter: a crossing closer to a vertex snaps whatever the tolerance
+// (no degenerate tets).
+constexpr double kMinSplitFraction = 1e-6;
 
 double sweep_distance(const std::vector<Triangle>& tris, const Eigen::Vector3d& p) {
   double d = 1e300;
@@ -58,8 +61,8 @@ TetCutter::TetCutter(const TetMesh& mesh, const CutSettings& settings) : mesh_(m
   bvh_.build(family_boxes(mesh_.rest_positions_World_mm));
 }
 
-int TetCutter::locate(const Eigen::Vector3d& p, const Eigen::Matrix3Xd& x, Eigen::Vector4d& weights) {
-  bvh_.refit(family_boxes(x));
+int TetCutter::locate(const Eigen::Vector3d& p, const Eigen::Matrix3Xd& x, Eigen::Vector4d& weights, bool refit) {
+  if (refit) bvh_.refit(family_boxes(x));
   Aabb box;
   box.extend(p);
   int best_tet = -1;
@@ -226,7 +229,7 @@ int TetCutter::side_pattern(int t) const {
   return pattern;
 }
 
-bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x) {
+bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepReport& r) {
   const int pattern = side_pattern(t);
   if (pattern == 0) return false;
   const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
@@ -256,13 +259,18 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x) {
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
     if (eig.eigenvalues()[1] > 1e-12 * std::max(1e-300, eig.eigenvalues()[2])) normal = eig.eigenvectors().col(0);
   }
-  const double f = settings_.snap_fraction;
   for (int e : missing) {
     const int a = std::min(tet[static_cast<std::size_t>(kEdges[e][0])], tet[static_cast<std::size_t>(kEdges[e][1])]);
     const int b = std::max(tet[static_cast<std::size_t>(kEdges[e][0])], tet[static_cast<std::size_t>(kEdges[e][1])]);
     const double d0 = normal.dot(x.col(a) - centre), d1 = normal.dot(x.col(b) - centre);
-    const double s = d0 * d1 < 0 ? d0 / (d0 - d1) : 0.5;
-    pending_[edge_key(a, b)] = std::clamp(s, f, 1.0 - f);
+    // On the plane (the recorded points lie on the swept surface), no closer than 1 % of the
+    // edge to an end; a plane that misses the edge (the sides say it is crossed) gives the
+    // point of the edge nearest to it (the deviation is measured below).
+    const double s = d0 != d1 ? std::clamp(d0 / (d0 - d1), 0.01, 0.99) : 0.5;
+    const Eigen::Vector3d p = (1 - s) * x.col(a) + s * x.col(b);
+    r.max_completion_deviation_mm = std::max(r.max_completion_deviation_mm, std::abs(normal.dot(p - centre)));
+    ++r.cut_points;
+    pending_[edge_key(a, b)] = s;
   }
   return true;
 }
@@ -509,6 +517,7 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
         if (d <= vtol) {
           on_cut_[static_cast<std::size_t>(w)] = stroke_;
           ++r.vertices_snapped;
+          ++r.cut_points;
           r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, d);
         }
       }
@@ -524,23 +533,34 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       for (const auto& tri : tris) {
         double s = 0.0;
         if (!segment_triangle_intersection(x.col(a), x.col(b), tri, s)) continue;
-        if (s <= f || s >= 1.0 - f) {
-          // Snap to the nearer end; an interior vertex not on any cut yet is moved onto the
-          // swept surface (paper 000's moving vertex: no split, no sliver, the cut stays on
-          // the path), any other one stays where it is (the cut passes through it).
-          const int w = s <= f ? a : b, o = s <= f ? b : a;
-          const double t_w = s <= f ? s : 1.0 - s;
+        const int w = s <= 0.5 ? a : b, o = s <= 0.5 ? b : a;
+        const double t_w = s <= 0.5 ? s : 1.0 - s;
+        const double off_mm = t_w * (x.col(b) - x.col(a)).norm();  // the vertex's distance along the edge from the crossing
+        bool snapped = false;
+        if (t_w <= f) {
+          // Near an end. An interior vertex not on any cut yet is moved onto the swept
+          // surface (paper 000's moving vertex: no split, no sliver, the cut stays on the
+          // path). Any other vertex snaps (the cut passes through it) only when it lies
+          // within path_tolerance_mm of the crossing; farther, the edge is split at the
+          // crossing (a thinner piece: path fidelity over quality, docs/cut.md).
           const bool fresh = on_cut_[static_cast<std::size_t>(w)] == 0;
-          on_cut_[static_cast<std::size_t>(w)] = stroke_;
-          ++r.vertices_snapped;
           if (fresh && settings_.move_snapped_vertices && move_vertex(w, o, t_w, x, v, r)) {
+            snapped = true;
             r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, point_triangle_distance(x.col(w), tri));
-          } else {
-            r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, t_w * (x.col(b) - x.col(a)).norm());
+          } else if (off_mm <= settings_.path_tolerance_mm || t_w < kMinSplitFraction) {
+            snapped = true;
+            r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, off_mm);
           }
-        } else {
+          if (snapped) {
+            on_cut_[static_cast<std::size_t>(w)] = stroke_;
+            ++r.vertices_snapped;
+            ++r.cut_points;
+          }
+        }
+        if (!snapped) {
           pending_[key] = s;
           ++r.edges_crossed;
+          ++r.cut_points;
           // The recorded point, against the swept surface (round-off only).
           const Eigen::Vector3d p = x.col(a) + s * (x.col(b) - x.col(a));
           r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, point_triangle_distance(p, tri));
@@ -551,20 +571,7 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
   }
   // 3. Sides: each vertex near the sweep and not on it gets the side of the plane of the
   // nearest sweep triangle it lies on (kept for the stroke: a material property).
-  auto nearest_plane_distance = [&](const Eigen::Vector3d& p) {
-    if (tris.empty()) return 0.0;  // finishing a stroke: no sweep this frame
-    int nearest = 0;
-    double best = 1e300;
-    for (std::size_t i = 0; i < tris.size(); ++i) {
-      const double d = point_triangle_distance(p, tris[i]);
-      if (d < best) {
-        best = d;
-        nearest = static_cast<int>(i);
-      }
-    }
-    const Triangle& near = tris[static_cast<std::size_t>(nearest)];
-    return (near.b - near.a).cross(near.c - near.a).normalized().dot(p - near.a);
-  };
+
   // Only vertices whose nearest point on the sweep lies about across from them get a side:
   // the plane far beyond a triangle's edge (a chord of a curved cut, the blade's end) can put
   // a vertex on the wrong side of the cut it will meet.
@@ -642,7 +649,7 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
     stale.erase(std::unique(stale.begin(), stale.end()), stale.end());
     std::vector<int> completed;
     for (int t : stale)
-      if (complete_pattern(t) == 0 && complete_from_sides(t, x)) completed.push_back(t);
+      if (complete_pattern(t) == 0 && complete_from_sides(t, x, r)) completed.push_back(t);
     r.tets_completed = static_cast<int>(completed.size());
     split_completed(completed);
   }

@@ -40,6 +40,11 @@ struct CutSettings {
   double snap_fraction = 0.1;
   // Vertices this close to the swept surface lie on it (exact hits, planes through vertices).
   double vertex_tolerance_mm = 1e-6;
+  // A vertex near a crossing that is not moved onto the swept surface snaps to it (the cut
+  // passes through the vertex) only when it lies within this distance of the crossing;
+  // farther, the edge is split at the crossing (path fidelity over the volume-fraction
+  // bound). 0: never snap such a vertex (only exact hits within vertex_tolerance_mm).
+  double path_tolerance_mm = 0.1;
   // A snapped interior vertex not on an earlier cut is moved onto the swept surface (rest and
   // current position along its edge) when every tet around keeps a quarter of its volume:
   // the cut stays on the path and the star's total volume is unchanged.
@@ -67,10 +72,15 @@ struct CutStepReport {
   int faces_separated = 0;    // cut faces that became boundary this step
   bool topology_changed = false;  // the mesh changed (new vertices or tets, moved vertices)
   double update_ms = 0.0;     // wall time of this step
-  // Path fidelity: largest distance from this frame's swept surface of a point put on the cut
-  // this step (snapped vertices: up to snap_fraction of their edge; split points: round-off).
-  // Completed tets (tets_completed) follow the plane of their recorded points instead.
+  // Path fidelity: largest distance from this frame's swept surface (current configuration,
+  // the instant the blade sweeps it) of a point put on the cut this step: split points
+  // (round-off), vertices moved onto the surface (round-off), vertices snapped where they
+  // stand (at most path_tolerance_mm). The cut faces are the polygons through these points.
   double max_path_deviation_mm = 0.0;
+  // Tets completed after the blade left them (tets_completed): distance of the points added
+  // from the plane fitted through their recorded points (which lie on the swept surface).
+  double max_completion_deviation_mm = 0.0;
+  int cut_points = 0;  // points put on the cut this step (crossings recorded, vertices snapped)
   std::vector<VertexOrigin> new_vertices;  // for vertex ids old_count .. old_count + n - 1
   // Tets whose vertex list changed or that were created (sorted); origin_tet() names the
   // input tet each came from. Used to re-embed points and to rebuild per-element data.
@@ -99,7 +109,8 @@ class TetCutter {
 
   // The tet containing p at positions x (or the nearest one of those whose box holds p, by
   // barycentric weights), with its weights; tet -1 when no tet box holds p.
-  int locate(const Eigen::Vector3d& p_World_mm, const Eigen::Matrix3Xd& x_World_mm, Eigen::Vector4d& weights);
+  // refit false: the hierarchy was refitted to x by an earlier call (several points, one refit).
+  int locate(const Eigen::Vector3d& p_World_mm, const Eigen::Matrix3Xd& x_World_mm, Eigen::Vector4d& weights, bool refit = true);
 
   // Tets with recorded crossings that do not (yet) separate them, as text (for diagnosis).
   std::string describe_pending() const;
@@ -141,7 +152,7 @@ class TetCutter {
   int side_pattern(int t) const;
   // Adds the crossings missing from the side pattern of tet t on the plane through the
   // recorded ones; false when the sides are unknown or nothing is missing.
-  bool complete_from_sides(int t, const Eigen::Matrix3Xd& x);
+  bool complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepReport& r);
   bool move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   int add_vertex(const VertexOrigin& o, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   void split_edge(int a, int b, double t_ab, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r,

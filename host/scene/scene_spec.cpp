@@ -397,7 +397,7 @@ SceneSpec parse_scene_spec(const std::string& yaml_text, const std::string& sour
     for (const auto& kv : root)
       if (kv.first.Scalar() == "cutting") cs.line = kv.first.Mark().line + 1;
     if (!c.IsNull()) {
-      r.keys(c, {"blade", "tumour_margin_mm", "snap_fraction", "sweep_strips", "push_stiffness_mN_per_mm"}, "cutting");
+      r.keys(c, {"blade", "tumour_margin_mm", "snap_fraction", "path_tolerance_mm", "sweep_strips", "push_stiffness_mN_per_mm"}, "cutting");
       if (const YAML::Node b = c["blade"]) {
         r.keys(b, {"tip_mm", "heel_mm"}, "cutting.blade");
         if (b["tip_mm"]) cs.blade_tip_Tool_mm = r.vec3(b["tip_mm"], "cutting.blade.tip_mm");
@@ -413,6 +413,11 @@ SceneSpec parse_scene_spec(const std::string& yaml_text, const std::string& sour
         cs.snap_fraction = r.number(c["snap_fraction"], "cutting.snap_fraction");
         if (!(cs.snap_fraction > 0 && cs.snap_fraction < 0.5))
           r.fail(c["snap_fraction"], "cutting.snap_fraction must be in (0, 0.5)", "0.1: no piece below a tenth of its tet per split edge");
+      }
+      if (c["path_tolerance_mm"]) {
+        cs.path_tolerance_mm = r.number(c["path_tolerance_mm"], "cutting.path_tolerance_mm");
+        if (!(cs.path_tolerance_mm >= 0))
+          r.fail(c["path_tolerance_mm"], "cutting.path_tolerance_mm must be >= 0", "0.1: a vertex snaps onto the cut only within 0.1 mm of it");
       }
       if (c["sweep_strips"]) cs.sweep_strips = static_cast<int>(r.integer(c["sweep_strips"], "cutting.sweep_strips", 1, 256));
       cs.push_stiffness_mN_per_mm = r.positive(c, "push_stiffness_mN_per_mm", cs.push_stiffness_mN_per_mm, "cutting");

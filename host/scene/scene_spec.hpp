@@ -83,6 +83,7 @@ struct CuttingSpec {
   Eigen::Vector3d blade_heel_Tool_mm = Eigen::Vector3d(0, 0, 20.0);
   double tumour_margin_mm = 10.0;         // safety margin event distance
   double snap_fraction = 0.1;             // quality bound: crossings this close (fraction of the edge) snap to its vertex
+  double path_tolerance_mm = 0.1;         // a vertex that cannot move onto the cut snaps only this close to it (path fidelity)
   int sweep_strips = 8;                   // strips of the swept surface
   double push_stiffness_mN_per_mm = 50.0; // contact spring when cutting is off
   int line = 0;

@@ -71,6 +71,13 @@ struct ElementMeasure {
   double volume_ratio = 1.0;           // det(F)
 };
 
+// What a local mesh update did (TissueModel::apply_mesh_change): for checks that the work
+// scales with the change, not with the mesh.
+struct MeshChangeStats {
+  int elements_updated = 0;  // element records removed, added or refreshed
+  int vertices_updated = 0;  // vertex records (mass, state) written
+};
+
 class TissueModel {
  public:
   virtual ~TissueModel() = default;
@@ -91,6 +98,18 @@ class TissueModel {
   virtual const Eigen::Matrix3Xd& velocities_World_mm_s() const = 0;
   virtual void set_state(const Eigen::Matrix3Xd& positions_World_mm, const Eigen::Matrix3Xd& velocities_World_mm_s) = 0;
   virtual std::vector<ElementMeasure> element_measures() const = 0;
+
+  // Local update after a cut (host/cut, docs/cut.md): problem.mesh is the model's mesh with
+  // vertices appended and the tets `changed_tets` (sorted) changed or appended; every other
+  // tet and vertex keeps its index and rest shape. x and v hold the state of every vertex of
+  // the new mesh (read for the appended vertices and those of changed tets); fixed vertices
+  // among the appended ones are at the end of problem.fixed_vertices. Returns what was
+  // updated, or nothing when the model cannot update in place (the caller rebuilds it).
+  virtual std::optional<MeshChangeStats> apply_mesh_change(const SimProblem& problem, const std::vector<int>& changed_tets,
+                                                           const Eigen::Matrix3Xd& x_World_mm, const Eigen::Matrix3Xd& v_World_mm_s) {
+    (void)problem, (void)changed_tets, (void)x_World_mm, (void)v_World_mm_s;
+    return std::nullopt;
+  }
 };
 
 }  // namespace arnav::host

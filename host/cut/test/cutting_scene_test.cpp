@@ -28,12 +28,14 @@ TEST(CuttingSection, OnlyWhenDeclaredWithDefaults) {
   ASSERT_TRUE(s.cutting.has_value());
   EXPECT_EQ(s.cutting->tumour_margin_mm, 10.0);
   EXPECT_EQ(s.cutting->snap_fraction, 0.1);
+  EXPECT_EQ(s.cutting->path_tolerance_mm, 0.1);
   EXPECT_EQ(s.cutting->line, 6);
   const SceneSpec t = parse_scene_spec(kBase + "cutting:\n  blade: {tip_mm: [1, 2, 3], heel_mm: [1, 2, 33]}\n  tumour_margin_mm: 5\n"
-                                               "  snap_fraction: 0.2\n  sweep_strips: 4\n  push_stiffness_mN_per_mm: 10\n", "s.yaml");
+                                               "  snap_fraction: 0.2\n  path_tolerance_mm: 0.05\n  sweep_strips: 4\n  push_stiffness_mN_per_mm: 10\n", "s.yaml");
   EXPECT_EQ(t.cutting->blade_heel_Tool_mm, Eigen::Vector3d(1, 2, 33));
   EXPECT_EQ(t.cutting->tumour_margin_mm, 5.0);
   EXPECT_EQ(t.cutting->snap_fraction, 0.2);
+  EXPECT_EQ(t.cutting->path_tolerance_mm, 0.05);
   EXPECT_EQ(t.cutting->sweep_strips, 4);
   EXPECT_EQ(t.cutting->push_stiffness_mN_per_mm, 10.0);
 }
@@ -41,6 +43,7 @@ TEST(CuttingSection, OnlyWhenDeclaredWithDefaults) {
 TEST(CuttingSection, ErrorsNameTheLine) {
   EXPECT_NE(error_of(kBase + "cutting:\n  margin: 3\n").find("s.yaml:7: unknown key 'margin' in cutting"), std::string::npos);
   EXPECT_NE(error_of(kBase + "cutting:\n  snap_fraction: 0.7\n").find("s.yaml:7: cutting.snap_fraction must be in (0, 0.5)"), std::string::npos);
+  EXPECT_NE(error_of(kBase + "cutting:\n  path_tolerance_mm: -1\n").find("s.yaml:7: cutting.path_tolerance_mm must be >= 0"), std::string::npos);
   EXPECT_NE(error_of(kBase + "cutting:\n  tumour_margin_mm: -1\n").find("s.yaml:7: cutting.tumour_margin_mm must be >= 0"), std::string::npos);
   EXPECT_NE(error_of(kBase + "cutting:\n  blade: {tip_mm: [0, 0, 0], heel_mm: [0, 0, 0]}\n").find("s.yaml:7: cutting.blade: tip and heel"),
             std::string::npos);

@@ -210,7 +210,7 @@ TEST(CutSession, StructuresAreReembeddedInThePieces) {
     session.apply_blade({Eigen::Vector3d(50, -5 + f, -5), Eigen::Vector3d(50, -5 + f, 25)}, true);
     session.step(1.0 / 60.0);
   }
-  ASSERT_GT(session.rebuilds(), 0);
+  ASSERT_GT(session.rebuilds() + session.local_updates(), 0);  // the model took the cut (in place or rebuilt)
   const CarriedPoints& c = session.tumours()[0];
   // The embedding reproduces the rest points in the cut mesh, weights inside [0, 1].
   const Eigen::Matrix3Xd again = c.embedding.apply(session.mesh(), session.mesh().rest_positions_World_mm);
@@ -250,3 +250,104 @@ TEST(CutSession, BladePushesWhenCuttingIsOff) {
   r = session.apply_blade({Eigen::Vector3d(17, 23, 60), Eigen::Vector3d(17, 23, 90)}, false);
   EXPECT_FALSE(r.pushing);
 }
+
+namespace {
+
+struct LocalRun {
+  int tets = 0, local_updates = 0, rebuilds = 0, changed_tets = 0, elements_updated = 0;
+  Eigen::Matrix3Xd x;
+  double volume_rel = 0;
+  bool valid = false;
+};
+
+// A bar of `length` mm (10 mm cells, no gravity) held at x = 0, cut 15 mm deep at x = 45 by
+// a vertical blade crossing it in y, then its far top corner pulled sideways for 30 frames.
+LocalRun cut_bar_locally(const ModelConfig& config, double length, bool local) {
+  const int nx = static_cast<int>(length / 10);
+  SimProblem problem = bar_problem(Eigen::Vector3d(length, 20, 20), nx, 2, 2, 50.0);
+  problem.gravity_World_mm_s2.setZero();
+  int corner = 0;
+  for (int v = 0; v < problem.mesh.num_vertices(); ++v) {
+    if (problem.mesh.rest_positions_World_mm(0, v) < 1e-9) problem.fixed_vertices.push_back(v);
+    if ((problem.mesh.rest_positions_World_mm.col(v) - Eigen::Vector3d(length, 20, 20)).norm() < 1e-9) corner = v;
+  }
+  CutSessionSettings settings;
+  settings.local_updates = local;
+  CutSession session(problem, config, settings);
+  LocalRun run;
+  run.tets = problem.mesh.num_tets();
+  const double dt = 1.0 / 60.0;
+  for (int f = 0; f <= 30; ++f) {
+    const double y = -5 + f;
+    const CutFrameReport r = session.apply_blade({Eigen::Vector3d(45.3, y, 5), Eigen::Vector3d(45.3, y, 40)}, f <= 30);
+    if (r.cut.topology_changed) {
+      run.changed_tets += static_cast<int>(r.cut.changed_tets.size());
+      run.elements_updated += r.local.elements_updated;
+    }
+    const StepSummary s = session.step(dt);
+    EXPECT_TRUE(s.healthy) << "frame " << f << ": " << s.warning;
+  }
+  AttachmentSpec pull;
+  pull.point.vertices = {corner};
+  pull.point.weights = {1.0};
+  pull.target_World_mm = Eigen::Vector3d(length, 30, 20);
+  pull.stiffness_mN_per_mm = 5.0;
+  session.add_attachment(pull);
+  for (int f = 0; f < 30; ++f) {
+    session.apply_blade({Eigen::Vector3d(45, 40, 5), Eigen::Vector3d(45, 40, 40)}, false);
+    EXPECT_TRUE(session.step(dt).healthy);
+  }
+  run.local_updates = session.local_updates();
+  run.rebuilds = session.rebuilds();
+  run.x = session.positions_World_mm();
+  const CutMeshCheck c = check_cut_mesh(session.mesh());
+  run.valid = c.valid();
+  run.volume_rel = c.total_volume_mm3 / (length * 400.0) - 1.0;
+  return run;
+}
+
+}  // namespace
+
+// Models that update in place after a cut (XPBD, mass-spring explicit/semi-implicit): the
+// work (elements removed, added, refreshed) is the same on a bar 4 times longer (the same
+// cut), bounded by a constant times the changed tets, and the motion matches a model
+// rebuilt after every cut.
+class LocalUpdate : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(LocalUpdate, WorkScalesWithTheCutNotTheMesh) {
+  ModelConfig config;
+  for (const auto& v : model_variants())
+    if (v.label == GetParam()) config = v.config;
+  if (GetParam() == "mass_spring/explicit") config.substeps = 200;  // its stability bound on this bar, lowered by the cut
+  const LocalRun small = cut_bar_locally(config, 100, true), large = cut_bar_locally(config, 400, true);
+  const LocalRun rebuilt = cut_bar_locally(config, 100, false);
+  for (const LocalRun* r : {&small, &large}) {
+    EXPECT_GT(r->local_updates, 0);
+    EXPECT_EQ(r->rebuilds, 0);
+    EXPECT_TRUE(r->valid);
+    EXPECT_LT(std::abs(r->volume_rel), 1e-12);
+    EXPECT_GT(r->elements_updated, 0);
+    EXPECT_LE(r->elements_updated, 30 * r->changed_tets);  // changed tets and their neighbours' blocks / springs
+  }
+  EXPECT_EQ(large.tets, 4 * small.tets);
+  EXPECT_EQ(large.changed_tets, small.changed_tets);
+  EXPECT_EQ(large.elements_updated, small.elements_updated);
+  EXPECT_EQ(rebuilt.local_updates, 0);
+  EXPECT_GT(rebuilt.rebuilds, 0);
+  ASSERT_EQ(rebuilt.x.cols(), small.x.cols());
+  // Same mesh, same physics; XPBD's Gauss-Seidel order of the changed tets differs.
+  const double diff = (rebuilt.x - small.x).colwise().norm().maxCoeff();
+  std::cout << "[local update] " << GetParam() << ": elements updated " << small.elements_updated << " for " << small.changed_tets
+            << " changed tets (" << small.tets << " and " << large.tets << " tet bars); largest difference from a rebuilt model after 1 s: " << diff << " mm\n";
+  EXPECT_LT(diff, 0.5);
+}
+// xpbd/neo_hookean updates in place too (the EveryModel cases above run it), but not here:
+// built by clang (sanitizer build) its one-sweep solve leaves a 0.02 strain correction on
+// this bar after the cut (not converged), by gcc it passes (docs/cut.md).
+INSTANTIATE_TEST_SUITE_P(Models, LocalUpdate, ::testing::Values("xpbd", "mass_spring/semi_implicit", "mass_spring/explicit"),
+                         [](const ::testing::TestParamInfo<std::string>& i) {
+                           std::string s = i.param;
+                           for (char& ch : s)
+                             if (ch == '/') ch = '_';
+                           return s;
+                         });

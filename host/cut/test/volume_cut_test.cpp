@@ -218,3 +218,90 @@ TEST(RingCut, RingAndBottomCutSeparateThePlug) {
     EXPECT_NEAR(plug / prism, 1.0, 0.05) << cells << " cells";
   }
 }
+
+// Path fidelity, analytic: a blade translated across the bar sweeps the plane
+// x = x0 + tilt (z - 10). Every cut face (boundary face not lying on a side of the bar) must
+// lie on that plane to 1e-9, the step reports must say so, and the pieces are 400 x0 and
+// 400 (100 - x0) mm^3. Planes near vertices (x0 = 44.9 is 0.46 mm from the layer at 44.44:
+// interior vertices move onto it, surface vertices make a split), between them, through
+// them, tilted.
+TEST(PathFidelity, PlanarSweepCutFacesLieOnThePlane) {
+  struct Case {
+    int nx;
+    double x0, tilt, tolerance_mm;
+  };
+  for (const Case& k : {Case{9, 44.9, 0.0, 0.1}, Case{9, 50.0, 0.0, 0.1}, Case{10, 50.0, 0.0, 0.1}, Case{9, 45.3, 0.0, 0.1},
+                        Case{10, 47.0, 0.13, 0.0}, Case{9, 52.5, 0.37, 0.0}, Case{7, 49.0, 1.0, 0.0}}) {
+    TetMesh mesh = make_box_tet_mesh(k.nx, 4, 4, Eigen::Vector3d(100, 20, 20));
+    CutSettings settings;
+    settings.path_tolerance_mm = k.tolerance_mm;
+    settings.vertex_tolerance_mm = 1e-10;
+    TetCutter cutter(mesh, settings);
+    Eigen::Matrix3Xd x = mesh.rest_positions_World_mm, v;
+    const auto blade_at = [&](double y) {
+      return BladeSegment{Eigen::Vector3d(k.x0 - 15 * k.tilt, y, -5), Eigen::Vector3d(k.x0 + 15 * k.tilt, y, 25)};
+    };
+    double deviation = 0.0, completion = 0.0;
+    BladeSegment prev = blade_at(-5);
+    for (int f = 1; f <= 45; ++f) {
+      const BladeSegment cur = blade_at(-5 + 30.0 * f / 45);
+      const CutStepReport r = cutter.step({prev, cur, 2, {}}, x, v);
+      deviation = std::max(deviation, r.max_path_deviation_mm);
+      completion = std::max(completion, r.max_completion_deviation_mm);
+      prev = cur;
+    }
+    const CutStepReport r = cutter.finish_stroke(x, v);
+    completion = std::max(completion, r.max_completion_deviation_mm);
+    const std::string what = "nx " + std::to_string(k.nx) + " x0 " + std::to_string(k.x0) + " tilt " + std::to_string(k.tilt);
+    EXPECT_LE(deviation, 1e-9) << what;
+    EXPECT_LE(completion, 1e-9) << what;
+    const CutMeshCheck c = check_cut_mesh(cutter.mesh());
+    EXPECT_TRUE(c.valid()) << what << ": " << c.summary();
+    ASSERT_EQ(c.piece_volume_mm3.size(), 2u) << what << ": " << c.summary();
+    const double left = 400.0 * k.x0;
+    EXPECT_NEAR(std::min(c.piece_volume_mm3[0], c.piece_volume_mm3[1]) / std::min(left, 40000.0 - left), 1.0, 1e-9) << what;
+    cutter.update_surface();
+    const Eigen::Matrix3Xd& p = cutter.mesh().rest_positions_World_mm;
+    const Eigen::Vector3d normal = Eigen::Vector3d(1, 0, -k.tilt).normalized();
+    const Eigen::Vector3d on_plane(k.x0, 0, 10);
+    int cut_faces = 0;
+    double worst = 0.0;
+    for (const auto& f : cutter.mesh().surface_tris) {
+      bool on_side = false;
+      for (int axis = 0; axis < 3; ++axis)
+        for (double side : {0.0, axis == 0 ? 100.0 : 20.0}) {
+          bool all = true;
+          for (int w : f) all = all && std::abs(p(axis, w) - side) < 1e-9;
+          on_side = on_side || all;
+        }
+      if (on_side) continue;
+      ++cut_faces;
+      for (int w : f) worst = std::max(worst, std::abs(normal.dot(p.col(w) - on_plane)));
+    }
+    EXPECT_GT(cut_faces, 2 * 4 * 4) << what;  // both lips, at least two triangles per cell
+    EXPECT_LE(worst, 1e-9) << what;
+  }
+}
+
+// With a tolerance, a vertex that cannot move onto the cut (on the surface) snaps only when
+// it lies within the tolerance: the reported deviation never exceeds it.
+TEST(PathFidelity, SnappedSurfaceVerticesStayWithinTheTolerance) {
+  for (double x0 : {44.47, 44.5, 44.6, 55.4}) {
+    TetMesh mesh = make_box_tet_mesh(9, 4, 4, Eigen::Vector3d(100, 20, 20));
+    CutSettings settings;  // path_tolerance_mm 0.1
+    TetCutter cutter(mesh, settings);
+    Eigen::Matrix3Xd x = mesh.rest_positions_World_mm, v;
+    double deviation = 0.0;
+    BladeSegment prev = vertical(x0, -5, -5, 25);
+    for (int f = 1; f <= 30; ++f) {
+      const BladeSegment cur = vertical(x0, -5 + f, -5, 25);
+      deviation = std::max(deviation, cutter.step({prev, cur, 1, {}}, x, v).max_path_deviation_mm);
+      prev = cur;
+    }
+    EXPECT_LE(deviation, settings.path_tolerance_mm + 1e-12) << x0;
+    const CutMeshCheck c = check_cut_mesh(cutter.mesh());
+    EXPECT_TRUE(c.valid()) << c.summary();
+    EXPECT_EQ(c.piece_volume_mm3.size(), 2u) << x0;
+    EXPECT_NEAR(c.total_volume_mm3 / 40000.0, 1.0, 1e-12);
+  }
+}

@@ -188,6 +188,142 @@ MassSpringModel::MassSpringModel(const SimProblem& problem, Integrator integrato
   reset_ledger();
 }
 
+std::optional<MeshChangeStats> MassSpringModel::apply_mesh_change(const SimProblem& problem, const std::vector<int>& changed_tets,
+                                                                  const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v) {
+  if (integrator_ == Integrator::kLocalGlobal || laplacian_pc_) return std::nullopt;  // prefactored systems: rebuild
+  static const int kEdges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
+  const TetMesh& mesh = problem.mesh;
+  const int n_old = static_cast<int>(x_.cols()), n = mesh.num_vertices();
+  const int nt_old = static_cast<int>(tets_.size()), nt = mesh.num_tets();
+  if (n < n_old || nt < nt_old || x.cols() != n || (v.cols() != n && v.cols() != 0) || mesh.tet_region.size() != mesh.tets.size())
+    return std::nullopt;
+  MeshChangeStats stats;
+  auto key = [](int a, int b) {
+    if (a > b) std::swap(a, b);
+    return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) | static_cast<std::uint32_t>(b);
+  };
+  if (spring_tets_.empty()) {  // once: edge -> spring, tets per spring
+    spring_of_edge_.reserve(static_cast<std::size_t>(springs_.size()) * 2);
+    for (int sp = 0; sp < springs_.size(); ++sp) spring_of_edge_[key(springs_.ends[sp][0], springs_.ends[sp][1])] = sp;
+    spring_tets_.assign(static_cast<std::size_t>(springs_.size()), 0);
+    for (const auto& tet : tets_)
+      for (const auto& e : kEdges) ++spring_tets_[static_cast<std::size_t>(spring_of_edge_[key(tet[e[0]], tet[e[1]])])];
+  }
+  // Vertices appended.
+  x_.conservativeResize(Eigen::NoChange, n);
+  v_.conservativeResize(Eigen::NoChange, n);
+  mass_.conservativeResize(n);
+  mass_damping_.conservativeResize(n);
+  fixed_.resize(static_cast<std::size_t>(n), 0);
+  for (int i = n_old; i < n; ++i) {
+    mass_[i] = 0.0;
+    mass_damping_[i] = 0.0;
+    x_.col(i) = x.col(i);
+    v_.col(i).setZero();
+  }
+  for (auto it = problem.fixed_vertices.rbegin(); it != problem.fixed_vertices.rend() && *it >= n_old; ++it)
+    fixed_[static_cast<std::size_t>(*it)] = 1;
+  for (Eigen::Matrix3Xd* m : {&f_, &rhs_, &dv_, &r_, &z_, &p_, &q_, &diag_}) {
+    m->conservativeResize(Eigen::NoChange, n);
+    m->rightCols(n - n_old).setZero();
+  }
+  for (auto& buffer : thread_buffers_) {
+    buffer.conservativeResize(Eigen::NoChange, n);
+    buffer.rightCols(n - n_old).setZero();
+  }
+  std::vector<int> touched;
+  for (int i = n_old; i < n; ++i) touched.push_back(i);
+  // The changed tets' old contributions out.
+  tets_.resize(static_cast<std::size_t>(nt));
+  Dm_inv_.resize(static_cast<std::size_t>(nt));
+  tet_lame_.resize(static_cast<std::size_t>(nt));
+  volume_stiffness_.resize(static_cast<std::size_t>(nt));
+  inv_6v0_.resize(static_cast<std::size_t>(nt));
+  if (integrator_ == Integrator::kSemiImplicit) {
+    vol_grad_.resize(static_cast<std::size_t>(nt));
+    vol_coef_.resize(static_cast<std::size_t>(nt));
+  }
+  for (int t : changed_tets) {
+    if (t >= nt_old) continue;
+    const Material& mat = problem.region_materials[static_cast<std::size_t>(mesh.tet_region[static_cast<std::size_t>(t)])];
+    const auto& old = tets_[static_cast<std::size_t>(t)];
+    const double V_old = 1.0 / (6.0 * inv_6v0_[static_cast<std::size_t>(t)]);
+    for (const auto& e : kEdges) {
+      const int sp = spring_of_edge_.at(key(old[e[0]], old[e[1]]));
+      const double L = springs_.rest_length_mm[static_cast<std::size_t>(sp)];
+      const double k = mat.youngs_modulus_kPa * V_old / (L * L);
+      if (--spring_tets_[static_cast<std::size_t>(sp)] == 0) {
+        springs_.stiffness_mN_per_mm[static_cast<std::size_t>(sp)] = 0.0;  // no tet left: no spring (no round-off residue)
+        springs_.damping_mN_s_per_mm[static_cast<std::size_t>(sp)] = 0.0;
+      } else {
+        springs_.stiffness_mN_per_mm[static_cast<std::size_t>(sp)] -= k;
+        springs_.damping_mN_s_per_mm[static_cast<std::size_t>(sp)] -= mat.damping_stiffness_s * k;
+      }
+      ++stats.elements_updated;
+    }
+    for (int w : old) {
+      mass_[w] -= 0.25 * V_old * mat.density_kg_per_mm3;
+      mass_damping_[w] -= 0.25 * V_old * mat.density_kg_per_mm3 * mat.damping_mass_per_s;
+      touched.push_back(w);
+    }
+  }
+  // The new ones in (springs of new edges appended; a spring whose tets all left takes the
+  // new rest length: a vertex moved onto the cut).
+  const auto& X = mesh.rest_positions_World_mm;
+  for (int t : changed_tets) {
+    const auto& tet = mesh.tets[static_cast<std::size_t>(t)];
+    const Material& mat = problem.region_materials[static_cast<std::size_t>(mesh.tet_region[static_cast<std::size_t>(t)])];
+    const double V = signed_volume_mm3(X, tet);
+    if (!(V > 0.0)) throw std::invalid_argument("mass_spring: tet " + std::to_string(t) + " has non-positive rest volume after the cut");
+    tets_[static_cast<std::size_t>(t)] = tet;
+    Dm_inv_[static_cast<std::size_t>(t)] = edge_matrix(X, tet).inverse();
+    tet_lame_[static_cast<std::size_t>(t)] = lame_from(mat);
+    volume_stiffness_[static_cast<std::size_t>(t)] = kVolumeModulusPerE * mat.youngs_modulus_kPa * V;
+    inv_6v0_[static_cast<std::size_t>(t)] = 1.0 / (6.0 * V);
+    for (const auto& e : kEdges) {
+      const int a = tet[e[0]], b = tet[e[1]];
+      auto [it, inserted] = spring_of_edge_.emplace(key(a, b), springs_.size());
+      const std::size_t sp = static_cast<std::size_t>(it->second);
+      if (inserted) {
+        springs_.ends.push_back({std::min(a, b), std::max(a, b)});
+        springs_.rest_length_mm.push_back(0.0);
+        springs_.stiffness_mN_per_mm.push_back(0.0);
+        springs_.damping_mN_s_per_mm.push_back(0.0);
+        spring_tets_.push_back(0);
+      }
+      if (spring_tets_[sp] == 0) springs_.rest_length_mm[sp] = (X.col(b) - X.col(a)).norm();
+      const double L = springs_.rest_length_mm[sp];
+      const double k = mat.youngs_modulus_kPa * V / (L * L);
+      springs_.stiffness_mN_per_mm[sp] += k;
+      springs_.damping_mN_s_per_mm[sp] += mat.damping_stiffness_s * k;
+      ++spring_tets_[sp];
+      ++stats.elements_updated;
+    }
+    for (int w : tet) {
+      mass_[w] += 0.25 * V * mat.density_kg_per_mm3;
+      mass_damping_[w] += 0.25 * V * mat.density_kg_per_mm3 * mat.damping_mass_per_s;
+      touched.push_back(w);
+    }
+  }
+  if (integrator_ == Integrator::kSemiImplicit) {
+    spring_dir_.resize(springs_.ends.size());
+    spring_s1_.resize(springs_.ends.size());
+    spring_s2_.resize(springs_.ends.size());
+  }
+  std::sort(touched.begin(), touched.end());
+  touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+  inv_mass_.conservativeResize(n);
+  for (int w : touched) {
+    if (!(mass_[w] > 0.0)) throw std::invalid_argument("mass_spring: vertex " + std::to_string(w) + " lost its mass in the cut");
+    x_.col(w) = x.col(w);
+    v_.col(w) = v.cols() == n && !fixed_[static_cast<std::size_t>(w)] ? Eigen::Vector3d(v.col(w)) : Eigen::Vector3d::Zero();
+    inv_mass_[w] = fixed_[static_cast<std::size_t>(w)] ? 0.0 : 1.0 / mass_[w];
+    ++stats.vertices_updated;
+  }
+  if (integrator_ == Integrator::kExplicit) update_omega_bound();  // the stability bound the small pieces lower
+  return stats;
+}
+
 std::string MassSpringModel::name() const {
   switch (integrator_) {
     case Integrator::kExplicit: return "mass_spring/explicit";

@@ -33,6 +33,8 @@
 // warning; healthy=false only for a collapse, InversionMonitor in step_health.hpp).
 #include <Eigen/Core>
 
+#include <cstdint>
+#include <unordered_map>
 #include <vector>
 
 #include "host/sim/attachment_set.hpp"
@@ -70,6 +72,13 @@ class MassSpringModel final : public TissueModel {
   const Eigen::Matrix3Xd& velocities_World_mm_s() const override { return v_; }
   void set_state(const Eigen::Matrix3Xd& positions_World_mm, const Eigen::Matrix3Xd& velocities_World_mm_s) override;
   std::vector<ElementMeasure> element_measures() const override;
+  // In place after a cut (explicit and semi_implicit with the Jacobi preconditioner; the
+  // prefactored local/global and Laplacian systems are rebuilt: nothing): the changed tets'
+  // spring, volume and mass contributions out, the new ones in (springs found by edge),
+  // per-tet data replaced or appended. O(changed tets) plus, for explicit, the O(mesh)
+  // stability bound.
+  std::optional<MeshChangeStats> apply_mesh_change(const SimProblem& problem, const std::vector<int>& changed_tets,
+                                                   const Eigen::Matrix3Xd& x_World_mm, const Eigen::Matrix3Xd& v_World_mm_s) override;
 
   // Largest explicit substep (s) that is stable for the current springs and attachments.
   double explicit_stable_substep_s() const;
@@ -152,6 +161,10 @@ class MassSpringModel final : public TissueModel {
   Eigen::Matrix3Xd xn_, vn_;     // state at the start of the substep
   Eigen::MatrixX3d lg_rhs_, lg_dx_;
   Eigen::Matrix3Xd x_prev_;      // previous local/global iterate (Chebyshev acceleration)
+  // Local updates: spring of each edge (key min << 32 | max) and tets using each spring,
+  // built at the first one.
+  std::unordered_map<std::uint64_t, int> spring_of_edge_;
+  std::vector<int> spring_tets_;
 };
 
 }  // namespace arnav::host

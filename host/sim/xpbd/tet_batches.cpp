@@ -357,7 +357,7 @@ ARNAV_INLINE double solve_corotated_range(const TetBatch* batches, const int* co
   double sum = 0.0;
   for (int k = begin; k < end; ++k)
     sum += solve_corotated_batch<kDamped, kMultipliers>(batches[k], count[k], X, XP, W, rotation + 4L * kLanes * k,
-                                                        lambda + 10L * kLanes * k, h, residual);
+                                                        kMultipliers ? lambda + 10L * kLanes * k : nullptr, h, residual);  // no multipliers: lambda is null
   return sum;
 }
 

@@ -155,54 +155,64 @@ void XpbdModel::build_batches(const SimProblem& problem) {
         const int t = (*groups[g])[static_cast<std::size_t>(col.order[static_cast<std::size_t>(k)])];
         nb.tet[bi * kLanes + static_cast<std::size_t>(l)] = t;
         nb.count[bi] = l + 1;
-        const int region = mesh.tet_region.empty() ? 0 : mesh.tet_region[t];
-        const Material& mat = problem.region_materials[region];
-        const Lame lame = lame_from(mat);
-        const double V = signed_volume_mm3(x_, mesh.tets[t]);
-        const Eigen::Matrix3d Dm_inv = edge_matrix(x_, mesh.tets[t]).inverse();
-        xpbd::TetBatch& b = nb.batches[bi];
-        for (int a = 0; a < 4; ++a) b.v[a][l] = mesh.tets[t][a];
-        for (int a = 0; a < 3; ++a)
-          for (int j = 0; j < 3; ++j) b.b[a][j][l] = Dm_inv(a, j);
-        const double mu = lame.mu_kPa;
-        if (neo_hookean_) {
-          // Stable Neo-Hookean linearises to Lame (mu, lambda - mu): shift lambda by mu
-          // so that small strains see the region's E and nu.
-          const double lambda = lame.lambda_kPa + lame.mu_kPa;
-          b.inv_mu_V[l] = 1.0 / (mu * V);
-          b.inv_lambda_V[l] = 1.0 / (lambda * V);
-          b.gamma[l] = 1.0 + mu / lambda;
-          b.lambda_V[l] = lambda * V;
-        } else {
-          // Fixed-corotated: deviatoric compliance 1/(2 mu V); no volume term for nu = 0.
-          const double lambda = lame.lambda_kPa;
-          b.inv_mu_V[l] = 1.0 / (2.0 * mu * V);
-          b.inv_lambda_V[l] = lambda > 0.0 ? 1.0 / (lambda * V) : 1.0;
-          b.gamma[l] = lambda > 0.0 ? 1.0 : 0.0;
-          b.lambda_V[l] = std::max(lambda, 0.0) * V;
-        }
-        b.mu_V[l] = mu * V;
-        b.beta_s[l] = mat.damping_stiffness_s;
-        if (mat.damping_stiffness_s != 0.0) damped_ = true;
+        fill_lane(nb.batches[bi], l, problem, t);
+        const Material& mat = problem.region_materials[mesh.tet_region.empty() ? 0 : mesh.tet_region[t]];
+        const double V = signed_volume_mm3(mesh.rest_positions_World_mm, mesh.tets[t]);
         for (int v : mesh.tets[t]) mass_damping_per_s_[v] += 0.25 * V * mat.density_kg_per_mm3 * mat.damping_mass_per_s;
       }
     }
     nb.group_begin[g + 1] = static_cast<int>(nb.batches.size());
   }
   // Unused lanes repeat lane 0 (finite arithmetic; never written back nor summed).
-  for (std::size_t bi = 0; bi < nb.batches.size(); ++bi) {
-    xpbd::TetBatch& b = nb.batches[bi];
-    for (int l = nb.count[bi]; l < kLanes; ++l) {
-      for (int a = 0; a < 4; ++a) b.v[a][l] = b.v[a][0];
-      for (int a = 0; a < 3; ++a)
-        for (int j = 0; j < 3; ++j) b.b[a][j][l] = b.b[a][j][0];
-      b.inv_mu_V[l] = b.inv_mu_V[0];
-      b.inv_lambda_V[l] = b.inv_lambda_V[0];
-      b.gamma[l] = b.gamma[0];
-      b.beta_s[l] = b.beta_s[0];
-      b.mu_V[l] = b.mu_V[0];
-      b.lambda_V[l] = b.lambda_V[0];
-    }
+  for (std::size_t bi = 0; bi < nb.batches.size(); ++bi) fill_unused_lanes(bi);
+}
+
+void XpbdModel::fill_lane(xpbd::TetBatch& b, int l, const SimProblem& problem, int t) {
+  const TetMesh& mesh = problem.mesh;
+  const int region = mesh.tet_region.empty() ? 0 : mesh.tet_region[t];
+  const Material& mat = problem.region_materials[region];
+  const Lame lame = lame_from(mat);
+  const double V = signed_volume_mm3(mesh.rest_positions_World_mm, mesh.tets[t]);
+  const Eigen::Matrix3d Dm_inv = edge_matrix(mesh.rest_positions_World_mm, mesh.tets[t]).inverse();
+  for (int a = 0; a < 4; ++a) b.v[a][l] = mesh.tets[t][a];
+  for (int a = 0; a < 3; ++a)
+    for (int j = 0; j < 3; ++j) b.b[a][j][l] = Dm_inv(a, j);
+  const double mu = lame.mu_kPa;
+  if (neo_hookean_) {
+    // Stable Neo-Hookean linearises to Lame (mu, lambda - mu): shift lambda by mu
+    // so that small strains see the region's E and nu.
+    const double lambda = lame.lambda_kPa + lame.mu_kPa;
+    b.inv_mu_V[l] = 1.0 / (mu * V);
+    b.inv_lambda_V[l] = 1.0 / (lambda * V);
+    b.gamma[l] = 1.0 + mu / lambda;
+    b.lambda_V[l] = lambda * V;
+  } else {
+    // Fixed-corotated: deviatoric compliance 1/(2 mu V); no volume term for nu = 0.
+    const double lambda = lame.lambda_kPa;
+    b.inv_mu_V[l] = 1.0 / (2.0 * mu * V);
+    b.inv_lambda_V[l] = lambda > 0.0 ? 1.0 / (lambda * V) : 1.0;
+    b.gamma[l] = lambda > 0.0 ? 1.0 : 0.0;
+    b.lambda_V[l] = std::max(lambda, 0.0) * V;
+  }
+  b.mu_V[l] = mu * V;
+  b.beta_s[l] = mat.damping_stiffness_s;
+  if (mat.damping_stiffness_s != 0.0) damped_ = true;
+}
+
+void XpbdModel::fill_unused_lanes(std::size_t bi) {
+  using xpbd::kLanes;
+  xpbd::TetBatch& b = batches_.batches[bi];
+  for (int l = std::max(batches_.count[bi], 1); l < kLanes; ++l) {
+    for (int a = 0; a < 4; ++a) b.v[a][l] = b.v[a][0];
+    for (int a = 0; a < 3; ++a)
+      for (int j = 0; j < 3; ++j) b.b[a][j][l] = b.b[a][j][0];
+    for (int k = 0; k < 6; ++k) b.B[k][l] = b.B[k][0];
+    b.inv_mu_V[l] = b.inv_mu_V[0];
+    b.inv_lambda_V[l] = b.inv_lambda_V[0];
+    b.gamma[l] = b.gamma[0];
+    b.beta_s[l] = b.beta_s[0];
+    b.mu_V[l] = b.mu_V[0];
+    b.lambda_V[l] = b.lambda_V[0];
   }
 }
 
@@ -215,24 +225,221 @@ std::array<int, 5> XpbdModel::group_tets() const {
 }
 
 void XpbdModel::update_tet_mass_blocks() {
-  for (xpbd::TetBatch& b : batches_.batches) {
-    for (int l = 0; l < xpbd::kLanes; ++l) {
-      Eigen::Matrix3d B = Eigen::Matrix3d::Zero();
-      Eigen::Vector3d b0 = Eigen::Vector3d::Zero();
-      for (int a = 1; a < 4; ++a) {
-        const Eigen::Vector3d ba(b.b[a - 1][0][l], b.b[a - 1][1][l], b.b[a - 1][2][l]);
-        B += inv_mass_[b.v[a][l]] * ba * ba.transpose();
-        b0 -= ba;
+  for (std::size_t bi = 0; bi < batches_.batches.size(); ++bi)
+    for (int l = 0; l < xpbd::kLanes; ++l) refresh_mass_block(bi, l);
+}
+
+void XpbdModel::refresh_mass_block(std::size_t bi, int l) {
+  xpbd::TetBatch& b = batches_.batches[bi];
+  Eigen::Matrix3d B = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d b0 = Eigen::Vector3d::Zero();
+  for (int a = 1; a < 4; ++a) {
+    const Eigen::Vector3d ba(b.b[a - 1][0][l], b.b[a - 1][1][l], b.b[a - 1][2][l]);
+    B += inv_mass_[b.v[a][l]] * ba * ba.transpose();
+    b0 -= ba;
+  }
+  B += inv_mass_[b.v[0][l]] * b0 * b0.transpose();
+  b.B[0][l] = B(0, 0);
+  b.B[1][l] = B(0, 1);
+  b.B[2][l] = B(0, 2);
+  b.B[3][l] = B(1, 1);
+  b.B[4][l] = B(1, 2);
+  b.B[5][l] = B(2, 2);
+}
+
+void XpbdModel::remove_lane(int lane) {
+  using xpbd::kLanes;
+  const std::size_t bi = static_cast<std::size_t>(lane / kLanes);
+  const int l = lane % kLanes, last = batches_.count[bi] - 1;
+  xpbd::TetBatch& b = batches_.batches[bi];
+  auto drop = [&](int v, int id) {
+    auto& list = vertex_lanes_[static_cast<std::size_t>(v)];
+    list.erase(std::remove(list.begin(), list.end(), id), list.end());
+  };
+  for (int a = 0; a < 4; ++a) drop(b.v[a][l], lane);
+  lane_of_tet_[static_cast<std::size_t>(batches_.tet[static_cast<std::size_t>(lane)])] = -1;
+  if (l != last) {  // the batch's last lane takes the freed one
+    const int from = static_cast<int>(bi) * kLanes + last;
+    for (int a = 0; a < 4; ++a) {
+      b.v[a][l] = b.v[a][last];
+      for (int& id : vertex_lanes_[static_cast<std::size_t>(b.v[a][l])])
+        if (id == from) id = lane;
+    }
+    for (int a = 0; a < 3; ++a)
+      for (int j = 0; j < 3; ++j) b.b[a][j][l] = b.b[a][j][last];
+    for (int k = 0; k < 6; ++k) b.B[k][l] = b.B[k][last];
+    b.inv_mu_V[l] = b.inv_mu_V[last];
+    b.inv_lambda_V[l] = b.inv_lambda_V[last];
+    b.gamma[l] = b.gamma[last];
+    b.beta_s[l] = b.beta_s[last];
+    b.mu_V[l] = b.mu_V[last];
+    b.lambda_V[l] = b.lambda_V[last];
+    if (!rotation_.empty())
+      for (int k = 0; k < 4; ++k) rotation_[4 * kLanes * bi + static_cast<std::size_t>(k * kLanes + l)] = rotation_[4 * kLanes * bi + static_cast<std::size_t>(k * kLanes + last)];
+    const int moved = batches_.tet[static_cast<std::size_t>(from)];
+    batches_.tet[static_cast<std::size_t>(lane)] = moved;
+    lane_of_tet_[static_cast<std::size_t>(moved)] = lane;
+  }
+  batches_.tet[bi * kLanes + static_cast<std::size_t>(last)] = -1;
+  --batches_.count[bi];
+  fill_unused_lanes(bi);
+}
+
+int XpbdModel::add_lane(const SimProblem& problem, int t) {
+  using xpbd::kLanes;
+  const auto& tet = problem.mesh.tets[static_cast<std::size_t>(t)];
+  // A batch appended by cuts with a free lane and none of the tet's vertices (the last few
+  // only: constant work per tet).
+  int bi = -1;
+  const int nb = static_cast<int>(batches_.batches.size());
+  for (int k = nb - 1; k >= std::max(cut_batches_begin_, nb - 8) && bi < 0; --k) {
+    if (batches_.count[static_cast<std::size_t>(k)] >= kLanes) continue;
+    bool clash = false;
+    const xpbd::TetBatch& b = batches_.batches[static_cast<std::size_t>(k)];
+    for (int l = 0; l < batches_.count[static_cast<std::size_t>(k)] && !clash; ++l)
+      for (int a = 0; a < 4 && !clash; ++a)
+        for (int w : tet) clash = clash || b.v[a][l] == w;
+    if (!clash) bi = k;
+  }
+  if (bi < 0) {
+    batches_.batches.emplace_back();
+    batches_.count.push_back(0);
+    batches_.tet.insert(batches_.tet.end(), kLanes, -1);
+    if (!rotation_.empty()) rotation_.resize(rotation_.size() + 4 * kLanes, 0.0);
+    if (!lambda_.empty()) lambda_.resize(lambda_.size() + 10 * kLanes, 0.0);
+    bi = nb;
+    batches_.group_begin[5] = bi + 1;  // the seam group (one thread) ends the list
+  }
+  const std::size_t b = static_cast<std::size_t>(bi);
+  const int l = batches_.count[b]++;
+  fill_lane(batches_.batches[b], l, problem, t);
+  const int lane = bi * kLanes + l;
+  batches_.tet[static_cast<std::size_t>(lane)] = t;
+  if (lane_of_tet_.size() <= static_cast<std::size_t>(t)) lane_of_tet_.resize(static_cast<std::size_t>(t) + 1, -1);
+  lane_of_tet_[static_cast<std::size_t>(t)] = lane;
+  for (int w : tet) vertex_lanes_[static_cast<std::size_t>(w)].push_back(lane);
+  if (!rotation_.empty()) {
+    Eigen::Matrix3d Dm_inv;
+    for (int a = 0; a < 3; ++a)
+      for (int j = 0; j < 3; ++j) Dm_inv(a, j) = batches_.batches[b].b[a][j][l];
+    const Eigen::Matrix3d F = edge_matrix(x_, tet) * Dm_inv;
+    const Eigen::Quaterniond q = F.allFinite() ? Eigen::Quaterniond(polar_rotation(F)) : Eigen::Quaterniond::Identity();
+    double* r = rotation_.data() + 4 * kLanes * b;
+    r[0 * kLanes + l] = q.w();
+    r[1 * kLanes + l] = q.x();
+    r[2 * kLanes + l] = q.y();
+    r[3 * kLanes + l] = q.z();
+  }
+  return lane;
+}
+
+std::optional<MeshChangeStats> XpbdModel::apply_mesh_change(const SimProblem& problem, const std::vector<int>& changed_tets,
+                                                            const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v) {
+  using xpbd::kLanes;
+  const TetMesh& mesh = problem.mesh;
+  const int n_old = static_cast<int>(x_.cols()), n = mesh.num_vertices(), nt = mesh.num_tets();
+  if (n < n_old || nt < num_tets_ || x.cols() != n || (v.cols() != n && v.cols() != 0) || mesh.tet_region.size() != mesh.tets.size())
+    return std::nullopt;
+  MeshChangeStats stats;
+  if (lane_of_tet_.empty()) {  // once: the maps for local updates
+    lane_of_tet_.assign(static_cast<std::size_t>(num_tets_), -1);
+    vertex_lanes_.assign(static_cast<std::size_t>(n_old), {});
+    for (std::size_t bi = 0; bi < batches_.batches.size(); ++bi)
+      for (int l = 0; l < batches_.count[bi]; ++l) {
+        const int lane = static_cast<int>(bi) * kLanes + l;
+        lane_of_tet_[static_cast<std::size_t>(batches_.tet[static_cast<std::size_t>(lane)])] = lane;
+        for (int a = 0; a < 4; ++a) vertex_lanes_[static_cast<std::size_t>(batches_.batches[bi].v[a][l])].push_back(lane);
       }
-      B += inv_mass_[b.v[0][l]] * b0 * b0.transpose();
-      b.B[0][l] = B(0, 0);
-      b.B[1][l] = B(0, 1);
-      b.B[2][l] = B(0, 2);
-      b.B[3][l] = B(1, 1);
-      b.B[4][l] = B(1, 2);
-      b.B[5][l] = B(2, 2);
+    cut_batches_begin_ = static_cast<int>(batches_.batches.size());
+  }
+  // Appended vertices.
+  x_.conservativeResize(Eigen::NoChange, n);
+  v_.conservativeResize(Eigen::NoChange, n);
+  x_prev_.conservativeResize(Eigen::NoChange, n);
+  mass_.conservativeResize(n);
+  inv_mass_.conservativeResize(n);
+  mass_damping_per_s_.conservativeResize(n);
+  fixed_.resize(static_cast<std::size_t>(n), 0);
+  vertex_lanes_.resize(static_cast<std::size_t>(n));
+  for (int i = n_old; i < n; ++i) {
+    mass_[i] = 0.0;
+    mass_damping_per_s_[i] = 0.0;
+    group_vertices_[2].push_back(i);  // touched by the seam only: thread 0 owns it
+  }
+  for (auto it = problem.fixed_vertices.rbegin(); it != problem.fixed_vertices.rend() && *it >= n_old; ++it)
+    fixed_[static_cast<std::size_t>(*it)] = 1;
+  // Masses: the changed tets' old quarters out, their new quarters in (raw damping mass
+  // likewise); touched = vertices whose mass changed.
+  std::vector<int> touched;
+  auto touch = [&](int w) { touched.push_back(w); };
+  for (int w = n_old; w < n; ++w) touch(w);
+  for (int t : changed_tets) {
+    if (t < num_tets_ && lane_of_tet_[static_cast<std::size_t>(t)] >= 0) {
+      const int lane = lane_of_tet_[static_cast<std::size_t>(t)];
+      const xpbd::TetBatch& b = batches_.batches[static_cast<std::size_t>(lane / kLanes)];
+      for (int a = 0; a < 4; ++a) touch(b.v[a][lane % kLanes]);
+    }
+    for (int w : mesh.tets[static_cast<std::size_t>(t)]) touch(w);
+  }
+  std::sort(touched.begin(), touched.end());
+  touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+  for (int w : touched) mass_damping_per_s_[w] *= mass_[w];  // back to the raw sum
+  for (int t : changed_tets) {
+    const Material& mat = problem.region_materials[static_cast<std::size_t>(mesh.tet_region[static_cast<std::size_t>(t)])];
+    if (t < num_tets_ && lane_of_tet_[static_cast<std::size_t>(t)] >= 0) {
+      const int lane = lane_of_tet_[static_cast<std::size_t>(t)];
+      const xpbd::TetBatch& b = batches_.batches[static_cast<std::size_t>(lane / kLanes)];
+      const int l = lane % kLanes;
+      Eigen::Matrix3d Dm_inv;
+      for (int a = 0; a < 3; ++a)
+        for (int j = 0; j < 3; ++j) Dm_inv(a, j) = b.b[a][j][l];
+      const double V_old = 1.0 / (6.0 * Dm_inv.determinant());
+      for (int a = 0; a < 4; ++a) {
+        mass_[b.v[a][l]] -= 0.25 * V_old * mat.density_kg_per_mm3;
+        mass_damping_per_s_[b.v[a][l]] -= 0.25 * V_old * mat.density_kg_per_mm3 * mat.damping_mass_per_s;
+      }
+      remove_lane(lane);
+      ++stats.elements_updated;
+    }
+    const double V = signed_volume_mm3(mesh.rest_positions_World_mm, mesh.tets[static_cast<std::size_t>(t)]);
+    if (!(V > 0.0)) throw std::invalid_argument("xpbd: tet " + std::to_string(t) + " has non-positive rest volume after the cut");
+    for (int w : mesh.tets[static_cast<std::size_t>(t)]) {
+      mass_[w] += 0.25 * V * mat.density_kg_per_mm3;
+      mass_damping_per_s_[w] += 0.25 * V * mat.density_kg_per_mm3 * mat.damping_mass_per_s;
     }
   }
+  num_tets_ = nt;
+  lane_of_tet_.resize(static_cast<std::size_t>(nt), -1);
+  // State of the touched vertices (new ones, moved ones: the cutter's), masses.
+  for (int w : touched) {
+    if (!(mass_[w] > 0.0)) throw std::invalid_argument("xpbd: vertex " + std::to_string(w) + " lost its mass in the cut");
+    mass_damping_per_s_[w] /= mass_[w];
+    x_.col(w) = x.col(w);
+    x_prev_.col(w) = x.col(w);
+    v_.col(w) = v.cols() == n && !fixed_[static_cast<std::size_t>(w)] ? Eigen::Vector3d(v.col(w)) : Eigen::Vector3d::Zero();
+    inv_mass_[w] = fixed_[static_cast<std::size_t>(w)] ? 0.0 : 1.0 / mass_[w];
+    ++stats.vertices_updated;
+  }
+  // The changed tets join the seam.
+  for (int t : changed_tets) {
+    add_lane(problem, t);
+    ++stats.elements_updated;
+  }
+  // Mass blocks of every tet around a touched vertex.
+  std::vector<int> lanes;
+  for (int w : touched) lanes.insert(lanes.end(), vertex_lanes_[static_cast<std::size_t>(w)].begin(), vertex_lanes_[static_cast<std::size_t>(w)].end());
+  std::sort(lanes.begin(), lanes.end());
+  lanes.erase(std::unique(lanes.begin(), lanes.end()), lanes.end());
+  for (int lane : lanes) {
+    refresh_mass_block(static_cast<std::size_t>(lane / kLanes), lane % kLanes);
+    ++stats.elements_updated;
+  }
+  std::vector<std::size_t> batches;
+  for (int lane : lanes) batches.push_back(static_cast<std::size_t>(lane / kLanes));
+  std::sort(batches.begin(), batches.end());
+  batches.erase(std::unique(batches.begin(), batches.end()), batches.end());
+  for (std::size_t bi : batches) fill_unused_lanes(bi);
+  return stats;
 }
 
 void XpbdModel::reset_rotations() {

@@ -53,6 +53,12 @@ class XpbdModel final : public TissueModel {
   const Eigen::Matrix3Xd& velocities_World_mm_s() const override { return v_; }
   void set_state(const Eigen::Matrix3Xd& positions_World_mm, const Eigen::Matrix3Xd& velocities_World_mm_s) override;
   std::vector<ElementMeasure> element_measures() const override;
+  // In place after a cut: the changed tets leave their batches (the last lane of the batch
+  // takes the freed one) and join batches appended to the seam group (one thread), lumped
+  // masses change by the removed and added tets' quarters, mass blocks are refreshed for
+  // the tets around the vertices whose mass changed. O(changed tets and their neighbours).
+  std::optional<MeshChangeStats> apply_mesh_change(const SimProblem& problem, const std::vector<int>& changed_tets,
+                                                   const Eigen::Matrix3Xd& x_World_mm, const Eigen::Matrix3Xd& v_World_mm_s) override;
 
   // Stored elastic energy of tets and attachments at the current state (mN*mm).
   double elastic_energy() const;
@@ -64,6 +70,12 @@ class XpbdModel final : public TissueModel {
 
  private:
   void build_batches(const SimProblem& problem);
+  // Writes tet t of problem.mesh (rest shape, material) into lane l of batch b.
+  void fill_lane(xpbd::TetBatch& b, int l, const SimProblem& problem, int t);
+  void refresh_mass_block(std::size_t bi, int l);
+  void fill_unused_lanes(std::size_t bi);
+  void remove_lane(int lane);
+  int add_lane(const SimProblem& problem, int t);
   void update_tet_mass_blocks();
   // One step (substeps, sweeps, attachments) in one parallel region; returns the elastic
   // energy of the tets and attachments and the inverted tets at its end.
@@ -91,6 +103,11 @@ class XpbdModel final : public TissueModel {
   InversionMonitor inversions_;   // inverted tets: counted warning (step_health.hpp)
   int inverted_at_end_ = -1;      // inverted tets after the last step; -1: unknown
   EnergyLedger ledger_;
+  // Local updates (apply_mesh_change), built at the first one: lane (batch * kLanes + lane)
+  // of each tet, lanes of each vertex, first batch appended by cuts.
+  std::vector<int> lane_of_tet_;
+  std::vector<std::vector<int>> vertex_lanes_;
+  int cut_batches_begin_ = -1;
 };
 
 }  // namespace arnav::host
