@@ -369,7 +369,9 @@ std::vector<TrackBenchRow> run_track_bench(const RegisterBenchOptions& o, int fr
   std::shuffle(candidates.begin(), candidates.end(), rng);
   candidates.resize(std::min<std::size_t>(60, candidates.size()));
   const Eigen::Isometry3d X_true = random_rigid(25.0, 100.0, rng);
-  SurfaceTracker tracker(reg, reg.problem.mesh.rest_positions_World_mm, X_true);
+  TrackingOptions topt;
+  topt.realtime_model = !o.track_scene_model_settings;
+  SurfaceTracker tracker(reg, reg.problem.mesh.rest_positions_World_mm, X_true, topt);
   model_name = tracker.model_name();
   std::normal_distribution<double> noise(0.0, 0.5);
   std::vector<long long> ids(candidates.begin(), candidates.end());

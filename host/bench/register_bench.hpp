@@ -28,6 +28,7 @@ struct RegisterBenchOptions {
   int steps_per_update = 0;
   unsigned seed = 1;
   std::string export_dir;                               // non-empty: write the first case's input files here
+  bool track_scene_model_settings = false;              // track: the scene's model settings instead of the real-time ones
 };
 
 struct TreStats {
