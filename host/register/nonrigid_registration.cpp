@@ -9,6 +9,7 @@
 #include <set>
 #include <stdexcept>
 
+#include "host/register/self_contact.hpp"
 #include "host/register/surface_index.hpp"
 #include "host/scene/embedding.hpp"
 #include "host/sim/model_factory.hpp"
@@ -188,6 +189,8 @@ NonrigidResult register_nonrigid(const Scene& scene, const Eigen::Matrix3Xd& dat
   std::vector<AttachmentId> landmark_attachment;
   for (std::size_t i = 0; i < landmark_points.size(); ++i)
     landmark_attachment.push_back(model->add_attachment({landmark_points[i], landmarks[i].target_Model_mm, kIdle_mN_per_mm}));
+  std::unique_ptr<SelfContactDetector> contact;
+  if (o.self_contact) contact = std::make_unique<SelfContactDetector>(mesh.rest_positions_World_mm, mesh.surface_tris, o.contact_exclusion_mm);
   Eigen::Matrix3Xd x = mesh.rest_positions_World_mm;
   const Eigen::Matrix3Xd zero_v = Eigen::Matrix3Xd::Zero(3, x.cols());
   double prev_rms = res.rigid_rms_mm;
@@ -247,6 +250,26 @@ NonrigidResult register_nonrigid(const Scene& scene, const Eigen::Matrix3Xd& dat
           K[static_cast<std::size_t>(j)] += kw;
           pull.col(j) += kw * r * h.normal;
         }
+      }
+      if (contact) {
+        // Self-contact: push a vertex that reached another part back to the margin and
+        // that part's triangle the other way, stiffer than any data spring.
+        const std::vector<SelfContact> cs = contact->find(x, o.contact_margin_mm, contact->exclusion_mm());
+        const double k_c = o.contact_stiffness_factor * std::max(*std::max_element(K.begin(), K.end()), weight * k_unit * area_per_point);
+        for (const SelfContact& sc : cs) {
+          const double push = sc.wanted_mm - sc.signed_distance_mm;  // > 0
+          const int j = slot[static_cast<std::size_t>(sc.vertex)];
+          K[static_cast<std::size_t>(j)] += k_c;
+          pull.col(j) += k_c * push * sc.normal;
+          const auto& f = mesh.surface_tris[static_cast<std::size_t>(sc.tri)];
+          for (int a = 0; a < 3; ++a) {
+            const int jj = slot[static_cast<std::size_t>(f[static_cast<std::size_t>(a)])];
+            const double kw = k_c * sc.barycentric[a];
+            K[static_cast<std::size_t>(jj)] += kw;
+            pull.col(jj) -= kw * push * sc.normal;
+          }
+        }
+        level.contacts = static_cast<int>(cs.size());
       }
       for (std::size_t j = 0; j < surface_vertices.size(); ++j) {
         const Eigen::Vector3d xj = x.col(surface_vertices[j]);
@@ -326,6 +349,8 @@ NonrigidResult register_nonrigid(const Scene& scene, const Eigen::Matrix3Xd& dat
     model->set_state(best_x, zero_v);
     for (const auto& e : model->element_measures())
       if (e.volume_ratio <= 0) ++res.inverted_elements;
+    const SelfContactDetector check(mesh.rest_positions_World_mm, mesh.surface_tris, o.contact_exclusion_mm);
+    res.crossed_vertices = check.count_crossed(best_x, check.exclusion_mm());
   } else {
     res.message = "data does not support a non-rigid fit (surface residual " + std::to_string(res.rigid_rms_mm) + " mm rigid, " +
                   std::to_string(prev_rms) + " mm non-rigid" + (res.message.empty() ? "" : "; " + res.message) +

@@ -39,6 +39,21 @@ struct NonrigidOptions {
   // there biased every benchmark case (docs/register.md); the data springs hold the
   // rigid modes of the free model.
   bool scene_boundary = false;
+  // Anchored boundary (register_patient only): after the free fit, the rigid part is
+  // corrected by the rigid motion of the scene's fixed vertices in the free fit (they are
+  // where the organ is attached, so in truth they did not move relative to the body), and
+  // the fit is run again from rest with the fixed vertices held there. The rest of the
+  // organ is then constrained by its attachment, which the free fit lacks for the parts
+  // the data do not see. Needs fixed vertices in the scene; ignored with scene_boundary.
+  bool anchored_boundary = false;
+  // Self-contact term (paper 002's self-collision): a surface vertex that comes within
+  // contact_margin_mm of another part of the surface (self_contact.hpp) is pushed back to
+  // the margin, and that part the other way, by springs contact_stiffness_factor times the
+  // stiffest data spring of the update, so the data cannot pull one lobe through another.
+  bool self_contact = true;
+  double contact_margin_mm = 1.0;
+  double contact_stiffness_factor = 10.0;
+  double contact_exclusion_mm = 0.0;      // 0: three mean surface edges (SelfContactDetector)
   double landmark_weight = 0.0;           // 0: landmarks not used; else stiffness in mN/mm per landmark, per level
   double time_budget_s = 0.0;             // 0: none; else stop starting new levels past it
 };
@@ -54,6 +69,7 @@ struct NonrigidLevel {
   double max_mm = 0.0;
   int points_used = 0;
   int points_trimmed = 0;
+  int contacts = 0;                     // self-contact springs in the level's last update
   double max_displacement_mm = 0.0;     // largest vertex displacement from rest
   double wall_time_s = 0.0;
   double model_time_s = 0.0;            // of which in the tissue model (steps, attachments, state resets)
@@ -67,6 +83,7 @@ struct NonrigidResult {
   double rigid_rms_mm = 0.0;            // same measure at rest, for "never worse than rigid"
   double final_rms_mm = 0.0;
   int inverted_elements = 0;
+  int crossed_vertices = 0;             // surface vertices inside another part of the organ (lobes passed through)
   std::vector<NonrigidLevel> levels;
   double wall_time_s = 0.0;
   std::string model;                    // the model that ran

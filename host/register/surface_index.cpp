@@ -93,7 +93,9 @@ SurfaceIndex::SurfaceIndex(const Eigen::Matrix3Xd& positions, const std::vector<
   }
 }
 
-SurfaceHit SurfaceIndex::closest(const Eigen::Vector3d& q, double max_distance_mm) const {
+SurfaceHit SurfaceIndex::closest(const Eigen::Vector3d& q, double max_distance_mm) const { return closest(q, max_distance_mm, {}); }
+
+SurfaceHit SurfaceIndex::closest(const Eigen::Vector3d& q, double max_distance_mm, const std::function<bool(int)>& skip) const {
   SurfaceHit best;
   if (tris_.empty()) return best;
   double best_d2 = std::numeric_limits<double>::infinity();
@@ -112,6 +114,7 @@ SurfaceHit SurfaceIndex::closest(const Eigen::Vector3d& q, double max_distance_m
     if (box_d2 >= best_d2) return;
     for (int s = cell_start_[static_cast<std::size_t>(cell)]; s < cell_start_[static_cast<std::size_t>(cell) + 1]; ++s) {
       const int ti = cell_tris_[static_cast<std::size_t>(s)];
+      if (skip && skip(ti)) continue;
       const auto& t = tris_[static_cast<std::size_t>(ti)];
       const Eigen::Vector3d w = closest_on_triangle(q, x_.col(t[0]), x_.col(t[1]), x_.col(t[2]));
       const Eigen::Vector3d p = w[0] * x_.col(t[0]) + w[1] * x_.col(t[1]) + w[2] * x_.col(t[2]);
