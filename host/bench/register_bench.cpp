@@ -323,6 +323,8 @@ std::vector<RegisterBenchRow> run_register_bench(const RegisterBenchOptions& o) 
         rq.nonrigid.model_kind = o.model_kind;
         rq.nonrigid.scene_boundary = o.scene_boundary;
         rq.nonrigid.anchored_boundary = o.anchored_boundary;
+        rq.nonrigid.estimate_gravity_change = o.gravity_change;
+        rq.nonrigid.self_contact = !o.no_self_contact;
         rq.nonrigid.noise_mm = std::max(0.3, 0.8 * noise);  // trimmed RMS of the normal noise component
         if (!o.schedule.empty()) rq.nonrigid.data_weight_schedule = o.schedule;
         if (o.updates_per_level > 0) rq.nonrigid.max_updates_per_level = o.updates_per_level;
@@ -336,6 +338,12 @@ std::vector<RegisterBenchRow> run_register_bench(const RegisterBenchOptions& o) 
           note += "; w" + std::to_string(static_cast<int>(l.data_weight)) + ": " + std::to_string(l.updates) + " updates " +
                   std::to_string(l.rms_mm).substr(0, 5) + " mm " + std::to_string(l.wall_time_s).substr(0, 4) + " s (model " + std::to_string(l.model_time_s).substr(0, 4) + ")";
         note += "; rigid rms " + std::to_string(res.nonrigid->rigid_rms_mm).substr(0, 5);
+        if (res.nonrigid->gravity_change_mm_s2.norm() > 0) {
+          const Eigen::Vector3d gc = res.nonrigid->gravity_change_mm_s2 / 9810.0;
+          note += "; gravity change (g) " + std::to_string(gc.x()).substr(0, 6) + " " + std::to_string(gc.y()).substr(0, 6) + " " +
+                  std::to_string(gc.z()).substr(0, 6) + " in " + std::to_string(res.nonrigid->gravity_time_s).substr(0, 4) + " s";
+        }
+        note += "; crossed " + std::to_string(res.nonrigid->crossed_vertices);
         row("nonrigid", carry_to_intraop(reg, reg_targets, res), res.nonrigid->final_rms_mm, res.wall_time_s, note);
       }
     }

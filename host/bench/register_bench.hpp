@@ -25,6 +25,8 @@ struct RegisterBenchOptions {
   std::vector<double> schedule;                         // data-weight schedule (empty: default)
   bool scene_boundary = false;
   bool anchored_boundary = false;
+  bool gravity_change = false;
+  bool no_self_contact = false;
   int updates_per_level = 0;                            // 0: the library default
   int steps_per_update = 0;
   unsigned seed = 1;

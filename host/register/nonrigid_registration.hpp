@@ -46,6 +46,16 @@ struct NonrigidOptions {
   // organ is then constrained by its attachment, which the free fit lacks for the parts
   // the data do not see. Needs fixed vertices in the scene; ignored with scene_boundary.
   bool anchored_boundary = false;
+  // Gravity change (with the boundary held: scene_boundary, or the anchored second fit):
+  // the preoperative shape carries the old gravity; a change of the patient's position
+  // changes the load on the whole organ, also where the data do not reach. A uniform body
+  // force change b (3 numbers) is fitted to the data first: the model's responses to a unit
+  // gravity along x, y and z (relaxed with the boundary held) are combined by least
+  // squares on the point-to-plane residuals at rest (Huber-weighted, trimmed, |b| at most
+  // gravity_max_fraction of the scene's |g|), and the fit then runs under b.
+  bool estimate_gravity_change = false;
+  double gravity_max_fraction = 1.0;
+  int gravity_relax_steps = 8;
   // Self-contact term (paper 002's self-collision): a surface vertex that comes within
   // contact_margin_mm of another part of the surface (self_contact.hpp) is pushed back to
   // the margin, and that part the other way, by springs contact_stiffness_factor times the
@@ -83,6 +93,8 @@ struct NonrigidResult {
   double rigid_rms_mm = 0.0;            // same measure at rest, for "never worse than rigid"
   double final_rms_mm = 0.0;
   int inverted_elements = 0;
+  Eigen::Vector3d gravity_change_mm_s2 = Eigen::Vector3d::Zero();  // estimated body force change (0: not estimated)
+  double gravity_time_s = 0.0;
   int crossed_vertices = 0;             // surface vertices inside another part of the organ (lobes passed through)
   std::vector<NonrigidLevel> levels;
   double wall_time_s = 0.0;
