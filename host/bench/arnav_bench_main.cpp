@@ -61,6 +61,7 @@ static int main_body(int argc, char** argv) {
   reg->add_flag("--scene-boundary", reg_options.scene_boundary, "hold the scene's fixed vertices during the non-rigid stage");
   reg->add_flag("--gravity-change", reg_options.gravity_change, "with a held boundary, fit a change of gravity (3 numbers) first");
   reg->add_flag("--no-self-contact", reg_options.no_self_contact, "switch the self-contact term off");
+  reg->add_flag("--model-error", reg_options.model_error, "stop the schedule at sqrt(noise^2 + the volume surface's error^2)");
   reg->add_flag("--anchored-boundary", reg_options.anchored_boundary, "free fit, rigid part corrected by the fixed vertices' motion, then a fit holding them");
   reg->add_option("--seed", reg_options.seed, "random seed");
   reg->add_option("--export", reg_options.export_dir, "write the first case's inputs for arnav-register (surface.xyz, landmarks.csv, targets.csv, truth_targets.csv)");

@@ -325,6 +325,7 @@ std::vector<RegisterBenchRow> run_register_bench(const RegisterBenchOptions& o) 
         rq.nonrigid.anchored_boundary = o.anchored_boundary;
         rq.nonrigid.estimate_gravity_change = o.gravity_change;
         rq.nonrigid.self_contact = !o.no_self_contact;
+        rq.nonrigid.include_model_error = o.model_error;
         rq.nonrigid.noise_mm = std::max(0.3, 0.8 * noise);  // trimmed RMS of the normal noise component
         if (!o.schedule.empty()) rq.nonrigid.data_weight_schedule = o.schedule;
         if (o.updates_per_level > 0) rq.nonrigid.max_updates_per_level = o.updates_per_level;
@@ -344,6 +345,7 @@ std::vector<RegisterBenchRow> run_register_bench(const RegisterBenchOptions& o) 
                   std::to_string(gc.z()).substr(0, 6) + " in " + std::to_string(res.nonrigid->gravity_time_s).substr(0, 4) + " s";
         }
         note += "; crossed " + std::to_string(res.nonrigid->crossed_vertices);
+        note += "; stop at " + std::to_string(res.nonrigid->discrepancy_mm).substr(0, 5) + " mm";
         row("nonrigid", carry_to_intraop(reg, reg_targets, res), res.nonrigid->final_rms_mm, res.wall_time_s, note);
       }
     }

@@ -27,6 +27,7 @@ struct RegisterBenchOptions {
   bool anchored_boundary = false;
   bool gravity_change = false;
   bool no_self_contact = false;
+  bool model_error = false;
   int updates_per_level = 0;                            // 0: the library default
   int steps_per_update = 0;
   unsigned seed = 1;

@@ -134,9 +134,20 @@ NonrigidResult register_nonrigid(const Scene& scene, const Eigen::Matrix3Xd& dat
       res.wall_time_s = seconds_since(t0);
       return res;
     }
-    if (c0.rms <= o.noise_mm) {
+    res.discrepancy_mm = o.noise_mm;
+    if (o.include_model_error && scene.organ_surface.positions_World_mm.cols() > 0) {
+      double ss = 0.0;
+      const Eigen::Matrix3Xd& s = scene.organ_surface.positions_World_mm;
+      for (int i = 0; i < s.cols(); ++i) {
+        const double d = rest_index.closest(s.col(i)).distance_mm;
+        ss += d * d;
+      }
+      res.model_surface_error_mm = std::sqrt(ss / static_cast<double>(s.cols()));
+      res.discrepancy_mm = std::hypot(o.noise_mm, res.model_surface_error_mm);
+    }
+    if (c0.rms <= res.discrepancy_mm) {
       res.message = "the rigid fit already reaches the expected noise (" + std::to_string(c0.rms) + " mm RMS <= " +
-                    std::to_string(o.noise_mm) + " mm): no deformation needed; the rigid result is kept";
+                    std::to_string(res.discrepancy_mm) + " mm): no deformation needed; the rigid result is kept";
       res.wall_time_s = seconds_since(t0);
       return res;
     }
@@ -392,7 +403,7 @@ NonrigidResult register_nonrigid(const Scene& scene, const Eigen::Matrix3Xd& dat
     best_x = x;
     const bool small_gain = (prev_rms - c.rms) < o.min_improvement * prev_rms;
     prev_rms = c.rms;
-    if (c.rms <= o.noise_mm) {
+    if (c.rms <= res.discrepancy_mm) {
       res.message = "reached the expected noise level";
       break;
     }

@@ -33,6 +33,12 @@ struct NonrigidOptions {
   double huber_sigmas = 1.345;
   double min_sigma_mm = 0.3;
   double noise_mm = 1.0;                  // expected point noise (RMS distance); the schedule stops here
+  // Discrepancy principle with the model's own error: the volume's surface is an
+  // approximation of the organ surface the points were measured on (a coarse volume of a
+  // finer surface), so the residual cannot fall below that approximation error without
+  // fitting noise; the schedule stops at sqrt(noise^2 + e^2), e the RMS distance of the
+  // scene's organ (display) surface vertices to the volume's surface at rest.
+  bool include_model_error = false;  // off by default: no TRE gain on the benchmark (docs/register.md)
   double min_improvement = 0.02;          // a level must lower the RMS by this fraction to go on
   // Hold the scene's fixed vertices (ligaments) at their Model-frame rest positions. Off by
   // default: after a rigid fit those positions carry the rigid error, and holding them
@@ -92,6 +98,8 @@ struct NonrigidResult {
   std::string message;                  // why not accepted, or what limited it
   double rigid_rms_mm = 0.0;            // same measure at rest, for "never worse than rigid"
   double final_rms_mm = 0.0;
+  double model_surface_error_mm = 0.0;  // e above (0 when not used)
+  double discrepancy_mm = 0.0;          // where the schedule stops
   int inverted_elements = 0;
   Eigen::Vector3d gravity_change_mm_s2 = Eigen::Vector3d::Zero();  // estimated body force change (0: not estimated)
   double gravity_time_s = 0.0;
