@@ -344,7 +344,7 @@ std::vector<RegisterBenchRow> run_register_bench(const RegisterBenchOptions& o) 
           note += "; gravity change (g) " + std::to_string(gc.x()).substr(0, 6) + " " + std::to_string(gc.y()).substr(0, 6) + " " +
                   std::to_string(gc.z()).substr(0, 6) + " in " + std::to_string(res.nonrigid->gravity_time_s).substr(0, 4) + " s";
         }
-        note += "; crossed " + std::to_string(res.nonrigid->crossed_vertices);
+        note += "; crossed " + std::to_string(res.nonrigid->crossed_vertices) + ", contact search " + std::to_string(res.nonrigid->contact_time_s).substr(0, 5) + " s";
         note += "; stop at " + std::to_string(res.nonrigid->discrepancy_mm).substr(0, 5) + " mm";
         row("nonrigid", carry_to_intraop(reg, reg_targets, res), res.nonrigid->final_rms_mm, res.wall_time_s, note);
       }

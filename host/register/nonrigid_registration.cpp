@@ -326,7 +326,9 @@ NonrigidResult register_nonrigid(const Scene& scene, const Eigen::Matrix3Xd& dat
       if (contact) {
         // Self-contact: push a vertex that reached another part back to the margin and
         // that part's triangle the other way, stiffer than any data spring.
+        const auto tc = Clock::now();
         const std::vector<SelfContact> cs = contact->find(x, o.contact_margin_mm, contact_depth_mm);
+        res.contact_time_s += seconds_since(tc);
         const double k_c = o.contact_stiffness_factor * std::max(*std::max_element(K.begin(), K.end()), weight * k_unit * area_per_point);
         for (const SelfContact& sc : cs) {
           const double push = sc.wanted_mm - sc.signed_distance_mm;  // > 0

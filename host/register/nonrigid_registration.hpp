@@ -103,6 +103,7 @@ struct NonrigidResult {
   int inverted_elements = 0;
   Eigen::Vector3d gravity_change_mm_s2 = Eigen::Vector3d::Zero();  // estimated body force change (0: not estimated)
   double gravity_time_s = 0.0;
+  double contact_time_s = 0.0;          // of wall_time_s, in the self-contact search
   int crossed_vertices = 0;             // surface vertices inside another part of the organ (lobes passed through)
   std::vector<NonrigidLevel> levels;
   double wall_time_s = 0.0;

@@ -92,6 +92,27 @@ SelfContactDetector::SelfContactDetector(const Eigen::Matrix3Xd& rest, const std
     near_[static_cast<std::size_t>(v)] = touched;
     for (int u : touched) dist[static_cast<std::size_t>(u)] = std::numeric_limits<double>::infinity();
   }
+  // Rest clearance of each vertex (capped: beyond the cap the vertex is checked once the
+  // organ has moved that far).
+  clearance_.assign(static_cast<std::size_t>(n), 0.0);
+  if (tris.empty()) return;
+  const double cap = 8.0 * exclusion_mm_;
+  const SurfaceIndex index(rest, tris);
+  const int nv = static_cast<int>(vertices_.size());
+#pragma omp parallel for schedule(dynamic, 64)
+  for (int i = 0; i < nv; ++i) {
+    const int v = vertices_[static_cast<std::size_t>(i)];
+    const std::vector<int>& near = near_[static_cast<std::size_t>(v)];
+    const Eigen::Vector3d pv = rest.col(v);
+    auto skip = [&](int ti) {
+      const auto& t = tris_[static_cast<std::size_t>(ti)];
+      for (int u : t)
+        if (std::binary_search(near.begin(), near.end(), u)) return true;
+      return !faces_at_rest(side_of(rest_, t, pv));
+    };
+    const SurfaceHit h = index.closest(pv, cap, skip);
+    clearance_[static_cast<std::size_t>(v)] = h.tri >= 0 ? h.distance_mm : cap;
+  }
 }
 
 std::vector<SelfContact> SelfContactDetector::find(const Eigen::Matrix3Xd& x, double margin_mm, double max_depth_mm) const {
@@ -101,11 +122,16 @@ std::vector<SelfContact> SelfContactDetector::find(const Eigen::Matrix3Xd& x, do
   const SurfaceIndex index(x, tris_);
   const double reach = std::max(margin_mm, max_depth_mm);
   const double lateral_limit = std::max(2.0 * margin_mm, 0.25 * exclusion_mm_);
+  double moved = 0.0;  // largest displacement from rest of a surface vertex
+  for (int v : vertices_) moved = std::max(moved, (x.col(v) - rest_.col(v)).norm());
   const int nv = static_cast<int>(vertices_.size());
   std::vector<SelfContact> found(static_cast<std::size_t>(nv));
 #pragma omp parallel for schedule(dynamic, 64)
   for (int i = 0; i < nv; ++i) {
     const int v = vertices_[static_cast<std::size_t>(i)];
+    // it and any triangle moved at most `moved`: no contact while the rest gap exceeds 2 moved + reach
+    const double clear = clearance_[static_cast<std::size_t>(v)];
+    if (clear > 2.0 * moved + reach) continue;
     const std::vector<int>& near = near_[static_cast<std::size_t>(v)];
     const Eigen::Vector3d pv_rest = rest_.col(v);
     auto skip = [&](int ti) {

@@ -38,12 +38,15 @@ class SelfContactDetector {
   // the measure of lobes passing through each other.
   int count_crossed(const Eigen::Matrix3Xd& x, double max_depth_mm) const;
   double exclusion_mm() const { return exclusion_mm_; }
+  // A vertex whose rest clearance exceeds twice the largest displacement from rest plus
+  // the search reach cannot touch another part: find() skips it (most of a convex organ).
 
  private:
   Eigen::Matrix3Xd rest_;
   std::vector<std::array<int, 3>> tris_;
   std::vector<int> vertices_;                  // surface vertices
   std::vector<std::vector<int>> near_;         // per column: sorted columns within the exclusion radius (surface only)
+  std::vector<double> clearance_;              // per column: rest distance to the nearest facing triangle of another part (capped)
   double exclusion_mm_ = 0.0;
 };
 

@@ -98,7 +98,9 @@ SurfaceHit SurfaceIndex::closest(const Eigen::Vector3d& q, double max_distance_m
 SurfaceHit SurfaceIndex::closest(const Eigen::Vector3d& q, double max_distance_mm, const std::function<bool(int)>& skip) const {
   SurfaceHit best;
   if (tris_.empty()) return best;
-  double best_d2 = std::numeric_limits<double>::infinity();
+  // nothing beyond max_distance_mm is of interest: cells and triangles further away are
+  // not looked at (a miss costs only the cells within reach)
+  double best_d2 = std::isfinite(max_distance_mm) ? max_distance_mm * max_distance_mm * (1.0 + 1e-12) : std::numeric_limits<double>::infinity();
   int c[3];
   for (int k = 0; k < 3; ++k) c[k] = std::clamp(static_cast<int>(std::floor((q[k] - origin_[k]) / cell_)), 0, dims_[static_cast<std::size_t>(k)] - 1);
   // distance from q to the grid box (q may be outside it)
@@ -114,12 +116,11 @@ SurfaceHit SurfaceIndex::closest(const Eigen::Vector3d& q, double max_distance_m
     if (box_d2 >= best_d2) return;
     for (int s = cell_start_[static_cast<std::size_t>(cell)]; s < cell_start_[static_cast<std::size_t>(cell) + 1]; ++s) {
       const int ti = cell_tris_[static_cast<std::size_t>(s)];
-      if (skip && skip(ti)) continue;
       const auto& t = tris_[static_cast<std::size_t>(ti)];
       const Eigen::Vector3d w = closest_on_triangle(q, x_.col(t[0]), x_.col(t[1]), x_.col(t[2]));
       const Eigen::Vector3d p = w[0] * x_.col(t[0]) + w[1] * x_.col(t[1]) + w[2] * x_.col(t[2]);
       const double d2 = (p - q).squaredNorm();
-      if (d2 < best_d2) {
+      if (d2 < best_d2 && !(skip && skip(ti))) {
         best_d2 = d2;
         best.tri = ti;
         best.barycentric = w;
