@@ -18,7 +18,7 @@ namespace {
 // pointer's tip as point_cloud_t on ARNAV_CLOUD_pointer; every point is the tip offset
 // carried by one of the pointer poses it published, in the same frame, and the sequence
 // numbers have no gaps.
-TEST(HilBringUp, ContinuousSwabPublishesThePointerTip) {
+TEST(HilSwab, ContinuousSwabPublishesThePointerTip) {
   HilRunOptions o;
   o.extra_config = "swab:\n  tool: pointer\n  tip_mm: [0.0, 0.0, -150.0]\n  continuous: true\n  min_spacing_mm: 0.0\n  points_per_message: 10\n";
   HilRun run;
