@@ -18,7 +18,7 @@ using Reader = yaml::YamlReader<ConfigError>;
 
 const std::set<std::string> kKeys = {"camera", "frames", "port", "baud", "rate_hz", "device_rate_hz", "lcm_url", "reply_mode",
                                      "tx_firmware", "bx_failures_before_tx", "tracking_timeout_ms",
-                                     "setup_timeout_ms", "reset_wait_ms", "health_rate_hz", "tools", "sim_command", "sim_args", "realtime", "can"};
+                                     "setup_timeout_ms", "reset_wait_ms", "health_rate_hz", "tools", "sim_command", "sim_args", "realtime", "can", "swab"};
 
 }  // namespace
 
@@ -42,7 +42,7 @@ AppConfig parse_config(const std::string& text, const std::string& source, const
   AppConfig c;
   c.source = source;
   // camera: and frames: are read by appliance/markers/camera_config (docs/camera.md),
-  // can: by appliance/can/can_config (docs/can.md).
+  // can: by appliance/can/can_config (docs/can.md), swab: by appliance/app/swab (docs/register.md).
   if (!root["port"] && (root["camera"] || root["can"]) && !root["tools"]) {  // camera and/or CAN, no NDI
     c.ndi_enabled = false;
     if (root["lcm_url"]) c.lcm_url = r.get<std::string>(root["lcm_url"], "lcm_url", "a string");

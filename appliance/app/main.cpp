@@ -6,9 +6,11 @@
 
 #include <csignal>
 #include <cstdio>
+#include <fstream>
 #include <iostream>
 #include <memory>
 #include <optional>
+#include <sstream>
 #include <thread>
 
 #include <sys/stat.h>
@@ -17,6 +19,7 @@
 #include "appliance/app/publisher.hpp"
 #include "appliance/app/realtime.hpp"
 #include "appliance/app/sim_process.hpp"
+#include "appliance/app/swab.hpp"
 #include "appliance/can/can_runtime.hpp"
 #include "appliance/markers/camera_runtime.hpp"
 #include "appliance/ndi/posix_transport.hpp"
@@ -91,6 +94,21 @@ static int main_body(int argc, char** argv) {
   try {
     can_bus = can::CanRuntime::load(config_path);
   } catch (const can::CanConfigError& e) {
+    std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
+    return 2;
+  }
+  // Pointer swab (docs/register.md): the tip sampled while a CAN input is held.
+  std::optional<app::SwabConfig> swab_config;
+  try {
+    std::ifstream in(config_path);
+    std::stringstream text;
+    text << in.rdbuf();
+    std::vector<std::string> tool_names, input_names;
+    for (const auto& t : cfg.tools) tool_names.push_back(t.name);
+    if (can_bus)
+      for (const auto& i : can_bus->config().inputs) input_names.push_back(i.name);
+    swab_config = app::parse_swab_config(text.str(), config_path, tool_names, input_names);
+  } catch (const app::ConfigError& e) {
     std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
     return 2;
   }
@@ -176,7 +194,11 @@ static int main_body(int argc, char** argv) {
   }
   if (check_only) {
     std::cout << "configuration OK: " << cfg.tools.size() << " tool(s), port " << cfg.port
-              << (cam ? "; " + cam->summary() : std::string()) << (can_bus ? "; " + can_bus->summary() : std::string()) << "\n";
+              << (cam ? "; " + cam->summary() : std::string()) << (can_bus ? "; " + can_bus->summary() : std::string())
+              << (swab_config ? "; swab: tip of " + swab_config->tool + (swab_config->continuous ? " continuously" : " while " + swab_config->input + " is held") +
+                                    " on " + swab_config->channel()
+                              : std::string())
+              << "\n";
     return 0;
   }
 
@@ -228,6 +250,28 @@ static int main_body(int argc, char** argv) {
     }
     std::cerr << "arnav-appliance: " << cam->summary() << "\n";
   }
+  std::unique_ptr<app::SwabSampler> swab;
+  if (swab_config) {
+    swab = std::make_unique<app::SwabSampler>(lcm, *swab_config);
+    if (can_bus) can_bus->set_input_listener([s = swab.get()](const std::string& input, bool pressed) { s->set_input(input, pressed); });
+    std::cerr << "arnav-appliance: swab: tip of " << swab_config->tool << (swab_config->continuous ? " continuously" : " while " + swab_config->input + " is held")
+              << " on " << swab_config->channel() << "\n";
+  }
+  auto feed_swab = [&](const ndi::TrackingReply& r, std::int64_t receive_us) {
+    if (!swab) return;
+    for (const auto& t : session->tools()) {
+      if (t.config.name != swab->config().tool) continue;
+      const ndi::HandleRecord* rec = r.find(t.handle);
+      const std::int64_t capture_wall_us = wall_us() - (monotonic_us() - receive_us);
+      if (!rec || rec->state != ndi::HandleState::Valid) {
+        swab->on_frame(std::nullopt, "", capture_wall_us);
+        return;
+      }
+      const frames::Converted c = reference_frames->ndi_pose(ndi::X_NdiTool(*rec), receive_us);
+      if (c.X_ParentChild) swab->on_frame(c.X_ParentChild, c.frame_parent, capture_wall_us);
+      else swab->on_frame(ndi::X_NdiTool(*rec), "Ndi", capture_wall_us);  // as the tool poses: Ndi when the reference is not seen
+    }
+  };
   if (!start_can()) return 2;
   // NDI poses are published in the reference frame too; the reference tool's pose of
   // each frame is fed in before that frame's poses are published (one device frame).
@@ -303,6 +347,7 @@ static int main_body(int argc, char** argv) {
         case ndi::PollResult::NewFrame:
           feed_reference(reply, receive_us);
           publisher.publish_frame(*session, reply, receive_us);
+          feed_swab(reply, receive_us);
           ++frames_in_window;
           // Next frame is due one device period after this one was read; poll a little
           // early and re-poll quickly if the device has no new frame yet.
@@ -318,6 +363,7 @@ static int main_body(int argc, char** argv) {
   std::cerr << "arnav-appliance: stopping (signal)\n";
   if (cam) cam->stop();
   if (can_bus) can_bus->stop();
+  if (swab) swab->flush();
   session->stop();
   publisher.publish_health(*session, port_label, 0.0);
   session.reset();

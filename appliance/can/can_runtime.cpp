@@ -106,6 +106,7 @@ void CanService::on_input(const InputChange& c) {
   msg_.publish_time_wall_us = wall_us();
   msg_.publish_time_mono_us = monotonic_us();
   lcm_.publish(std::string(channels::kInput), &msg_);
+  if (input_listener_) input_listener_(in.name, c.pressed);
   if (from_frame) latency_.add(static_cast<float>(monotonic_us() - c.decided_us));
   if (c.cause == InputChange::Cause::NodeLost || c.cause == InputChange::Cause::BusOff)
     event(appliance_event_t::SEVERITY_WARNING, "CAN_INPUT_FORCED_RELEASE",
@@ -331,6 +332,7 @@ void CanRuntime::start(const std::string& lcm_url, double health_rate_hz) {
   if (!lcm_->good()) throw CanConfigError(config_.source + ": key 'lcm_url': cannot open LCM at '" + lcm_url + "'");
   const CanConfig cfg = config_;
   service_ = std::make_unique<CanService>(config_, *lcm_, [cfg] { return open_transport(cfg); }, health_rate_hz);
+  if (input_listener_) service_->set_input_listener(input_listener_);
   stop_ = false;
   thread_ = std::thread([this] {
     if (const std::string error = app::make_this_thread_realtime(config_.priority); !error.empty())

@@ -48,6 +48,9 @@ class CanService final : private DecoderSink {
   bool open() const { return transport_ != nullptr; }
   device_health_t health() const;  // what publish_health would send now (no window reset)
   std::int64_t events_published() const { return event_sequence_; }
+  // Called (on the CAN thread) with each input change after it is published: the
+  // appliance's pointer swab follows its input this way (appliance/app/swab).
+  void set_input_listener(std::function<void(const std::string& input, bool pressed)> listener) { input_listener_ = std::move(listener); }
   // An appliance_event_t from the CAN path (source "can").
   void event(std::int8_t severity, const std::string& code, const std::string& text);
 
@@ -79,6 +82,7 @@ class CanService final : private DecoderSink {
   std::int64_t event_sequence_ = 0;
   std::int64_t input_sequence_ = 0;
   app::LatencyWindow latency_;
+  std::function<void(const std::string&, bool)> input_listener_;
   input_event_t msg_{};
   Received rx_;
 };
@@ -94,12 +98,15 @@ class CanRuntime {
   std::string summary() const;
   // Opens LCM (throws CanConfigError naming lcm_url) and starts the thread.
   void start(const std::string& lcm_url, double health_rate_hz = 1.0);
+  // Set before start(): told every input change (the CAN thread calls it).
+  void set_input_listener(std::function<void(const std::string& input, bool pressed)> listener) { input_listener_ = std::move(listener); }
   void stop();
 
  private:
   CanConfig config_;
   std::unique_ptr<lcm::LCM> lcm_;
   std::unique_ptr<CanService> service_;
+  std::function<void(const std::string&, bool)> input_listener_;
   std::atomic<bool> stop_{false};
   std::thread thread_;
 };

@@ -13,6 +13,7 @@ LcmCapture::LcmCapture(const std::string& url) : bus_(url) {
   bus_.subscribe(std::string(channels::kPoseRegex), &LcmCapture::on_pose, this);
   bus_.subscribe(std::string(channels::kHealthRegex), &LcmCapture::on_health, this);
   bus_.subscribe(std::string(channels::kEvents), &LcmCapture::on_event, this);
+  bus_.subscribe(std::string(channels::kCloudPrefix) + ".*", &LcmCapture::on_cloud, this);
   thread_ = std::thread([this] {
     while (!stop_.load()) bus_.handleTimeout(50);
   });
@@ -34,6 +35,15 @@ void LcmCapture::on_health(const lcm::ReceiveBuffer*, const std::string&, const 
 void LcmCapture::on_event(const lcm::ReceiveBuffer*, const std::string&, const appliance_event_t* m) {
   std::lock_guard lock(mutex_);
   events_.push_back({*m, monotonic_us()});
+}
+
+void LcmCapture::on_cloud(const lcm::ReceiveBuffer*, const std::string&, const point_cloud_t* m) {
+  std::lock_guard lock(mutex_);
+  clouds_.push_back({*m, monotonic_us()});
+}
+std::vector<Received<point_cloud_t>> LcmCapture::clouds() const {
+  std::lock_guard lock(mutex_);
+  return clouds_;
 }
 
 std::vector<Received<tool_pose_t>> LcmCapture::poses() const {

@@ -14,6 +14,7 @@
 
 #include "arnav/appliance_event_t.hpp"
 #include "arnav/device_health_t.hpp"
+#include "arnav/point_cloud_t.hpp"
 #include "arnav/tool_pose_t.hpp"
 
 namespace arnav::hil {
@@ -33,6 +34,7 @@ class LcmCapture {
   std::vector<Received<tool_pose_t>> poses() const;
   std::vector<Received<device_health_t>> health() const;
   std::vector<Received<appliance_event_t>> events() const;
+  std::vector<Received<point_cloud_t>> clouds() const;  // ARNAV_CLOUD_* (the pointer swab)
 
   // Waits until pred(*this) holds or timeout; returns whether it held.
   bool wait_for(const std::function<bool(const LcmCapture&)>& pred, double timeout_s) const;
@@ -48,6 +50,7 @@ class LcmCapture {
   void on_pose(const lcm::ReceiveBuffer*, const std::string&, const tool_pose_t* m);
   void on_health(const lcm::ReceiveBuffer*, const std::string&, const device_health_t* m);
   void on_event(const lcm::ReceiveBuffer*, const std::string&, const appliance_event_t* m);
+  void on_cloud(const lcm::ReceiveBuffer*, const std::string&, const point_cloud_t* m);
 
   lcm::LCM bus_;
   bool good_ = false;
@@ -55,6 +58,7 @@ class LcmCapture {
   mutable std::mutex mutex_;
   std::vector<Received<tool_pose_t>> poses_;
   std::vector<Received<device_health_t>> health_;
+  std::vector<Received<point_cloud_t>> clouds_;
   std::vector<Received<appliance_event_t>> events_;
   std::thread thread_;
 };

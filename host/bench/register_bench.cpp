@@ -269,6 +269,15 @@ std::vector<RegisterBenchRow> run_register_bench(const RegisterBenchOptions& o) 
           }
           r.tre = stats_of(e);
           r.tre_interior = stats_of(ei);
+          {
+            std::vector<Eigen::Vector3d> a, b;
+            for (int k = 0; k < 60; ++k) {
+              a.push_back(truth_Intraop.col(k));
+              b.push_back(predicted.col(k));
+            }
+            const auto fit = calib::register_paired_points(a, b);
+            r.shape_error_mean_mm = ((fit.X_AB * predicted).colwise().homogeneous() - truth_Intraop.colwise().homogeneous()).colwise().norm().mean();
+          }
           r.surface_rms_mm = surface_rms;
           r.wall_s = wall;
           r.note = note;
@@ -313,6 +322,10 @@ std::vector<RegisterBenchRow> run_register_bench(const RegisterBenchOptions& o) 
         rq.landmarks = landmarks;
         rq.nonrigid.model_kind = o.model_kind;
         rq.nonrigid.scene_boundary = o.scene_boundary;
+        rq.nonrigid.anchored_boundary = o.anchored_boundary;
+        rq.nonrigid.estimate_gravity_change = o.gravity_change;
+        rq.nonrigid.self_contact = !o.no_self_contact;
+        rq.nonrigid.include_model_error = o.model_error;
         rq.nonrigid.noise_mm = std::max(0.3, 0.8 * noise);  // trimmed RMS of the normal noise component
         if (!o.schedule.empty()) rq.nonrigid.data_weight_schedule = o.schedule;
         if (o.updates_per_level > 0) rq.nonrigid.max_updates_per_level = o.updates_per_level;
@@ -326,6 +339,13 @@ std::vector<RegisterBenchRow> run_register_bench(const RegisterBenchOptions& o) 
           note += "; w" + std::to_string(static_cast<int>(l.data_weight)) + ": " + std::to_string(l.updates) + " updates " +
                   std::to_string(l.rms_mm).substr(0, 5) + " mm " + std::to_string(l.wall_time_s).substr(0, 4) + " s (model " + std::to_string(l.model_time_s).substr(0, 4) + ")";
         note += "; rigid rms " + std::to_string(res.nonrigid->rigid_rms_mm).substr(0, 5);
+        if (res.nonrigid->gravity_change_mm_s2.norm() > 0) {
+          const Eigen::Vector3d gc = res.nonrigid->gravity_change_mm_s2 / 9810.0;
+          note += "; gravity change (g) " + std::to_string(gc.x()).substr(0, 6) + " " + std::to_string(gc.y()).substr(0, 6) + " " +
+                  std::to_string(gc.z()).substr(0, 6) + " in " + std::to_string(res.nonrigid->gravity_time_s).substr(0, 4) + " s";
+        }
+        note += "; crossed " + std::to_string(res.nonrigid->crossed_vertices) + ", contact search " + std::to_string(res.nonrigid->contact_time_s).substr(0, 5) + " s";
+        note += "; stop at " + std::to_string(res.nonrigid->discrepancy_mm).substr(0, 5) + " mm";
         row("nonrigid", carry_to_intraop(reg, reg_targets, res), res.nonrigid->final_rms_mm, res.wall_time_s, note);
       }
     }
@@ -369,7 +389,9 @@ std::vector<TrackBenchRow> run_track_bench(const RegisterBenchOptions& o, int fr
   std::shuffle(candidates.begin(), candidates.end(), rng);
   candidates.resize(std::min<std::size_t>(60, candidates.size()));
   const Eigen::Isometry3d X_true = random_rigid(25.0, 100.0, rng);
-  SurfaceTracker tracker(reg, reg.problem.mesh.rest_positions_World_mm, X_true);
+  TrackingOptions topt;
+  topt.realtime_model = !o.track_scene_model_settings;
+  SurfaceTracker tracker(reg, reg.problem.mesh.rest_positions_World_mm, X_true, topt);
   model_name = tracker.model_name();
   std::normal_distribution<double> noise(0.0, 0.5);
   std::vector<long long> ids(candidates.begin(), candidates.end());
@@ -414,13 +436,13 @@ void write_register_csv(const std::string& path, const std::vector<RegisterBench
   std::ofstream out(path);
   if (!out) throw std::runtime_error(path + ": cannot open for writing");
   out << "state,coverage,achieved_coverage,noise_mm,points,outliers,max_deformation_mm,method,tre_mean_mm,tre_median_mm,tre_p90_mm,tre_max_mm,"
-         "interior_tre_mean_mm,interior_tre_max_mm,surface_rms_mm,wall_s,note\n";
+         "interior_tre_mean_mm,interior_tre_max_mm,shape_error_mean_mm,surface_rms_mm,wall_s,note\n";
   for (const auto& r : rows) {
     std::string note = r.note;
     std::replace(note.begin(), note.end(), ',', ';');
     out << r.state << ',' << r.coverage << ',' << r.achieved_coverage << ',' << r.noise_mm << ',' << r.points << ',' << r.outliers << ','
         << r.max_deformation_mm << ',' << r.method << ',' << r.tre.mean << ',' << r.tre.median << ',' << r.tre.p90 << ',' << r.tre.max << ','
-        << r.tre_interior.mean << ',' << r.tre_interior.max << ',' << r.surface_rms_mm << ',' << r.wall_s << ",\"" << note << "\"\n";
+        << r.tre_interior.mean << ',' << r.tre_interior.max << ',' << r.shape_error_mean_mm << ',' << r.surface_rms_mm << ',' << r.wall_s << ",\"" << note << "\"\n";
   }
 }
 

@@ -24,10 +24,15 @@ struct RegisterBenchOptions {
   std::string model_kind;                               // registering model (empty: the scene's)
   std::vector<double> schedule;                         // data-weight schedule (empty: default)
   bool scene_boundary = false;
+  bool anchored_boundary = false;
+  bool gravity_change = false;
+  bool no_self_contact = false;
+  bool model_error = false;
   int updates_per_level = 0;                            // 0: the library default
   int steps_per_update = 0;
   unsigned seed = 1;
   std::string export_dir;                               // non-empty: write the first case's input files here
+  bool track_scene_model_settings = false;              // track: the scene's model settings instead of the real-time ones
 };
 
 struct TreStats {
@@ -41,6 +46,9 @@ struct RegisterBenchRow {
   double max_deformation_mm = 0;        // largest target displacement of the state (rigid part removed: optimal fit)
   std::string method;                   // optimal_rigid, landmark_rigid, surface_rigid, nonrigid
   TreStats tre, tre_interior;
+  // Diagnostic: mean TRE left after the best rigid correction of the prediction (the shape
+  // error); the rest of tre.mean is pose error.
+  double shape_error_mean_mm = 0;
   double surface_rms_mm = 0;
   double wall_s = 0;
   std::string note;

@@ -1,14 +1,17 @@
 #include "host/register/nonrigid_registration.hpp"
 
+#include <Eigen/Cholesky>
 #include <Eigen/Geometry>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <memory>
 #include <set>
 #include <stdexcept>
 
+#include "host/register/self_contact.hpp"
 #include "host/register/surface_index.hpp"
 #include "host/scene/embedding.hpp"
 #include "host/sim/model_factory.hpp"
@@ -131,9 +134,20 @@ NonrigidResult register_nonrigid(const Scene& scene, const Eigen::Matrix3Xd& dat
       res.wall_time_s = seconds_since(t0);
       return res;
     }
-    if (c0.rms <= o.noise_mm) {
+    res.discrepancy_mm = o.noise_mm;
+    if (o.include_model_error && scene.organ_surface.positions_World_mm.cols() > 0) {
+      double ss = 0.0;
+      const Eigen::Matrix3Xd& s = scene.organ_surface.positions_World_mm;
+      for (int i = 0; i < s.cols(); ++i) {
+        const double d = rest_index.closest(s.col(i)).distance_mm;
+        ss += d * d;
+      }
+      res.model_surface_error_mm = std::sqrt(ss / static_cast<double>(s.cols()));
+      res.discrepancy_mm = std::hypot(o.noise_mm, res.model_surface_error_mm);
+    }
+    if (c0.rms <= res.discrepancy_mm) {
       res.message = "the rigid fit already reaches the expected noise (" + std::to_string(c0.rms) + " mm RMS <= " +
-                    std::to_string(o.noise_mm) + " mm): no deformation needed; the rigid result is kept";
+                    std::to_string(res.discrepancy_mm) + " mm): no deformation needed; the rigid result is kept";
       res.wall_time_s = seconds_since(t0);
       return res;
     }
@@ -146,9 +160,65 @@ NonrigidResult register_nonrigid(const Scene& scene, const Eigen::Matrix3Xd& dat
     m.damping_mass_per_s = 0.0;  // velocities are zeroed after every step (quasi-static)
     m.damping_stiffness_s = 0.0;
   }
+  const double dt = o.step_s > 0 ? o.step_s : (config.kind == "corotational_fem" ? 1.0 : scene.time_step_s);
+  if (o.estimate_gravity_change && !problem.fixed_vertices.empty()) {
+    const auto tg = Clock::now();
+    const Eigen::Matrix3Xd& rest = mesh.rest_positions_World_mm;
+    const Eigen::Matrix3Xd zero = Eigen::Matrix3Xd::Zero(3, rest.cols());
+    const double g = scene.problem.gravity_World_mm_s2.norm() > 0 ? scene.problem.gravity_World_mm_s2.norm() : 9810.0;
+    std::array<Eigen::Matrix3Xd, 3> U;  // displacement under a unit gravity (|g|) along each axis, boundary held
+    bool ok = true;
+    for (int a = 0; a < 3 && ok; ++a) {
+      SimProblem pa = problem;
+      pa.gravity_World_mm_s2 = g * Eigen::Vector3d::Unit(a);
+      std::unique_ptr<TissueModel> m = make_tissue_model(pa, config);
+      for (int st = 0; st < o.gravity_relax_steps; ++st) {
+        const Eigen::Matrix3Xd before = m->positions_World_mm();
+        const StepSummary sum = m->step(dt);
+        if (!sum.healthy || !m->positions_World_mm().allFinite()) {
+          ok = false;
+          break;
+        }
+        m->set_state(m->positions_World_mm(), zero);
+        if ((m->positions_World_mm() - before).colwise().norm().maxCoeff() < 0.01) break;
+      }
+      U[static_cast<std::size_t>(a)] = m->positions_World_mm() - rest;
+    }
+    if (ok) {
+      const SurfaceIndex rest_index(rest, mesh.surface_tris);
+      const Correspondences c = correspond(rest_index, data, o.keep_fraction, o.max_distance_mm);
+      std::vector<double> abs_r;
+      for (std::size_t i = 0; i < c.keep.size(); ++i)
+        if (c.keep[i]) abs_r.push_back(std::abs(c.plane[i]));
+      const double huber = o.huber_sigmas * std::max(o.min_sigma_mm, 1.4826 * kth_value(abs_r, 0.5));
+      Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+      for (std::size_t i = 0; i < c.keep.size(); ++i) {
+        if (!c.keep[i]) continue;
+        const SurfaceHit& h = c.hit[i];
+        const auto& f = mesh.surface_tris[static_cast<std::size_t>(h.tri)];
+        Eigen::Vector3d j;
+        for (int a = 0; a < 3; ++a) {
+          Eigen::Vector3d u = Eigen::Vector3d::Zero();
+          for (int k = 0; k < 3; ++k) u += h.barycentric[k] * U[static_cast<std::size_t>(a)].col(f[static_cast<std::size_t>(k)]);
+          j[a] = h.normal.dot(u);
+        }
+        const double r = c.plane[i];
+        const double w = std::abs(r) <= huber ? 1.0 : huber / std::abs(r);
+        A += w * j * j.transpose();
+        rhs += w * j * r;
+      }
+      A += 1e-3 * std::max(A.trace() / 3.0, 1e-12) * Eigen::Matrix3d::Identity();
+      Eigen::Vector3d s = A.ldlt().solve(rhs);
+      if (!s.allFinite()) s.setZero();
+      if (s.norm() > o.gravity_max_fraction) s *= o.gravity_max_fraction / s.norm();
+      problem.gravity_World_mm_s2 = g * s;
+      res.gravity_change_mm_s2 = g * s;
+    }
+    res.gravity_time_s = seconds_since(tg);
+  }
   std::unique_ptr<TissueModel> model = make_tissue_model(problem, config);
   res.model = config.kind + (config.integrator.empty() ? "" : "/" + config.integrator);
-  const double dt = o.step_s > 0 ? o.step_s : (config.kind == "corotational_fem" ? 1.0 : scene.time_step_s);
 
   const double e_ref = problem.region_materials.empty() ? 5.0 : problem.region_materials[0].youngs_modulus_kPa;
   const Eigen::Vector3d ext = mesh.rest_positions_World_mm.rowwise().maxCoeff() - mesh.rest_positions_World_mm.rowwise().minCoeff();
@@ -188,6 +258,11 @@ NonrigidResult register_nonrigid(const Scene& scene, const Eigen::Matrix3Xd& dat
   std::vector<AttachmentId> landmark_attachment;
   for (std::size_t i = 0; i < landmark_points.size(); ++i)
     landmark_attachment.push_back(model->add_attachment({landmark_points[i], landmarks[i].target_Model_mm, kIdle_mN_per_mm}));
+  std::unique_ptr<SelfContactDetector> contact;
+  if (o.self_contact) contact = std::make_unique<SelfContactDetector>(mesh.rest_positions_World_mm, mesh.surface_tris, o.contact_exclusion_mm);
+  // Contacts are looked for every update, so a crossing is caught while shallow: the
+  // search reaches a few margins behind a face (a short search keeps the term cheap).
+  const double contact_depth_mm = contact ? std::max(3.0 * o.contact_margin_mm, 0.25 * contact->exclusion_mm()) : 0.0;
   Eigen::Matrix3Xd x = mesh.rest_positions_World_mm;
   const Eigen::Matrix3Xd zero_v = Eigen::Matrix3Xd::Zero(3, x.cols());
   double prev_rms = res.rigid_rms_mm;
@@ -247,6 +322,28 @@ NonrigidResult register_nonrigid(const Scene& scene, const Eigen::Matrix3Xd& dat
           K[static_cast<std::size_t>(j)] += kw;
           pull.col(j) += kw * r * h.normal;
         }
+      }
+      if (contact) {
+        // Self-contact: push a vertex that reached another part back to the margin and
+        // that part's triangle the other way, stiffer than any data spring.
+        const auto tc = Clock::now();
+        const std::vector<SelfContact> cs = contact->find(x, o.contact_margin_mm, contact_depth_mm);
+        res.contact_time_s += seconds_since(tc);
+        const double k_c = o.contact_stiffness_factor * std::max(*std::max_element(K.begin(), K.end()), weight * k_unit * area_per_point);
+        for (const SelfContact& sc : cs) {
+          const double push = sc.wanted_mm - sc.signed_distance_mm;  // > 0
+          const int j = slot[static_cast<std::size_t>(sc.vertex)];
+          K[static_cast<std::size_t>(j)] += k_c;
+          pull.col(j) += k_c * push * sc.normal;
+          const auto& f = mesh.surface_tris[static_cast<std::size_t>(sc.tri)];
+          for (int a = 0; a < 3; ++a) {
+            const int jj = slot[static_cast<std::size_t>(f[static_cast<std::size_t>(a)])];
+            const double kw = k_c * sc.barycentric[a];
+            K[static_cast<std::size_t>(jj)] += kw;
+            pull.col(jj) -= kw * push * sc.normal;
+          }
+        }
+        level.contacts = static_cast<int>(cs.size());
       }
       for (std::size_t j = 0; j < surface_vertices.size(); ++j) {
         const Eigen::Vector3d xj = x.col(surface_vertices[j]);
@@ -308,7 +405,7 @@ NonrigidResult register_nonrigid(const Scene& scene, const Eigen::Matrix3Xd& dat
     best_x = x;
     const bool small_gain = (prev_rms - c.rms) < o.min_improvement * prev_rms;
     prev_rms = c.rms;
-    if (c.rms <= o.noise_mm) {
+    if (c.rms <= res.discrepancy_mm) {
       res.message = "reached the expected noise level";
       break;
     }
@@ -326,6 +423,8 @@ NonrigidResult register_nonrigid(const Scene& scene, const Eigen::Matrix3Xd& dat
     model->set_state(best_x, zero_v);
     for (const auto& e : model->element_measures())
       if (e.volume_ratio <= 0) ++res.inverted_elements;
+    const SelfContactDetector check(mesh.rest_positions_World_mm, mesh.surface_tris, o.contact_exclusion_mm);
+    res.crossed_vertices = check.count_crossed(best_x, 0.5 * check.exclusion_mm());
   } else {
     res.message = "data does not support a non-rigid fit (surface residual " + std::to_string(res.rigid_rms_mm) + " mm rigid, " +
                   std::to_string(prev_rms) + " mm non-rigid" + (res.message.empty() ? "" : "; " + res.message) +

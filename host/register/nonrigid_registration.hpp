@@ -33,12 +33,43 @@ struct NonrigidOptions {
   double huber_sigmas = 1.345;
   double min_sigma_mm = 0.3;
   double noise_mm = 1.0;                  // expected point noise (RMS distance); the schedule stops here
+  // Discrepancy principle with the model's own error: the volume's surface is an
+  // approximation of the organ surface the points were measured on (a coarse volume of a
+  // finer surface), so the residual cannot fall below that approximation error without
+  // fitting noise; the schedule stops at sqrt(noise^2 + e^2), e the RMS distance of the
+  // scene's organ (display) surface vertices to the volume's surface at rest.
+  bool include_model_error = false;  // off by default: no TRE gain on the benchmark (docs/register.md)
   double min_improvement = 0.02;          // a level must lower the RMS by this fraction to go on
   // Hold the scene's fixed vertices (ligaments) at their Model-frame rest positions. Off by
   // default: after a rigid fit those positions carry the rigid error, and holding them
   // there biased every benchmark case (docs/register.md); the data springs hold the
   // rigid modes of the free model.
   bool scene_boundary = false;
+  // Anchored boundary (register_patient only): after the free fit, the rigid part is
+  // corrected by the rigid motion of the scene's fixed vertices in the free fit (they are
+  // where the organ is attached, so in truth they did not move relative to the body), and
+  // the fit is run again from rest with the fixed vertices held there. The rest of the
+  // organ is then constrained by its attachment, which the free fit lacks for the parts
+  // the data do not see. Needs fixed vertices in the scene; ignored with scene_boundary.
+  bool anchored_boundary = false;
+  // Gravity change (with the boundary held: scene_boundary, or the anchored second fit):
+  // the preoperative shape carries the old gravity; a change of the patient's position
+  // changes the load on the whole organ, also where the data do not reach. A uniform body
+  // force change b (3 numbers) is fitted to the data first: the model's responses to a unit
+  // gravity along x, y and z (relaxed with the boundary held) are combined by least
+  // squares on the point-to-plane residuals at rest (Huber-weighted, trimmed, |b| at most
+  // gravity_max_fraction of the scene's |g|), and the fit then runs under b.
+  bool estimate_gravity_change = false;
+  double gravity_max_fraction = 1.0;
+  int gravity_relax_steps = 8;
+  // Self-contact term (paper 002's self-collision): a surface vertex that comes within
+  // contact_margin_mm of another part of the surface (self_contact.hpp) is pushed back to
+  // the margin, and that part the other way, by springs contact_stiffness_factor times the
+  // stiffest data spring of the update, so the data cannot pull one lobe through another.
+  bool self_contact = true;
+  double contact_margin_mm = 1.0;
+  double contact_stiffness_factor = 10.0;
+  double contact_exclusion_mm = 0.0;      // 0: three mean surface edges (SelfContactDetector)
   double landmark_weight = 0.0;           // 0: landmarks not used; else stiffness in mN/mm per landmark, per level
   double time_budget_s = 0.0;             // 0: none; else stop starting new levels past it
 };
@@ -54,6 +85,7 @@ struct NonrigidLevel {
   double max_mm = 0.0;
   int points_used = 0;
   int points_trimmed = 0;
+  int contacts = 0;                     // self-contact springs in the level's last update
   double max_displacement_mm = 0.0;     // largest vertex displacement from rest
   double wall_time_s = 0.0;
   double model_time_s = 0.0;            // of which in the tissue model (steps, attachments, state resets)
@@ -66,7 +98,13 @@ struct NonrigidResult {
   std::string message;                  // why not accepted, or what limited it
   double rigid_rms_mm = 0.0;            // same measure at rest, for "never worse than rigid"
   double final_rms_mm = 0.0;
+  double model_surface_error_mm = 0.0;  // e above (0 when not used)
+  double discrepancy_mm = 0.0;          // where the schedule stops
   int inverted_elements = 0;
+  Eigen::Vector3d gravity_change_mm_s2 = Eigen::Vector3d::Zero();  // estimated body force change (0: not estimated)
+  double gravity_time_s = 0.0;
+  double contact_time_s = 0.0;          // of wall_time_s, in the self-contact search
+  int crossed_vertices = 0;             // surface vertices inside another part of the organ (lobes passed through)
   std::vector<NonrigidLevel> levels;
   double wall_time_s = 0.0;
   std::string model;                    // the model that ran

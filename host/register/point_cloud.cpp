@@ -309,6 +309,8 @@ PointCloud decode_point_cloud_message(const void* data, std::size_t size, const 
                      "send one id per point or none");
   PointCloud c;
   c.source = where + " (" + m.source + ", frame " + m.frame_name + ")";
+  c.frame_name = m.frame_name;
+  c.sequence = m.sequence;
   c.points_mm.resize(3, m.num_points);
   for (int i = 0; i < m.num_points; ++i)
     for (int k = 0; k < 3; ++k) {

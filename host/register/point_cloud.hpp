@@ -26,6 +26,8 @@ struct PointCloud {
   std::vector<long long> ids;              // point ids (tracking), or empty
   std::vector<int> lines;                  // source line per point (0 for binary input)
   std::string source;
+  std::string frame_name;                  // LCM messages only: the message's frame
+  long long sequence = -1;                 // LCM messages only: the message's sequence number
 
   int size() const { return static_cast<int>(points_mm.cols()); }
   bool has_normals() const { return normals.cols() == points_mm.cols() && normals.cols() > 0; }

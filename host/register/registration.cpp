@@ -2,6 +2,8 @@
 
 #include <chrono>
 
+#include "calibration/lib/point_registration.hpp"
+
 namespace arnav::host {
 
 RegistrationResult register_patient(const Scene& scene, const RegistrationRequest& rq) {
@@ -38,6 +40,44 @@ RegistrationResult register_patient(const Scene& scene, const RegistrationReques
     if (r.nonrigid->accepted) {
       r.x_Model_mm = r.nonrigid->x_Model_mm;
       r.deformed = true;
+    }
+    const std::vector<int>& fixed = scene.problem.fixed_vertices;
+    if (rq.nonrigid.anchored_boundary && !rq.nonrigid.scene_boundary && r.deformed && fixed.size() >= 3) {
+      // The free fit moved the attachment region by (about) a rigid motion T: the rigid
+      // part's error. X_IntraopModel * T places the attachment where the free fit put it.
+      std::vector<Eigen::Vector3d> moved, rest;
+      for (int v : fixed) {
+        moved.push_back(r.x_Model_mm.col(v));
+        rest.push_back(scene.problem.mesh.rest_positions_World_mm.col(v));
+      }
+      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+      bool ok = true;
+      try {
+        T = calib::register_paired_points(moved, rest).X_AB;
+      } catch (const std::exception& e) {
+        ok = false;
+        r.notes.push_back(std::string("anchored boundary skipped: ") + e.what());
+      }
+      if (ok) {
+        const Eigen::Isometry3d X1 = r.X_IntraopModel * T;
+        const Eigen::Matrix3Xd data1 = X1.inverse() * rq.points_Intraop_mm;
+        std::vector<LandmarkPair> lm1;
+        for (const auto& l : rq.landmarks) lm1.push_back({l.p_Model_mm, X1.inverse() * l.p_Intraop_mm});
+        NonrigidOptions o1 = rq.nonrigid;
+        o1.scene_boundary = true;
+        NonrigidResult second = register_nonrigid(scene, data1, lm1, o1);
+        second.wall_time_s += r.nonrigid->wall_time_s;
+        const double angle_deg = Eigen::AngleAxisd(T.linear()).angle() * 180.0 / 3.14159265358979323846;
+        r.notes.push_back("anchored boundary: rigid part corrected by " + std::to_string(T.translation().norm()) + " mm / " +
+                          std::to_string(angle_deg) + " deg (the free fit's motion of the " + std::to_string(fixed.size()) +
+                          " fixed vertices); second fit: " + second.message);
+        if (second.accepted) {
+          r.X_IntraopModel = X1;
+          r.x_Model_mm = second.x_Model_mm;
+          second.rigid_rms_mm = r.nonrigid->rigid_rms_mm;
+          r.nonrigid = second;
+        }
+      }
     }
   }
   r.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -93,10 +93,14 @@ SurfaceIndex::SurfaceIndex(const Eigen::Matrix3Xd& positions, const std::vector<
   }
 }
 
-SurfaceHit SurfaceIndex::closest(const Eigen::Vector3d& q, double max_distance_mm) const {
+SurfaceHit SurfaceIndex::closest(const Eigen::Vector3d& q, double max_distance_mm) const { return closest(q, max_distance_mm, {}); }
+
+SurfaceHit SurfaceIndex::closest(const Eigen::Vector3d& q, double max_distance_mm, const std::function<bool(int)>& skip) const {
   SurfaceHit best;
   if (tris_.empty()) return best;
-  double best_d2 = std::numeric_limits<double>::infinity();
+  // nothing beyond max_distance_mm is of interest: cells and triangles further away are
+  // not looked at (a miss costs only the cells within reach)
+  double best_d2 = std::isfinite(max_distance_mm) ? max_distance_mm * max_distance_mm * (1.0 + 1e-12) : std::numeric_limits<double>::infinity();
   int c[3];
   for (int k = 0; k < 3; ++k) c[k] = std::clamp(static_cast<int>(std::floor((q[k] - origin_[k]) / cell_)), 0, dims_[static_cast<std::size_t>(k)] - 1);
   // distance from q to the grid box (q may be outside it)
@@ -116,7 +120,7 @@ SurfaceHit SurfaceIndex::closest(const Eigen::Vector3d& q, double max_distance_m
       const Eigen::Vector3d w = closest_on_triangle(q, x_.col(t[0]), x_.col(t[1]), x_.col(t[2]));
       const Eigen::Vector3d p = w[0] * x_.col(t[0]) + w[1] * x_.col(t[1]) + w[2] * x_.col(t[2]);
       const double d2 = (p - q).squaredNorm();
-      if (d2 < best_d2) {
+      if (d2 < best_d2 && !(skip && skip(ti))) {
         best_d2 = d2;
         best.tri = ti;
         best.barycentric = w;

@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 
 #include <array>
+#include <functional>
 #include <limits>
 #include <vector>
 
@@ -27,6 +28,9 @@ class SurfaceIndex {
   SurfaceIndex(const Eigen::Matrix3Xd& positions, const std::vector<std::array<int, 3>>& tris);
   // Nothing within max_distance_mm: tri = -1 and distance_mm = +inf (cheap for outliers).
   SurfaceHit closest(const Eigen::Vector3d& q, double max_distance_mm = std::numeric_limits<double>::infinity()) const;
+  // The same over the triangles for which skip(triangle index) is false (self-contact:
+  // the part of the surface around the query's own vertex is skipped).
+  SurfaceHit closest(const Eigen::Vector3d& q, double max_distance_mm, const std::function<bool(int)>& skip) const;
   bool empty() const { return tris_.empty(); }
   const Eigen::Matrix3Xd& vertex_normals() const { return vertex_normals_; }
   const Eigen::Matrix3Xd& positions() const { return x_; }

@@ -18,7 +18,12 @@ SurfaceTracker::SurfaceTracker(const Scene& scene, const Eigen::Matrix3Xd& x_Mod
   SimProblem p = scene.problem;
   p.gravity_World_mm_s2.setZero();  // the registered shape is the state the features are pulling from
   if (!options.scene_boundary) p.fixed_vertices.clear();
-  model_ = make_tissue_model(p, scene.model);
+  ModelConfig config = scene.model;
+  if (options.realtime_model) {
+    config = recommended_model_config(scene.model.kind);
+    config.threads = scene.model.threads;
+  }
+  model_ = make_tissue_model(p, config);
   model_->set_state(x_Model_mm, Eigen::Matrix3Xd::Zero(3, x_Model_mm.cols()));
 }
 
@@ -61,6 +66,7 @@ TrackingFrame SurfaceTracker::update(const Eigen::Matrix3Xd& points_Intraop_mm, 
   for (const auto& [id, att] : bound_)
     if (!seen.count(id)) model_->set_attachment_stiffness(att, kIdle_mN_per_mm);  // lost this frame: let go
   const auto tm = Clock::now();
+  f.bind_ms = ms_since(t0);
   const StepSummary st = model_->step(dt_s);
   f.model_ms = ms_since(tm);
   f.healthy = st.healthy;

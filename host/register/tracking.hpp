@@ -24,6 +24,11 @@ struct TrackingOptions {
   double stiffness_per_point_mN_per_mm = 2.0;  // spring per tracked point
   double bind_distance_mm = 10.0;              // a new ID further from the surface is ignored (outlier)
   bool scene_boundary = false;                 // as NonrigidOptions::scene_boundary
+  // Model settings: true (default) runs the scene's model kind with its recommended
+  // real-time configuration (recommended_model_config: for the FEM, 3 PCG iterations on a
+  // lagged factor refactorised in the background, applied in float), so that the update
+  // fits a 60 Hz frame; false keeps the scene's own model settings as they are.
+  bool realtime_model = true;
 };
 
 struct TrackingFrame {
@@ -32,6 +37,7 @@ struct TrackingFrame {
   int rejected = 0;        // new IDs too far from the surface
   double frame_ms = 0.0;   // whole update (binding, targets, model step)
   double model_ms = 0.0;   // of which the model step
+  double bind_ms = 0.0;    // of which binding new IDs and setting targets
   bool healthy = true;
   std::string warning;
 };

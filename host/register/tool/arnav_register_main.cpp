@@ -8,7 +8,11 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include <lcm/lcm-cpp.hpp>
+
+#include <chrono>
 #include <filesystem>
+#include <optional>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -16,6 +20,7 @@
 #include "calibration/lib/calib_error.hpp"
 #include "calibration/lib/plot.hpp"
 #include "calibration/lib/rigid_transform_file.hpp"
+#include "host/register/cloud_collector.hpp"
 #include "host/register/point_cloud.hpp"
 #include "host/register/point_files.hpp"
 #include "host/register/registration.hpp"
@@ -31,6 +36,8 @@ using nlohmann::json;
 
 struct Inputs {
   std::string scene_path, surface_path, landmarks_path, pose_path, targets_path, out_dir;
+  std::string lcm_url, cloud_channel = "ARNAV_CLOUD_pointer", cloud_frame;
+  double swab_seconds = 30.0, swab_wait_seconds = 60.0;
   bool rigid_only = false;
 };
 
@@ -51,6 +58,50 @@ json matrix_json(const Eigen::Isometry3d& X) {
   return m;
 }
 
+// Collects a live swab: arnav.point_cloud_t messages on the channel, from the first
+// message for swab_seconds (or until a replayed log ends). Throws LoadError naming the
+// URL and channel when nothing usable arrives.
+PointCloud collect_swab(const Inputs& in) {
+  lcm::LCM lcm(in.lcm_url);
+  if (!lcm.good())
+    throw LoadError("--lcm '" + in.lcm_url + "': cannot open LCM there. Fix: check the URL (udpm://GROUP:PORT?ttl=0, file://LOG?speed=0)");
+  PointCloudCollector collector(in.cloud_frame);
+  std::string error;
+  struct Handler {
+    PointCloudCollector* c;
+    std::string* error;
+    void on(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+      try {
+        c->add_message(rbuf->data, rbuf->data_size, channel);
+      } catch (const LoadError& e) {
+        if (error->empty()) *error = e.what();  // the first bad message is reported; the rest still count
+      }
+    }
+  } handler{&collector, &error};
+  lcm.subscribe(in.cloud_channel, &Handler::on, &handler);
+  std::cerr << "arnav-register: collecting the swab on " << in.cloud_channel << " from " << in.lcm_url << " (" << in.swab_seconds
+            << " s after the first message)\n";
+  using Clock = std::chrono::steady_clock;
+  const auto start = Clock::now();
+  std::optional<Clock::time_point> first;
+  while (true) {
+    const auto now = Clock::now();
+    if (!first && collector.messages() + collector.wrong_frame() + collector.duplicates() > 0) first = now;
+    if (first && now - *first > std::chrono::duration<double>(in.swab_seconds)) break;
+    if (!first && now - start > std::chrono::duration<double>(in.swab_wait_seconds)) break;
+    const int rc = lcm.handleTimeout(100);
+    if (rc < 0) break;  // a replayed log ended (or the provider failed)
+  }
+  if (!error.empty()) std::cerr << "arnav-register: refused a message: " << error << "\n";
+  std::cerr << "arnav-register: swab: " << collector.summary() << "\n";
+  if (collector.messages() == 0)
+    throw LoadError("--lcm '" + in.lcm_url + "': no usable arnav.point_cloud_t on " + in.cloud_channel +
+                    (collector.wrong_frame() > 0 ? " (" + collector.summary() + ")" : " within " + std::to_string(in.swab_wait_seconds) + " s") +
+                    ". Fix: is the appliance publishing the pointer swab (swab: section of its configuration, docs/register.md), on this channel and URL?" +
+                    (error.empty() ? "" : " First refused message: " + error));
+  return collector.cloud();
+}
+
 }  // namespace
 
 static int main_body(int argc, char** argv) {
@@ -60,7 +111,13 @@ static int main_body(int argc, char** argv) {
   double noise_mm = rq.nonrigid.noise_mm;
   bool scene_boundary = false;
   app.add_option("scene", in.scene_path, "scene file, e.g. data/liver/liver_coarse.scene.yaml")->required();
-  app.add_option("--surface", in.surface_path, "intraoperative points: .xyz/.txt/.csv, .ply, .obj or .vtk (mm, Intraop frame)")->required();
+  auto* surface_opt = app.add_option("--surface", in.surface_path, "intraoperative points: .xyz/.txt/.csv, .ply, .obj or .vtk (mm, Intraop frame)");
+  auto* lcm_opt = app.add_option("--lcm", in.lcm_url, "register from a live swab: collect arnav.point_cloud_t messages from this LCM URL (e.g. udpm://239.255.76.67:7667?ttl=0, or file://LOG?speed=0 to replay a log)");
+  surface_opt->excludes(lcm_opt);
+  app.add_option("--cloud-channel", in.cloud_channel, "with --lcm: the point_cloud_t channel (default ARNAV_CLOUD_pointer)");
+  app.add_option("--cloud-frame", in.cloud_frame, "with --lcm: the frame the points must be in (default: the first message's)");
+  app.add_option("--swab-seconds", in.swab_seconds, "with --lcm: collect this long after the first message (default 30)")->check(CLI::Range(0.1, 3600.0));
+  app.add_option("--swab-wait-seconds", in.swab_wait_seconds, "with --lcm: give up when no message came within this time (default 60)")->check(CLI::Range(0.1, 3600.0));
   app.add_option("--landmarks", in.landmarks_path, "CSV name,model_x,model_y,model_z,intraop_x,intraop_y,intraop_z (mm)");
   app.add_option("--initial-pose", in.pose_path, "X_IntraopModel.yaml to start the surface registration from");
   app.add_option("--targets", in.targets_path, "CSV name,x_mm,y_mm,z_mm in the scene (Model) frame");
@@ -70,6 +127,10 @@ static int main_body(int argc, char** argv) {
   app.add_option("--noise-mm", noise_mm, "expected point noise (mm): the non-rigid schedule stops at this residual")
       ->check(CLI::Range(0.0, 20.0));
   app.add_flag("--scene-boundary", scene_boundary, "hold the scene's fixed vertices at their rest positions during the non-rigid stage");
+  app.add_flag("--anchored-boundary", rq.nonrigid.anchored_boundary, "free fit, then the rigid part corrected by the fixed vertices' motion and a second fit holding them");
+  app.add_flag("--gravity-change", rq.nonrigid.estimate_gravity_change, "with a held boundary: fit a change of gravity (3 numbers) before the non-rigid fit");
+  bool no_self_contact = false;
+  app.add_flag("--no-self-contact", no_self_contact, "switch the self-contact term off (lobes may then pass through each other)");
   app.add_option("--schedule", rq.nonrigid.data_weight_schedule, "data weights, stiff to flexible (default 4 16 64 256 1024 4096)")
       ->check(CLI::PositiveNumber);
   app.add_option("--keep-fraction", rq.icp.keep_fraction, "fraction of the closest points kept (trimming)")->check(CLI::Range(0.3, 1.0));
@@ -81,7 +142,12 @@ static int main_body(int argc, char** argv) {
   rq.nonrigid.noise_mm = noise_mm;
   rq.nonrigid.keep_fraction = rq.icp.keep_fraction;
   rq.nonrigid.scene_boundary = scene_boundary;
+  rq.nonrigid.self_contact = !no_self_contact;
   rq.rigid_only = in.rigid_only;
+  if (in.surface_path.empty() && in.lcm_url.empty()) {
+    std::cerr << "arnav-register: give the intraoperative points: --surface FILE, or --lcm URL for a live swab (run with --help)\n";
+    return 2;
+  }
   const char* me = "arnav-register: ";
 
   // ---- inputs (exit 2 on anything wrong, naming file and line) ----
@@ -91,7 +157,12 @@ static int main_body(int argc, char** argv) {
   Embedding target_embedding;
   try {
     scene = load_scene(in.scene_path);
-    cloud = read_point_cloud(in.surface_path);
+    if (!in.lcm_url.empty()) {
+      cloud = collect_swab(in);
+      in.surface_path = in.out_dir + "/swab.xyz";  // written below, with the other outputs
+    } else {
+      cloud = read_point_cloud(in.surface_path);
+    }
     const double model_extent = bounding_extent_mm(scene.organ_surface.positions_World_mm);
     check_cloud_units(cloud, model_extent);
     if (!in.landmarks_path.empty()) {
@@ -168,6 +239,17 @@ static int main_body(int argc, char** argv) {
   try {
     std::filesystem::create_directories(in.out_dir);
     const std::string dir = in.out_dir + "/";
+    if (!in.lcm_url.empty()) {  // the live swab, readable back with --surface
+      std::ofstream f(dir + "swab.xyz");
+      f.precision(10);
+      f << "# arnav-register live swab from " << in.lcm_url << " " << in.cloud_channel << ", frame " << cloud.frame_name << " (mm)\n";
+      for (int i = 0; i < cloud.size(); ++i) {
+        f << cloud.points_mm(0, i) << ' ' << cloud.points_mm(1, i) << ' ' << cloud.points_mm(2, i);
+        if (cloud.has_normals()) f << ' ' << cloud.normals(0, i) << ' ' << cloud.normals(1, i) << ' ' << cloud.normals(2, i);
+        f << '\n';
+      }
+      if (!f) throw LoadError(dir + "swab.xyz: write failed. Fix: check free disk space");
+    }
     // deformed display surface in Intraop
     const Eigen::Matrix3Xd organ_Intraop = r.X_IntraopModel * scene.organ_embedding.apply(scene.problem.mesh, r.x_Model_mm);
     write_obj(dir + "registered_organ.obj", organ_Intraop, scene.organ_surface.tris);
@@ -230,6 +312,7 @@ static int main_body(int argc, char** argv) {
                           {"points_used", l.points_used},
                           {"points_trimmed", l.points_trimmed},
                           {"max_displacement_mm", l.max_displacement_mm},
+                          {"self_contacts", l.contacts},
                           {"wall_time_s", l.wall_time_s},
                           {"termination", l.termination}});
       stages.push_back({{"stage", "nonrigid"},
@@ -242,7 +325,10 @@ static int main_body(int argc, char** argv) {
                         {"iterations", static_cast<int>(nr.levels.size())},
                         {"levels", levels},
                         {"wall_time_s", nr.wall_time_s},
-                        {"self_collision", "not modelled"}});
+                        {"self_collision",
+                         rq.nonrigid.self_contact ? json{{"term", "on"}, {"margin_mm", rq.nonrigid.contact_margin_mm}, {"crossed_vertices", nr.crossed_vertices}}
+                                                  : json{{"term", "off"}, {"crossed_vertices", nr.crossed_vertices}}},
+                        {"gravity_change_mm_s2", {nr.gravity_change_mm_s2.x(), nr.gravity_change_mm_s2.y(), nr.gravity_change_mm_s2.z()}}});
     }
     j["stages"] = stages;
     j["deformed"] = r.deformed;
@@ -282,7 +368,8 @@ static int main_body(int argc, char** argv) {
       const NonrigidResult& nr = *r.nonrigid;
       rep << "non-rigid (" << nr.model << "): " << (nr.accepted ? "accepted" : "not accepted") << ": " << nr.message << "\n"
           << "  residual " << nr.rigid_rms_mm << " mm (rigid) -> " << nr.final_rms_mm << " mm RMS, " << nr.wall_time_s << " s, "
-          << nr.inverted_elements << " inverted elements; self-collision is not modelled\n";
+          << nr.inverted_elements << " inverted elements, " << nr.crossed_vertices << " surface vertices inside another part of the organ (self-contact term "
+          << (rq.nonrigid.self_contact ? "on" : "off") << ")\n";
       for (const auto& l : nr.levels)
         rep << "  data weight " << l.data_weight << ": " << l.updates << " updates, residual " << l.rms_mm << " mm RMS / " << l.max_mm
             << " mm max, max displacement " << l.max_displacement_mm << " mm, " << l.points_trimmed << " trimmed, " << l.wall_time_s << " s, "
