@@ -167,9 +167,14 @@ TEST(FemBackgroundRefactor, OnlyForPcgAndBadBlasThreadsAreRejected) {
   f.single_precision_preconditioner = true;
   EXPECT_THROW(CorotationalFem(problem, f), std::invalid_argument);
   // The worker's nice level: 0-19 (a background run at 19 still steps and swaps factors).
-  EXPECT_THROW(CorotationalFem(problem, pcg(4, 10, 1e-6, true), FemOptions{.background_nice = 20}), std::invalid_argument);
-  EXPECT_THROW(CorotationalFem(problem, pcg(4, 10, 1e-6, true), FemOptions{.background_nice = -1}), std::invalid_argument);
-  CorotationalFem low(problem, pcg(2, 10, 1e-6, true), FemOptions{.background_nice = 19});
+  const auto nice_level = [](int level) {
+    FemOptions o;
+    o.background_nice = level;
+    return o;
+  };
+  EXPECT_THROW(CorotationalFem(problem, pcg(4, 10, 1e-6, true), nice_level(20)), std::invalid_argument);
+  EXPECT_THROW(CorotationalFem(problem, pcg(4, 10, 1e-6, true), nice_level(-1)), std::invalid_argument);
+  CorotationalFem low(problem, pcg(2, 10, 1e-6, true), nice_level(19));
   bool swapped = false;
   for (int k = 0; k < 8; ++k) {
     ASSERT_TRUE(low.step(1.0 / 60).healthy);
