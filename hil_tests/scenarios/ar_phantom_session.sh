@@ -10,7 +10,7 @@
 # 2. Re-executes itself in a private network namespace (root): lcm-logger, arnav-host
 #    ar_demo/session_phantom.yaml (mass-spring model, registered to the phantom's board),
 #    arnav-appliance ar_demo/appliance_phantom.yaml (synthetic camera filming the deforming
-#    phantom; simulated Polaris moving the scalpel along the recorded tool path).
+#    phantom; simulated Polaris moving the grasper along the recorded tool path).
 # 3. arnav-ar-error: the overlay's tumour centroid against the deformed ground truth, and what
 #    a rigid overlay would score. FRAMES: camera frames at 15 Hz (default 255, 17 s).
 set -euo pipefail
@@ -81,7 +81,7 @@ for _ in $(seq 1 600); do
   sleep 0.1
 done
 grep "session ready" "$out/host.log" || { echo "arnav-host not ready after 60 s" >&2; exit 1; }
-echo "arnav-appliance: synthetic camera filming the deforming phantom, $frames frames at 15 Hz; simulated Polaris moving the scalpel with the phantom's tool"
+echo "arnav-appliance: synthetic camera filming the deforming phantom, $frames frames at 15 Hz; simulated Polaris moving the grasper with the phantom's tool"
 (cd "$out" && exec "$appliance" appliance.yaml 2>"$out/appliance.log") &
 app_pid=$!
 pids+=("$app_pid")

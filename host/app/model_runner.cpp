@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <set>
+#include <stdexcept>
 
 #include <sys/resource.h>
 #include <unistd.h>
@@ -92,6 +93,21 @@ void ModelRunner::set_scalpel(const std::optional<std::array<Eigen::Vector3d, 2>
   cutting_enabled_ = cutting_enabled;
 }
 
+void ModelRunner::enable_grasper(const GrasperRole& role) {
+  if (cut_) throw std::invalid_argument("a grasper cannot be coupled to a cutting model yet (host/cut has no attachment removal)");
+  grasp_ = std::make_unique<GraspCoupling>(role, scene_);
+}
+
+void ModelRunner::set_grasper(const GraspCommand& cmd) {
+  std::lock_guard lock(mutex_);
+  grasp_cmd_ = cmd;
+}
+
+GraspStatus ModelRunner::grasp_status() const {
+  std::lock_guard lock(mutex_);
+  return grasp_status_;
+}
+
 std::vector<ModelCutEvent> ModelRunner::events(std::size_t from) const {
   std::lock_guard lock(mutex_);
   return from < events_.size() ? std::vector<ModelCutEvent>(events_.begin() + static_cast<std::ptrdiff_t>(from), events_.end())
@@ -165,6 +181,16 @@ void ModelRunner::step_once(std::int64_t now_us) {
       }
       s = cut_->step(1.0 / rate_hz_);
     } else {
+      if (grasp_) {
+        GraspCommand cmd;
+        {
+          std::lock_guard lock(mutex_);
+          cmd = grasp_cmd_;
+        }
+        grasp_->apply(*model_, cmd, now_us);
+        std::lock_guard lock(mutex_);
+        grasp_status_ = grasp_->status();
+      }
       s = model_->step(1.0 / rate_hz_);
     }
     snap->step_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();

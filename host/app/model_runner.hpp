@@ -26,6 +26,7 @@
 #include <thread>
 #include <vector>
 
+#include "host/app/grasp_coupling.hpp"
 #include "host/cut/cut_session.hpp"
 #include "host/scene/scene.hpp"
 #include "host/sim/tissue_model.hpp"
@@ -95,6 +96,13 @@ class ModelRunner {
   // Blade {tip, heel} in Model (nullopt: not tracked now) and whether it cuts.
   void set_scalpel(const std::optional<std::array<Eigen::Vector3d, 2>>& blade_Model_mm, bool cutting_enabled = false);
   bool cutting() const { return cut_ != nullptr; }
+  // A tracked grasper coupled to the model (host/app/grasp_coupling.hpp); not with cutting
+  // (throws std::invalid_argument). set_grasper hands in its newest pose and request;
+  // the model thread grasps, follows or releases before each step.
+  void enable_grasper(const GrasperRole& role);
+  void set_grasper(const GraspCommand& cmd);
+  bool has_grasper() const { return grasp_ != nullptr; }
+  GraspStatus grasp_status() const;
   // Events and cutting steps from index `from` on (for the rendering thread to consume in order).
   std::vector<ModelCutEvent> events(std::size_t from) const;
   std::vector<CutStepRecord> cut_steps(std::size_t from) const;
@@ -111,6 +119,9 @@ class ModelRunner {
   int nice_ = 0;
   std::unique_ptr<TissueModel> model_;
   std::unique_ptr<cut::CutSession> cut_;
+  std::unique_ptr<GraspCoupling> grasp_;  // model thread
+  GraspCommand grasp_cmd_;                // guarded by mutex_
+  GraspStatus grasp_status_;              // guarded by mutex_ (copy after each step)
   bool cutting_enabled_ = false;
   bool blade_gap_ = true;  // no blade applied yet, or it was missing: the next one only places itself
   std::vector<ModelCutEvent> events_;
