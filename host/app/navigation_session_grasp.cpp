@@ -33,18 +33,21 @@ void NavigationSession::grasper_pose(const tool_pose_t& msg, std::int64_t now_us
     if (msg.frame_parent == "Ref") {
       X_RefTool = get_pose(msg);
     } else if (auto it = poses_.find(config_.reference->name); it != poses_.end()) {
-      // The reference in the same parent frame, nearest in device time, no farther apart
-      // than the reference's own freshness limit (the camera measures it at its frame rate).
+      // The reference in the same parent frame that is fresh now (arrived within its own
+      // stale_after_ms, the overlay's rule), nearest in device time. A camera-measured
+      // reference arrives after the camera's latency (~0.1-0.2 s on the bench), later than
+      // the tracker's grasper poses: the newest fresh one is used, never a stale one.
       const PoseSample* best = nullptr;
+      const auto limit_us = static_cast<std::int64_t>(config_.reference->stale_after_ms * 1000.0);
       for (const auto& r : it->second.recent) {
-        if (r.msg.status != tool_pose_t::STATUS_VALID || r.msg.frame_parent != msg.frame_parent || r.arrival_us > now_us) continue;
+        if (r.msg.status != tool_pose_t::STATUS_VALID || r.msg.frame_parent != msg.frame_parent || r.arrival_us > now_us ||
+            now_us - r.arrival_us > limit_us)
+          continue;
         if (!best || std::llabs(r.msg.receive_time_mono_us - msg.receive_time_mono_us) <
                          std::llabs(best->msg.receive_time_mono_us - msg.receive_time_mono_us))
           best = &r;
       }
-      if (best && static_cast<double>(std::llabs(best->msg.receive_time_mono_us - msg.receive_time_mono_us)) <=
-                      config_.reference->stale_after_ms * 1000.0)
-        X_RefTool = get_pose(best->msg).inverse() * get_pose(msg);
+      if (best) X_RefTool = get_pose(best->msg).inverse() * get_pose(msg);
     }
     if (X_RefTool) {
       grasp_cmd_.X_ModelTool = X_RefModel_->inverse() * *X_RefTool;
