@@ -26,6 +26,7 @@ namespace arnav::host {
 struct GraspCommand {
   std::optional<Eigen::Isometry3d> X_ModelTool;  // newest valid grasper pose in Model (nullopt: none)
   std::int64_t pose_time_us = -1;                // when it arrived (session clock)
+  std::int64_t device_time_us = -1;              // when the tracker measured it (the appliance's clock: tool_pose_t.receive_time_mono_us)
   bool requested = false;                        // input held with a fresh state (always mode: true)
   std::string why_not;                           // why not requested (input released, input stale), for the banner
 };

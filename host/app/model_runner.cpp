@@ -108,6 +108,14 @@ GraspStatus ModelRunner::grasp_status() const {
   return grasp_status_;
 }
 
+std::shared_ptr<const ModelSnapshot> ModelRunner::snapshot_at(std::int64_t device_time_us) const {
+  std::lock_guard lock(mutex_);
+  if (!grasp_ || recent_.empty()) return snapshot_;
+  for (auto it = recent_.rbegin(); it != recent_.rend(); ++it)
+    if ((*it)->grasper_device_time_us <= device_time_us) return *it;
+  return recent_.front();
+}
+
 std::vector<ModelCutEvent> ModelRunner::events(std::size_t from) const {
   std::lock_guard lock(mutex_);
   return from < events_.size() ? std::vector<ModelCutEvent>(events_.begin() + static_cast<std::ptrdiff_t>(from), events_.end())
@@ -188,6 +196,7 @@ void ModelRunner::step_once(std::int64_t now_us) {
           cmd = grasp_cmd_;
         }
         grasp_->apply(*model_, cmd, now_us);
+        grasper_device_time_us_ = cmd.device_time_us;
         std::lock_guard lock(mutex_);
         grasp_status_ = grasp_->status();
       }
@@ -303,6 +312,11 @@ void ModelRunner::step_once(std::int64_t now_us) {
   if (now_us >= 0) {
     ++steps_;
     step_ms_.push_back(snap->step_ms);
+  }
+  if (grasp_) {
+    snap->grasper_device_time_us = grasper_device_time_us_;
+    recent_.push_back(snap);
+    while (recent_.size() > static_cast<std::size_t>(rate_hz_) + 1) recent_.pop_front();
   }
   snapshot_ = std::move(snap);
 }

@@ -53,6 +53,8 @@ struct ModelSnapshot {
   double cut_area_mm2 = 0.0;            // area of the cut (half the cut faces' area)
   std::int64_t events_total = 0;        // margin/vessel events so far (ModelRunner::events())
   std::int64_t cut_steps_total = 0;     // steps that cut (topology changed)
+  // Grasper sessions: the device time (appliance clock) of the grasper pose this step used.
+  std::int64_t grasper_device_time_us = -1;
 };
 
 // A margin/vessel event raised by the cut session, with the model step it came from.
@@ -103,6 +105,11 @@ class ModelRunner {
   void set_grasper(const GraspCommand& cmd);
   bool has_grasper() const { return grasp_ != nullptr; }
   GraspStatus grasp_status() const;
+  // Grasper sessions: the newest of the last second's snapshots whose grasper pose was
+  // measured no later than device_time_us (a camera frame's capture time, same appliance
+  // clock), so a frame is drawn with the model as the tool had it when the image was taken;
+  // the oldest kept when none is that old; snapshot() when there is no grasper.
+  std::shared_ptr<const ModelSnapshot> snapshot_at(std::int64_t device_time_us) const;
   // Events and cutting steps from index `from` on (for the rendering thread to consume in order).
   std::vector<ModelCutEvent> events(std::size_t from) const;
   std::vector<CutStepRecord> cut_steps(std::size_t from) const;
@@ -122,6 +129,8 @@ class ModelRunner {
   std::unique_ptr<GraspCoupling> grasp_;  // model thread
   GraspCommand grasp_cmd_;                // guarded by mutex_
   GraspStatus grasp_status_;              // guarded by mutex_ (copy after each step)
+  std::deque<std::shared_ptr<const ModelSnapshot>> recent_;  // grasper sessions: the last second's snapshots (mutex_)
+  std::int64_t grasper_device_time_us_ = -1;                 // model thread
   bool cutting_enabled_ = false;
   bool blade_gap_ = true;  // no blade applied yet, or it was missing: the next one only places itself
   std::vector<ModelCutEvent> events_;

@@ -563,7 +563,10 @@ FrameResult NavigationSession::render_frame(const image_frame_t& msg, std::int64
     }
   }
   last_capture_us_ = msg.capture_time_mono_us;
-  std::shared_ptr<const ModelSnapshot> snap = model_ ? model_->snapshot() : nullptr;
+  // With a grasper the model moves with the tool: the state as the tool was when the frame was captured.
+  std::shared_ptr<const ModelSnapshot> snap = !model_ ? nullptr
+                                              : model_->has_grasper() ? model_->snapshot_at(msg.capture_time_mono_us)
+                                                                      : model_->snapshot();
   out.row.pose_time_mono_us = r.pose_time_us;
   if (snap) out.row.model_step_time_mono_us = snap->step_done_mono_us;
   if (snap && !snap->healthy) {

@@ -52,6 +52,7 @@ void NavigationSession::grasper_pose(const tool_pose_t& msg, std::int64_t now_us
     if (X_RefTool) {
       grasp_cmd_.X_ModelTool = X_RefModel_->inverse() * *X_RefTool;
       grasp_cmd_.pose_time_us = now_us;
+      grasp_cmd_.device_time_us = msg.receive_time_mono_us;
     }
   }
   grasp_request(now_us);
