@@ -296,3 +296,38 @@ TEST_F(Grasp, SessionCouplesTheTrackedGrasperThroughTheRegistration) {
 
 }  // namespace
 }  // namespace arnav::host
+
+namespace arnav::host {
+namespace {
+
+// With a grasper the overlay draws the model as the tool had it when the frame was
+// captured: snapshot_at(device time) picks the newest snapshot whose grasper pose was
+// measured by then.
+TEST_F(Grasp, SnapshotAtTheFramesCaptureTimeFollowsTheGrasperPoseTime) {
+  ModelRunner runner(*scene_, 60.0, false, 5.0);
+  GrasperRole g = role(true);
+  runner.enable_grasper(g);
+  const int v0 = surface_vertex_near({70, 160, 60});
+  const Eigen::Vector3d p0 = scene_->organ_embedding.apply(scene_->problem.mesh, scene_->problem.mesh.rest_positions_World_mm).col(v0);
+  std::int64_t t = 1'000'000;
+  for (int k = 0; k < 40; ++k, t += 16'667) {
+    GraspCommand c = at(p0 + std::min(1.0, k / 20.0) * Eigen::Vector3d(0, 0, -8), t, true);
+    c.device_time_us = 50'000'000 + k * 16'667;  // the tracker's clock
+    runner.set_grasper(c);
+    runner.advance_to(t, 1);
+  }
+  ASSERT_TRUE(runner.grasp_status().grasping);
+  const auto newest = runner.snapshot();
+  EXPECT_EQ(newest->grasper_device_time_us, 50'000'000 + 39 * 16'667);
+  EXPECT_EQ(runner.snapshot_at(60'000'000)->step, newest->step);
+  const auto earlier = runner.snapshot_at(50'000'000 + 10 * 16'667 + 5);  // a frame captured when the tool was at pose 10
+  EXPECT_EQ(earlier->grasper_device_time_us, 50'000'000 + 10 * 16'667);
+  EXPECT_LT(earlier->step, newest->step);
+  // The tumour drawn for that frame is where the model had it then, not now.
+  EXPECT_GT((earlier->tumour_centroids_mm[0] - newest->tumour_centroids_mm[0]).norm(), 0.05);
+  // Older than everything kept: the oldest snapshot kept (about one second).
+  EXPECT_LE(runner.snapshot_at(0)->step, newest->step - 30);
+}
+
+}  // namespace
+}  // namespace arnav::host
