@@ -73,8 +73,11 @@ void NavigationSession::grasp_frame(std::string& flags, std::vector<std::string>
     flags += (flags.empty() ? "" : "|") + std::string("grasper_stale");
     ++grasper_stale_frames_;
     char text[200];
-    std::snprintf(text, sizeof text, "GRASPER STALE: '%s' - tissue released (%lld stale release(s))", g.name.c_str(),
-                  static_cast<long long>(s.stale_releases));
+    if (s.stale_releases > 0)
+      std::snprintf(text, sizeof text, "GRASPER STALE: '%s' - tissue released (%lld stale release(s))", g.name.c_str(),
+                    static_cast<long long>(s.stale_releases));
+    else
+      std::snprintf(text, sizeof text, "GRASPER STALE: '%s' - no fresh pose in Model, not grasping", g.name.c_str());
     banners.emplace_back(text);
   } else if (s.grasping) {
     flags += (flags.empty() ? "" : "|") + std::string("grasping");

@@ -331,3 +331,60 @@ TEST_F(Grasp, SnapshotAtTheFramesCaptureTimeFollowsTheGrasperPoseTime) {
 
 }  // namespace
 }  // namespace arnav::host
+
+namespace arnav::host {
+namespace {
+
+// On the overlay: frames while grasping carry the `grasping` flag; the grasper's poses
+// stop: the tissue is released and every frame says so (banner + `grasper_stale`).
+TEST_F(Grasp, StaleGrasperIsBanneredOnTheOverlay) {
+  SessionFolder f("grasp_banner");
+  const std::string text = "arnav_session_version: 1\nlcm_url: \"memq://\"\nscene: " + data_dir() +
+                           "/liver/liver_coarse.scene.yaml\nregistration: X_RefModel.yaml\n"
+                           "tools:\n  reference: {name: liver_marker, stale_after_ms: 100}\n"
+                           "  grasper: {name: grasper, stale_after_ms: 100, radius_mm: 10, grasp: {always: true}}\n"
+                           "camera:\n  name: cam0\n  intrinsics: camera.yaml\n  pose_from: reference\n"
+                           "model: {rate_hz: 60, gravity: false}\n";
+  SessionOptions o;
+  o.threaded = false;
+  NavigationSession s(load_session(f.write("session.yaml", text)), std::make_unique<Scene>(*scene_), o);
+  const int v0 = surface_vertex_near({70, 160, 60});
+  const Eigen::Vector3d p0 = scene_->organ_embedding.apply(scene_->problem.mesh, scene_->problem.mesh.rest_positions_World_mm).col(v0);
+  const auto frame = [&](std::int64_t k, bool grasper_tracked) {
+    const std::int64_t t = 1'000'000 + k * 16'667;
+    const Eigen::Isometry3d X_CamRef = test_X_CamRef(k);
+    s.on_pose(pose_msg("liver_marker", "Cam", X_CamRef, k, t), t + 2000);
+    const Eigen::Vector3d tip = p0 + std::min(1.0, k / 20.0) * Eigen::Vector3d(0, 0, -6);
+    if (grasper_tracked)
+      s.on_pose(pose_msg("grasper", "Cam", X_CamRef * test_X_RefModel() * Eigen::Isometry3d(Eigen::Translation3d(tip)), k, t, true,
+                         tool_pose_t::SOURCE_NDI),
+                t + 2500);  // after the board pose it pairs with
+    s.advance_model(t + 3000);
+    return s.render_frame(frame_msg(k, t), t + 5000);
+  };
+  std::int64_t k = 0;
+  for (; k < 30; ++k) {
+    const FrameResult r = frame(k, true);
+    if (k >= 2) EXPECT_NE(r.row.flags.find("grasping"), std::string::npos) << "frame " << k << ": " << r.row.flags;
+    for (const auto& b : r.banners) EXPECT_EQ(b.find("GRASPER"), std::string::npos) << "frame " << k << ": " << b;
+  }
+  ASSERT_TRUE(s.grasp_status()->grasping);
+  int bannered = 0;
+  for (int j = 0; j < 20; ++j, ++k) {
+    const FrameResult r = frame(k, false);
+    bool banner = false;
+    for (const auto& b : r.banners) banner = banner || b.find("GRASPER STALE: 'grasper' - tissue released (1 stale release(s))") != std::string::npos;
+    if (j >= 10) {  // 100 ms limit + one model step
+      EXPECT_TRUE(banner) << "frame " << k;
+      EXPECT_NE(r.row.flags.find("grasper_stale"), std::string::npos) << r.row.flags;
+    }
+    bannered += banner ? 1 : 0;
+  }
+  EXPECT_FALSE(s.grasp_status()->grasping);
+  EXPECT_EQ(s.grasp_status()->stale_releases, 1);
+  EXPECT_GE(bannered, 10);
+  EXPECT_EQ(s.summary_json(1.0)["grasper"]["frames_stale_banner"].get<int>(), bannered);
+}
+
+}  // namespace
+}  // namespace arnav::host
