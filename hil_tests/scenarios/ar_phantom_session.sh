@@ -3,14 +3,15 @@
 #   ar_phantom_session.sh BUILD_DIR OUT_DIR [FRAMES]
 # 1. arnav-phantom-record runs the reference deformation (ar_demo/phantom_reference.scene.yaml:
 #    finer mesh, co-rotational FEM, heterogeneous material; a grasper pulls the underside of
-#    the liver twice) and writes OUT/phantom.txt (deterministic; about 1-2 min, 20 MB, not
+#    the liver twice, from 3 s on: the grasper first rests on the tissue while the bench's
+#    processes come up, so the host sees the grasp start) and writes OUT/phantom.txt (deterministic; about 1-2 min, 20 MB, not
 #    committed). An existing OUT/phantom.txt is reused. It also runs the host's scene under
 #    the same grasp (--compare-scene): how close the host's model would be if it coupled
 #    the tool, next to a rigid model.
 # 2. Re-executes itself in a private network namespace (root): lcm-logger, arnav-host
 #    ar_demo/session_phantom.yaml (mass-spring model, registered to the phantom's board),
 #    arnav-appliance ar_demo/appliance_phantom.yaml (synthetic camera filming the deforming
-#    phantom; simulated Polaris moving the scalpel along the recorded tool path).
+#    phantom; simulated Polaris moving the grasper along the recorded tool path).
 # 3. arnav-ar-error: the overlay's tumour centroid against the deformed ground truth, and what
 #    a rigid overlay would score. FRAMES: camera frames at 15 Hz (default 255, 17 s).
 set -euo pipefail
@@ -39,7 +40,7 @@ if [ "${ARNAV_AR_INSIDE:-}" != "1" ]; then
     duration=$(python3 -c "print(round($frames / 15.0, 3))" 2>/dev/null || echo 17)
     echo "arnav-phantom-record: reference deformation, ${duration} s at 10 Hz (co-rotational FEM, fine mesh)"
     "$record" --scene "$here/ar_demo/phantom_reference.scene.yaml" --out "$out/phantom.txt" --fps 10 --duration "$duration" \
-      --pull 20 10 -15 --grasp-radius 15 --quiet --compare-scene "$here/ar_demo/liver_navigation.scene.yaml" >"$out/phantom_record.json"
+      --pull 20 10 -15 --grasp-radius 15 --start 3 --quiet --compare-scene "$here/ar_demo/liver_navigation.scene.yaml" >"$out/phantom_record.json"
     python3 - "$out/phantom_record.json" <<'PY' || cat "$out/phantom_record.json"
 import json, sys
 j = json.load(open(sys.argv[1]))
@@ -81,7 +82,7 @@ for _ in $(seq 1 600); do
   sleep 0.1
 done
 grep "session ready" "$out/host.log" || { echo "arnav-host not ready after 60 s" >&2; exit 1; }
-echo "arnav-appliance: synthetic camera filming the deforming phantom, $frames frames at 15 Hz; simulated Polaris moving the scalpel with the phantom's tool"
+echo "arnav-appliance: synthetic camera filming the deforming phantom, $frames frames at 15 Hz; simulated Polaris moving the grasper with the phantom's tool"
 (cd "$out" && exec "$appliance" appliance.yaml 2>"$out/appliance.log") &
 app_pid=$!
 pids+=("$app_pid")

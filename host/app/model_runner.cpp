@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <set>
+#include <stdexcept>
 
 #include <sys/resource.h>
 #include <unistd.h>
@@ -92,6 +93,29 @@ void ModelRunner::set_scalpel(const std::optional<std::array<Eigen::Vector3d, 2>
   cutting_enabled_ = cutting_enabled;
 }
 
+void ModelRunner::enable_grasper(const GrasperRole& role) {
+  if (cut_) throw std::invalid_argument("a grasper cannot be coupled to a cutting model yet (host/cut has no attachment removal)");
+  grasp_ = std::make_unique<GraspCoupling>(role, scene_);
+}
+
+void ModelRunner::set_grasper(const GraspCommand& cmd) {
+  std::lock_guard lock(mutex_);
+  grasp_cmd_ = cmd;
+}
+
+GraspStatus ModelRunner::grasp_status() const {
+  std::lock_guard lock(mutex_);
+  return grasp_status_;
+}
+
+std::shared_ptr<const ModelSnapshot> ModelRunner::snapshot_at(std::int64_t device_time_us) const {
+  std::lock_guard lock(mutex_);
+  if (!grasp_ || recent_.empty()) return snapshot_;
+  for (auto it = recent_.rbegin(); it != recent_.rend(); ++it)
+    if ((*it)->grasper_device_time_us <= device_time_us) return *it;
+  return recent_.front();
+}
+
 std::vector<ModelCutEvent> ModelRunner::events(std::size_t from) const {
   std::lock_guard lock(mutex_);
   return from < events_.size() ? std::vector<ModelCutEvent>(events_.begin() + static_cast<std::ptrdiff_t>(from), events_.end())
@@ -165,6 +189,17 @@ void ModelRunner::step_once(std::int64_t now_us) {
       }
       s = cut_->step(1.0 / rate_hz_);
     } else {
+      if (grasp_) {
+        GraspCommand cmd;
+        {
+          std::lock_guard lock(mutex_);
+          cmd = grasp_cmd_;
+        }
+        grasp_->apply(*model_, cmd, now_us);
+        grasper_device_time_us_ = cmd.device_time_us;
+        std::lock_guard lock(mutex_);
+        grasp_status_ = grasp_->status();
+      }
       s = model_->step(1.0 / rate_hz_);
     }
     snap->step_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
@@ -277,6 +312,11 @@ void ModelRunner::step_once(std::int64_t now_us) {
   if (now_us >= 0) {
     ++steps_;
     step_ms_.push_back(snap->step_ms);
+  }
+  if (grasp_) {
+    snap->grasper_device_time_us = grasper_device_time_us_;
+    recent_.push_back(snap);
+    while (recent_.size() > static_cast<std::size_t>(rate_hz_) + 1) recent_.pop_front();
   }
   snapshot_ = std::move(snap);
 }

@@ -26,6 +26,7 @@
 #include <thread>
 #include <vector>
 
+#include "host/app/grasp_coupling.hpp"
 #include "host/cut/cut_session.hpp"
 #include "host/scene/scene.hpp"
 #include "host/sim/tissue_model.hpp"
@@ -52,6 +53,8 @@ struct ModelSnapshot {
   double cut_area_mm2 = 0.0;            // area of the cut (half the cut faces' area)
   std::int64_t events_total = 0;        // margin/vessel events so far (ModelRunner::events())
   std::int64_t cut_steps_total = 0;     // steps that cut (topology changed)
+  // Grasper sessions: the device time (appliance clock) of the grasper pose this step used.
+  std::int64_t grasper_device_time_us = -1;
 };
 
 // A margin/vessel event raised by the cut session, with the model step it came from.
@@ -95,6 +98,18 @@ class ModelRunner {
   // Blade {tip, heel} in Model (nullopt: not tracked now) and whether it cuts.
   void set_scalpel(const std::optional<std::array<Eigen::Vector3d, 2>>& blade_Model_mm, bool cutting_enabled = false);
   bool cutting() const { return cut_ != nullptr; }
+  // A tracked grasper coupled to the model (host/app/grasp_coupling.hpp); not with cutting
+  // (throws std::invalid_argument). set_grasper hands in its newest pose and request;
+  // the model thread grasps, follows or releases before each step.
+  void enable_grasper(const GrasperRole& role);
+  void set_grasper(const GraspCommand& cmd);
+  bool has_grasper() const { return grasp_ != nullptr; }
+  GraspStatus grasp_status() const;
+  // Grasper sessions: the newest of the last second's snapshots whose grasper pose was
+  // measured no later than device_time_us (a camera frame's capture time, same appliance
+  // clock), so a frame is drawn with the model as the tool had it when the image was taken;
+  // the oldest kept when none is that old; snapshot() when there is no grasper.
+  std::shared_ptr<const ModelSnapshot> snapshot_at(std::int64_t device_time_us) const;
   // Events and cutting steps from index `from` on (for the rendering thread to consume in order).
   std::vector<ModelCutEvent> events(std::size_t from) const;
   std::vector<CutStepRecord> cut_steps(std::size_t from) const;
@@ -111,6 +126,11 @@ class ModelRunner {
   int nice_ = 0;
   std::unique_ptr<TissueModel> model_;
   std::unique_ptr<cut::CutSession> cut_;
+  std::unique_ptr<GraspCoupling> grasp_;  // model thread
+  GraspCommand grasp_cmd_;                // guarded by mutex_
+  GraspStatus grasp_status_;              // guarded by mutex_ (copy after each step)
+  std::deque<std::shared_ptr<const ModelSnapshot>> recent_;  // grasper sessions: the last second's snapshots (mutex_)
+  std::int64_t grasper_device_time_us_ = -1;                 // model thread
   bool cutting_enabled_ = false;
   bool blade_gap_ = true;  // no blade applied yet, or it was missing: the next one only places itself
   std::vector<ModelCutEvent> events_;

@@ -103,6 +103,15 @@ NavigationSession::NavigationSession(const SessionConfig& config, std::unique_pt
       throw SessionError(at_scene + "the tissue model cannot be built: " + e.what());
     }
   }
+  if (config_.grasper) {
+    const std::string at = config_.source + ":" + std::to_string(config_.grasper->line) + ": key 'tools.grasper': ";
+    if (!model_) throw SessionError(at + "a grasper needs a scene with a tissue model");
+    try {
+      model_->enable_grasper(*config_.grasper);
+    } catch (const std::invalid_argument& e) {
+      throw SessionError(at + e.what());
+    }
+  }
   if (config_.live_registration) {
     const Eigen::Vector3d target = scene_ && !scene_->tumours.empty()
                                        ? tumour_centroid_World_mm(*scene_, 0, scene_->problem.mesh.rest_positions_World_mm)
@@ -194,6 +203,7 @@ void NavigationSession::on_pose(const tool_pose_t& msg, std::int64_t now_us) {
   // Without a camera the scalpel's poses themselves drive the cutting stage.
   if (!config_.camera && config_.scalpel && model_ && model_->cutting() && msg.tool_name == config_.scalpel->name)
     blade_without_camera(msg, now_us);
+  if (config_.grasper && model_) msg.tool_name == config_.grasper->name ? grasper_pose(msg, now_us) : drain_grasp();
 }
 
 void NavigationSession::on_health(const device_health_t& msg, std::int64_t now_us) {
@@ -334,6 +344,7 @@ void NavigationSession::blade_without_camera(const tool_pose_t& msg, std::int64_
 void NavigationSession::on_input(const input_event_t& msg, std::int64_t now_us) {
   std::lock_guard lock(mutex_);
   const bool press = inputs_.on_input(msg, now_us);
+  if (config_.grasper && model_) grasp_request(now_us);
   if (!press) return;
   const bool accept = (live_ && msg.input_name == config_.live_registration->accept_input) ||
                       (config_.inputs.accept && msg.input_name == config_.inputs.accept->input);
@@ -552,12 +563,20 @@ FrameResult NavigationSession::render_frame(const image_frame_t& msg, std::int64
     }
   }
   last_capture_us_ = msg.capture_time_mono_us;
-  std::shared_ptr<const ModelSnapshot> snap = model_ ? model_->snapshot() : nullptr;
+  // With a grasper the model moves with the tool: the state as the tool was when the frame was captured.
+  std::shared_ptr<const ModelSnapshot> snap = !model_ ? nullptr
+                                              : model_->has_grasper() ? model_->snapshot_at(msg.capture_time_mono_us)
+                                                                      : model_->snapshot();
   out.row.pose_time_mono_us = r.pose_time_us;
   if (snap) out.row.model_step_time_mono_us = snap->step_done_mono_us;
   if (snap && !snap->healthy) {
     add_flag(r.flags, "model_unhealthy");
     r.banners.push_back({"MODEL: " + snap->warning, cv::Scalar(0, 0, 160)});
+  }
+  if (model_ && model_->has_grasper()) {
+    std::vector<std::string> grasp_banners;
+    grasp_frame(r.flags, grasp_banners);
+    for (const auto& b : grasp_banners) r.banners.push_back({b, cv::Scalar(0, 140, 230)});
   }
   // Registration (file, or live once all landmarks are taken), inputs and cutting state as
   // known when the frame arrived.
@@ -737,6 +756,7 @@ nlohmann::json NavigationSession::summary_json(double run_s) {
                   {"step_ms_p50", percentile(steps, 0.5)},
                   {"step_ms_p99", percentile(steps, 0.99)}};
   }
+  if (model_ && model_->has_grasper()) j["grasper"] = grasp_summary();
   if (model_ && model_->cutting()) {
     std::map<std::string, int> by_kind;
     nlohmann::json events = nlohmann::json::array();
@@ -834,6 +854,16 @@ std::string NavigationSession::format_summary(double run_s) {
     os << "  cut events: " << c["events"].size();
     for (const auto& [k, n] : c["events_by_kind"].items()) os << ", " << k << " " << n;
     os << "; disarmed by stale input: " << c["disarmed_by_stale_input"]["episodes"] << " episode(s)\n";
+  }
+  if (j.contains("grasper")) {
+    const auto& g = j["grasper"];
+    std::snprintf(line, sizeof line,
+                  "  grasper '%s': %lld grasp(s), %lld released, %lld released stale, %lld refused; %lld steps grasping, tip travel up to %.1f mm\n",
+                  g["name"].get<std::string>().c_str(), static_cast<long long>(g["grasps"].get<std::int64_t>()),
+                  static_cast<long long>(g["releases"].get<std::int64_t>()), static_cast<long long>(g["stale_releases"].get<std::int64_t>()),
+                  static_cast<long long>(g["refused"].get<std::int64_t>()), static_cast<long long>(g["steps_grasping"].get<std::int64_t>()),
+                  g["max_tip_travel_mm"].get<double>());
+    os << line;
   }
   if (j.contains("flags"))
     for (const auto& [f, v] : j["flags"].items())

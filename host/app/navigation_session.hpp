@@ -108,6 +108,8 @@ class NavigationSession {
   // The registration in use (file or live, once complete).
   std::optional<Eigen::Isometry3d> X_RefModel();
   const LiveRegistration* live_registration() const { return live_.get(); }
+  // The grasper coupled to the model (tools.grasper; nullopt without one): its state after the last model step.
+  std::optional<GraspStatus> grasp_status() const;
   // Messages printed with print_events (and kept for tests).
   std::vector<std::string> messages();
 
@@ -135,6 +137,13 @@ class NavigationSession {
   // No camera: every scalpel pose hands the blade to the model (with mutex_ held).
   void blade_without_camera(const tool_pose_t& msg, std::int64_t now_us);
   std::vector<TipSample> pointer_tips_Ref(std::int64_t now_us);  // with mutex_ held
+  // tools.grasper (navigation_session_grasp.cpp): its poses in Model and the grasp request
+  // handed to the model (with mutex_ held); banners/flags for a frame; messages to say().
+  void grasper_pose(const tool_pose_t& msg, std::int64_t now_us);
+  void grasp_request(std::int64_t now_us);
+  void grasp_frame(std::string& flags, std::vector<std::string>& banners);
+  void drain_grasp();  // with mutex_ held
+  nlohmann::json grasp_summary();  // with mutex_ held
 
   SessionConfig config_;
   SessionOptions options_;
@@ -183,6 +192,9 @@ class NavigationSession {
   double last_cut_area_mm2_ = 0.0;
   int last_cut_faces_ = 0;
   std::vector<std::vector<Eigen::Vector3d>> last_strokes_;
+  GraspCommand grasp_cmd_;                              // with mutex_
+  std::size_t grasp_messages_seen_ = 0;                 // with mutex_
+  std::int64_t grasper_stale_frames_ = 0;               // with mutex_
 };
 
 // Splits "a|b" flags.

@@ -83,6 +83,30 @@ LiveRegistrationSettings parse_live(const Reader& r, const YAML::Node& n, const 
   return l;
 }
 
+// tools.grasper: {name, stale_after_ms, tip_mm, radius_mm, stiffness_mN_per_mm,
+// grasp: {input: NAME [, state_stale_after_ms: MS]} | {always: true}}.
+GrasperRole parse_grasper(const Reader& r, const YAML::Node& n) {
+  const std::string key = "tools.grasper";
+  GrasperRole g;
+  static_cast<ToolRole&>(g) = parse_role(r, n, key, {"tip_mm", "grasp", "radius_mm", "stiffness_mN_per_mm"});
+  g.line = line_of(n);
+  if (n["tip_mm"]) g.tip_Tool_mm = vec3(r, n["tip_mm"], key + ".tip_mm");
+  if (!n["radius_mm"]) r.fail(n, key + ".radius_mm", "missing: surface vertices within this distance of the tip (mm) are grasped");
+  g.radius_mm = r.number(n, key, "radius_mm", g.radius_mm, 0.1, 100.0);
+  g.stiffness_mN_per_mm = r.number(n, key, "stiffness_mN_per_mm", g.stiffness_mN_per_mm, 1e-3, 1e6);
+  const YAML::Node grasp = n["grasp"];
+  if (!grasp || !grasp.IsMap())
+    r.fail(grasp ? grasp : n, key + ".grasp", "missing: when the grasper holds the tissue, {input: <input name>} (while held) or {always: true}");
+  if (grasp["always"]) {
+    r.only(grasp, key + ".grasp", {"always"});
+    g.grasp_always = r.boolean(grasp, key + ".grasp", "always", false);
+    if (!g.grasp_always) r.fail(grasp["always"], key + ".grasp.always", "must be true, or give {input: <input name>} instead");
+  } else {
+    g.grasp_input = parse_binding(r, grasp, key + ".grasp");
+  }
+  return g;
+}
+
 }  // namespace
 
 SessionConfig parse_session(const std::string& text, const std::string& source, const std::string& base_dir) {
@@ -100,7 +124,8 @@ SessionConfig parse_session(const std::string& text, const std::string& source, 
   c.print_period_s = r.number(root, "", "print_period_s", c.print_period_s, 0.05, 3600.0);
 
   if (const YAML::Node tools = root["tools"]) {
-    r.only(tools, "tools", {"reference", "scalpel", "pointer"});
+    r.only(tools, "tools", {"reference", "scalpel", "pointer", "grasper"});
+    if (tools["grasper"]) c.grasper = parse_grasper(r, tools["grasper"]);
     if (tools["reference"]) c.reference = parse_role(r, tools["reference"], "tools.reference");
     if (tools["pointer"]) c.pointer = parse_role(r, tools["pointer"], "tools.pointer");
     if (const YAML::Node s = tools["scalpel"]) {
@@ -245,6 +270,10 @@ SessionConfig parse_session(const std::string& text, const std::string& source, 
     r.fail(root["registration"], "registration", "a registration needs a scene (scene: <file>)");
   if (c.live_registration && !c.reference)
     r.fail(root["registration"], "registration.live", "live registration needs tools.reference (the landmarks are taken in its frame)");
+  if (c.grasper && !c.scene_path) r.fail(root["tools"]["grasper"], "tools.grasper", "a grasper needs a scene (scene: <file>): it deforms the tissue model");
+  if (c.grasper && !c.reference) r.fail(root["tools"]["grasper"], "tools.grasper", "a grasper needs tools.reference (its pose is taken relative to it)");
+  if (c.grasper && !c.X_RefModel && !c.live_registration)
+    r.fail(root["tools"]["grasper"], "tools.grasper", "a grasper needs a registration (registration: X_RefModel.yaml or {live: ...})");
   if (root["cutting"] && !c.scalpel) r.fail(root["cutting"], "cutting", "cutting needs tools.scalpel (with its blade)");
   if (c.inputs.cut_enable && !c.scalpel) r.fail(root["inputs"]["cut_enable"], "inputs.cut_enable", "cut_enable needs tools.scalpel (with its blade)");
   return c;

@@ -100,6 +100,18 @@ struct LiveRegistrationSettings {
   int line = 0;
 };
 
+// A tracked grasper coupled to the tissue model (docs/overlay.md, "Grasper";
+// host/app/grasp_coupling.hpp): while grasping, the organ surface within radius_mm of the
+// tip at grasp start follows the tool.
+struct GrasperRole : ToolRole {
+  Eigen::Vector3d tip_Tool_mm = Eigen::Vector3d::Zero();  // jaws in the tool frame, mm
+  std::optional<InputBinding> grasp_input;  // grasp: {input: NAME}: grasps while held
+  bool grasp_always = false;                // grasp: {always: true}: grasps whenever tracked and the tip is at the surface
+  double radius_mm = 10.0;                  // surface vertices within this of the tip are held
+  double stiffness_mN_per_mm = 200.0;       // spring per held vertex
+  int line = 0;
+};
+
 struct SessionConfig {
   std::string source;                        // the session file
   std::string lcm_url = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304";
@@ -115,6 +127,7 @@ struct SessionConfig {
   std::optional<ToolRole> reference;
   std::optional<ScalpelRole> scalpel;
   std::optional<ToolRole> pointer;
+  std::optional<GrasperRole> grasper;           // tools.grasper
   std::optional<CameraSettings> camera;
   ModelSettings model;
   OverlaySettings overlay;

@@ -1,0 +1,390 @@
+// The tracked grasper coupled to the tissue model (host/app/grasp_coupling.hpp,
+// tools.grasper; docs/overlay.md "Grasper"): grasp attaches the organ surface near the tip
+// and the surface there follows the tool; releasing the input or a stale grasper pose frees
+// it; the session file's errors; the navigation session drives it from tracked poses.
+#include <gtest/gtest.h>
+
+#include "arnav/input_event_t.hpp"
+#include "host/app/grasp_coupling.hpp"
+#include "host/app/navigation_session.hpp"
+#include "host/scene/scene.hpp"
+#include "host/sim/model_factory.hpp"
+#include "session_test_util.hpp"
+
+namespace arnav::host {
+namespace {
+
+using namespace arnav::host::test;
+
+class Grasp : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    scene_ = new Scene(load_scene(data_dir() + "/liver/liver_coarse.scene.yaml"));
+    scene_->problem.gravity_World_mm_s2.setZero();
+  }
+  static void TearDownTestSuite() {
+    delete scene_;
+    scene_ = nullptr;
+  }
+  static Scene* scene_;
+
+  Eigen::Matrix3Xd surface(const TissueModel& m) const { return scene_->organ_embedding.apply(scene_->problem.mesh, m.positions_World_mm()); }
+  // The organ surface vertex nearest to p (rest shape).
+  int surface_vertex_near(const Eigen::Vector3d& p) const {
+    const Eigen::Matrix3Xd s = scene_->organ_embedding.apply(scene_->problem.mesh, scene_->problem.mesh.rest_positions_World_mm);
+    Eigen::Index i = 0;
+    (s.colwise() - p).colwise().squaredNorm().minCoeff(&i);
+    return static_cast<int>(i);
+  }
+  static GrasperRole role(bool always) {
+    GrasperRole g;
+    g.name = "grasper";
+    g.stale_after_ms = 100;
+    g.radius_mm = 10;
+    g.grasp_always = always;
+    if (!always) g.grasp_input = InputBinding{"pedal_left", 1000, 1};
+    return g;
+  }
+  static GraspCommand at(const Eigen::Vector3d& tip, std::int64_t t_us, bool requested) {
+    GraspCommand c;
+    c.X_ModelTool = Eigen::Isometry3d(Eigen::Translation3d(tip));
+    c.pose_time_us = t_us;
+    c.requested = requested;
+    if (!requested) c.why_not = "input 'pedal_left' released";
+    return c;
+  }
+};
+Scene* Grasp::scene_ = nullptr;
+
+TEST_F(Grasp, AttachesTheSurfaceNearTheTipWhichFollowsTheToolAndIsFreedOnRelease) {
+  auto model = make_tissue_model(scene_->problem, scene_->model);
+  const int v0 = surface_vertex_near({70, 160, 60});  // the underside near the tumour
+  const Eigen::Matrix3Xd rest = surface(*model);
+  const Eigen::Vector3d p0 = rest.col(v0);
+  GraspCoupling g(role(false), *scene_);
+  std::int64_t t = 1'000'000;
+  const double dt = 1.0 / 60.0;
+
+  // Not requested (input released): nothing attached.
+  g.apply(*model, at(p0, t, false), t);
+  EXPECT_FALSE(g.status().grasping);
+  // Requested: the surface vertices within 10 mm of the tip, and only those.
+  g.apply(*model, at(p0, t, true), t);
+  ASSERT_TRUE(g.status().grasping);
+  int expected = 0;
+  for (Eigen::Index i = 0; i < rest.cols(); ++i) expected += (rest.col(i) - p0).norm() <= 10.0 ? 1 : 0;
+  EXPECT_EQ(g.status().attached_vertices, expected);
+  EXPECT_GT(expected, 3);
+  for (int v : g.grasped_surface_vertices()) EXPECT_LE((rest.col(v) - p0).norm(), 10.0);
+  EXPECT_EQ(g.status().grasps, 1);
+
+  // The tool moves 12 mm (a smooth ramp over 1 s, then held): the grasped surface follows.
+  const Eigen::Vector3d pull(6, 3, -10.4);  // |pull| = 12.4 mm, away from the underside
+  for (int k = 1; k <= 150; ++k) {
+    t += 16'667;
+    const Eigen::Vector3d tip = p0 + std::min(1.0, k / 60.0) * pull;
+    g.apply(*model, at(tip, t, true), t);
+    ASSERT_TRUE(model->step(dt).healthy);
+  }
+  const Eigen::Matrix3Xd pulled = surface(*model);
+  EXPECT_LT((pulled.col(v0) - (p0 + pull)).norm(), 1.5) << "the surface at the tip follows the tool";
+  EXPECT_NEAR(g.status().tip_travel_mm, pull.norm(), 1e-9);
+  // Far from the grasp (> 80 mm) the organ barely moves.
+  double far_sum = 0.0;
+  int far_n = 0;
+  for (Eigen::Index i = 0; i < rest.cols(); ++i)
+    if ((rest.col(i) - p0).norm() > 80.0) far_sum += (pulled.col(i) - rest.col(i)).norm(), ++far_n;
+  ASSERT_GT(far_n, 10);
+  EXPECT_LT(far_sum / far_n, 0.2 * pull.norm());
+  // Release (input let go): the springs are removed and the tissue relaxes toward rest.
+  g.apply(*model, at(p0 + pull, t, false), t);
+  EXPECT_FALSE(g.status().grasping);
+  EXPECT_EQ(g.status().releases, 1);
+  EXPECT_EQ(g.status().stale_releases, 0);
+  for (int k = 0; k < 150; ++k) {
+    t += 16'667;
+    g.apply(*model, at(p0 + pull, t, false), t);
+    ASSERT_TRUE(model->step(dt).healthy);
+  }
+  EXPECT_LT((surface(*model).col(v0) - p0).norm(), 0.25 * pull.norm()) << "released: the organ returns toward its rest shape";
+}
+
+TEST_F(Grasp, StaleGrasperPoseReleasesAndFarTipIsRefused) {
+  auto model = make_tissue_model(scene_->problem, scene_->model);
+  const int v0 = surface_vertex_near({70, 160, 60});
+  const Eigen::Vector3d p0 = surface(*model).col(v0);
+  GraspCoupling g(role(true), *scene_);
+  std::int64_t t = 5'000'000;
+  // 40 mm out from the surface: no grasp (counted once per request), nothing attached.
+  const Eigen::Vector3d out = p0 + Eigen::Vector3d(0, 0, -40);
+  g.apply(*model, at(out, t, true), t);
+  g.apply(*model, at(out, t + 16'667, true), t + 16'667);
+  EXPECT_FALSE(g.status().grasping);
+  EXPECT_EQ(g.status().refused, 1);
+  // At the surface: grasps.
+  t += 100'000;
+  g.apply(*model, at(p0, t, true), t);
+  ASSERT_TRUE(g.status().grasping);
+  const Eigen::Vector3d pulled_tip = p0 + Eigen::Vector3d(0, 0, -8);
+  for (int k = 1; k <= 60; ++k) {
+    t += 16'667;
+    g.apply(*model, at(p0 + std::min(1.0, k / 30.0) * (pulled_tip - p0), t, true), t);
+    model->step(1.0 / 60.0);
+  }
+  EXPECT_GT((surface(*model).col(v0) - p0).norm(), 5.0);
+  // The grasper's pose stops arriving: within its limit the grasp holds ...
+  const std::int64_t last_pose = t;
+  const GraspCommand frozen = at(pulled_tip, last_pose, true);
+  g.apply(*model, frozen, last_pose + 90'000);
+  EXPECT_TRUE(g.status().grasping);
+  // ... past it (100 ms) the tissue is released, never pinned to the stale pose.
+  g.apply(*model, frozen, last_pose + 120'000);
+  EXPECT_FALSE(g.status().grasping);
+  EXPECT_TRUE(g.status().stale);
+  EXPECT_EQ(g.status().stale_releases, 1);
+  EXPECT_EQ(g.status().releases, 0);
+  for (int k = 0; k < 150; ++k) {
+    g.apply(*model, frozen, last_pose + 120'000 + k * 16'667);
+    model->step(1.0 / 60.0);
+  }
+  EXPECT_FALSE(g.status().grasping);
+  EXPECT_LT((surface(*model).col(v0) - p0).norm(), 2.5) << "the organ relaxed: nothing holds it at the stale pose";
+  // A lost pose (none at all) also releases; the tool tracked again near the surface grasps anew.
+  t = last_pose + 3'000'000;
+  g.apply(*model, at(p0, t, true), t);
+  EXPECT_TRUE(g.status().grasping);
+  EXPECT_EQ(g.status().grasps, 2);
+  GraspCommand none;
+  none.requested = true;
+  g.apply(*model, none, t + 16'667);
+  EXPECT_FALSE(g.status().grasping);
+  EXPECT_EQ(g.status().stale_releases, 2);
+  EXPECT_FALSE(g.status().messages.empty());
+}
+
+std::string error_of(const SessionFolder& f, const std::string& text) {
+  try {
+    load_session(f.write("bad.yaml", text));
+  } catch (const SessionError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+TEST(GraspConfig, ParsesAndNamesFileLineKey) {
+  SessionFolder f("grasp_config");
+  const std::string head = "arnav_session_version: 1\nscene: " + data_dir() +
+                           "/liver/liver_coarse.scene.yaml\nregistration: X_RefModel.yaml\ntools:\n  reference: {name: ref}\n";
+  const SessionConfig c = load_session(
+      f.write("ok.yaml", head + "  grasper: {name: g, stale_after_ms: 80, tip_mm: [0, 0, 5], radius_mm: 12, grasp: {input: pedal_left}}\n"));
+  ASSERT_TRUE(c.grasper);
+  EXPECT_EQ(c.grasper->name, "g");
+  EXPECT_DOUBLE_EQ(c.grasper->stale_after_ms, 80);
+  EXPECT_DOUBLE_EQ(c.grasper->radius_mm, 12);
+  EXPECT_EQ(c.grasper->tip_Tool_mm, Eigen::Vector3d(0, 0, 5));
+  ASSERT_TRUE(c.grasper->grasp_input);
+  EXPECT_EQ(c.grasper->grasp_input->input, "pedal_left");
+  EXPECT_FALSE(c.grasper->grasp_always);
+  const SessionConfig a = load_session(f.write("always.yaml", head + "  grasper: {name: g, radius_mm: 15, grasp: {always: true}}\n"));
+  EXPECT_TRUE(a.grasper->grasp_always);
+  EXPECT_NE(error_of(f, head + "  grasper: {name: g, grasp: {always: true}}\n").find("bad.yaml:6: key 'tools.grasper.radius_mm': missing"),
+            std::string::npos);
+  EXPECT_NE(error_of(f, head + "  grasper: {name: g, radius_mm: 10}\n").find("bad.yaml:6: key 'tools.grasper.grasp': missing"),
+            std::string::npos);
+  EXPECT_NE(error_of(f, head + "  grasper: {name: g, radius_mm: 10, grasp: {always: false}}\n").find("key 'tools.grasper.grasp.always'"),
+            std::string::npos);
+  EXPECT_NE(error_of(f, head + "  grasper: {name: g, radius_mm: 10, grasp: {inpt: x}}\n").find("key 'tools.grasper.grasp"), std::string::npos);
+  EXPECT_NE(error_of(f, head + "  grasper: {name: g, radius_mm: 10, grasp: {always: true}, jaw: 3}\n").find("bad.yaml:6: key 'tools.grasper.jaw': unknown key"),
+            std::string::npos);
+  EXPECT_NE(error_of(f, head + "  grasper: {name: g, radius_mm: -1, grasp: {always: true}}\n").find("key 'tools.grasper.radius_mm': must be between"),
+            std::string::npos);
+  EXPECT_NE(error_of(f, "arnav_session_version: 1\ntools:\n  grasper: {name: g, radius_mm: 10, grasp: {always: true}}\n").find("bad.yaml:3: key 'tools.grasper': a grasper needs a scene"),
+            std::string::npos);
+}
+
+input_event_t pedal(bool pressed, std::int64_t seq, std::int64_t t_us, bool snapshot = false) {
+  input_event_t m{};
+  m.input_name = "pedal_left";
+  m.state = pressed ? input_event_t::STATE_PRESSED : input_event_t::STATE_RELEASED;
+  m.value = pressed ? 1.0 : 0.0;
+  m.cause = snapshot ? input_event_t::CAUSE_STATE : input_event_t::CAUSE_FRAME;
+  m.device = "pedal";
+  m.source_interface = "vcan0";
+  m.device_time_wall_us = -1;
+  m.receive_time_mono_us = t_us;
+  m.decided_time_mono_us = t_us;
+  m.publish_time_mono_us = t_us + 100;
+  m.sequence = seq;
+  return m;
+}
+
+// The session end to end without a camera (replay-style, unthreaded): tracked reference and
+// grasper in the tracker frame, through the registration into Model; the pedal grasps.
+TEST_F(Grasp, SessionCouplesTheTrackedGrasperThroughTheRegistration) {
+  SessionFolder f("grasp_session");
+  const std::string text = "arnav_session_version: 1\nlcm_url: \"memq://\"\nscene: " + data_dir() +
+                           "/liver/liver_coarse.scene.yaml\nregistration: X_RefModel.yaml\n"
+                           "tools:\n  reference: {name: ref, stale_after_ms: 100}\n"
+                           "  grasper: {name: grasper, stale_after_ms: 100, tip_mm: [0, 0, 20], radius_mm: 10, grasp: {input: pedal_left}}\n"
+                           "model: {rate_hz: 60, gravity: false}\n";
+  SessionOptions o;
+  o.threaded = false;
+  NavigationSession s(load_session(f.write("session.yaml", text)), std::make_unique<Scene>(*scene_), o);
+  const Eigen::Isometry3d X_RefModel = test_X_RefModel();
+  Eigen::Isometry3d X_NdiRef = Eigen::Isometry3d::Identity();
+  X_NdiRef.linear() = Eigen::AngleAxisd(0.7, Eigen::Vector3d(0.2, 0.3, 1).normalized()).toRotationMatrix();
+  X_NdiRef.translation() = Eigen::Vector3d(-50, 120, -1400);
+  const int v0 = surface_vertex_near({70, 160, 60});
+  const Eigen::Matrix3Xd rest = scene_->organ_embedding.apply(scene_->problem.mesh, scene_->problem.mesh.rest_positions_World_mm);
+  const Eigen::Vector3d p0 = rest.col(v0);
+  // Tool frame: tip 20 mm along its z; turned, so the tip offset matters.
+  const Eigen::Matrix3d R_ModelTool = Eigen::AngleAxisd(0.5, Eigen::Vector3d(1, 0, 0)).toRotationMatrix();
+  const auto X_ModelTool = [&](const Eigen::Vector3d& tip) {
+    Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+    X.linear() = R_ModelTool;
+    X.translation() = tip - R_ModelTool * Eigen::Vector3d(0, 0, 20);
+    return X;
+  };
+  const Eigen::Vector3d pull(0, 0, -10);
+  std::int64_t seq = 0;
+  bool pedal_down = false;
+  const auto tick = [&](std::int64_t k, const Eigen::Vector3d& tip) {
+    const std::int64_t t = 1'000'000 + k * 16'667;
+    if (k % 10 == 0) s.on_input(pedal(pedal_down, seq, t, true), t + 200);  // the appliance's state snapshots
+    s.on_pose(pose_msg("ref", "Ndi", X_NdiRef, k, t, true, tool_pose_t::SOURCE_NDI), t + 500);
+    s.on_pose(pose_msg("grasper", "Ndi", X_NdiRef * X_RefModel * X_ModelTool(tip), k, t, true, tool_pose_t::SOURCE_NDI), t + 600);
+    s.advance_model(t + 1000);
+    return t;
+  };
+  std::int64_t k = 0;
+  for (; k < 10; ++k) tick(k, p0);
+  ASSERT_TRUE(s.grasp_status());
+  EXPECT_FALSE(s.grasp_status()->grasping) << "pedal not pressed yet";
+  pedal_down = true;
+  s.on_input(pedal(true, ++seq, 1'000'000 + k * 16'667), 1'000'000 + k * 16'667);
+  for (int j = 0; j < 120; ++j, ++k) tick(k, p0 + std::min(1.0, j / 40.0) * pull);
+  ASSERT_TRUE(s.grasp_status()->grasping);
+  EXPECT_GT(s.grasp_status()->attached_vertices, 3);
+  EXPECT_NEAR(s.grasp_status()->tip_travel_mm, pull.norm(), 0.05) << "the tip, through the registration, in Model";
+  pedal_down = false;
+  s.on_input(pedal(false, ++seq, 1'000'000 + k * 16'667), 1'000'000 + k * 16'667);
+  tick(k++, p0 + pull);
+  EXPECT_FALSE(s.grasp_status()->grasping);
+  EXPECT_EQ(s.grasp_status()->releases, 1);
+  const nlohmann::json j = s.summary_json(3.0);
+  ASSERT_TRUE(j.contains("grasper"));
+  EXPECT_EQ(j["grasper"]["grasps"].get<int>(), 1);
+  EXPECT_EQ(j["grasper"]["releases"].get<int>(), 1);
+  // Pressed again, then the grasper stops being tracked: released as stale.
+  pedal_down = true;
+  s.on_input(pedal(true, ++seq, 1'000'000 + k * 16'667), 1'000'000 + k * 16'667);
+  for (int j2 = 0; j2 < 5; ++j2, ++k) tick(k, p0 + pull);
+  // The tissue relaxed from the first pull while released: the tip 10 mm out may be too far; grasp at the surface.
+  for (int j2 = 0; j2 < 60; ++j2, ++k) tick(k, p0);
+  ASSERT_TRUE(s.grasp_status()->grasping);
+  for (int j2 = 0; j2 < 20; ++j2, ++k) {
+    const std::int64_t t = 1'000'000 + k * 16'667;
+    s.on_pose(pose_msg("ref", "Ndi", X_NdiRef, k, t, true, tool_pose_t::SOURCE_NDI), t + 500);  // grasper missing
+    s.advance_model(t + 1000);
+  }
+  EXPECT_FALSE(s.grasp_status()->grasping);
+  EXPECT_GE(s.grasp_status()->stale_releases, 1);
+  bool said = false;
+  for (const auto& m : s.messages()) said = said || m.find("STALE") != std::string::npos;
+  EXPECT_TRUE(said);
+}
+
+}  // namespace
+}  // namespace arnav::host
+
+namespace arnav::host {
+namespace {
+
+// With a grasper the overlay draws the model as the tool had it when the frame was
+// captured: snapshot_at(device time) picks the newest snapshot whose grasper pose was
+// measured by then.
+TEST_F(Grasp, SnapshotAtTheFramesCaptureTimeFollowsTheGrasperPoseTime) {
+  ModelRunner runner(*scene_, 60.0, false, 5.0);
+  GrasperRole g = role(true);
+  runner.enable_grasper(g);
+  const int v0 = surface_vertex_near({70, 160, 60});
+  const Eigen::Vector3d p0 = scene_->organ_embedding.apply(scene_->problem.mesh, scene_->problem.mesh.rest_positions_World_mm).col(v0);
+  std::int64_t t = 1'000'000;
+  for (int k = 0; k < 40; ++k, t += 16'667) {
+    GraspCommand c = at(p0 + std::min(1.0, k / 20.0) * Eigen::Vector3d(0, 0, -8), t, true);
+    c.device_time_us = 50'000'000 + k * 16'667;  // the tracker's clock
+    runner.set_grasper(c);
+    runner.advance_to(t, 1);
+  }
+  ASSERT_TRUE(runner.grasp_status().grasping);
+  const auto newest = runner.snapshot();
+  EXPECT_EQ(newest->grasper_device_time_us, 50'000'000 + 39 * 16'667);
+  EXPECT_EQ(runner.snapshot_at(60'000'000)->step, newest->step);
+  const auto earlier = runner.snapshot_at(50'000'000 + 10 * 16'667 + 5);  // a frame captured when the tool was at pose 10
+  EXPECT_EQ(earlier->grasper_device_time_us, 50'000'000 + 10 * 16'667);
+  EXPECT_LT(earlier->step, newest->step);
+  // The tumour drawn for that frame is where the model had it then, not now.
+  EXPECT_GT((earlier->tumour_centroids_mm[0] - newest->tumour_centroids_mm[0]).norm(), 0.05);
+  // Older than everything kept: the oldest snapshot kept (about one second).
+  EXPECT_LE(runner.snapshot_at(0)->step, newest->step - 30);
+}
+
+}  // namespace
+}  // namespace arnav::host
+
+namespace arnav::host {
+namespace {
+
+// On the overlay: frames while grasping carry the `grasping` flag; the grasper's poses
+// stop: the tissue is released and every frame says so (banner + `grasper_stale`).
+TEST_F(Grasp, StaleGrasperIsBanneredOnTheOverlay) {
+  SessionFolder f("grasp_banner");
+  const std::string text = "arnav_session_version: 1\nlcm_url: \"memq://\"\nscene: " + data_dir() +
+                           "/liver/liver_coarse.scene.yaml\nregistration: X_RefModel.yaml\n"
+                           "tools:\n  reference: {name: liver_marker, stale_after_ms: 100}\n"
+                           "  grasper: {name: grasper, stale_after_ms: 100, radius_mm: 10, grasp: {always: true}}\n"
+                           "camera:\n  name: cam0\n  intrinsics: camera.yaml\n  pose_from: reference\n"
+                           "model: {rate_hz: 60, gravity: false}\n";
+  SessionOptions o;
+  o.threaded = false;
+  NavigationSession s(load_session(f.write("session.yaml", text)), std::make_unique<Scene>(*scene_), o);
+  const int v0 = surface_vertex_near({70, 160, 60});
+  const Eigen::Vector3d p0 = scene_->organ_embedding.apply(scene_->problem.mesh, scene_->problem.mesh.rest_positions_World_mm).col(v0);
+  const auto frame = [&](std::int64_t k, bool grasper_tracked) {
+    const std::int64_t t = 1'000'000 + k * 16'667;
+    const Eigen::Isometry3d X_CamRef = test_X_CamRef(k);
+    s.on_pose(pose_msg("liver_marker", "Cam", X_CamRef, k, t), t + 2000);
+    const Eigen::Vector3d tip = p0 + std::min(1.0, k / 20.0) * Eigen::Vector3d(0, 0, -6);
+    if (grasper_tracked)
+      s.on_pose(pose_msg("grasper", "Cam", X_CamRef * test_X_RefModel() * Eigen::Isometry3d(Eigen::Translation3d(tip)), k, t, true,
+                         tool_pose_t::SOURCE_NDI),
+                t + 2500);  // after the board pose it pairs with
+    s.advance_model(t + 3000);
+    return s.render_frame(frame_msg(k, t), t + 5000);
+  };
+  std::int64_t k = 0;
+  for (; k < 30; ++k) {
+    const FrameResult r = frame(k, true);
+    if (k >= 2) EXPECT_NE(r.row.flags.find("grasping"), std::string::npos) << "frame " << k << ": " << r.row.flags;
+    for (const auto& b : r.banners) EXPECT_EQ(b.find("GRASPER"), std::string::npos) << "frame " << k << ": " << b;
+  }
+  ASSERT_TRUE(s.grasp_status()->grasping);
+  int bannered = 0;
+  for (int j = 0; j < 20; ++j, ++k) {
+    const FrameResult r = frame(k, false);
+    bool banner = false;
+    for (const auto& b : r.banners) banner = banner || b.find("GRASPER STALE: 'grasper' - tissue released (1 stale release(s))") != std::string::npos;
+    if (j >= 10) {  // 100 ms limit + one model step
+      EXPECT_TRUE(banner) << "frame " << k;
+      EXPECT_NE(r.row.flags.find("grasper_stale"), std::string::npos) << r.row.flags;
+    }
+    bannered += banner ? 1 : 0;
+  }
+  EXPECT_FALSE(s.grasp_status()->grasping);
+  EXPECT_EQ(s.grasp_status()->stale_releases, 1);
+  EXPECT_GE(bannered, 10);
+  EXPECT_EQ(s.summary_json(1.0)["grasper"]["frames_stale_banner"].get<int>(), bannered);
+}
+
+}  // namespace
+}  // namespace arnav::host
