@@ -365,8 +365,12 @@ TEST_F(Grasp, StaleGrasperIsBanneredOnTheOverlay) {
   std::int64_t k = 0;
   for (; k < 30; ++k) {
     const FrameResult r = frame(k, true);
-    if (k >= 2) EXPECT_NE(r.row.flags.find("grasping"), std::string::npos) << "frame " << k << ": " << r.row.flags;
-    for (const auto& b : r.banners) EXPECT_EQ(b.find("GRASPER"), std::string::npos) << "frame " << k << ": " << b;
+    if (k >= 2) {
+      EXPECT_NE(r.row.flags.find("grasping"), std::string::npos) << "frame " << k << ": " << r.row.flags;
+    }
+    for (const auto& b : r.banners) {
+      EXPECT_EQ(b.find("GRASPER"), std::string::npos) << "frame " << k << ": " << b;
+    }
   }
   ASSERT_TRUE(s.grasp_status()->grasping);
   int bannered = 0;
