@@ -25,6 +25,11 @@ SyntheticSource::SyntheticSource(SyntheticSettings settings) : settings_(std::mo
   for (const auto& b : settings_.boards) {
     centres_.push_back(markers::paper_outline(b.board, 0.0).center());
   }
+  if (settings_.phantom) {
+    const auto& ph = *settings_.phantom;
+    if (!ph.recording || ph.recording->frames.empty()) throw CaptureError("synthetic camera: phantom recording without frames");
+    if (ph.board_index >= settings_.boards.size()) throw CaptureError("synthetic camera: phantom fixed to a board that is not rendered");
+  }
 }
 
 SyntheticSource::~SyntheticSource() = default;
@@ -51,7 +56,7 @@ void SyntheticSource::open() {
   }
   if (!truth_ && !settings_.ground_truth_csv.empty()) {
     try {
-      truth_ = std::make_unique<camera_sim::GroundTruthWriter>(settings_.ground_truth_csv);
+      truth_ = std::make_unique<camera_sim::GroundTruthWriter>(settings_.ground_truth_csv, settings_.phantom ? 2 : 1);
     } catch (const camera_sim::GroundTruthError& e) {
       throw CaptureError(std::string("synthetic camera: ") + e.what());
     }
@@ -94,7 +99,18 @@ ReadResult SyntheticSource::read(Frame& frame) {
   for (size_t b = 0; b < settings_.boards.size(); ++b) scene.push_back({&settings_.boards[b].board, X_CamBoard(b, seq)});
   camera_sim::RenderOptions opt = settings_.render;
   opt.noise_seed = settings_.render.noise_seed + static_cast<std::uint64_t>(seq);
-  camera_sim::RenderResult r = renderer_->render(scene, opt);
+  std::vector<camera_sim::SurfaceInScene> surfaces;
+  Eigen::Matrix3Xd organ_Cam_mm;
+  std::vector<Eigen::Vector3d> targets_Cam_mm;
+  if (settings_.phantom) {
+    const auto& ph = *settings_.phantom;
+    const camera_sim::PhantomFrame pf = ph.recording->at(ph.start_s + static_cast<double>(seq) / settings_.fps);
+    const Eigen::Isometry3d X_CamModel = scene[ph.board_index].X_CamBoard * ph.X_BoardModel;
+    organ_Cam_mm = X_CamModel * pf.vertices_Model_mm;
+    for (const auto& p : pf.targets_Model_mm) targets_Cam_mm.push_back(X_CamModel * p);
+    surfaces.push_back({&organ_Cam_mm, &ph.recording->faces, ph.reflectance});
+  }
+  camera_sim::RenderResult r = renderer_->render(scene, surfaces, opt);
   frame.image = r.image;
   frame.sequence = seq;
   frame.capture_time_mono_us = settings_.realtime
@@ -121,6 +137,26 @@ ReadResult SyntheticSource::read(Frame& frame) {
       truth_->write({seq, static_cast<double>(seq) / settings_.fps, settings_.boards[b].board.name, scene[b].X_CamBoard,
                      visible, file});
     }
+    if (settings_.phantom && !targets_Cam_mm.empty()) {
+      const auto px = settings_.camera.project(targets_Cam_mm);
+      for (std::size_t i = 0; i < targets_Cam_mm.size(); ++i) {
+        camera_sim::GroundTruthRow row;
+        row.sequence = seq;
+        row.time_s = static_cast<double>(seq) / settings_.fps;
+        row.board = "target:" + settings_.phantom->recording->target_names[i];
+        row.X_CamBoard.translation() = targets_Cam_mm[i];
+        const bool in_front = targets_Cam_mm[i].z() > 1e-6;
+        row.has_px = true;
+        row.u_px = in_front ? px[i].x : 0.0;
+        row.v_px = in_front ? px[i].y : 0.0;
+        row.tags_visible = in_front && row.u_px >= 0 && row.v_px >= 0 && row.u_px <= settings_.camera.width - 1 &&
+                                   row.v_px <= settings_.camera.height - 1
+                               ? 1
+                               : 0;
+        row.frame_file = file;
+        truth_->write(row);
+      }
+    }
   }
   return {};
 }
@@ -128,7 +164,7 @@ ReadResult SyntheticSource::read(Frame& frame) {
 std::string SyntheticSource::describe() const {
   return "synthetic " + std::to_string(settings_.camera.width) + "x" + std::to_string(settings_.camera.height) + "@" +
          std::to_string(static_cast<int>(std::lround(settings_.fps))) + " (" + std::to_string(settings_.boards.size()) +
-         " board(s))";
+         " board(s)" + (settings_.phantom ? ", deforming phantom" : "") + ")";
 }
 
 }  // namespace arnav::capture

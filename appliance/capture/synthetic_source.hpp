@@ -18,6 +18,7 @@
 #include "appliance/markers/camera_model.hpp"
 #include "appliance/markers/tag_board.hpp"
 #include "appliance/synthetic_camera/ground_truth.hpp"
+#include "appliance/synthetic_camera/phantom_recording.hpp"
 #include "appliance/synthetic_camera/synthetic_renderer.hpp"
 #include "appliance/synthetic_camera/trajectory.hpp"
 
@@ -26,6 +27,18 @@ namespace arnav::capture {
 struct SyntheticBoard {
   markers::TagBoard board;
   camera_sim::Trajectory trajectory;
+};
+
+// A deforming organ phantom (phantom_recording.hpp) fixed to one of the boards: frame k
+// shows the recording at t = start_s + k / fps (held at its last frame after its end),
+// posed X_CamModel = X_CamBoard * X_BoardModel. The ground truth (version 2) then also
+// holds the deformed targets (first: the tumour centroid) in Cam, mm and px.
+struct SyntheticPhantom {
+  std::shared_ptr<const camera_sim::PhantomRecording> recording;
+  std::size_t board_index = 0;
+  Eigen::Isometry3d X_BoardModel = Eigen::Isometry3d::Identity();  // the host's X_RefModel
+  double reflectance = 0.6;
+  double start_s = 0.0;
 };
 
 struct SyntheticSettings {
@@ -39,6 +52,7 @@ struct SyntheticSettings {
   std::filesystem::path frames_dir;           // empty: frames not written
   double outage_at_s = -1.0;                  // < 0: no outage
   double outage_duration_s = 0.0;
+  std::optional<SyntheticPhantom> phantom;    // none: boards only
 };
 
 class SyntheticSource : public FrameSource {

@@ -6,6 +6,7 @@
 #include <set>
 
 #include "appliance/markers/calibration_files.hpp"
+#include "calibration/lib/rigid_transform_file.hpp"
 #include "appliance/markers/tag_family.hpp"
 #include "appliance/yaml/yaml_reader.hpp"
 
@@ -196,7 +197,7 @@ std::optional<CameraConfig> parse_camera_config(const std::string& yaml_text, co
     capture::SyntheticSettings syn;
     if (s) {
       r.only(s, k, {"hfov_deg", "distortion", "frames", "ground_truth", "frames_dir", "noise_sigma", "blur_sigma_px",
-                    "lighting", "outage", "boards", "seed", "occluders"});
+                    "lighting", "outage", "boards", "seed", "occluders", "phantom"});
     }
     const YAML::Node none;
     const YAML::Node sn = s ? s : none;
@@ -282,6 +283,37 @@ std::optional<CameraConfig> parse_camera_config(const std::string& yaml_text, co
         tr.image_offset_mm = Eigen::Vector2d(150.0 * (static_cast<double>(i) - 0.5 * static_cast<double>(c.tools.size() - 1)), 0);
         syn.boards.push_back({c.tools[i].board, tr});
       }
+    }
+    if (const YAML::Node ph = s ? s["phantom"] : none) {
+      // A deforming organ phantom (hil_tests' arnav-phantom-record) fixed to one board.
+      const std::string kp = k + ".phantom";
+      r.only(ph, kp, {"recording", "board", "X_BoardModel", "reflectance", "start_s"});
+      capture::SyntheticPhantom p;
+      if (!ph["recording"]) r.fail(ph, kp + ".recording", "missing: the phantom recording file (arnav-phantom-record writes one)");
+      const std::filesystem::path rec_path = resolve(base_dir, r.text(ph, kp, "recording", ""));
+      try {
+        p.recording = std::make_shared<const camera_sim::PhantomRecording>(camera_sim::read_phantom_recording(rec_path));
+      } catch (const camera_sim::PhantomError& e) {
+        r.fail(ph["recording"], kp + ".recording", e.what());
+      }
+      const std::string tool = r.text(ph, kp, "board", "");
+      bool found = false;
+      for (std::size_t i = 0; i < syn.boards.size(); ++i) {
+        if (syn.boards[i].board.name == tool) {
+          p.board_index = i;
+          found = true;
+        }
+      }
+      if (!found) r.fail(ph["board"] ? ph["board"] : ph, kp + ".board", "'" + tool + "' is not a rendered board (camera.tools / synthetic.boards)");
+      if (!ph["X_BoardModel"]) r.fail(ph, kp + ".X_BoardModel", "missing: the organ's pose on its board (the host's X_RefModel.yaml)");
+      try {
+        p.X_BoardModel = calib::read_transform(resolve(base_dir, r.text(ph, kp, "X_BoardModel", ""))).X_ParentChild;
+      } catch (const std::exception& e) {
+        r.fail(ph["X_BoardModel"], kp + ".X_BoardModel", e.what());
+      }
+      p.reflectance = r.number(ph, kp, "reflectance", p.reflectance, 0.01, 1);
+      p.start_s = r.number(ph, kp, "start_s", 0, -1e6, 1e6);
+      syn.phantom = std::move(p);
     }
     c.synthetic = std::move(syn);
   } else if (cam["synthetic"]) {

@@ -10,6 +10,8 @@ namespace {
 
 constexpr const char* kHeader = "# arnav camera ground truth 1";
 constexpr const char* kColumns = "sequence,time_s,board,x_mm,y_mm,z_mm,qw,qx,qy,qz,tags_visible,frame_file";
+constexpr const char* kHeader2 = "# arnav camera ground truth 2";
+constexpr const char* kColumns2 = "sequence,time_s,board,x_mm,y_mm,z_mm,qw,qx,qy,qz,tags_visible,frame_file,u_px,v_px";
 
 double to_double(const std::string& s, const std::string& where, const char* column) {
   double v = 0.0;
@@ -31,9 +33,10 @@ std::int64_t to_int(const std::string& s, const std::string& where, const char* 
 
 }  // namespace
 
-GroundTruthWriter::GroundTruthWriter(const std::filesystem::path& path) : path_(path), out_(path) {
+GroundTruthWriter::GroundTruthWriter(const std::filesystem::path& path, int version) : path_(path), out_(path), version_(version) {
+  if (version != 1 && version != 2) throw GroundTruthError(path.string() + ": ground-truth version must be 1 or 2");
   if (!out_) throw GroundTruthError(path.string() + ": cannot create the ground-truth file (folder missing or read-only?)");
-  out_ << kHeader << "\n" << kColumns << "\n";
+  out_ << (version == 2 ? kHeader2 : kHeader) << "\n" << (version == 2 ? kColumns2 : kColumns) << "\n";
   out_.flush();
 }
 
@@ -42,10 +45,21 @@ void GroundTruthWriter::write(const GroundTruthRow& row) {
   const Eigen::Quaterniond qp = q.w() < 0 ? Eigen::Quaterniond(-q.coeffs()) : q;
   const Eigen::Vector3d p = row.X_CamBoard.translation();
   char buf[512];
-  std::snprintf(buf, sizeof buf, "%lld,%.6f,%s,%.6f,%.6f,%.6f,%.9f,%.9f,%.9f,%.9f,%d,%s\n",
+  std::snprintf(buf, sizeof buf, "%lld,%.6f,%s,%.6f,%.6f,%.6f,%.9f,%.9f,%.9f,%.9f,%d,%s",
                 static_cast<long long>(row.sequence), row.time_s, row.board.c_str(), p.x(), p.y(), p.z(), qp.w(), qp.x(),
                 qp.y(), qp.z(), row.tags_visible, row.frame_file.c_str());
   out_ << buf;
+  if (version_ == 2) {
+    if (row.has_px) {
+      std::snprintf(buf, sizeof buf, ",%.4f,%.4f", row.u_px, row.v_px);
+      out_ << buf;
+    } else {
+      out_ << ",,";
+    }
+  } else if (row.has_px || row.is_target()) {
+    throw GroundTruthError(path_.string() + ": target rows need a version 2 ground-truth file");
+  }
+  out_ << '\n';
   out_.flush();
   if (!out_) throw GroundTruthError(path_.string() + ": write failed (disk full?)");
 }
@@ -55,16 +69,19 @@ std::vector<GroundTruthRow> parse_ground_truth(const std::string& text, const st
   std::istringstream in(text);
   std::string line;
   int line_no = 0;
+  int version = 1;
   while (std::getline(in, line)) {
     ++line_no;
     if (!line.empty() && line.back() == '\r') line.pop_back();
     const std::string where = source + ":" + std::to_string(line_no);
     if (line_no == 1) {
-      if (line != kHeader) throw GroundTruthError(where + ": expected '" + std::string(kHeader) + "'");
+      if (line == kHeader2) version = 2;
+      else if (line != kHeader) throw GroundTruthError(where + ": expected '" + std::string(kHeader) + "' or '" + kHeader2 + "'");
       continue;
     }
     if (line_no == 2) {
-      if (line != kColumns) throw GroundTruthError(where + ": expected the column line '" + std::string(kColumns) + "'");
+      const char* cols = version == 2 ? kColumns2 : kColumns;
+      if (line != cols) throw GroundTruthError(where + ": expected the column line '" + std::string(cols) + "'");
       continue;
     }
     if (line.empty()) continue;
@@ -73,8 +90,9 @@ std::vector<GroundTruthRow> parse_ground_truth(const std::string& text, const st
     std::istringstream cells(line);
     while (std::getline(cells, cell, ',')) f.push_back(cell);
     if (!line.empty() && line.back() == ',') f.emplace_back();
-    if (f.size() != 12) {
-      throw GroundTruthError(where + ": " + std::to_string(f.size()) + " columns, expected 12");
+    const std::size_t columns = version == 2 ? 14 : 12;
+    if (f.size() != columns) {
+      throw GroundTruthError(where + ": " + std::to_string(f.size()) + " columns, expected " + std::to_string(columns));
     }
     GroundTruthRow r;
     r.sequence = to_int(f[0], where, "sequence");
@@ -93,6 +111,17 @@ std::vector<GroundTruthRow> parse_ground_truth(const std::string& text, const st
     if (tags < 0 || tags > 100000) throw GroundTruthError(where + ": tags_visible " + f[10] + " out of range");
     r.tags_visible = static_cast<int>(tags);
     r.frame_file = f[11];
+    if (version == 2) {
+      if (f[12].empty() != f[13].empty()) throw GroundTruthError(where + ": u_px and v_px must both be given or both be empty");
+      if (!f[12].empty()) {
+        r.has_px = true;
+        r.u_px = to_double(f[12], where, "u_px");
+        r.v_px = to_double(f[13], where, "v_px");
+      }
+      if (r.is_target() && !r.has_px) throw GroundTruthError(where + ": target row without u_px,v_px");
+    } else if (r.is_target()) {
+      throw GroundTruthError(where + ": target rows need the version 2 header '" + std::string(kHeader2) + "'");
+    }
     rows.push_back(r);
   }
   if (line_no < 2) throw GroundTruthError(source + ":" + std::to_string(line_no + 1) + ": header or column line missing");

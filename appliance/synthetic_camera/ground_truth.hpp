@@ -9,6 +9,13 @@
 // Pose columns: X_CamBoard (Cam: OpenCV camera frame; Board: the board layout's frame),
 // position in mm, quaternion w first. tags_visible: tags fully in the image, facing the
 // camera and less than 10 % occluded. frame_file: empty when frames are not written.
+//
+// Version 2 (written when the camera films a deforming phantom, phantom_recording.hpp)
+// adds two columns, u_px,v_px, and target rows: board = "target:NAME" (e.g.
+// target:tumour_centroid), x/y/z_mm = the deformed target in Cam, quaternion identity,
+// tags_visible = 1 when it projects into the image (in front of the lens) else 0, and
+// u_px,v_px = its distorted pixel (the camera model's projection, as cv::projectPoints).
+// Board rows leave u_px,v_px empty. Readers accept both versions.
 #include <Eigen/Geometry>
 
 #include <cstdint>
@@ -27,6 +34,9 @@ struct GroundTruthRow {
   Eigen::Isometry3d X_CamBoard = Eigen::Isometry3d::Identity();
   int tags_visible = 0;
   std::string frame_file;
+  bool has_px = false;          // version 2 target rows
+  double u_px = 0.0, v_px = 0.0;
+  bool is_target() const { return board.rfind("target:", 0) == 0; }
 };
 
 class GroundTruthError : public std::runtime_error {
@@ -37,11 +47,13 @@ class GroundTruthError : public std::runtime_error {
 class GroundTruthWriter {
  public:
   // Throws GroundTruthError naming the file when it cannot be created.
-  explicit GroundTruthWriter(const std::filesystem::path& path);
+  // version: 1 (boards only) or 2 (u_px,v_px columns and target rows).
+  explicit GroundTruthWriter(const std::filesystem::path& path, int version = 1);
   void write(const GroundTruthRow& row);  // flushed per frame: readers may follow the file
  private:
   std::filesystem::path path_;
   std::ofstream out_;
+  int version_ = 1;
 };
 
 // Throws GroundTruthError "<source>:<line>: <what>" for a missing header, a wrong column

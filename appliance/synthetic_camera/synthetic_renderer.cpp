@@ -67,10 +67,67 @@ SyntheticRenderer::SyntheticRenderer(markers::CameraModel camera)
 SyntheticRenderer::~SyntheticRenderer() = default;
 
 RenderResult SyntheticRenderer::render(const std::vector<BoardInScene>& scene, const RenderOptions& options) const {
+  return render(scene, {}, options);
+}
+
+RenderResult SyntheticRenderer::render(const std::vector<BoardInScene>& scene, const std::vector<SurfaceInScene>& surfaces,
+                                       const RenderOptions& options) const {
   const int W = camera_.width;
   const int H = camera_.height;
   const int ss = std::max(1, options.supersample);
   cv::Mat refl(H, W, CV_32F, cv::Scalar(options.background_reflectance));
+  RenderResult result;
+
+  // Surfaces: painter's order with a per-pixel depth (the drawn triangle's mean depth) so
+  // boards can be composed by depth below.
+  cv::Mat surface_z;
+  if (!surfaces.empty()) {
+    constexpr int kShift = 4;  // sub-pixel vertex positions for fillConvexPoly
+    surface_z = cv::Mat(H, W, CV_32F, cv::Scalar(std::numeric_limits<float>::infinity()));
+    result.surface_mask = cv::Mat::zeros(H, W, CV_8U);
+    struct Tri {
+      double depth;
+      std::array<cv::Point, 3> px;
+      float shade;
+    };
+    std::vector<Tri> tris;
+    for (const auto& s : surfaces) {
+      if (s.vertices_Cam_mm == nullptr || s.faces == nullptr) throw std::invalid_argument("synthetic renderer: surface without vertices or faces");
+      const Eigen::Matrix3Xd& V = *s.vertices_Cam_mm;
+      std::vector<Eigen::Vector3d> pts(static_cast<size_t>(V.cols()));
+      for (Eigen::Index i = 0; i < V.cols(); ++i) pts[static_cast<size_t>(i)] = V.col(i);
+      const auto px = camera_.project(pts);
+      for (const auto& f : *s.faces) {
+        for (int k = 0; k < 3; ++k)
+          if (f[k] < 0 || f[k] >= V.cols()) throw std::invalid_argument("synthetic renderer: surface face index out of range");
+        const Eigen::Vector3d a = V.col(f[0]), b = V.col(f[1]), c = V.col(f[2]);
+        if (a.z() <= 1.0 || b.z() <= 1.0 || c.z() <= 1.0) continue;  // at or behind the lens
+        const Eigen::Vector3d centre = (a + b + c) / 3.0;
+        const Eigen::Vector3d n = (b - a).cross(c - a);
+        const double nn = n.norm();
+        if (!(nn > 0.0) || n.dot(centre) >= 0.0) continue;  // degenerate or facing away
+        Tri t;
+        t.depth = centre.z();
+        const double cos_view = std::abs(n.dot(centre)) / (nn * centre.norm());
+        t.shade = static_cast<float>(s.reflectance * (0.3 + 0.7 * cos_view));
+        for (int k = 0; k < 3; ++k) {
+          const cv::Point2d& q = px[static_cast<size_t>(f[k])];
+          if (!std::isfinite(q.x) || !std::isfinite(q.y) || std::abs(q.x) > 1e6 || std::abs(q.y) > 1e6) {
+            t.depth = -1.0;
+            break;
+          }
+          t.px[static_cast<size_t>(k)] = cv::Point(cvRound(q.x * (1 << kShift)), cvRound(q.y * (1 << kShift)));
+        }
+        if (t.depth > 0.0) tris.push_back(t);
+      }
+    }
+    std::sort(tris.begin(), tris.end(), [](const Tri& x, const Tri& y) { return x.depth > y.depth; });
+    for (const auto& t : tris) {
+      cv::fillConvexPoly(refl, t.px.data(), 3, cv::Scalar(t.shade), cv::LINE_8, kShift);
+      cv::fillConvexPoly(surface_z, t.px.data(), 3, cv::Scalar(t.depth), cv::LINE_8, kShift);
+      cv::fillConvexPoly(result.surface_mask, t.px.data(), 3, cv::Scalar(255), cv::LINE_8, kShift);
+    }
+  }
 
   cv::Mat occ_mask = cv::Mat::zeros(H, W, CV_8U);
   for (const auto& occ : options.occluders) {
@@ -79,7 +136,6 @@ RenderResult SyntheticRenderer::render(const std::vector<BoardInScene>& scene, c
     if (poly.size() >= 3) cv::fillPoly(occ_mask, std::vector<std::vector<cv::Point>>{poly}, cv::Scalar(255));
   }
 
-  RenderResult result;
   for (const auto& item : scene) {
     if (item.board == nullptr) throw std::invalid_argument("synthetic renderer: scene entry without a board");
     const markers::TagBoard& board = *item.board;
@@ -180,6 +236,7 @@ RenderResult SyntheticRenderer::render(const std::vector<BoardInScene>& scene, c
     // Board-plane coordinates at the pixel corners of the box.
     const int bw = x1 - x0 + 2, bh = y1 - y0 + 2;
     cv::Mat board_xy(bh, bw, CV_64FC2);
+    cv::Mat board_z(bh, bw, CV_64F, cv::Scalar(std::numeric_limits<double>::infinity()));
     const double n_dot_o = n.dot(o);
     for (int j = 0; j < bh; ++j) {
       for (int i = 0; i < bw; ++i) {
@@ -193,6 +250,7 @@ RenderResult SyntheticRenderer::render(const std::vector<BoardInScene>& scene, c
         }
         const Eigen::Vector3d rel = t * d - o;
         board_xy.at<cv::Vec2d>(j, i) = cv::Vec2d(ex.dot(rel), ey.dot(rel));
+        board_z.at<double>(j, i) = t;  // d.z = 1: t is the depth
       }
     }
     // Cells smaller than a few pixels could hide between corner samples: supersample all.
@@ -210,6 +268,19 @@ RenderResult SyntheticRenderer::render(const std::vector<BoardInScene>& scene, c
         const bool uniform = !supersample_all && r00.id == classify(c10[0], c10[1]).id &&
                              r00.id == classify(c01[0], c01[1]).id && r00.id == classify(c11[0], c11[1]).id;
         float& px = row[x0 + i];
+        if (!surface_z.empty()) {
+          // A surface nearer than the board hides it (tag pixels then count as occluded).
+          const double bz = std::min(std::min(board_z.at<double>(j, i), board_z.at<double>(j, i + 1)),
+                                     std::min(board_z.at<double>(j + 1, i), board_z.at<double>(j + 1, i + 1)));
+          if (static_cast<double>(surface_z.at<float>(y0 + j, x0 + i)) < bz) {
+            if (r00.tag >= 0) {
+              area[static_cast<size_t>(r00.tag)] += 1.0;
+              occluded[static_cast<size_t>(r00.tag)] += 1.0;
+            }
+            continue;
+          }
+          if (r00.id >= 0 || !uniform) result.surface_mask.at<std::uint8_t>(y0 + j, x0 + i) = 0;
+        }
         const bool masked = mask_row[x0 + i] != 0;
         if (uniform) {
           if (r00.id < 0) continue;

@@ -56,6 +56,16 @@ struct BoardInScene {
   Eigen::Isometry3d X_CamBoard = Eigen::Isometry3d::Identity();
 };
 
+// A shaded closed triangle surface (the bench's deforming organ phantom): drawn with OpenCV
+// polygon fill, back faces culled, far-to-near (painter's order), Lambert shading under a
+// light at the camera; boards are drawn over it only where they are nearer (per pixel), and
+// tag pixels it hides count as occluded. Vertices in Cam (mm); faces outward-oriented.
+struct SurfaceInScene {
+  const Eigen::Matrix3Xd* vertices_Cam_mm = nullptr;
+  const std::vector<Eigen::Vector3i>* faces = nullptr;
+  double reflectance = 0.6;   // albedo; shade = reflectance * (0.3 + 0.7 |cos(view, normal)|)
+};
+
 struct TagTruth {
   std::string board;
   int id = 0;
@@ -70,6 +80,7 @@ struct TagTruth {
 struct RenderResult {
   cv::Mat image;                // CV_8UC1, camera.height x camera.width
   std::vector<TagTruth> tags;
+  cv::Mat surface_mask;         // CV_8UC1: 255 where a surface is the nearest thing drawn (empty: no surface)
 };
 
 class SyntheticRenderer {
@@ -83,6 +94,10 @@ class SyntheticRenderer {
   const markers::CameraModel& camera() const { return camera_; }
   // Throws std::invalid_argument for a non-planar board, an unknown family or tag id.
   RenderResult render(const std::vector<BoardInScene>& scene, const RenderOptions& options) const;
+  // Boards and shaded surfaces (surfaces first, boards where nearer). Throws
+  // std::invalid_argument for a face index out of range as well.
+  RenderResult render(const std::vector<BoardInScene>& scene, const std::vector<SurfaceInScene>& surfaces,
+                      const RenderOptions& options) const;
 
  private:
   struct BitmapCache;

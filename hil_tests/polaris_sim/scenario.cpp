@@ -161,6 +161,37 @@ void check_keys(const YAML::Node& map, std::initializer_list<const char*> known,
   }
 }
 
+// motion: {phantom: RECORDING, tool: NAME, X_NdiModel: [16 numbers, row-major], start_s: S}
+ToolMotion parse_phantom_motion(const YAML::Node& n, const std::string& where, int index, const Scenario& s,
+                                const std::filesystem::path& base_dir) {
+  check_keys(n, {"phantom", "tool", "X_NdiModel", "start_s"}, where);
+  ToolMotion m = default_motion(index);
+  auto path = std::make_shared<PhantomToolPath>();
+  const std::filesystem::path file = base_dir / n["phantom"].as<std::string>();
+  try {
+    path->recording = std::make_shared<const camera_sim::PhantomRecording>(camera_sim::read_phantom_recording(file));
+  } catch (const camera_sim::PhantomError& e) {
+    throw ScenarioError(where + ".phantom: " + e.what());
+  }
+  const std::string tool = n["tool"] ? n["tool"].as<std::string>() : path->recording->tool_names.empty() ? "" : path->recording->tool_names[0];
+  path->tool = path->recording->tool_index(tool);
+  if (path->tool < 0) throw ScenarioError(where + ".tool: the recording " + file.string() + " has no tool '" + tool + "'");
+  if (!n["X_NdiModel"]) throw ScenarioError(where + ".X_NdiModel: missing (the phantom's model frame in the tracker frame, 16 numbers row-major)");
+  const YAML::Node x = n["X_NdiModel"];
+  if (!x.IsSequence() || x.size() != 16) throw ScenarioError(where + ".X_NdiModel: expected 16 numbers (4x4 row-major)");
+  Eigen::Matrix4d M;
+  for (int i = 0; i < 16; ++i) M(i / 4, i % 4) = x[static_cast<std::size_t>(i)].as<double>();
+  const Eigen::Matrix3d R = M.topLeftCorner<3, 3>();
+  if (!M.allFinite() || !(R.transpose() * R).isIdentity(1e-6) || std::abs(R.determinant() - 1.0) > 1e-6 ||
+      !M.row(3).isApprox(Eigen::RowVector4d(0, 0, 0, 1)))
+    throw ScenarioError(where + ".X_NdiModel: not a rigid transform (orthonormal rotation, det +1, last row 0 0 0 1)");
+  path->X_NdiModel.matrix() = M;
+  if (n["start_s"]) path->start_s = number(n["start_s"], where + ".start_s", -1e6, 1e6);
+  path->t0_s = static_cast<double>(s.first_frame) / s.frame_rate_hz;
+  m.phantom = std::move(path);
+  return m;
+}
+
 ToolMotion parse_motion(const YAML::Node& n, const std::string& where, int index) {
   if (!n.IsMap()) throw ScenarioError(where + ": expected a map");
   check_keys(n, {"center_mm", "amplitude_mm", "frequency_hz", "phase_rad", "base_axis_angle", "rotation_axis",
@@ -223,7 +254,10 @@ Scenario parse_scenario(const std::string& yaml_text, const std::string& source_
           if (tool.serial.size() != 8) throw ScenarioError(where + ".serial: must be 8 characters");
         }
         if (t["rms_error_mm"]) tool.rms_error_mm = number(t["rms_error_mm"], where + ".rms_error_mm", 0, 9);
-        tool.motion = t["motion"] ? parse_motion(t["motion"], where + ".motion", static_cast<int>(i)) : default_motion(static_cast<int>(i));
+        if (t["motion"] && t["motion"].IsMap() && t["motion"]["phantom"])
+          tool.motion = parse_phantom_motion(t["motion"], where + ".motion", static_cast<int>(i), s, base_dir);
+        else
+          tool.motion = t["motion"] ? parse_motion(t["motion"], where + ".motion", static_cast<int>(i)) : default_motion(static_cast<int>(i));
         s.tools.push_back(std::move(tool));
       }
     }

@@ -7,6 +7,10 @@ namespace arnav::hil {
 
 Eigen::Isometry3d ToolMotion::X_NdiTool(double t_s) const {
   constexpr double kTwoPi = 2.0 * std::numbers::pi;
+  if (phantom) {
+    const double t = phantom->start_s + t_s - phantom->t0_s;
+    return phantom->X_NdiModel * phantom->recording->tool_pose_at(t, phantom->tool);
+  }
   Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
   Eigen::Vector3d p = center_mm;
   for (int i = 0; i < 3; ++i) p[i] += amplitude_mm[i] * std::sin(kTwoPi * frequency_hz[i] * t_s + phase_rad[i]);

@@ -3,10 +3,26 @@
 // device time t_s = frame_number / frame_rate, so the ground truth of any frame can be
 // recomputed exactly. Units: mm, s, rad.
 #include <array>
+#include <memory>
+#include <string>
 
 #include <Eigen/Geometry>
 
+#include "appliance/synthetic_camera/phantom_recording.hpp"
+
 namespace arnav::hil {
+
+// The tool that deforms the bench's phantom (hil_tests/phantom, arnav-phantom-record): its
+// recorded path X_ModelTool(t), placed in the tracker frame by X_NdiModel (where the
+// phantom's model frame sits for the tracker: X_NdiCam * X_CamBoard * X_BoardModel of the
+// synthetic camera's static board), so the host sees the tool the camera's world moves with.
+struct PhantomToolPath {
+  std::shared_ptr<const camera_sim::PhantomRecording> recording;
+  int tool = 0;                                    // index into recording->tool_names
+  Eigen::Isometry3d X_NdiModel = Eigen::Isometry3d::Identity();
+  double t0_s = 0.0;                               // device time of recording time start_s (first_frame / rate: the boot)
+  double start_s = 0.0;
+};
 
 struct ToolMotion {
   // Position: center + amplitude * sin(2 pi f t + phase), per axis (a Lissajous figure).
@@ -19,6 +35,8 @@ struct ToolMotion {
   Eigen::Vector3d rotation_axis = Eigen::Vector3d::UnitZ();
   double rotation_amplitude_rad = 0.0;
   double rotation_frequency_hz = 0.0;
+  // When set, the tool follows the phantom recording instead (the fields above unused).
+  std::shared_ptr<const PhantomToolPath> phantom;
 
   Eigen::Isometry3d X_NdiTool(double t_s) const;
 };

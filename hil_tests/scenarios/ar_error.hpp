@@ -6,6 +6,12 @@
 // cv::projectPoints). In pixels, and in mm at the organ (px x depth / focal length).
 // Also: which frames showed the overlay, which showed a tracking banner, and whether any
 // frame whose board was clearly visible had no overlay.
+//
+// With a deforming phantom (the ground truth is version 2 with target:tumour_centroid
+// rows, appliance/synthetic_camera/phantom_recording.hpp) the truth is the deformed
+// tumour centroid of that frame, and the report also gives what a rigid overlay (the
+// rest-shape centroid through the registration, i.e. no deformation model) would score
+// against it on the same frames, plus how far the tumour moved: the deformation's effect.
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -20,6 +26,10 @@ struct ArFrame {
   bool board_visible = false;   // ground truth: every tag of the board clear
   double error_px = 0.0;        // when drawn
   double error_mm = 0.0;
+  bool deformed_truth = false;  // truth from the phantom's deformed centroid
+  double rigid_error_px = 0.0;  // a rigid overlay's error against the same truth (phantom only)
+  double rigid_error_mm = 0.0;
+  double tumour_displacement_mm = 0.0;  // deformed vs rest centroid (phantom only)
   double latency_ms = 0.0;
   bool own_pose = false;        // drawn with the board pose of this very frame (never an older one)
   std::string flags;
@@ -30,6 +40,7 @@ struct ArErrorReport {
   std::int64_t truth_frames = 0, csv_rows = 0, missing_in_csv = 0;
   std::int64_t visible_without_overlay = 0;  // board clear, no tumour drawn
   std::int64_t invisible_with_overlay = 0;   // board gone, overlay still drawn (a frozen overlay)
+  bool phantom = false;                      // the truth is a deforming phantom
   nlohmann::json summary() const;            // mean/p95/max px and mm, latency p50/p99, counts
 };
 

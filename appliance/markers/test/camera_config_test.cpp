@@ -1,6 +1,12 @@
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <fstream>
+#include <unistd.h>
+
 #include "appliance/markers/camera_config.hpp"
+#include "appliance/synthetic_camera/phantom_recording.hpp"
+#include "calibration/lib/rigid_transform_file.hpp"
 
 namespace arnav::camera {
 namespace {
@@ -78,6 +84,55 @@ TEST(CameraConfig, MistakesNameFileLineAndKey) {
   expect_error(replace(kSynthetic, "amplitude_mm: [30, 20, 40]", "amplitude_mm: [30, 20]"), "expected [x, y, z]");
   expect_error("camera: [1, 2\n", "YAML syntax error");
   expect_error(replace(kSynthetic, "[[10, 10], [100, 10], [100, 60]]", "[[10, 10], [100, 10]]"), "needs at least 3");
+}
+
+TEST(CameraConfig, PhantomSectionLoadsTheRecordingAndNamesMistakes) {
+  const auto dir = std::filesystem::temp_directory_path() / ("arnav_phcfg_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  camera_sim::PhantomRecording rec;
+  rec.tool_names = {"grasper"};
+  rec.target_names = {"tumour_centroid"};
+  rec.vertex_count = 3;
+  rec.faces = {{0, 1, 2}};
+  camera_sim::PhantomFrame f;
+  f.X_ModelTool = {Eigen::Isometry3d::Identity()};
+  f.targets_Model_mm = {Eigen::Vector3d(1, 2, 3)};
+  f.vertices_Model_mm = Eigen::Matrix3Xd::Identity(3, 3);
+  rec.frames = {f};
+  camera_sim::write_phantom_recording(dir / "phantom.txt", rec);
+  calib::RigidTransformRecord reg;
+  reg.parent_frame = "Ref";
+  reg.child_frame = "Model";
+  reg.X_ParentChild.translation() = Eigen::Vector3d(-235, 206, 40);
+  reg.date = "2026-11-25T00:00:00Z";
+  calib::write_transform(dir / "X_RefModel.yaml", reg);
+  {
+    std::ofstream bad(dir / "bad.txt");
+    bad << "# arnav phantom recording 1\nframe Model\ntools 0\ntargets 1 t\nvertices 3\nfaces 1\nf 0 1 9\n";
+  }
+  const std::string phantom = kSynthetic + "    phantom: {recording: phantom.txt, board: pointer, X_BoardModel: X_RefModel.yaml, reflectance: 0.5}\n";
+  const auto c = parse_camera_config(phantom, "app.yaml", dir);
+  ASSERT_TRUE(c && c->synthetic && c->synthetic->phantom);
+  EXPECT_EQ(c->synthetic->phantom->board_index, 0u);
+  EXPECT_EQ(c->synthetic->phantom->recording->frames.size(), 1u);
+  EXPECT_TRUE(c->synthetic->phantom->X_BoardModel.translation().isApprox(Eigen::Vector3d(-235, 206, 40)));
+  EXPECT_DOUBLE_EQ(c->synthetic->phantom->reflectance, 0.5);
+  const auto expect_dir_error = [&](const std::string& text, const std::string& needle) {
+    try {
+      parse_camera_config(text, "app.yaml", dir);
+      ADD_FAILURE() << "accepted:\n" << text;
+    } catch (const CameraConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  };
+  expect_dir_error(replace(phantom, "recording: phantom.txt", "recording: missing.txt"), "app.yaml:23: key 'camera.synthetic.phantom.recording'");
+  expect_dir_error(replace(phantom, "recording: phantom.txt", "recording: bad.txt"), "bad.txt:7: vertex index 9 is outside");
+  expect_dir_error(replace(phantom, "board: pointer", "board: probe"), "'probe' is not a rendered board");
+  expect_dir_error(replace(phantom, "X_BoardModel: X_RefModel.yaml", "X_BoardModel: nope.yaml"), "camera.synthetic.phantom.X_BoardModel");
+  expect_dir_error(replace(phantom, "reflectance: 0.5", "reflectance: 5"), "phantom.reflectance': must be between");
+  expect_dir_error(replace(phantom, "reflectance: 0.5", "colour: 5"), "unknown key");
+  expect_dir_error(replace(phantom, "recording: phantom.txt, ", ""), "phantom.recording': missing");
+  std::filesystem::remove_all(dir);
 }
 
 TEST(FramesConfig, ReferenceNeedsItsCalibration) {

@@ -1,5 +1,8 @@
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <unistd.h>
+
 #include "hil_tests/polaris_sim/scenario.hpp"
 
 namespace arnav::hil {
@@ -76,6 +79,56 @@ TEST(Scenario, RomFilesAreChecked) {
   Scenario s;
   EXPECT_THROW(add_tool_spec(s, "pointer"), ScenarioError);
   EXPECT_THROW(add_tool_spec(s, "pointer=/nonexistent.rom"), ScenarioError);
+}
+
+TEST(Scenario, PhantomMotionFollowsTheRecordedTool) {
+  const auto dir = std::filesystem::temp_directory_path() / ("arnav_phsim_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  camera_sim::PhantomRecording rec;
+  rec.tool_names = {"grasper", "scalpel"};
+  rec.target_names = {"tumour_centroid"};
+  rec.vertex_count = 3;
+  rec.faces = {{0, 1, 2}};
+  for (int k = 0; k < 2; ++k) {
+    camera_sim::PhantomFrame f;
+    f.t_s = k;
+    Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+    X.translation() = Eigen::Vector3d(70, 160, 57 - 20.0 * k);
+    f.X_ModelTool = {X, Eigen::Isometry3d::Identity()};
+    f.targets_Model_mm = {Eigen::Vector3d(70, 160, 140)};
+    f.vertices_Model_mm = Eigen::Matrix3Xd::Identity(3, 3);
+    rec.frames.push_back(f);
+  }
+  camera_sim::write_phantom_recording(dir / "phantom.txt", rec);
+  const std::string yaml = R"(
+frame_rate_hz: 60
+first_frame: 600
+tools:
+  - name: scalpel
+    motion: {phantom: phantom.txt, tool: grasper, X_NdiModel: [1, 0, 0, -198,  0, 1, 0, -138,  0, 0, 1, -1590,  0, 0, 0, 1]}
+)";
+  const Scenario s = parse_scenario(yaml, "sim.yaml", dir);
+  ASSERT_EQ(s.tools.size(), 1u);
+  // Device time 600 / 60 = 10 s is the recording's start; halfway through: 10.5 s.
+  const Eigen::Isometry3d X = s.tools[0].motion.X_NdiTool(10.5);
+  EXPECT_TRUE(X.translation().isApprox(Eigen::Vector3d(70 - 198, 160 - 138, 47 - 1590), 1e-9)) << X.translation().transpose();
+  EXPECT_TRUE(s.tools[0].motion.X_NdiTool(100.0).translation().isApprox(Eigen::Vector3d(-128, 22, 37 - 1590), 1e-9));
+  const auto expect_error = [&](const std::string& from, const std::string& to, const std::string& needle) {
+    std::string text = yaml;
+    text.replace(text.find(from), from.size(), to);
+    try {
+      parse_scenario(text, "sim.yaml", dir);
+      ADD_FAILURE() << "accepted:\n" << text;
+    } catch (const ScenarioError& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  };
+  expect_error("tool: grasper", "tool: pointer", "has no tool 'pointer'");
+  expect_error("phantom: phantom.txt", "phantom: none.txt", "none.txt: cannot read the phantom recording");
+  expect_error(", X_NdiModel: [1, 0, 0, -198,  0, 1, 0, -138,  0, 0, 1, -1590,  0, 0, 0, 1]", "", "X_NdiModel: missing");
+  expect_error("[1, 0, 0, -198,", "[2, 0, 0, -198,", "not a rigid transform");
+  expect_error("tool: grasper", "tool: grasper, speed: 2", "unknown key 'speed'");
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

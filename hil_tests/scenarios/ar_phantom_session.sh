@@ -1,0 +1,125 @@
+#!/usr/bin/env bash
+# The AR navigation session against the deforming phantom (docs/hil.md, "Deforming phantom"):
+#   ar_phantom_session.sh BUILD_DIR OUT_DIR [FRAMES]
+# 1. arnav-phantom-record runs the reference deformation (ar_demo/phantom_reference.scene.yaml:
+#    finer mesh, co-rotational FEM, heterogeneous material; a grasper pulls the underside of
+#    the liver twice) and writes OUT/phantom.txt (deterministic; about 1-2 min, 20 MB, not
+#    committed). An existing OUT/phantom.txt is reused. It also runs the host's scene under
+#    the same grasp (--compare-scene): how close the host's model would be if it coupled
+#    the tool, next to a rigid model.
+# 2. Re-executes itself in a private network namespace (root): lcm-logger, arnav-host
+#    ar_demo/session_phantom.yaml (mass-spring model, registered to the phantom's board),
+#    arnav-appliance ar_demo/appliance_phantom.yaml (synthetic camera filming the deforming
+#    phantom; simulated Polaris moving the scalpel along the recorded tool path).
+# 3. arnav-ar-error: the overlay's tumour centroid against the deformed ground truth, and what
+#    a rigid overlay would score. FRAMES: camera frames at 15 Hz (default 255, 17 s).
+set -euo pipefail
+if [ "$#" -lt 2 ]; then
+  sed -n '2,17p' "$0" >&2
+  exit 2
+fi
+here=$(cd "$(dirname "$0")" && pwd)
+build=$(cd "$1" && pwd)
+mkdir -p "$2"
+out=$(cd "$2" && pwd)
+frames=${3:-255}
+host=$build/host/app/arnav-host
+appliance=$build/appliance/app/arnav-appliance
+ar_error=$build/hil_tests/scenarios/arnav-ar-error
+record=$build/hil_tests/phantom/arnav-phantom-record
+for f in "$host" "$appliance" "$ar_error" "$record"; do
+  [ -x "$f" ] || { echo "ar_phantom_session.sh: $f is missing: build first (scripts/build release)" >&2; exit 1; }
+done
+if [ "${ARNAV_AR_INSIDE:-}" != "1" ]; then
+  if [ "$(id -u)" -ne 0 ]; then
+    echo "ar_phantom_session.sh: needs root for a private network namespace (run with sudo)" >&2
+    exit 1
+  fi
+  if [ ! -s "$out/phantom.txt" ]; then
+    duration=$(python3 -c "print(round($frames / 15.0, 3))" 2>/dev/null || echo 17)
+    echo "arnav-phantom-record: reference deformation, ${duration} s at 10 Hz (co-rotational FEM, fine mesh)"
+    "$record" --scene "$here/ar_demo/phantom_reference.scene.yaml" --out "$out/phantom.txt" --fps 10 --duration "$duration" \
+      --pull 20 10 -15 --grasp-radius 15 --quiet --compare-scene "$here/ar_demo/liver_navigation.scene.yaml" >"$out/phantom_record.json"
+    python3 - "$out/phantom_record.json" <<'PY' || cat "$out/phantom_record.json"
+import json, sys
+j = json.load(open(sys.argv[1]))
+print("  reference: %s, %d vertices / %d tets, median step %.0f ms; surface moved up to %.1f mm, tumour up to %.1f mm"
+      % (j["model"], j["volume_vertices"], j["volume_tets"], j["median_step_ms"], j["max_surface_displacement_mm"], j["max_tumour_displacement_mm"]))
+c = j["compare"]
+m, r = c["model_vs_reference_mm"], c["rigid_vs_reference_mm"]
+print("  the host's scene (%s) under the same grasp: tumour centroid off the reference by mean %.2f, p95 %.2f, max %.2f mm"
+      % (c["model"], m["mean"], m["p95"], m["max"]))
+print("  a rigid model: mean %.2f, p95 %.2f, max %.2f mm (what an overlay that ignores the grasp is off by, before projection)"
+      % (r["mean"], r["p95"], r["max"]))
+PY
+  fi
+  export ARNAV_AR_INSIDE=1
+  exec unshare --net "$0" "$@"
+fi
+command -v lcm-logger >/dev/null || { echo "ar_phantom_session.sh: lcm-logger missing (Debian liblcm-bin, scripts/deps)" >&2; exit 1; }
+ip link set lo up
+ip route add 224.0.0.0/4 dev lo
+url="udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304"
+data=$(cd "$here/../../data" && pwd)
+cp "$here"/ar_demo/{camera.yaml,marker_board.yaml,X_RefModel_phantom.yaml,X_CamNdi.yaml} "$out/"
+sed "s#^scene: [^ ]*#scene: $here/ar_demo/liver_navigation.scene.yaml#" "$here/ar_demo/session_phantom.yaml" >"$out/session.yaml"
+sed -e "s#\.\./\.\./\.\./data/#$data/#" -e "s#^    frames: 255#    frames: $frames#" "$here/ar_demo/appliance_phantom.yaml" >"$out/appliance.yaml"
+sed "s#\.\./\.\./\.\./data/#$data/#" "$here/ar_demo/polaris_phantom.yaml" >"$out/polaris_phantom.yaml"
+
+pids=()
+cleanup() { for p in "${pids[@]}"; do kill -TERM "$p" 2>/dev/null || true; done; }
+trap cleanup EXIT
+lcm-logger --lcm-url="$url" -f "$out/session.lcmlog" >"$out/logger.log" 2>&1 &
+logger_pid=$!
+pids+=("$logger_pid")
+"$host" "$out/session.yaml" --record "$out/recording" --quiet --summary --summary-json "$out/host.json" >"$out/host.log" 2>&1 &
+host_pid=$!
+pids+=("$host_pid")
+for _ in $(seq 1 600); do
+  grep -q "session ready" "$out/host.log" 2>/dev/null && break
+  kill -0 "$host_pid" 2>/dev/null || { echo "arnav-host failed:" >&2; cat "$out/host.log" >&2; exit 1; }
+  sleep 0.1
+done
+grep "session ready" "$out/host.log" || { echo "arnav-host not ready after 60 s" >&2; exit 1; }
+echo "arnav-appliance: synthetic camera filming the deforming phantom, $frames frames at 15 Hz; simulated Polaris moving the scalpel with the phantom's tool"
+(cd "$out" && exec "$appliance" appliance.yaml 2>"$out/appliance.log") &
+app_pid=$!
+pids+=("$app_pid")
+for _ in $(seq 1 3000); do
+  grep -q "CAMERA_END" "$out/appliance.log" 2>/dev/null && break
+  kill -0 "$app_pid" 2>/dev/null || break
+  sleep 0.1
+done
+sleep 1
+kill -TERM "$app_pid" 2>/dev/null || true
+app_rc=0
+wait "$app_pid" || app_rc=$?
+kill -TERM "$host_pid"
+wait "$host_pid" || true
+kill -TERM "$logger_pid"
+wait "$logger_pid" || true
+trap - EXIT
+echo "== arnav-host =="
+sed -n '/^navigation:/,$p' "$out/host.log" | grep -v "^recorded" | sed 's/^/  /'
+echo "== AR error against the deforming phantom (arnav-ar-error) =="
+"$ar_error" --session "$out/session.yaml" --ground-truth "$out/ground_truth.csv" --overlay-csv "$out/recording/overlay.csv" \
+  | tee "$out/ar_error.json" | python3 -c '
+import json, sys
+j = json.load(sys.stdin)
+e, p = j["ar_error_mm"], j["ar_error_px"]
+print("  truth: %s" % j["truth"])
+print("  frames with overlay: %d of %d displayed (%d made by the camera)" % (j["frames_evaluated"], j["csv_rows"], j["truth_frames"]))
+print("  host overlay:  mean %.2f mm, p95 %.2f mm, max %.2f mm; mean %.2f px, p95 %.2f px, max %.2f px"
+      % (e["mean"], e["p95"], e["max"], p["mean"], p["p95"], p["max"]))
+if "rigid_overlay" in j:
+    r, rp, d = j["rigid_overlay"]["ar_error_mm"], j["rigid_overlay"]["ar_error_px"], j["tumour_displacement_mm"]
+    print("  rigid overlay: mean %.2f mm, p95 %.2f mm, max %.2f mm; mean %.2f px, p95 %.2f px, max %.2f px"
+          % (r["mean"], r["p95"], r["max"], rp["mean"], rp["p95"], rp["max"]))
+    print("  tumour displacement (deformed vs rest, 3D): mean %.2f mm, max %.2f mm" % (d["mean"], d["max"]))
+' || echo "  (python3 missing: see $out/ar_error.json)"
+echo "== files =="
+echo "  phantom:       $out/phantom.txt"
+echo "  ground truth:  $out/ground_truth.csv"
+echo "  video:         $out/recording/overlay.avi"
+echo "  contact sheet: $out/recording/contact_sheet.png"
+exit "$app_rc"
