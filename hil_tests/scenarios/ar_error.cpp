@@ -65,7 +65,7 @@ ArErrorReport evaluate_ar_error(const std::string& session_path, const std::stri
   while (std::getline(in, line)) {
     ++line_no;
     const auto f_ = split(line);
-    if (f_.size() != 10) throw std::runtime_error(csv_path + ":" + std::to_string(line_no) + ": expected 10 columns");
+    if (f_.size() < 10) throw std::runtime_error(csv_path + ":" + std::to_string(line_no) + ": expected at least 10 columns");
     ++rep.csv_rows;
     ArFrame fr;
     fr.sequence = std::stoll(f_[0]);

@@ -91,7 +91,19 @@ print("  AR error: mean %.2f mm, p95 %.2f mm, max %.2f mm; mean %.2f px, p95 %.2
       % (e["mean"], e["p95"], e["max"], p["mean"], p["p95"], p["max"]))
 print("  frames with the board clearly visible but no overlay: %d" % j["visible_without_overlay"])
 ' || echo "  (python3 missing: see $out/ar_error.json)"
-echo "  registration FRE/TRE: n/a (registration given as a file; live pointer registration is host/register)"
+python3 - "$out/host.json" <<'PY' || true
+import json, sys
+nav = json.load(open(sys.argv[1])).get("navigation", {})
+r = nav.get("registration", {})
+if r.get("method") == "live landmarks" and r.get("done"):
+    print("  registration FRE/TRE: FRE %.2f mm, predicted TRE %.2f mm (live, %d landmarks, %d refused)"
+          % (r["fre_mm"], r["predicted_tre_mm"], r["landmarks"], r["refused"]))
+elif r.get("method") == "live landmarks":
+    print("  registration FRE/TRE: incomplete (%d/%d landmarks taken)" % (r["landmarks_taken"], r["landmarks"]))
+else:
+    print("  registration FRE/TRE: n/a (this session reads X_RefModel from %s; registration: {live: ...} takes pointer landmarks, docs/overlay.md)"
+          % r.get("file", "a file"))
+PY
 python3 - "$out/recording/overlay.csv" <<'PY' || true
 import csv, sys
 d = [float(r["blade_to_margin_mm"]) for r in csv.DictReader(open(sys.argv[1])) if r["blade_to_margin_mm"]]
@@ -100,7 +112,17 @@ if d:
 else:
     print("  blade-to-margin: no frame with the scalpel and the board both tracked")
 PY
-echo "  cut-path error: n/a (cutting is host/cut: the overlay shows the blade tip's trace only)"
+python3 - "$out/host.json" <<'PY' || true
+import json, sys
+c = json.load(open(sys.argv[1])).get("navigation", {}).get("cutting")
+if c:
+    e = c["path_error_mm"]
+    print("  cut: %d frames cutting (%s), area %.0f mm2; cut-path error p50 %.2f mm, p95 %.2f mm, max %.2f mm; events %s; disarmed by a stale pedal %d time(s)"
+          % (c["frames_cutting"], c["mode"], c["cut_area_mm2"], e["p50"], e["p95"], e["max"], c["events_by_kind"] or "none",
+             c["disarmed_by_stale_input"]["episodes"]))
+else:
+    print("  cut-path error: n/a (the demo scene declares no cutting: the overlay shows the blade tip's trace; a scene with cutting: and inputs.cut_enable cuts, docs/overlay.md)")
+PY
 echo "== files =="
 echo "  video:         $out/recording/overlay.avi"
 echo "  contact sheet: $out/recording/contact_sheet.png"

@@ -59,6 +59,7 @@ struct SessionHandler {
   void frame(const lcm::ReceiveBuffer*, const std::string&, const arnav::image_frame_t* msg) {
     session.submit_frame(*msg, arnav::monotonic_us());
   }
+  void input(const lcm::ReceiveBuffer*, const std::string&, const arnav::input_event_t* msg) { session.on_input(*msg, arnav::monotonic_us()); }
 };
 
 nlohmann::json summary(const arnav::host::ToolFreshnessTracker& tracker, double run_s) {
@@ -151,6 +152,10 @@ int run_replay(const Cli& cli, arnav::host::NavigationSession& session, const st
       if (m.decode(ev->data, 0, ev->datalen) < 0) { ++undecodable; continue; }
       session.on_event(m);
       now(m.time_mono_us, m.time_wall_us);
+    } else if (ch == arnav::channels::kInput || ch == arnav::channels::kInputState) {
+      arnav::input_event_t m;
+      if (m.decode(ev->data, 0, ev->datalen) < 0) { ++undecodable; continue; }
+      session.on_input(m, now(m.publish_time_mono_us, m.publish_time_wall_us));
     } else if (!frame_channel.empty() && ch == frame_channel) {
       arnav::image_frame_t m;
       if (m.decode(ev->data, 0, ev->datalen) < 0) { ++undecodable; continue; }
@@ -200,6 +205,7 @@ int run_session(const Cli& cli) {
   arnav::host::SessionOptions options;
   options.threaded = cli.replay_log.empty();
   options.record_dir = cli.record_dir;
+  options.print_events = true;  // cut events, landmark takes, input disarms: rare, always printed
   std::unique_ptr<arnav::host::NavigationSession> session;
   try {
     session = std::make_unique<arnav::host::NavigationSession>(config, std::move(scene), options);
@@ -222,6 +228,8 @@ int run_session(const Cli& cli) {
   bus.subscribe(std::string(arnav::channels::kHealthRegex), &SessionHandler::health, &handler);
   bus.subscribe(std::string(arnav::channels::kEvents), &SessionHandler::event, &handler);
   if (config.camera) bus.subscribe(arnav::channels::frame(config.camera->name), &SessionHandler::frame, &handler);
+  bus.subscribe(std::string(arnav::channels::kInput), &SessionHandler::input, &handler);
+  bus.subscribe(std::string(arnav::channels::kInputState), &SessionHandler::input, &handler);
   session->start();
   // Scene loaded, model built, subscribed: what the bench waits for before it starts the appliance.
   std::cout << "arnav-host: session ready: " << config.source << (config.camera ? " (overlay on ARNAV_FRAME_" + config.camera->name + ")" : " (status monitor)")
@@ -258,7 +266,7 @@ int run_session(const Cli& cli) {
   std::cout << format_status_table(tracker, now) << std::flush;
   if (cli.print_summary) {
     std::cout << format_summary(tracker, run_s);
-    if (config.camera) std::cout << session->format_summary(run_s);
+    if (config.camera || session->has_model()) std::cout << session->format_summary(run_s);
     std::cout << std::flush;
   }
   for (const auto& f : session->recorded_files()) std::cout << "recorded: " << f << "\n";

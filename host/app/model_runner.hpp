@@ -4,14 +4,21 @@
 // an immutable snapshot of what the overlay draws (organ surface, tumours and their margin
 // shells, vessel centerlines), all in Model (the scene frame, mm).
 //
-// Seam for the cutting and contact stages (host/cut, not part of this build): the scalpel
-// in Model is handed in with set_scalpel(); a cutting stage would turn it into
-// attachments/cuts before each step and fill ModelSnapshot::cut_surface.
+// Cutting (the scene declares `cutting:` and the session has a scalpel): the model is a
+// host/cut CutSession (make_cut_session). The scalpel blade in Model and whether cutting is
+// enabled (pedal held) are handed in with set_scalpel(); before every step the blade is
+// applied (cutting: the swept surface cuts the volume; not cutting: the blade pushes the
+// tissue). The snapshot then draws the cut volume's boundary as the organ, the cut faces as
+// ModelSnapshot::cut_surface, and carries cut statistics and margin/vessel events. A blade
+// that was missing (scalpel stale or lost) only re-places itself on its first step back,
+// so a tracking gap never sweeps a cut across the organ.
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <array>
 #include <atomic>
 #include <condition_variable>
+#include <deque>
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -19,6 +26,7 @@
 #include <thread>
 #include <vector>
 
+#include "host/cut/cut_session.hpp"
 #include "host/scene/scene.hpp"
 #include "host/sim/tissue_model.hpp"
 
@@ -37,13 +45,43 @@ struct ModelSnapshot {
   std::optional<VesselTree> vessels;
   std::optional<TriMesh> cut_surface;   // filled by the cutting stage (host/cut) when it exists
   Eigen::Matrix3Xd volume_positions_mm; // the tet mesh's vertices (carries the cut trace)
+  // Cutting only:
+  bool cutting = false;                 // the model is a cut session
+  int cut_faces = 0;                    // cut faces on the boundary (both sides of every cut)
+  std::vector<std::array<Eigen::Vector3d, 2>> cut_rim_mm;  // where the cut meets the organ surface (segments)
+  double cut_area_mm2 = 0.0;            // area of the cut (half the cut faces' area)
+  std::int64_t events_total = 0;        // margin/vessel events so far (ModelRunner::events())
+  std::int64_t cut_steps_total = 0;     // steps that cut (topology changed)
+};
+
+// A margin/vessel event raised by the cut session, with the model step it came from.
+struct ModelCutEvent {
+  std::int64_t step = 0;
+  std::int64_t step_done_mono_us = 0;
+  cut::CutEvent event;
+};
+
+// Per step that put new vertices on the cut faces: the cut-path error, the largest distance
+// of those vertices (after the step) from the surface the blade swept while cutting (the
+// cutting steps' swept triangles of the last 10 minutes, in Model at the time of the sweep). Measured
+// here, independently of the cutter's own bookkeeping (CutStepReport::max_path_deviation_mm,
+// kept as cutter_path_error_mm).
+struct CutStepRecord {
+  std::int64_t step = 0;
+  double path_error_mm = 0.0;
+  int new_cut_vertices = 0;
+  double cutter_path_error_mm = 0.0;
+  double update_ms = 0.0;
+  double rebuild_ms = 0.0;
+  int tets_cut = 0;
 };
 
 class ModelRunner {
  public:
   // Builds the scene's tissue model (gravity per `gravity`). `nice` > 0 lowers the model
   // thread's scheduling priority (Linux nice, per thread). Throws std::invalid_argument.
-  ModelRunner(const Scene& scene, double rate_hz, bool gravity, double margin_mm, int nice = 0);
+  ModelRunner(const Scene& scene, double rate_hz, bool gravity, double margin_mm, int nice = 0,
+              std::optional<cut::CutSessionSettings> cutting = std::nullopt);
   ~ModelRunner();
   ModelRunner(const ModelRunner&) = delete;
   ModelRunner& operator=(const ModelRunner&) = delete;
@@ -54,7 +92,12 @@ class ModelRunner {
   // Replay: performs the steps due up to now_us (session clock), at most max_steps.
   int advance_to(std::int64_t now_us, int max_steps = 10);
 
-  void set_scalpel(const std::optional<std::array<Eigen::Vector3d, 2>>& blade_Model_mm);
+  // Blade {tip, heel} in Model (nullopt: not tracked now) and whether it cuts.
+  void set_scalpel(const std::optional<std::array<Eigen::Vector3d, 2>>& blade_Model_mm, bool cutting_enabled = false);
+  bool cutting() const { return cut_ != nullptr; }
+  // Events and cutting steps from index `from` on (for the rendering thread to consume in order).
+  std::vector<ModelCutEvent> events(std::size_t from) const;
+  std::vector<CutStepRecord> cut_steps(std::size_t from) const;
   std::shared_ptr<const ModelSnapshot> snapshot() const;
   std::int64_t steps() const { return steps_.load(); }
   // Wall times of every step (ms), for the summary.
@@ -67,6 +110,18 @@ class ModelRunner {
   double margin_mm_;
   int nice_ = 0;
   std::unique_ptr<TissueModel> model_;
+  std::unique_ptr<cut::CutSession> cut_;
+  bool cutting_enabled_ = false;
+  bool blade_gap_ = true;  // no blade applied yet, or it was missing: the next one only places itself
+  std::vector<ModelCutEvent> events_;
+  std::vector<CutStepRecord> cut_steps_;
+  std::optional<std::array<Eigen::Vector3d, 2>> previous_blade_;
+  struct Sweep {
+    Eigen::AlignedBox3d box;
+    std::vector<cut::Triangle> tris;
+  };
+  std::deque<Sweep> sweeps_;                        // swept triangles of the cutting steps (last 10 min)
+  std::vector<char> on_cut_face_;                   // vertex already seen on a cut face
   mutable std::mutex mutex_;
   std::shared_ptr<const ModelSnapshot> snapshot_;
   std::optional<std::array<Eigen::Vector3d, 2>> scalpel_;

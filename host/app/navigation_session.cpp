@@ -67,13 +67,47 @@ NavigationSession::NavigationSession(const SessionConfig& config, std::unique_pt
       options_(options),
       scene_(std::move(scene)),
       tracker_(static_cast<std::int64_t>(config.stale_after_ms * 1000.0)) {
+  X_RefModel_ = config_.X_RefModel;
+  const std::string at_scene = config_.source + ":" + std::to_string(config_.scene_line) + ": key 'scene': ";
+  const std::string at_cutting = config_.source + ":" + std::to_string(config_.cutting.line) + ": key 'cutting': ";
+  std::optional<cut::CutSessionSettings> cutting;
+  if (scene_ && scene_->cutting && config_.scalpel) {
+    // The scene declares cutting and the session has a scalpel: the model is a cut session.
+    if (config_.cutting.mode.empty())
+      throw SessionError(at_scene + *config_.scene_path +
+                         " declares cutting: say when the scalpel cuts: 'inputs: {cut_enable: <pedal input>}' (while held) or "
+                         "'cutting: {mode: always}' / 'cutting: {mode: off}' (the blade only pushes)");
+    const CuttingSpec& spec = *scene_->cutting;
+    cut::CutSessionSettings settings;
+    settings.cut.snap_fraction = spec.snap_fraction;
+    settings.sweep_strips = spec.sweep_strips;
+    settings.tumour_margin_mm = spec.tumour_margin_mm;
+    settings.push_stiffness_mN_per_mm = spec.push_stiffness_mN_per_mm;
+    // Live: the model is rebuilt on the new mesh on a worker thread while the previous one
+    // keeps stepping (the cut shows at once; a bundled-liver rebuild takes ~0.5 s here).
+    // Replay (unthreaded): inline, so every replay of a log cuts the same way.
+    settings.rebuild_in_background = options_.threaded;
+    cutting = settings;
+  } else if (!config_.cutting.mode.empty() && config_.cutting.line > 0) {
+    throw SessionError(at_cutting + (scene_ ? "the scene " + *config_.scene_path + " declares no 'cutting:' section (docs/cut.md): add it there"
+                                            : std::string("cutting needs a scene with a 'cutting:' section")));
+  } else if (config_.inputs.cut_enable && !(scene_ && scene_->cutting)) {
+    throw SessionError(config_.source + ":" + std::to_string(config_.inputs.cut_enable->line) +
+                       ": key 'inputs.cut_enable': the scene declares no 'cutting:' section (docs/cut.md): add it there or drop cut_enable");
+  }
   if (scene_) {
     try {
       model_ = std::make_unique<ModelRunner>(*scene_, config_.model.rate_hz, config_.model.gravity, config_.overlay.margin_mm,
-                                             config_.model.nice);
+                                             config_.model.nice, cutting);
     } catch (const std::exception& e) {
-      throw SessionError(config_.source + ":" + std::to_string(config_.scene_line) + ": key 'scene': the tissue model cannot be built: " + e.what());
+      throw SessionError(at_scene + "the tissue model cannot be built: " + e.what());
     }
+  }
+  if (config_.live_registration) {
+    const Eigen::Vector3d target = scene_ && !scene_->tumours.empty()
+                                       ? tumour_centroid_World_mm(*scene_, 0, scene_->problem.mesh.rest_positions_World_mm)
+                                       : Eigen::Vector3d::Zero();
+    live_ = std::make_unique<LiveRegistration>(*config_.live_registration, target);
   }
   if (!options_.record_dir.empty()) {
     if (!config_.camera) throw SessionError("--record " + options_.record_dir + ": the session " + config_.source + " has no camera: nothing to record");
@@ -157,6 +191,9 @@ void NavigationSession::on_pose(const tool_pose_t& msg, std::int64_t now_us) {
   PoseHistory& h = poses_[msg.tool_name];
   h.recent.push_back({msg, now_us});
   if (h.recent.size() > kHistory) h.recent.pop_front();
+  // Without a camera the scalpel's poses themselves drive the cutting stage.
+  if (!config_.camera && config_.scalpel && model_ && model_->cutting() && msg.tool_name == config_.scalpel->name)
+    blade_without_camera(msg, now_us);
 }
 
 void NavigationSession::on_health(const device_health_t& msg, std::int64_t now_us) {
@@ -167,6 +204,152 @@ void NavigationSession::on_health(const device_health_t& msg, std::int64_t now_u
 void NavigationSession::on_event(const appliance_event_t& msg) {
   std::lock_guard lock(mutex_);
   tracker_.on_event(msg);
+}
+
+void NavigationSession::say(const std::string& text) {
+  messages_.push_back(text);
+  if (options_.print_events) std::printf("%s\n", text.c_str()), std::fflush(stdout);
+}
+
+std::vector<std::string> NavigationSession::messages() {
+  std::lock_guard lock(mutex_);
+  return messages_;
+}
+
+std::optional<Eigen::Isometry3d> NavigationSession::X_RefModel() {
+  std::lock_guard lock(mutex_);
+  return X_RefModel_;
+}
+
+std::optional<TriMesh> NavigationSession::cut_surface() const { return last_cut_surface_; }
+
+std::vector<TipSample> NavigationSession::pointer_tips_Ref(std::int64_t now_us) {
+  std::vector<TipSample> out;
+  const LiveRegistrationSettings& l = *config_.live_registration;
+  auto it = poses_.find(l.pointer);
+  if (it == poses_.end()) return out;
+  const auto ref_it = poses_.find(config_.reference->name);
+  for (const auto& s : it->second.recent) {
+    if (s.msg.status != tool_pose_t::STATUS_VALID || s.arrival_us > now_us) continue;
+    Eigen::Isometry3d X_RefPointer = get_pose(s.msg);
+    if (s.msg.frame_parent != "Ref") {
+      // The reference in the same parent frame, nearest in time.
+      if (ref_it == poses_.end()) continue;
+      const PoseSample* best = nullptr;
+      for (const auto& r : ref_it->second.recent) {
+        if (r.msg.status != tool_pose_t::STATUS_VALID || r.msg.frame_parent != s.msg.frame_parent || r.arrival_us > now_us) continue;
+        if (!best || std::llabs(r.msg.receive_time_mono_us - s.msg.receive_time_mono_us) <
+                         std::llabs(best->msg.receive_time_mono_us - s.msg.receive_time_mono_us))
+          best = &r;
+      }
+      if (!best || std::llabs(best->msg.receive_time_mono_us - s.msg.receive_time_mono_us) > 50'000) continue;
+      X_RefPointer = get_pose(best->msg).inverse() * X_RefPointer;
+    }
+    out.push_back({s.arrival_us, X_RefPointer * l.tip_Tool_mm});
+  }
+  return out;
+}
+
+bool NavigationSession::cutting_armed(std::int64_t now_us, std::string* banner) {
+  if (config_.cutting.mode == "always") return true;
+  if (config_.cutting.mode != "input") return false;
+  const InputBinding& b = *config_.inputs.cut_enable;
+  const HeldState h = inputs_.held(b.input, b.state_stale_after_ms, now_us);
+  const bool stale = h == HeldState::kStale || h == HeldState::kNeverSeen;
+  const InputLevel* l = inputs_.level(b.input);
+  if (stale) {
+    char text[200];
+    if (!l)
+      std::snprintf(text, sizeof text, "INPUT: cut_enable '%s' - no state yet: cutting disarmed", b.input.c_str());
+    else
+      std::snprintf(text, sizeof text, "INPUT STALE: cut_enable '%s' - no state for %.0f ms (limit %.0f): cutting disarmed", b.input.c_str(),
+                    static_cast<double>(now_us - l->last_seen_us) * 1e-3, b.state_stale_after_ms);
+    if (banner) *banner = text;
+    if (l && !disarmed_) {
+      ++disarm_episodes_;
+      say(text);
+    }
+  }
+  disarmed_ = stale && l != nullptr;
+  if (disarmed_) ++disarmed_frames_;
+  return h == HeldState::kHeld;
+}
+
+void NavigationSession::drain_cut(FrameRow* row) {
+  if (!model_ || !model_->cutting()) return;
+  if (const auto snap = model_->snapshot()) {
+    std::lock_guard lock(mutex_);
+    last_cut_faces_ = snap->cut_faces;
+    last_cut_area_mm2_ = snap->cut_area_mm2;
+    last_cut_surface_ = snap->cut_surface;
+    last_cut_rim_ = snap->cut_rim_mm;
+  }
+  const auto steps = model_->cut_steps(cut_steps_seen_);  // the counters are written by this thread only
+  const auto events = model_->events(events_seen_);
+  std::lock_guard lock(mutex_);  // summary_json reads them
+  cut_steps_seen_ += steps.size();
+  events_seen_ += events.size();
+  for (const auto& st : steps) {
+    if (st.new_cut_vertices == 0) continue;
+    cut_path_error_mm_.push_back(st.path_error_mm);
+    if (row) row->cut_path_error_mm = std::max(row->cut_path_error_mm.value_or(0.0), st.path_error_mm);
+  }
+  for (const auto& e : events) {
+    if (row) row->cut_events += (row->cut_events.empty() ? "" : ";") + e.event.kind + ":" + e.event.structure;
+    char text[200];
+    std::snprintf(text, sizeof text, "cut event: %s %s at model step %lld (blade %.1f mm from the tumour; at [%.1f, %.1f, %.1f] mm in Model)",
+                  e.event.kind.c_str(), e.event.structure.c_str(), static_cast<long long>(e.step), e.event.distance_mm,
+                  e.event.location_World_mm.x(), e.event.location_World_mm.y(), e.event.location_World_mm.z());
+    say(text);
+    cut_events_.push_back(e);
+  }
+}
+
+void NavigationSession::blade_without_camera(const tool_pose_t& msg, std::int64_t now_us) {
+  std::optional<std::array<Eigen::Vector3d, 2>> blade;
+  if (msg.status == tool_pose_t::STATUS_VALID && X_RefModel_) {
+    std::optional<Eigen::Isometry3d> X_RefTool;
+    if (msg.frame_parent == "Ref") {
+      X_RefTool = get_pose(msg);
+    } else if (auto it = poses_.find(config_.reference->name); it != poses_.end()) {
+      const PoseSample* best = nullptr;
+      for (const auto& r : it->second.recent) {
+        if (r.msg.status != tool_pose_t::STATUS_VALID || r.msg.frame_parent != msg.frame_parent || r.arrival_us > now_us) continue;
+        if (!best || std::llabs(r.msg.receive_time_mono_us - msg.receive_time_mono_us) < std::llabs(best->msg.receive_time_mono_us - msg.receive_time_mono_us))
+          best = &r;
+      }
+      if (best && std::llabs(best->msg.receive_time_mono_us - msg.receive_time_mono_us) <= 50'000)
+        X_RefTool = get_pose(best->msg).inverse() * get_pose(msg);
+    }
+    if (X_RefTool) {
+      const Eigen::Isometry3d X_ModelTool = X_RefModel_->inverse() * *X_RefTool;
+      blade = std::array<Eigen::Vector3d, 2>{X_ModelTool * config_.scalpel->tip_Tool_mm, X_ModelTool * config_.scalpel->heel_Tool_mm};
+    }
+  }
+  const bool enabled = cutting_armed(now_us, nullptr) && blade.has_value();
+  if (enabled) ++cutting_frames_;
+  model_->set_scalpel(blade, enabled);
+}
+
+void NavigationSession::on_input(const input_event_t& msg, std::int64_t now_us) {
+  std::lock_guard lock(mutex_);
+  const bool press = inputs_.on_input(msg, now_us);
+  if (!press) return;
+  const bool accept = (live_ && msg.input_name == config_.live_registration->accept_input) ||
+                      (config_.inputs.accept && msg.input_name == config_.inputs.accept->input);
+  if (!accept) return;
+  ++accept_presses_;
+  if (!live_) {
+    say("accept '" + msg.input_name + "' pressed: nothing to accept (no live registration in this session)");
+    return;
+  }
+  if (live_->done()) {
+    say("accept '" + msg.input_name + "' pressed: registration already complete");
+    return;
+  }
+  const LandmarkTake t = live_->take(pointer_tips_Ref(now_us), now_us);
+  say(t.message);
+  if (live_->done()) X_RefModel_ = live_->X_RefModel();
 }
 
 void NavigationSession::advance_model(std::int64_t now_us) {
@@ -376,10 +559,47 @@ FrameResult NavigationSession::render_frame(const image_frame_t& msg, std::int64
     add_flag(r.flags, "model_unhealthy");
     r.banners.push_back({"MODEL: " + snap->warning, cv::Scalar(0, 0, 160)});
   }
+  // Registration (file, or live once all landmarks are taken), inputs and cutting state as
+  // known when the frame arrived.
+  std::optional<Eigen::Isometry3d> X_RefModel;
+  std::string registration_status;
+  bool cutting_enabled = false;
+  const bool cut_model = model_ && model_->cutting();
+  {
+    std::lock_guard lock(mutex_);
+    X_RefModel = X_RefModel_;
+    if (live_) registration_status = live_->status();
+    if (cut_model) {
+      std::string banner;
+      cutting_enabled = cutting_armed(now_us, &banner);
+      if (!banner.empty()) {
+        add_flag(r.flags, "input_stale");
+        r.banners.push_back({banner, cv::Scalar(0, 140, 230)});
+      }
+    }
+  }
+  if (!X_RefModel) {
+    add_flag(r.flags, "unregistered");
+    r.banners.push_back({registration_status.empty() ? std::string("NOT REGISTERED") : registration_status, cv::Scalar(0, 140, 230)});
+  } else if (live_ && !live_->done()) {
+    r.banners.push_back({registration_status, cv::Scalar(0, 140, 230)});
+  }
+  // The blade in Model: handed to the model (cutting/pushing) whether or not the camera pose is known.
+  std::optional<std::array<Eigen::Vector3d, 2>> blade_Model;
+  if (r.X_RefScalpel && X_RefModel) {
+    const Eigen::Isometry3d X_ModelTool = X_RefModel->inverse() * *r.X_RefScalpel;
+    blade_Model = std::array<Eigen::Vector3d, 2>{X_ModelTool * config_.scalpel->tip_Tool_mm, X_ModelTool * config_.scalpel->heel_Tool_mm};
+  }
+  if (model_ && config_.scalpel) model_->set_scalpel(blade_Model, cutting_enabled && blade_Model.has_value());
+  if (cut_model) {
+    out.row.cutting = cutting_enabled && blade_Model.has_value();
+    if (*out.row.cutting) ++cutting_frames_;
+  }
+
   std::optional<double> distance;
   double overlay_ms = 0.0;
-  if (r.X_CamRef && snap) {
-    const Eigen::Isometry3d X_CamModel = *r.X_CamRef * *config_.X_RefModel;
+  if (r.X_CamRef && snap && X_RefModel) {
+    const Eigen::Isometry3d X_CamModel = *r.X_CamRef * *X_RefModel;
     overlay::OverlayContent content;
     content.X_CamModel = X_CamModel;
     content.layers = layer_mask(config_.overlay.layers);
@@ -388,20 +608,19 @@ FrameResult NavigationSession::render_frame(const image_frame_t& msg, std::int64
     for (const auto& m : snap->margins) content.margins.push_back(&m);
     if (snap->vessels) content.vessels = &*snap->vessels;
     if (snap->cut_surface) content.cut_surface = &*snap->cut_surface;
-    if (r.X_RefScalpel) {
-      const Eigen::Isometry3d X_ModelTool = config_.X_RefModel->inverse() * *r.X_RefScalpel;
-      const Eigen::Vector3d tip = X_ModelTool * config_.scalpel->tip_Tool_mm, heel = X_ModelTool * config_.scalpel->heel_Tool_mm;
-      content.scalpel_mm = std::array<Eigen::Vector3d, 2>{tip, heel};
+    if (blade_Model) {
+      const Eigen::Vector3d tip = (*blade_Model)[0], heel = (*blade_Model)[1];
+      content.scalpel_mm = *blade_Model;
       for (const auto& t : snap->tumours) {
         const double d = overlay::blade_to_margin_mm(tip, heel, t, config_.overlay.margin_mm, 1.0);
         distance = distance ? std::min(*distance, d) : d;
       }
-      if (model_) model_->set_scalpel(content.scalpel_mm);
-      cut_trace_.add(scene_->problem.mesh, snap->volume_positions_mm, tip);
-    } else if (model_) {
-      model_->set_scalpel(std::nullopt);
+      // Without cutting the overlay shows the blade tip's trace through the tissue.
+      if (!cut_model) cut_trace_.add(scene_->problem.mesh, snap->volume_positions_mm, tip);
     }
-    if (cut_trace_.size() > 0) {
+    if (cut_model)
+      for (const auto& seg : snap->cut_rim_mm) content.cut_paths_mm.push_back({seg[0], seg[1]});
+    if (!cut_model && cut_trace_.size() > 0) {
       last_strokes_ = cut_trace_.strokes(snap->volume_positions_mm, scene_->problem.mesh);
       content.cut_paths_mm = last_strokes_;
     }
@@ -417,11 +636,22 @@ FrameResult NavigationSession::render_frame(const image_frame_t& msg, std::int64
       out.row.tumour_px = px[0];
     }
   }
+  if (cut_model && snap) {
+    // Cut statistics of the model state drawn, events and cutting steps since the last frame.
+    out.row.cut_faces = snap->cut_faces;
+    out.row.cut_area_mm2 = snap->cut_area_mm2;
+    drain_cut(&out.row);
+  }
   out.row.blade_to_margin_mm = distance;
-  char footer[200];
+  char footer[300];
   std::snprintf(footer, sizeof footer, "seq %lld  model step %lld", static_cast<long long>(msg.sequence),
                 static_cast<long long>(snap ? snap->step : -1));
-  overlay::draw_status(image, r.banners, distance, config_.overlay.warn_mm, footer);
+  std::string footer_text = footer;
+  if (cut_model)
+    footer_text += std::string(out.row.cutting.value_or(false) ? "  CUTTING" : "  cutting off") + "  cut " +
+                   std::to_string(static_cast<int>(std::lround(out.row.cut_area_mm2))) + " mm2";
+  if (live_ && live_->done()) footer_text += "  " + registration_status;
+  overlay::draw_status(image, r.banners, distance, config_.overlay.warn_mm, footer_text);
   const double render_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   out.row.render_done_mono_us = options_.threaded ? monotonic_us() : now_us + static_cast<std::int64_t>(render_ms * 1000.0);
   out.row.motion_to_photon_ms = static_cast<double>(out.row.render_done_mono_us - msg.capture_time_mono_us) * 1e-3;
@@ -484,6 +714,7 @@ std::string NavigationSession::status_table(std::int64_t now_us) {
 }
 
 nlohmann::json NavigationSession::summary_json(double run_s) {
+  if (!config_.camera) drain_cut(nullptr);  // no rendering thread: the caller's thread takes the model's reports
   std::lock_guard lock(mutex_);
   nlohmann::json j;
   j["frames_received"] = frames_received_;
@@ -506,6 +737,49 @@ nlohmann::json NavigationSession::summary_json(double run_s) {
                   {"step_ms_p50", percentile(steps, 0.5)},
                   {"step_ms_p99", percentile(steps, 0.99)}};
   }
+  if (model_ && model_->cutting()) {
+    std::map<std::string, int> by_kind;
+    nlohmann::json events = nlohmann::json::array();
+    for (const auto& e : cut_events_) {
+      ++by_kind[e.event.kind];
+      events.push_back({{"kind", e.event.kind}, {"structure", e.event.structure}, {"model_step", e.step},
+                        {"distance_mm", e.event.distance_mm},
+                        {"location_Model_mm", {e.event.location_World_mm.x(), e.event.location_World_mm.y(), e.event.location_World_mm.z()}}});
+    }
+    j["cutting"] = {{"mode", config_.cutting.mode},
+                    {"frames_cutting", cutting_frames_},
+                    {"cut_steps", cut_steps_seen_},
+                    {"steps_with_new_cut_vertices", cut_path_error_mm_.size()},
+                    {"cut_faces", last_cut_faces_},
+                    {"cut_area_mm2", last_cut_area_mm2_},
+                    {"path_error_mm", {{"p50", percentile(cut_path_error_mm_, 0.5)}, {"p95", percentile(cut_path_error_mm_, 0.95)},
+                                       {"max", cut_path_error_mm_.empty() ? 0.0 : *std::max_element(cut_path_error_mm_.begin(), cut_path_error_mm_.end())}}},
+                    {"events_by_kind", by_kind},
+                    {"events", events},
+                    {"disarmed_by_stale_input", {{"episodes", disarm_episodes_}, {"frames", disarmed_frames_}}}};
+  }
+  if (!inputs_.levels().empty() || config_.inputs.cut_enable || config_.inputs.accept || live_) {
+    nlohmann::json in = nlohmann::json::object();
+    for (const auto& [name, l] : inputs_.levels())
+      in[name] = {{"presses", l.presses}, {"resyncs", l.resyncs}, {"pressed_at_exit", l.pressed}};
+    j["inputs"] = {{"messages", inputs_.messages()}, {"accept_presses", accept_presses_}, {"by_input", in}};
+  }
+  if (live_) {
+    nlohmann::json reg = {{"method", "live landmarks"}, {"landmarks_taken", live_->taken()}, {"landmarks", live_->total()},
+                          {"refused", live_->refused()}, {"done", live_->done()}};
+    if (live_->done()) {
+      reg["fre_mm"] = live_->fre_mm();
+      reg["predicted_tre_mm"] = live_->predicted_tre_mm();
+      const Eigen::Isometry3d X = live_->X_RefModel();
+      std::vector<double> m;
+      for (int r = 0; r < 4; ++r)
+        for (int c = 0; c < 4; ++c) m.push_back(X.matrix()(r, c));
+      reg["X_RefModel"] = m;
+    }
+    j["registration"] = reg;
+  } else if (config_.X_RefModel) {
+    j["registration"] = {{"method", "file"}, {"file", config_.registration_path}};
+  }
   for (const auto& [f, n] : flag_frames_) {
     nlohmann::json spans = nlohmann::json::array();
     for (const auto& [a, b] : flag_spans_[f]) spans.push_back({{"onset_capture_us", a}, {"recovered_capture_us", b}});
@@ -517,10 +791,14 @@ nlohmann::json NavigationSession::summary_json(double run_s) {
 std::string NavigationSession::format_summary(double run_s) {
   const nlohmann::json j = summary_json(run_s);
   std::ostringstream os;
-  os << "navigation: " << j["frames_displayed"] << " frames displayed of " << j["frames_received"] << " received, "
+  if (config_.camera)
+    os << "navigation: " << j["frames_displayed"] << " frames displayed of " << j["frames_received"] << " received, "
      << j["frames_dropped"] << " dropped, " << j["decode_failures"] << " undecodable; " << j["camera_gaps"]["count"]
      << " camera gap(s) over " << config_.camera->stale_after_ms << " ms (longest " << j["camera_gaps"]["max_ms"] << " ms)\n";
+  else
+    os << "navigation: no camera (model only)\n";
   char line[256];
+  if (config_.camera) {
   std::snprintf(line, sizeof line,
                 "  motion-to-photon (capture -> overlay ready): p50 %.1f ms, p99 %.1f ms, max %.1f ms; frame arrival -> ready p50 %.1f ms, "
                 "p99 %.1f ms\n",
@@ -528,11 +806,34 @@ std::string NavigationSession::format_summary(double run_s) {
                 j["motion_to_photon_ms"]["max"].get<double>(), j["host_latency_ms"]["p50"].get<double>(),
                 j["host_latency_ms"]["p99"].get<double>());
   os << line;
+  }
   if (j.contains("model")) {
     std::snprintf(line, sizeof line, "  model: %lld steps, %.1f Hz, step p50 %.2f ms, p99 %.2f ms\n",
                   static_cast<long long>(j["model"]["steps"].get<std::int64_t>()), j["model"]["rate_hz"].get<double>(),
                   j["model"]["step_ms_p50"].get<double>(), j["model"]["step_ms_p99"].get<double>());
     os << line;
+  }
+  if (j.contains("registration") && j["registration"]["method"] == "live landmarks") {
+    const auto& g = j["registration"];
+    if (g["done"].get<bool>())
+      std::snprintf(line, sizeof line, "  registration (live, %d landmarks, %d refused): FRE %.2f mm, predicted TRE %.2f mm at the tumour\n",
+                    g["landmarks"].get<int>(), g["refused"].get<int>(), g["fre_mm"].get<double>(), g["predicted_tre_mm"].get<double>());
+    else
+      std::snprintf(line, sizeof line, "  registration (live): incomplete, %d/%d landmarks taken, %d refused\n", g["landmarks_taken"].get<int>(),
+                    g["landmarks"].get<int>(), g["refused"].get<int>());
+    os << line;
+  }
+  if (j.contains("cutting")) {
+    const auto& c = j["cutting"];
+    std::snprintf(line, sizeof line,
+                  "  cutting (%s): %lld frames cutting, %zu cutting steps, cut area %.0f mm2, cut-path error p50 %.3f mm, p95 %.3f mm, max %.3f mm\n",
+                  c["mode"].get<std::string>().c_str(), static_cast<long long>(c["frames_cutting"].get<std::int64_t>()),
+                  c["cut_steps"].get<std::size_t>(), c["cut_area_mm2"].get<double>(), c["path_error_mm"]["p50"].get<double>(),
+                  c["path_error_mm"]["p95"].get<double>(), c["path_error_mm"]["max"].get<double>());
+    os << line;
+    os << "  cut events: " << c["events"].size();
+    for (const auto& [k, n] : c["events_by_kind"].items()) os << ", " << k << " " << n;
+    os << "; disarmed by stale input: " << c["disarmed_by_stale_input"]["episodes"] << " episode(s)\n";
   }
   if (j.contains("flags"))
     for (const auto& [f, v] : j["flags"].items())

@@ -32,7 +32,10 @@
 #include <nlohmann/json.hpp>
 
 #include "arnav/image_frame_t.hpp"
+#include "arnav/input_event_t.hpp"
 #include "host/app/cut_trace.hpp"
+#include "host/app/input_state.hpp"
+#include "host/app/live_registration.hpp"
 #include "host/app/model_runner.hpp"
 #include "host/app/recorder.hpp"
 #include "host/app/session_config.hpp"
@@ -50,6 +53,7 @@ struct SessionOptions {
   bool threaded = true;           // live: model and rendering threads; replay: false
   std::string record_dir;         // --record; empty: no recording
   bool keep_last_frame = false;   // tests: keep the last displayed image
+  bool print_events = false;      // print cut events, landmark takes and input disarms on stdout
 };
 
 struct FrameResult {
@@ -69,6 +73,9 @@ class NavigationSession {
   void on_pose(const tool_pose_t& msg, std::int64_t now_us);
   void on_health(const device_health_t& msg, std::int64_t now_us);
   void on_event(const appliance_event_t& msg);
+  // ARNAV_INPUT changes and ARNAV_INPUT_STATE snapshots (input_event_t): cut_enable level,
+  // accept presses (a live registration takes a landmark at once).
+  void on_input(const input_event_t& msg, std::int64_t now_us);
   // Live: hands the frame to the rendering thread; a frame still waiting is replaced and
   // counted as dropped.
   void submit_frame(const image_frame_t& msg, std::int64_t now_us);
@@ -94,6 +101,15 @@ class NavigationSession {
   std::string failure();
   // The blade tip's path through the tissue so far (Model, at the last drawn model state).
   std::vector<std::vector<Eigen::Vector3d>> cut_strokes() const { return last_strokes_; }
+  // Cutting sessions: the cut faces drawn last (Model, mm; empty before the first cut).
+  std::optional<TriMesh> cut_surface() const;
+  // ... and its rim on the organ surface (segments, Model, mm).
+  std::vector<std::array<Eigen::Vector3d, 2>> cut_rim() const { return last_cut_rim_; }
+  // The registration in use (file or live, once complete).
+  std::optional<Eigen::Isometry3d> X_RefModel();
+  const LiveRegistration* live_registration() const { return live_.get(); }
+  // Messages printed with print_events (and kept for tests).
+  std::vector<std::string> messages();
 
  private:
   struct PoseSample {
@@ -109,6 +125,16 @@ class NavigationSession {
   // The renderer for frames of width x height (intrinsics scaled when they differ).
   overlay::OverlayCamera ensure_renderer(int width, int height);
   void note_flags(const FrameRow& row);
+  void say(const std::string& text);  // with mutex_ held
+  // Cutting armed now (mode always, or cut_enable held with a fresh state); sets *banner
+  // when the input is stale; counts disarms. With mutex_ held.
+  bool cutting_armed(std::int64_t now_us, std::string* banner);
+  // Takes the model's cutting steps and events since the last call (rendering thread, or
+  // the caller's without a camera); fills row's cut columns when given.
+  void drain_cut(FrameRow* row);
+  // No camera: every scalpel pose hands the blade to the model (with mutex_ held).
+  void blade_without_camera(const tool_pose_t& msg, std::int64_t now_us);
+  std::vector<TipSample> pointer_tips_Ref(std::int64_t now_us);  // with mutex_ held
 
   SessionConfig config_;
   SessionOptions options_;
@@ -122,6 +148,11 @@ class NavigationSession {
   std::mutex mutex_;                   // poses, tracker, stats
   ToolFreshnessTracker tracker_;
   std::map<std::string, PoseHistory> poses_;
+  InputTracker inputs_;
+  std::optional<Eigen::Isometry3d> X_RefModel_;
+  std::unique_ptr<LiveRegistration> live_;
+  std::vector<std::string> messages_;
+  std::int64_t accept_presses_ = 0;
 
   // Rendering thread mailbox.
   std::mutex frame_mutex_;
@@ -142,6 +173,15 @@ class NavigationSession {
   std::int64_t last_capture_us_ = -1;                   // rendering thread only
   std::vector<double> camera_gaps_ms_;
   CutTrace cut_trace_;                                  // rendering thread only
+  std::size_t events_seen_ = 0, cut_steps_seen_ = 0;    // rendering thread only
+  std::vector<ModelCutEvent> cut_events_;
+  std::vector<double> cut_path_error_mm_;               // per cutting step
+  std::int64_t cutting_frames_ = 0, disarmed_frames_ = 0, disarm_episodes_ = 0;
+  bool disarmed_ = false;
+  std::optional<TriMesh> last_cut_surface_;
+  std::vector<std::array<Eigen::Vector3d, 2>> last_cut_rim_;
+  double last_cut_area_mm2_ = 0.0;
+  int last_cut_faces_ = 0;
   std::vector<std::vector<Eigen::Vector3d>> last_strokes_;
 };
 

@@ -12,7 +12,7 @@ namespace arnav::host {
 
 std::string csv_header() {
   return "camera_sequence,capture_time_mono_us,pose_time_mono_us,model_step_time_mono_us,render_done_mono_us,"
-         "motion_to_photon_ms,tumour_u_px,tumour_v_px,blade_to_margin_mm,flags";
+         "motion_to_photon_ms,tumour_u_px,tumour_v_px,blade_to_margin_mm,flags,cutting,cut_faces,cut_area_mm2,cut_path_error_mm,cut_events";
 }
 
 std::string csv_line(const FrameRow& r) {
@@ -23,7 +23,14 @@ std::string csv_line(const FrameRow& r) {
   else os << ',';
   os << ',';
   if (r.blade_to_margin_mm) os << *r.blade_to_margin_mm;
-  os << ',' << r.flags;
+  os << ',' << r.flags << ',';
+  if (r.cutting) {
+    os << (*r.cutting ? 1 : 0) << ',' << r.cut_faces << ',' << std::setprecision(2) << r.cut_area_mm2 << ',';
+    if (r.cut_path_error_mm) os << std::setprecision(4) << *r.cut_path_error_mm;
+    os << ',' << r.cut_events;
+  } else {
+    os << ",,,,";
+  }
   return os.str();
 }
 

@@ -9,8 +9,14 @@
 //   (capture -> overlay ready), tumour_u_px, tumour_v_px (projected tumour centroid, empty
 //   when not drawn), blade_to_margin_mm (empty without a fresh scalpel), flags
 //   ('|'-separated: reference_lost, reference_stale, scalpel_lost, scalpel_stale,
-//   camera_pose_lost, camera_pose_stale, camera_gap, model_unhealthy, pose_not_matched;
-//   empty when all is well).
+//   camera_pose_lost, camera_pose_stale, camera_gap, model_unhealthy, pose_not_matched,
+//   input_stale, unregistered; empty when all is well),
+//   then the cut columns (cutting sessions; empty otherwise): cutting (1 while the blade
+//   cuts: cut_enable held or mode always, 0 otherwise), cut_faces (cut faces on the organ's
+//   boundary, both sides), cut_area_mm2, cut_path_error_mm (largest distance of the points
+//   the cut steps since the previous frame put on the cut from their swept blade surface;
+//   empty when no step cut), cut_events (';'-separated kind:structure raised since the
+//   previous frame: margin_entered, tumour_cut, vessel_crossed).
 #include <opencv2/core.hpp>
 #include <opencv2/videoio.hpp>
 
@@ -39,6 +45,11 @@ struct FrameRow {
   std::optional<cv::Point2d> tumour_px;
   std::optional<double> blade_to_margin_mm;
   std::string flags;
+  std::optional<bool> cutting;            // cutting sessions only
+  int cut_faces = 0;
+  double cut_area_mm2 = 0.0;
+  std::optional<double> cut_path_error_mm;
+  std::string cut_events;
 };
 
 std::string csv_header();

@@ -1,5 +1,6 @@
 #include "host/app/session_config.hpp"
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -7,6 +8,8 @@
 #include "appliance/yaml/yaml_reader.hpp"
 #include "calibration/lib/calib_error.hpp"
 #include "calibration/lib/rigid_transform_file.hpp"
+#include "host/register/point_files.hpp"
+#include "host/scene/load_error.hpp"
 
 namespace arnav::host {
 namespace {
@@ -38,13 +41,55 @@ Eigen::Vector3d vec3(const Reader& r, const YAML::Node& n, const std::string& ke
   return {v[0], v[1], v[2]};
 }
 
+// inputs.<action>: an input name, or {input: NAME, state_stale_after_ms: MS}.
+InputBinding parse_binding(const Reader& r, const YAML::Node& n, const std::string& key) {
+  InputBinding b;
+  b.line = line_of(n);
+  if (n.IsScalar()) {
+    b.input = r.get<std::string>(n, key, "an input name (input_event_t.input_name, e.g. pedal_right)");
+  } else {
+    r.only(n, key, {"input", "state_stale_after_ms"});
+    if (!n["input"]) r.fail(n, key + ".input", "missing: the input's name as the appliance publishes it (can.inputs[].name)");
+    b.input = r.text(n, key, "input", "");
+    b.state_stale_after_ms = r.number(n, key, "state_stale_after_ms", b.state_stale_after_ms, 10.0, 60000.0);
+  }
+  if (b.input.empty()) r.fail(n, key, "must name an input (e.g. pedal_right)");
+  return b;
+}
+
+LiveRegistrationSettings parse_live(const Reader& r, const YAML::Node& n, const std::string& base_dir) {
+  const std::string key = "registration.live";
+  r.only(n, key, {"landmarks", "pointer", "accept", "tip_mm", "window_ms", "max_motion_mm", "stale_after_ms", "fle_mm"});
+  LiveRegistrationSettings l;
+  l.line = line_of(n);
+  if (!n["landmarks"]) r.fail(n, key + ".landmarks", "missing: a CSV of model-frame landmarks (name,x_mm,y_mm,z_mm; at least 3)");
+  l.landmarks_path = resolve(base_dir, r.text(n, key, "landmarks", ""));
+  try {
+    for (const auto& p : read_targets(l.landmarks_path)) l.landmarks_Model_mm.emplace_back(p.name, p.p_mm);
+  } catch (const LoadError& e) {
+    r.fail(n["landmarks"], key + ".landmarks", e.what());
+  }
+  if (l.landmarks_Model_mm.size() < 3)
+    r.fail(n["landmarks"], key + ".landmarks", l.landmarks_path + " has " + std::to_string(l.landmarks_Model_mm.size()) +
+                                                   " landmark(s): paired-point registration needs at least 3 (not collinear)");
+  if (!n["pointer"]) r.fail(n, key + ".pointer", "missing: the pointer's tool name (its poses arrive on ARNAV_POSE_<name>)");
+  l.pointer = r.text(n, key, "pointer", "");
+  if (n["tip_mm"]) l.tip_Tool_mm = vec3(r, n["tip_mm"], key + ".tip_mm");
+  l.accept_input = r.text(n, key, "accept", "");
+  l.window_ms = r.number(n, key, "window_ms", l.window_ms, 0.0, 5000.0);
+  l.max_motion_mm = r.number(n, key, "max_motion_mm", l.max_motion_mm, 0.01, 100.0);
+  l.stale_after_ms = r.number(n, key, "stale_after_ms", l.stale_after_ms, 1.0, 60000.0);
+  l.fle_mm = r.number(n, key, "fle_mm", l.fle_mm, 0.0, 100.0);
+  return l;
+}
+
 }  // namespace
 
 SessionConfig parse_session(const std::string& text, const std::string& source, const std::string& base_dir) {
   const Reader r(source);
   const YAML::Node root = r.load_root(text);
   r.only(root, "", {"arnav_session_version", "lcm_url", "stale_after_ms", "print_period_s", "scene", "registration", "tools",
-                    "camera", "model", "overlay", "record"});
+                    "camera", "model", "overlay", "record", "inputs", "cutting"});
   SessionConfig c;
   c.source = source;
   if (!root["arnav_session_version"]) r.fail(root, "arnav_session_version", "missing: add 'arnav_session_version: 1' at the top");
@@ -79,13 +124,47 @@ SessionConfig parse_session(const std::string& text, const std::string& source, 
     if (!std::filesystem::exists(*c.scene_path)) r.fail(scene, "scene", "file " + *c.scene_path + " not found");
   }
   if (const YAML::Node reg = root["registration"]) {
-    c.registration_path = resolve(base_dir, r.text(root, "", "registration", ""));
-    try {
-      const auto record = calib::read_transform(c.registration_path, "X_RefModel");
-      c.X_RefModel = record.X_ParentChild;
-    } catch (const calib::CalibError& e) {
-      r.fail(reg, "registration", std::string(e.what()) + " (a rigid transform file named X_RefModel: parent_frame Ref, child_frame Model)");
+    if (reg.IsMap()) {
+      r.only(reg, "registration", {"live"});
+      if (!reg["live"]) r.fail(reg, "registration", "give a file (registration: X_RefModel.yaml) or live: {landmarks: FILE, pointer: TOOL, accept: INPUT}");
+      c.live_registration = parse_live(r, reg["live"], base_dir);
+    } else {
+      c.registration_path = resolve(base_dir, r.text(root, "", "registration", ""));
+      try {
+        const auto record = calib::read_transform(c.registration_path, "X_RefModel");
+        c.X_RefModel = record.X_ParentChild;
+      } catch (const calib::CalibError& e) {
+        r.fail(reg, "registration", std::string(e.what()) + " (a rigid transform file named X_RefModel: parent_frame Ref, child_frame Model)");
+      }
     }
+  }
+
+  if (const YAML::Node in = root["inputs"]) {
+    r.only(in, "inputs", {"cut_enable", "accept"});
+    if (in["cut_enable"]) c.inputs.cut_enable = parse_binding(r, in["cut_enable"], "inputs.cut_enable");
+    if (in["accept"]) c.inputs.accept = parse_binding(r, in["accept"], "inputs.accept");
+  }
+  if (const YAML::Node cut = root["cutting"]) {
+    r.only(cut, "cutting", {"mode"});
+    c.cutting.line = line_of(cut);
+    c.cutting.mode = r.text(cut, "cutting", "mode", "");
+    if (c.cutting.mode != "input" && c.cutting.mode != "always" && c.cutting.mode != "off")
+      r.fail(cut["mode"] ? cut["mode"] : cut, "cutting.mode",
+             "must be 'input' (cut while inputs.cut_enable is held), 'always' (whenever the blade is tracked) or 'off' (the blade only pushes)");
+    if (c.cutting.mode == "input" && !c.inputs.cut_enable)
+      r.fail(cut["mode"], "cutting.mode", "'input' needs inputs.cut_enable: <input name> (e.g. pedal_right)");
+  } else if (c.inputs.cut_enable) {
+    c.cutting.mode = "input";
+  }
+  if (c.live_registration) {
+    LiveRegistrationSettings& l = *c.live_registration;
+    const YAML::Node live = root["registration"]["live"];
+    if (l.accept_input.empty()) {
+      if (!c.inputs.accept)
+        r.fail(live, "registration.live.accept", "missing: the input whose press takes a landmark (accept: button_1, or inputs.accept)");
+      l.accept_input = c.inputs.accept->input;
+    }
+    if (c.pointer && c.pointer->name == l.pointer) l.stale_after_ms = std::min(l.stale_after_ms, c.pointer->stale_after_ms);
   }
 
   if (const YAML::Node cam = root["camera"]) {
@@ -156,13 +235,18 @@ SessionConfig parse_session(const std::string& text, const std::string& source, 
   // What depends on what: the overlay needs a scene, a registration and a reference.
   if (c.camera) {
     if (!c.scene_path) r.fail(root["camera"], "camera", "the overlay needs a scene: add 'scene: <file>.scene.yaml'");
-    if (!c.X_RefModel)
+    if (!c.X_RefModel && !c.live_registration)
       r.fail(root["camera"], "camera",
-             "the overlay needs a registration: add 'registration: X_RefModel.yaml' (live pointer/swab registration is not built yet)");
+             "the overlay needs a registration: add 'registration: X_RefModel.yaml' or 'registration: {live: {landmarks: FILE, pointer: TOOL, accept: INPUT}}'");
     if (!c.reference) r.fail(root["camera"], "camera", "the overlay needs tools.reference (the patient reference tool)");
   }
   if (c.scalpel && !c.reference) r.fail(root["tools"]["scalpel"], "tools.scalpel", "a scalpel needs tools.reference (its pose is taken relative to it)");
-  if (c.X_RefModel && !c.scene_path) r.fail(root["registration"], "registration", "a registration needs a scene (scene: <file>)");
+  if ((c.X_RefModel || c.live_registration) && !c.scene_path)
+    r.fail(root["registration"], "registration", "a registration needs a scene (scene: <file>)");
+  if (c.live_registration && !c.reference)
+    r.fail(root["registration"], "registration.live", "live registration needs tools.reference (the landmarks are taken in its frame)");
+  if (root["cutting"] && !c.scalpel) r.fail(root["cutting"], "cutting", "cutting needs tools.scalpel (with its blade)");
+  if (c.inputs.cut_enable && !c.scalpel) r.fail(root["inputs"]["cut_enable"], "inputs.cut_enable", "cut_enable needs tools.scalpel (with its blade)");
   return c;
 }
 

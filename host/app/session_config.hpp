@@ -65,6 +65,41 @@ struct RecordSettings {
   double contact_sheet_every_s = 1.0;
 };
 
+// Named inputs of the appliance's CAN path (ARNAV_INPUT changes, ARNAV_INPUT_STATE
+// snapshots; input_event_t) bound to session actions (docs/overlay.md, "Inputs").
+struct InputBinding {
+  std::string input;                  // input_event_t.input_name, e.g. "pedal_right"
+  double state_stale_after_ms = 1000; // no change or snapshot seen for this long: treated as released (disarmed)
+  int line = 0;
+};
+
+struct InputSettings {
+  std::optional<InputBinding> cut_enable;  // the scalpel cuts only while this input is held
+  std::optional<InputBinding> accept;      // accept a landmark / registration step (press edges)
+};
+
+// Cutting in the session (the scene declares `cutting:` and tools.scalpel is set).
+struct CuttingSettings {
+  // "input": while inputs.cut_enable is held; "always": every frame the blade is tracked;
+  // "off": the blade only pushes the tissue. Empty: not given (input when inputs.cut_enable exists).
+  std::string mode;
+  int line = 0;
+};
+
+// Live paired-point registration with the tracked pointer (docs/overlay.md).
+struct LiveRegistrationSettings {
+  std::string landmarks_path;
+  std::vector<std::pair<std::string, Eigen::Vector3d>> landmarks_Model_mm;  // in the order they are taken
+  std::string pointer;                 // tool name (its tip is the tool origin, mm)
+  Eigen::Vector3d tip_Tool_mm = Eigen::Vector3d::Zero();
+  std::string accept_input;            // input_event_t.input_name whose press takes a landmark
+  double window_ms = 200.0;            // pointer poses averaged over this window before the press
+  double max_motion_mm = 1.0;          // refused when the tip moved more than this in the window
+  double stale_after_ms = 100.0;       // refused when the newest pointer pose is older
+  double fle_mm = 0.35;                // fiducial localisation error (RMS) for the predicted TRE
+  int line = 0;
+};
+
 struct SessionConfig {
   std::string source;                        // the session file
   std::string lcm_url = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304";
@@ -74,6 +109,9 @@ struct SessionConfig {
   int scene_line = 0;
   std::optional<Eigen::Isometry3d> X_RefModel;   // registration (Model -> Ref)
   std::string registration_path;
+  std::optional<LiveRegistrationSettings> live_registration;  // registration: {live: ...}
+  InputSettings inputs;
+  CuttingSettings cutting;
   std::optional<ToolRole> reference;
   std::optional<ScalpelRole> scalpel;
   std::optional<ToolRole> pointer;

@@ -5,6 +5,11 @@
 // own thread. Latency = capture -> overlay frame ready (JPEG decode, poses, overlay render,
 // lens warp, composite, text; recording off). Prints JSON: latency p50/p99/max, frames
 // dropped by the host, model rate and step time.
+// --cut (a scene with `cutting:`): the session also has a scalpel whose blade (60 mm,
+// upright in Model) circles the first tumour at --cut-radius mm once every --cut-period s,
+// 10 mm below its centre, with the pedal (inputs.cut_enable) held: the model is the cut
+// session cutting a ring around the tumour while the overlay runs; the JSON adds the
+// session's cutting summary (cut area, cut-path error, events).
 #include <chrono>
 #include <cmath>
 #include <iostream>
@@ -17,6 +22,7 @@
 
 #include "host/app/navigation_session.hpp"
 #include "host/scene/load_error.hpp"
+#include "host/scene/scene.hpp"
 #include "protocol/clock.hpp"
 #include "protocol/pose_convert.hpp"
 #include "protocol/guarded_main.hpp"
@@ -32,6 +38,11 @@ static int main_body(int argc, char** argv) {
   app.add_option("--rate", rate, "camera frames per second")->check(CLI::Range(1.0, 240.0));
   app.add_option("--model-rate", model_rate, "model steps per second")->check(CLI::Range(1.0, 1000.0));
   app.add_option("--seconds", seconds)->check(CLI::Range(1.0, 3600.0));
+  bool cut = false;
+  double cut_radius = 25.0, cut_period = 20.0;
+  app.add_flag("--cut", cut, "scalpel cutting a ring around the first tumour, pedal held (scene with cutting:)");
+  app.add_option("--cut-radius", cut_radius, "ring radius around the tumour centre, mm")->check(CLI::Range(1.0, 200.0));
+  app.add_option("--cut-period", cut_period, "seconds per turn of the ring")->check(CLI::Range(1.0, 600.0));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -59,6 +70,19 @@ static int main_body(int argc, char** argv) {
     X_RefModel.linear() = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
     X_RefModel.translation() = -(X_RefModel.linear() * centre);
     c.X_RefModel = X_RefModel;
+    Eigen::Vector3d tumour = centre;
+    if (cut) {
+      if (!scene->cutting) throw std::runtime_error(scene_path + ": --cut needs a scene with a 'cutting:' section (docs/cut.md)");
+      if (scene->tumours.empty()) throw std::runtime_error(scene_path + ": --cut circles the first tumour: the scene has none");
+      tumour = tumour_centroid_World_mm(*scene, 0, scene->problem.mesh.rest_positions_World_mm);
+      ScalpelRole scalpel;
+      scalpel.name = "scalpel";
+      scalpel.stale_after_ms = 100.0;
+      scalpel.heel_Tool_mm = Eigen::Vector3d(0, 0, 60);
+      c.scalpel = scalpel;
+      c.inputs.cut_enable = InputBinding{"pedal", 500.0, 0};
+      c.cutting.mode = "input";
+    }
     SessionOptions o;
     o.threaded = true;
     NavigationSession session(c, std::move(scene), o);
@@ -96,6 +120,27 @@ static int main_body(int argc, char** argv) {
       p.device_frame_number = k;
       p.receive_time_mono_us = t;
       session.on_pose(p, t);
+      if (cut) {
+        // The scalpel in Ref (the NDI path): upright blade circling the tumour.
+        const double a = 2 * M_PI * s / cut_period;
+        Eigen::Isometry3d X_ModelTool = Eigen::Isometry3d::Identity();
+        X_ModelTool.translation() = tumour + Eigen::Vector3d(cut_radius * std::cos(a), cut_radius * std::sin(a), -10.0);
+        tool_pose_t sp = p;
+        sp.tool_name = "scalpel";
+        sp.source = tool_pose_t::SOURCE_NDI;
+        sp.frame_parent = "Ref";
+        sp.frame_child = "Tool";
+        set_pose(sp, X_RefModel * X_ModelTool);
+        session.on_pose(sp, t);
+        if (k % 6 == 0) {
+          input_event_t in{};
+          in.input_name = "pedal";
+          in.state = input_event_t::STATE_PRESSED;
+          in.cause = k == 0 ? input_event_t::CAUSE_FRAME : input_event_t::CAUSE_STATE;
+          in.sequence = 1;
+          session.on_input(in, t);
+        }
+      }
       image_frame_t fr{};
       fr.camera_name = "bench";
       fr.sequence = k;
@@ -119,6 +164,10 @@ static int main_body(int argc, char** argv) {
     j["rate_hz"] = rate;
     j["model_rate_hz"] = model_rate;
     j["frames_sent"] = n;
+    if (cut) {
+      j["cut"] = {{"radius_mm", cut_radius}, {"period_s", cut_period}};
+      if (j.contains("cutting")) j["cutting"].erase("events");
+    }
     std::cout << j.dump(2) << std::endl;
   } catch (const std::exception& e) {
     std::cerr << "arnav-host-latency-bench: " << e.what() << "\n";

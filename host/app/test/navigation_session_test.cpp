@@ -248,7 +248,7 @@ TEST_F(SessionRun, RecordingWritesCsvVideoAndContactSheet) {
   int rows = 0;
   while (std::getline(csv, line)) {
     ++rows;
-    EXPECT_EQ(std::count(line.begin(), line.end(), ','), 9) << line;
+    EXPECT_EQ(std::count(line.begin(), line.end(), ','), 14) << line;
     std::stringstream ss(line);
     std::string seq;
     std::getline(ss, seq, ',');

@@ -7,11 +7,13 @@
 
 #include <cstdio>
 #include <fstream>
+#include <regex>
 #include <sstream>
 
 #include <lcm/lcm-cpp.hpp>
 #include <opencv2/calib3d.hpp>
 
+#include "arnav/input_event_t.hpp"
 #include "host/app/recorder.hpp"
 #include "host/app/test/session_test_util.hpp"
 #include "host/scene/scene.hpp"
@@ -49,6 +51,13 @@ void log_event(lcm::LogFile& log, const std::string& channel, const Msg& msg, st
   ev.datalen = static_cast<std::int32_t>(buf.size());
   ev.data = buf.data();
   log.writeEvent(&ev);
+}
+
+std::string slurp_file(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
 }
 
 std::vector<std::vector<std::string>> read_csv(const std::string& path) {
@@ -96,9 +105,9 @@ TEST(Replay, DeterministicOverlayWithBannersFromAnLcmLoggerLog) {
   const auto intr = test_intrinsics();
   int stale = 0;
   for (std::size_t i = 0; i < a.size(); ++i) {
-    ASSERT_EQ(a[i].size(), 10u);
+    ASSERT_EQ(a[i].size(), 15u);
     // Identical except render_done and latency (columns 4 and 5: measured render time).
-    for (std::size_t col : {0u, 1u, 2u, 3u, 6u, 7u, 8u, 9u}) EXPECT_EQ(a[i][col], b[i][col]) << "row " << i << " column " << col;
+    for (std::size_t col : {0u, 1u, 2u, 3u, 6u, 7u, 8u, 9u, 10u, 11u, 12u, 13u, 14u}) EXPECT_EQ(a[i][col], b[i][col]) << "row " << i << " column " << col;
     const auto k = static_cast<std::int64_t>(i);
     EXPECT_EQ(std::stoll(a[i][0]), k);
     const bool has_pose = k < 20 || k >= 40;
@@ -126,6 +135,81 @@ TEST(Replay, DeterministicOverlayWithBannersFromAnLcmLoggerLog) {
   EXPECT_EQ(run(arnav_host() + " " + bad + " --replay " + log_path, &out), 2);
   EXPECT_NE(out.find("bad.yaml:2: key 'modle': unknown key"), std::string::npos) << out;
   EXPECT_EQ(run(arnav_host() + " --replay " + log_path, &out), 2) << "--replay needs a session";
+}
+
+// Cutting with the pedal from the log (ARNAV_INPUT changes, ARNAV_INPUT_STATE snapshots):
+// two replays cut the same organ (identical cut columns, events).
+TEST(Replay, DeterministicWithCuttingAndThePedal) {
+  SessionFolder f("replay_cut");
+  const std::string session = f.write("cut.yaml", "arnav_session_version: 1\nlcm_url: \"memq://\"\nscene: " + data_dir() +
+                                                      "/liver/liver_coarse_cut.scene.yaml\nregistration: X_RefModel.yaml\n"
+                                                      "tools:\n  reference: {name: liver_marker, stale_after_ms: 100}\n"
+                                                      "  scalpel: {name: scalpel, stale_after_ms: 100, blade: {tip_mm: [0, 0, 0], heel_mm: [0, 0, 60]}}\n"
+                                                      "inputs: {cut_enable: pedal_right}\n"
+                                                      "camera:\n  name: cam0\n  intrinsics: camera.yaml\n  pose_from: reference\n"
+                                                      "model: {rate_hz: 60, gravity: false}\n");
+  const std::string log_path = (f.dir / "cut.lcmlog").string();
+  constexpr std::int64_t kWall = 1'700'000'000'000'000;
+  {
+    lcm::LogFile log(log_path, "w");
+    ASSERT_TRUE(log.good());
+    std::int64_t seq = 0;
+    for (std::int64_t k = 0; k < 50; ++k) {
+      const std::int64_t t = 1'000'000 + k * 16'667;
+      log_event(log, channels::pose("liver_marker"), pose_msg("liver_marker", "Cam", test_X_CamRef(k), k, t), t + 500 + kWall);
+      Eigen::Isometry3d X_ModelTool = Eigen::Isometry3d::Identity();
+      X_ModelTool.linear() = Eigen::AngleAxisd(M_PI / 4, Eigen::Vector3d(1, 0.5, 0).normalized()).toRotationMatrix();
+      X_ModelTool.translation() = kTumourCentre_Model + Eigen::Vector3d(-20.0 + 0.9 * k, -10 + 0.45 * k, 18);
+      log_event(log, channels::pose("scalpel"), pose_msg("scalpel", "Ref", test_X_RefModel() * X_ModelTool, k, t, true, tool_pose_t::SOURCE_NDI),
+                t + 700 + kWall);
+      if (k == 3 || k == 45) {  // pedal down, up
+        input_event_t m{};
+        m.input_name = "pedal_right";
+        m.state = k == 3 ? input_event_t::STATE_PRESSED : input_event_t::STATE_RELEASED;
+        m.cause = input_event_t::CAUSE_FRAME;
+        m.publish_time_mono_us = t + 800;
+        m.publish_time_wall_us = t + 800 + kWall;
+        m.sequence = ++seq;
+        log_event(log, std::string(channels::kInput), m, t + 800 + kWall);
+      }
+      if (k % 10 == 0) {
+        input_event_t m{};
+        m.input_name = "pedal_right";
+        m.state = k >= 3 && k < 45 ? input_event_t::STATE_PRESSED : input_event_t::STATE_RELEASED;
+        m.cause = input_event_t::CAUSE_STATE;
+        m.publish_time_mono_us = t + 900;
+        m.publish_time_wall_us = t + 900 + kWall;
+        m.sequence = seq;
+        log_event(log, std::string(channels::kInputState), m, t + 900 + kWall);
+      }
+      log_event(log, channels::frame("cam0"), frame_msg(k, t), t + 4000 + kWall);
+    }
+  }
+  std::string out;
+  for (const char* dir : {"a", "b"})
+    ASSERT_EQ(run(arnav_host() + " " + session + " --replay " + log_path + " --replay-speed 0 --quiet --summary --record " + (f.dir / dir).string(), &out), 0)
+        << out;
+  EXPECT_NE(out.find("cutting (input): 4"), std::string::npos) << out;
+  const auto a = read_csv((f.dir / "a" / "overlay.csv").string()), b = read_csv((f.dir / "b" / "overlay.csv").string());
+  ASSERT_EQ(a.size(), 50u);
+  ASSERT_EQ(b.size(), 50u);
+  int cutting = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    ASSERT_EQ(a[i].size(), 15u);
+    for (std::size_t col : {0u, 1u, 2u, 3u, 6u, 7u, 8u, 9u, 10u, 11u, 12u, 13u, 14u}) EXPECT_EQ(a[i][col], b[i][col]) << "row " << i << " column " << col;
+    cutting += a[i][10] == "1";
+  }
+  EXPECT_GE(cutting, 40);
+  EXPECT_GT(std::stoi(a.back()[11]), 0) << "cut faces at the end";
+  // Bad inputs/cutting declarations: exit 2 naming file:line and the fix.
+  std::string text = slurp_file(session);
+  const std::string bad_key = f.write("bad_inputs.yaml", std::regex_replace(text, std::regex("cut_enable: pedal_right"), "cut_enabel: pedal_right"));
+  EXPECT_EQ(run(arnav_host() + " " + bad_key + " --replay " + log_path, &out), 2);
+  EXPECT_NE(out.find("bad_inputs.yaml:8: key 'inputs.cut_enabel': unknown key (known keys: accept, cut_enable)"), std::string::npos) << out;
+  const std::string no_mode = f.write("no_mode.yaml", std::regex_replace(text, std::regex("inputs: \\{cut_enable: pedal_right\\}\n"), ""));
+  EXPECT_EQ(run(arnav_host() + " " + no_mode + " --replay " + log_path, &out), 2);
+  EXPECT_NE(out.find("no_mode.yaml:3: key 'scene': "), std::string::npos) << out;
+  EXPECT_NE(out.find("say when the scalpel cuts"), std::string::npos) << out;
 }
 
 }  // namespace
