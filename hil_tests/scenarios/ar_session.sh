@@ -68,7 +68,7 @@ for _ in $(seq 1 600); do
   sleep 0.1
 done
 grep "session ready" "$out/host.log" || { echo "arnav-host not ready after 60 s" >&2; exit 1; }
-echo "arnav-appliance: synthetic camera, 500 frames at 15 Hz (static board, camera unplugged 1 s at 18 s); simulated Polaris: pointer on 4 landmarks, scalpel ring; CAN pedal (arnav-can-sim)"
+echo "arnav-appliance: synthetic camera, 560 frames at 15 Hz (static board, camera unplugged 1 s at 18 s); simulated Polaris: pointer on 4 landmarks, scalpel ring; CAN pedal (arnav-can-sim)"
 # The pedal: arnav-can-sim serves the bus the appliance opens through the can_shim; its
 # steps (can_steps.yaml) run on its own clock, started just before the appliance.
 exec 3< <(exec "$can_sim" --config "$out/appliance.yaml" --socketcan "$out/can" --interface vcan0 \

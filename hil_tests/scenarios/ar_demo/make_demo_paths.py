@@ -6,9 +6,10 @@
 * DIR/landmarks.csv: four landmarks on the organ surface facing the camera, around the
   first tumour (name,x_mm,y_mm,z_mm in Model: the host's live registration targets);
 * DIR/pointer_path.csv: the pointer comes in, dwells on each landmark (small jitter), leaves;
-* DIR/scalpel_path.csv: the scalpel waits outside, plunges beside the tumour and traces a
-  ring of radius (largest tumour radius + margin + clearance) at --speed mm/s, the blade
-  tip --depth-mm past the tumour's far side, then lifts out;
+* DIR/scalpel_path.csv: the scalpel waits outside, comes down to 5 mm off the surface
+  beside the tumour, is drawn in over a quarter ring to the ring's depth (the blade tip
+  --depth-mm past the tumour's far side) and traces the ring of radius (largest tumour
+  radius + margin + clearance) at --speed mm/s, then lifts out;
 * DIR/can_steps.yaml: arnav-can-sim steps: accept pressed in the middle of each dwell, the
   cut pedal held from before the plunge until after the lift (times shifted by --can-lead-s).
 Rows: t_s,x_mm,y_mm,z_mm,qw,qx,qy,qz (tip in Model; the tool's +z points toward the camera,
@@ -180,25 +181,37 @@ def main():
     ring_r = max(radii) + a.margin_mm + a.clearance_mm
     far = math.sqrt(sum((radii[i] * toward[i]) ** 2 for i in range(3)))
     tip_centre = add(centre, toward, -(far + a.depth_mm))
-    first = add(tip_centre, u, ring_r)
-    outside = add(first, toward, 60.0)
+    def on_ring(ang, lift_mm=0.0):
+        return add(add(add(tip_centre, u, ring_r * math.cos(ang)), v, ring_r * math.sin(ang)), toward, lift_mm)
+
+    # Entry: the blade is drawn in over the quarter ring before the start, from 5 mm off the
+    # surface down to the ring's depth (an axial plunge sweeps no surface to cut along).
+    entry_ang = -math.pi / 2
+    top = surface_toward_camera(on_ring(entry_ang), 4.0)
+    above_mm = (dot([top[i] - tip_centre[i] for i in range(3)], toward) + 5.0) if top else 60.0
+    entry = on_ring(entry_ang, above_mm)
+    outside = add(entry, toward, 60.0)
     rows = ["t_s,x_mm,y_mm,z_mm,qw,qx,qy,qz\n"]
     t = t_registered + a.gap_s
     rows.append(row(0.0, outside))
     rows.append(row(t, outside))
-    plunge_mm = 60.0
-    t_plunge = t
-    t += plunge_mm / a.speed
-    rows.append(row(t, first))
+    t += 60.0 / a.speed
+    rows.append(row(t, entry))
+    t_plunge = t - 0.5
+    n_entry = 16
+    entry_len = math.hypot(ring_r * math.pi / 2, above_mm)
+    for k in range(1, n_entry + 1):
+        f = k / n_entry
+        t += entry_len / a.speed / n_entry
+        rows.append(row(t, on_ring(entry_ang * (1.0 - f), above_mm * (1.0 - f))))
     n = max(24, int(2 * math.pi * ring_r / 2.0))
     dt = 2 * math.pi * ring_r / a.speed / n
     for k in range(1, n + 1):
-        ang = 2 * math.pi * k / n
         t += dt
-        rows.append(row(t, add(add(tip_centre, u, ring_r * math.cos(ang)), v, ring_r * math.sin(ang))))
+        rows.append(row(t, on_ring(2 * math.pi * k / n)))
     t_ring_done = t
-    t += plunge_mm / a.speed
-    rows.append(row(t, outside))
+    t += (above_mm + 60.0) / a.speed
+    rows.append(row(t, add(on_ring(0.0), toward, above_mm + 60.0)))
     with open(os.path.join(a.out, "scalpel_path.csv"), "w") as f:
         f.writelines(rows)
     with open(os.path.join(a.out, "can_steps.yaml"), "w") as f:
@@ -208,7 +221,7 @@ def main():
             f.write('  - {at_s: %.2f, do: "press pedal_accept"}\n' % (p + a.can_lead_s))
             f.write('  - {at_s: %.2f, do: "release pedal_accept"}\n' % (p + a.can_lead_s + 0.15))
         f.write('  - {at_s: %.2f, do: "press pedal_cut"}\n' % (t_plunge + a.can_lead_s))
-        f.write('  - {at_s: %.2f, do: "release pedal_cut"}\n' % (t_ring_done + a.can_lead_s + 0.5))
+        f.write('  - {at_s: %.2f, do: "release pedal_cut"}\n' % (t_ring_done + a.can_lead_s + 0.2))
     print("landmarks %d, ring radius %.1f mm, registration until %.1f s, ring %.1f-%.1f s, out %.1f s"
           % (len(landmarks), ring_r, t_registered, t_plunge, t_ring_done, t))
 

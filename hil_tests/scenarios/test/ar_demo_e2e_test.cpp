@@ -75,7 +75,7 @@ TEST(ArDemoSession, LiveRegistrationRingCutFaultAndRecording) {
   EXPECT_GT(c["cut_faces"].get<int>(), 20) << c.dump();
   EXPECT_GT(c["cut_area_mm2"].get<double>(), 200.0) << c.dump();
   EXPECT_LT(c["path_error_mm"]["p50"].get<double>(), 3.0) << c.dump();
-  EXPECT_LT(c["path_error_mm"]["p95"].get<double>(), 30.0) << c.dump();
+  EXPECT_LT(c["path_error_mm"]["p95"].get<double>(), 25.0) << c.dump();
 
   // AR error against the ground truth (the bench's true registration), targets of issue 12.
   std::ifstream ar_in(out / "ar_error.json");
@@ -100,8 +100,8 @@ TEST(ArDemoSession, LiveRegistrationRingCutFaultAndRecording) {
     ADD_FAILURE() << "overlay.csv: no column " << name;
     return 0;
   };
-  const int i_cutting = col("cutting"), i_faces = col("cut_faces"), i_flags = col("flags");
-  int rows = 0, gap_rows = 0, unregistered = 0, last_faces = 0;
+  const int i_cutting = col("cutting"), i_faces = col("cut_faces"), i_flags = col("flags"), i_margin = col("blade_to_margin_mm");
+  int rows = 0, gap_rows = 0, unregistered = 0, last_faces = 0, growth_rows = 0;
   bool cut_seen = false;
   while (std::getline(csv, line)) {
     const auto cells = split(line);
@@ -113,12 +113,22 @@ TEST(ArDemoSession, LiveRegistrationRingCutFaultAndRecording) {
       EXPECT_TRUE(cut_seen) << "cut faces before any cutting frame: " << line;
     }
     EXPECT_GE(faces, last_faces) << line;
+    // Where the cut grew, the blade was on the ring: the ring's radius is the tumour's
+    // largest radius + 5 mm margin + 3 mm clearance, so the blade-to-margin distance is
+    // about 3 mm where the ellipsoid is widest and more elsewhere (radii 13, 11, 10).
+    if (faces > last_faces && !cells[static_cast<std::size_t>(i_margin)].empty()) {
+      ++growth_rows;
+      const double d = std::stod(cells[static_cast<std::size_t>(i_margin)]);
+      EXPECT_GT(d, 1.0) << line;
+      EXPECT_LT(d, 9.0) << line;
+    }
     last_faces = faces;
     gap_rows += cells[static_cast<std::size_t>(i_flags)].find("camera_gap") != std::string::npos;
     unregistered += cells[static_cast<std::size_t>(i_flags)].find("unregistered") != std::string::npos;
   }
   EXPECT_EQ(rows, ar["csv_rows"].get<int>());
   EXPECT_GT(last_faces, 20);
+  EXPECT_GE(growth_rows, 3) << "the cut should grow over several frames along the ring";
   EXPECT_GT(unregistered, 0) << "frames before the registration carry 'unregistered'";
   EXPECT_GT(gap_rows, 0);
 
