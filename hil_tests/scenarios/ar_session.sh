@@ -144,6 +144,21 @@ if c:
 else:
     print("  cut-path error: n/a (the demo scene declares no cutting: the overlay shows the blade tip's trace; a scene with cutting: and inputs.cut_enable cuts, docs/overlay.md)")
 PY
+python3 - "$out/host.json" "$out/appliance.log" <<'PY' || true
+import json, sys
+nav = json.load(open(sys.argv[1])).get("navigation", {})
+app = open(sys.argv[2]).read()
+lost, back = app.count("CAMERA_LOST"), app.count("CAMERA_RECOVERED")
+g = nav.get("camera_gaps", {})
+print("  injected fault: camera unplugged 1 s: appliance CAMERA_LOST %d, CAMERA_RECOVERED %d; host: %d camera gap(s) over its limit, longest %.0f ms"
+      % (lost, back, g.get("count", 0), g.get("max_ms", 0.0)))
+i = nav.get("inputs", {}).get("by_input", {})
+print("  pedal (CAN): accept pressed %d, cut pedal pressed %d" % (i.get("pedal_accept", {}).get("presses", 0), i.get("pedal_cut", {}).get("presses", 0)))
+m, lat = nav.get("model", {}), nav.get("motion_to_photon_ms", {})
+if lat:
+    print("  latency (capture -> overlay ready): p50 %.1f ms, p99 %.1f ms; frames dropped by the host %d; model %.1f Hz (step p50 %.2f ms, p99 %.2f ms)"
+          % (lat.get("p50", 0), lat.get("p99", 0), nav.get("frames_dropped", 0), m.get("rate_hz", 0), m.get("step_ms_p50", 0), m.get("step_ms_p99", 0)))
+PY
 echo "== files =="
 echo "  video:         $out/recording/overlay.avi"
 echo "  contact sheet: $out/recording/contact_sheet.png"
