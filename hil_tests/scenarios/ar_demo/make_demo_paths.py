@@ -37,6 +37,12 @@ def read_scene(path):
     try:
         with open(path) as f:
             scene = yaml.safe_load(f)
+    except yaml.YAMLError as e:
+        m = getattr(e, "problem_mark", None)
+        fail(f"{path}:{m.line + 1 if m else '?'}: not valid YAML ({getattr(e, 'problem', e)})")
+    except OSError as e:
+        fail(f"{path}: cannot read the scene ({e})")
+    try:
         t = scene["structures"]["tumours"][0]["ellipsoid"]
         centre = [float(v) for v in t["center_mm"]]
         radii = [float(v) for v in t["radii_mm"]]
@@ -116,11 +122,12 @@ def main():
     ap.add_argument("--can-lead-s", type=float, default=0.0, help="arnav-can-sim's clock minus the Polaris device clock")
     a = ap.parse_args()
     try:
-        toward = unit([float(x) for x in a.toward_camera.split(",")])
+        toward = [float(x) for x in a.toward_camera.split(",")]
+        if len(toward) != 3:
+            raise ValueError(a.toward_camera)
+        toward = unit(toward)
     except (ValueError, ZeroDivisionError):
-        fail("--toward-camera: expected three numbers X,Y,Z, not all zero")
-    if len(toward) != 3:
-        fail("--toward-camera: expected three numbers X,Y,Z")
+        fail("--toward-camera: expected three numbers X,Y,Z, not all zero, got '%s'" % a.toward_camera)
     centre, radii, surface = read_scene(a.scene)
     pts = read_vtk_points(surface)
     # Lateral axes u, v perpendicular to the viewing direction.
