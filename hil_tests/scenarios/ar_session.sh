@@ -13,7 +13,7 @@
 # true X_RefModel.yaml) and a summary is printed. docs/hil.md.
 set -euo pipefail
 if [ "$#" -lt 2 ]; then
-  sed -n '2,12p' "$0" >&2
+  sed -n '2,13p' "$0" >&2
   exit 2
 fi
 if [ "${ARNAV_AR_INSIDE:-}" != "1" ]; then
