@@ -192,6 +192,46 @@ ToolMotion parse_phantom_motion(const YAML::Node& n, const std::string& where, i
   return m;
 }
 
+Eigen::Isometry3d rigid_16(const YAML::Node& x, const std::string& where) {
+  if (!x.IsSequence() || x.size() != 16) throw ScenarioError(where + ": expected 16 numbers (4x4 row-major)");
+  Eigen::Matrix4d M;
+  for (int i = 0; i < 16; ++i) M(i / 4, i % 4) = number(x[static_cast<std::size_t>(i)], where, -1e6, 1e6);
+  const Eigen::Matrix3d R = M.topLeftCorner<3, 3>();
+  if (!M.allFinite() || !(R.transpose() * R).isIdentity(1e-6) || std::abs(R.determinant() - 1.0) > 1e-6 ||
+      !M.row(3).isApprox(Eigen::RowVector4d(0, 0, 0, 1)))
+    throw ScenarioError(where + ": not a rigid transform (orthonormal rotation, det +1, last row 0 0 0 1)");
+  Eigen::Isometry3d X;
+  X.matrix() = M;
+  return X;
+}
+
+// motion: {path: FILE.csv, X_NdiModel: [16 numbers, row-major], start_s: S}
+ToolMotion parse_path_motion(const YAML::Node& n, const std::string& where, int index, const Scenario& s,
+                             const std::filesystem::path& base_dir) {
+  check_keys(n, {"path", "X_NdiModel", "start_s"}, where);
+  ToolMotion m = default_motion(index);
+  const std::filesystem::path file = base_dir / n["path"].as<std::string>();
+  std::ifstream in(file);
+  if (!in) throw ScenarioError(where + ".path: cannot read " + file.string() + " (a CSV of t_s, x_mm, y_mm, z_mm[, qw, qx, qy, qz] rows)");
+  std::stringstream text;
+  text << in.rdbuf();
+  auto path = std::make_shared<ScriptedToolPath>();
+  try {
+    *path = parse_tool_path_csv(text.str(), file.string());
+  } catch (const ToolPathError& e) {
+    throw ScenarioError(where + ".path: " + e.what());
+  }
+  if (!n["X_NdiModel"]) throw ScenarioError(where + ".X_NdiModel: missing (the model frame in the tracker frame, 16 numbers row-major)");
+  path->X_NdiModel = rigid_16(n["X_NdiModel"], where + ".X_NdiModel");
+  if (n["start_s"]) path->start_s = number(n["start_s"], where + ".start_s", -1e6, 1e6);
+  path->t0_s = static_cast<double>(s.first_frame) / s.frame_rate_hz;
+  for (const Eigen::Vector3d& p : path->p_Model_mm)
+    if (((path->X_NdiModel * p).array().abs() > 9999.0).any())
+      throw ScenarioError(where + ": the path leaves +-9999 mm in the tracker frame (the TX field width): check X_NdiModel");
+  m.path = std::move(path);
+  return m;
+}
+
 ToolMotion parse_motion(const YAML::Node& n, const std::string& where, int index) {
   if (!n.IsMap()) throw ScenarioError(where + ": expected a map");
   check_keys(n, {"center_mm", "amplitude_mm", "frequency_hz", "phase_rad", "base_axis_angle", "rotation_axis",
@@ -254,7 +294,9 @@ Scenario parse_scenario(const std::string& yaml_text, const std::string& source_
           if (tool.serial.size() != 8) throw ScenarioError(where + ".serial: must be 8 characters");
         }
         if (t["rms_error_mm"]) tool.rms_error_mm = number(t["rms_error_mm"], where + ".rms_error_mm", 0, 9);
-        if (t["motion"] && t["motion"].IsMap() && t["motion"]["phantom"])
+        if (t["motion"] && t["motion"].IsMap() && t["motion"]["path"])
+          tool.motion = parse_path_motion(t["motion"], where + ".motion", static_cast<int>(i), s, base_dir);
+        else if (t["motion"] && t["motion"].IsMap() && t["motion"]["phantom"])
           tool.motion = parse_phantom_motion(t["motion"], where + ".motion", static_cast<int>(i), s, base_dir);
         else
           tool.motion = t["motion"] ? parse_motion(t["motion"], where + ".motion", static_cast<int>(i)) : default_motion(static_cast<int>(i));

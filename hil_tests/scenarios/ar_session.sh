@@ -1,15 +1,19 @@
 #!/usr/bin/env bash
 # The AR navigation session on the bench, by hand or from scripts/demo:
 #   ar_session.sh BUILD_DIR OUT_DIR
-# Re-executes itself in a private network namespace (root): lcm-logger records the bus,
-# arnav-host ar_demo/session.yaml runs the model and the overlay and records the video,
-# overlay.csv and a contact sheet, arnav-appliance runs the synthetic camera
-# and the simulated Polaris tracking the scalpel (ar_demo/appliance.yaml, port: sim) until
-# the camera's frames are done. Then arnav-ar-error compares the
-# overlay with the camera's ground truth and a summary is printed. docs/hil.md.
+# Re-executes itself in a private network namespace (root): make_demo_paths.py writes the
+# landmarks, the pointer's and the scalpel's paths in the model frame and the pedal's steps
+# from the scene; lcm-logger records the bus; arnav-host ar_demo/session_live.yaml registers
+# with the pointer (accept pressed on the pedal), cuts a ring around the tumour (pedal held),
+# runs the model and the overlay and records the video, overlay.csv and a contact sheet;
+# arnav-can-sim serves the pedal (through the bench's can_shim), arnav-appliance runs the
+# synthetic camera (static board, 1 s unplugged), the simulated Polaris (pointer, scalpel)
+# and the CAN path (ar_demo/appliance_live.yaml) until the camera's frames are done. Then
+# arnav-ar-error compares the overlay with the camera's ground truth (through the bench's
+# true X_RefModel.yaml) and a summary is printed. docs/hil.md.
 set -euo pipefail
 if [ "$#" -lt 2 ]; then
-  sed -n '2,8p' "$0" >&2
+  sed -n '2,13p' "$0" >&2
   exit 2
 fi
 if [ "${ARNAV_AR_INSIDE:-}" != "1" ]; then
@@ -27,7 +31,9 @@ out=$(cd "$2" && pwd)
 host=$build/host/app/arnav-host
 appliance=$build/appliance/app/arnav-appliance
 ar_error=$build/hil_tests/scenarios/arnav-ar-error
-for f in "$host" "$appliance" "$ar_error"; do
+can_sim=$build/hil_tests/can_sim/arnav-can-sim
+can_shim=$build/hil_tests/interposer/libarnav_hil_can_shim.so
+for f in "$host" "$appliance" "$ar_error" "$can_sim" "$can_shim"; do
   [ -x "$f" ] || { echo "ar_session.sh: $f is missing: build first (scripts/build release)" >&2; exit 1; }
 done
 command -v lcm-logger >/dev/null || { echo "ar_session.sh: lcm-logger missing (Debian liblcm-bin, scripts/deps)" >&2; exit 1; }
@@ -37,13 +43,19 @@ url="udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304"
 # The configs name their files relative to themselves; the run writes into OUT.
 data=$(cd "$here/../../data" && pwd)
 cp "$here"/ar_demo/{camera.yaml,marker_board.yaml,X_RefModel.yaml,X_CamNdi.yaml} "$out/"
-sed "s#^scene: [^ ]*#scene: $here/ar_demo/liver_navigation.scene.yaml#" "$here/ar_demo/session.yaml" >"$out/session.yaml"
-sed "s#\.\./\.\./\.\./data/#$data/#" "$here/ar_demo/appliance.yaml" >"$out/appliance.yaml"
-sed "s#\.\./\.\./\.\./data/#$data/#" "$here/ar_demo/scalpel_sim.yaml" >"$out/scalpel_sim.yaml"
+sed "s#\.\./\.\./\.\./data/#$data/#" "$here/ar_demo/session_live.yaml" >"$out/session.yaml"
+sed "s#\.\./\.\./\.\./data/#$data/#" "$here/ar_demo/appliance_live.yaml" >"$out/appliance.yaml"
+sed "s#\.\./\.\./\.\./data/#$data/#" "$here/ar_demo/polaris_live.yaml" >"$out/polaris_live.yaml"
+# The truth for arnav-ar-error: the same camera and scene through the bench's true registration.
+sed "s#^scene: [^ ]*#scene: $data/liver/liver_coarse_cut.scene.yaml#" "$here/ar_demo/session.yaml" >"$out/session_truth.yaml"
+# The model frame faces the camera along -z (X_CamModel's rotation is the identity, polaris_live.yaml).
+python3 "$here/ar_demo/make_demo_paths.py" --scene "$data/liver/liver_coarse_cut.scene.yaml" --toward-camera 0,0,-1 \
+  --pointer-start-s 5 --gap-s 3 --can-lead-s "${ARNAV_AR_CAN_LEAD_S:-0.3}" --out "$out" | sed 's/^/make_demo_paths.py: /'
 
 pids=()
 cleanup() { for p in "${pids[@]}"; do kill -TERM "$p" 2>/dev/null || true; done; }
 trap cleanup EXIT
+mkdir -p "$out/can"
 lcm-logger --lcm-url="$url" -f "$out/session.lcmlog" >"$out/logger.log" 2>&1 &
 logger_pid=$!
 pids+=("$logger_pid")
@@ -56,9 +68,17 @@ for _ in $(seq 1 600); do
   sleep 0.1
 done
 grep "session ready" "$out/host.log" || { echo "arnav-host not ready after 60 s" >&2; exit 1; }
-echo "arnav-appliance: synthetic camera, 300 frames at 15 Hz (board leaves the view twice, camera unplugged 1 s at 9 s); simulated Polaris tracking the scalpel"
-# The appliance keeps tracking the scalpel after the camera's last frame: stop it then.
-(cd "$out" && exec "$appliance" appliance.yaml 2>"$out/appliance.log") &
+echo "arnav-appliance: synthetic camera, 560 frames at 15 Hz (static board, camera unplugged 1 s at 18 s); simulated Polaris: pointer on 4 landmarks, scalpel ring; CAN pedal (arnav-can-sim)"
+# The pedal: arnav-can-sim serves the bus the appliance opens through the can_shim; its
+# steps (can_steps.yaml) run on its own clock, started just before the appliance.
+exec 3< <(exec "$can_sim" --config "$out/appliance.yaml" --socketcan "$out/can" --interface vcan0 \
+  --scenario "$out/can_steps.yaml" --log "$out/can/bus.log" 2>"$out/can_sim.log")
+can_pid=$!
+pids+=("$can_pid")
+read -r -t 20 ready <&3 || true
+case "${ready:-}" in READY*) ;; *) echo "arnav-can-sim did not start:" >&2; cat "$out/can_sim.log" >&2; exit 1 ;; esac
+# The appliance keeps tracking the tools after the camera's last frame: stop it then.
+(cd "$out" && LD_PRELOAD="$can_shim" ARNAV_HIL_CAN_DIR="$out/can" exec "$appliance" appliance.yaml 2>"$out/appliance.log") &
 app_pid=$!
 pids+=("$app_pid")
 for _ in $(seq 1 1800); do
@@ -74,13 +94,14 @@ kill -TERM "$host_pid"
 wait "$host_pid" || true
 kill -TERM "$logger_pid"
 wait "$logger_pid" || true
+kill -TERM "$can_pid" 2>/dev/null || true
 trap - EXIT
 echo "== arnav-host =="
 sed -n '/^navigation:/,$p' "$out/host.log" | grep -v "^recorded" | sed 's/^/  /'
 echo "== appliance: exit code $app_rc; camera faults and recoveries =="
-grep -E "CAMERA_LOST|CAMERA_RECOVERED|CAMERA_TOOL_LOST|CAMERA_TOOL_FOUND|NDI_TRACKING_STARTED|NDI_RECOVERED" "$out/appliance.log" | sed 's/^arnav-appliance: /  /' | sort | uniq -c | sed 's/^/  /' || true
+grep -E "CAMERA_LOST|CAMERA_RECOVERED|CAMERA_TOOL_LOST|CAMERA_TOOL_FOUND|NDI_TRACKING_STARTED|NDI_RECOVERED|CAN_" "$out/appliance.log" | sed 's/^arnav-appliance: /  /' | sort | uniq -c | sed 's/^/  /' || true
 echo "== AR error: overlay tumour centroid vs the synthetic camera's ground truth (arnav-ar-error) =="
-"$ar_error" --session "$out/session.yaml" --ground-truth "$out/ground_truth.csv" --overlay-csv "$out/recording/overlay.csv" \
+"$ar_error" --session "$out/session_truth.yaml" --ground-truth "$out/ground_truth.csv" --overlay-csv "$out/recording/overlay.csv" \
   | tee "$out/ar_error.json" | python3 -c '
 import json, sys
 j = json.load(sys.stdin)
@@ -122,6 +143,21 @@ if c:
              c["disarmed_by_stale_input"]["episodes"]))
 else:
     print("  cut-path error: n/a (the demo scene declares no cutting: the overlay shows the blade tip's trace; a scene with cutting: and inputs.cut_enable cuts, docs/overlay.md)")
+PY
+python3 - "$out/host.json" "$out/appliance.log" <<'PY' || true
+import json, sys
+nav = json.load(open(sys.argv[1])).get("navigation", {})
+app = open(sys.argv[2]).read()
+lost, back = app.count("CAMERA_LOST"), app.count("CAMERA_RECOVERED")
+g = nav.get("camera_gaps", {})
+print("  injected fault: camera unplugged 1 s: appliance CAMERA_LOST %d, CAMERA_RECOVERED %d; host: %d camera gap(s) over its limit, longest %.0f ms"
+      % (lost, back, g.get("count", 0), g.get("max_ms", 0.0)))
+i = nav.get("inputs", {}).get("by_input", {})
+print("  pedal (CAN): accept pressed %d, cut pedal pressed %d" % (i.get("pedal_accept", {}).get("presses", 0), i.get("pedal_cut", {}).get("presses", 0)))
+m, lat = nav.get("model", {}), nav.get("motion_to_photon_ms", {})
+if lat:
+    print("  latency (capture -> overlay ready): p50 %.1f ms, p99 %.1f ms; frames dropped by the host %d; model %.1f Hz (step p50 %.2f ms, p99 %.2f ms)"
+          % (lat.get("p50", 0), lat.get("p99", 0), nav.get("frames_dropped", 0), m.get("rate_hz", 0), m.get("step_ms_p50", 0), m.get("step_ms_p99", 0)))
 PY
 echo "== files =="
 echo "  video:         $out/recording/overlay.avi"

@@ -1,6 +1,9 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <cmath>
+#include <fstream>
+#include <numbers>
 #include <unistd.h>
 
 #include "hil_tests/polaris_sim/scenario.hpp"
@@ -129,6 +132,88 @@ tools:
   expect_error("[1, 0, 0, -198,", "[2, 0, 0, -198,", "not a rigid transform");
   expect_error("tool: grasper", "tool: grasper, speed: 2", "unknown key 'speed'");
   std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace arnav::hil
+
+namespace arnav::hil {
+namespace {
+
+TEST(ToolPath, PiecewiseLinearInModelPlacedByXNdiModel) {
+  const ScriptedToolPath p = parse_tool_path_csv(
+      "t_s,x_mm,y_mm,z_mm\n# comment\n\n0, 0, 0, 0\n2, 10, -20, 4\n3, 10, -20, 4\n", "p.csv");
+  ASSERT_EQ(p.t_s.size(), 3u);
+  EXPECT_TRUE(p.X_ModelTool(1.0).translation().isApprox(Eigen::Vector3d(5, -10, 2)));
+  EXPECT_TRUE(p.X_ModelTool(-5.0).translation().isZero());
+  EXPECT_TRUE(p.X_ModelTool(99.0).translation().isApprox(Eigen::Vector3d(10, -20, 4)));
+  EXPECT_TRUE(p.X_ModelTool(1.0).linear().isIdentity(1e-12));
+  // Orientation columns: slerp between rows.
+  const double s = std::sqrt(0.5);
+  const ScriptedToolPath q = parse_tool_path_csv("0,0,0,0,1,0,0,0\n1,0,0,0," + std::to_string(s) + ",0,0," + std::to_string(s) + "\n", "q.csv");
+  const Eigen::AngleAxisd aa(q.X_ModelTool(0.5).linear());
+  EXPECT_NEAR(std::abs(aa.angle()), std::numbers::pi / 4, 1e-5);
+}
+
+TEST(ToolPath, ScenarioPlacesThePathAndShiftsByStartAndBoot) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("arnav_path_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  {
+    std::ofstream f(dir / "tip.csv");
+    f << "t_s,x_mm,y_mm,z_mm\n0,0,0,0\n10,100,0,0\n";
+  }
+  const std::string yaml = R"(
+frame_rate_hz: 50
+first_frame: 100
+tools:
+  - name: pointer
+    motion: {path: tip.csv, start_s: 1, X_NdiModel: [1, 0, 0, 5,  0, 1, 0, 6,  0, 0, 1, -1500,  0, 0, 0, 1]}
+)";
+  const Scenario s = parse_scenario(yaml, "sc.yaml", dir);
+  ASSERT_EQ(s.tools.size(), 1u);
+  // device time 2 s = boot (100/50) -> path time start_s = 1 s -> x = 10.
+  EXPECT_TRUE(s.tools[0].motion.X_NdiTool(2.0).translation().isApprox(Eigen::Vector3d(15, 6, -1500)));
+  EXPECT_TRUE(s.tools[0].motion.X_NdiTool(6.0).translation().isApprox(Eigen::Vector3d(55, 6, -1500)));
+  auto err = [&](const std::string& y) {
+    try {
+      parse_scenario(y, "sc.yaml", dir);
+    } catch (const ScenarioError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(err("tools:\n  - name: a\n    motion: {path: nope.csv, X_NdiModel: [1,0,0,0,0,1,0,0,0,0,1,0,0,0,0,1]}\n").find("cannot read"), std::string::npos);
+  EXPECT_NE(err("tools:\n  - name: a\n    motion: {path: tip.csv}\n").find("X_NdiModel: missing"), std::string::npos);
+  EXPECT_NE(err("tools:\n  - name: a\n    motion: {path: tip.csv, X_NdiModel: [2,0,0,0,0,1,0,0,0,0,1,0,0,0,0,1]}\n").find("not a rigid"), std::string::npos);
+  EXPECT_NE(err("tools:\n  - name: a\n    motion: {path: tip.csv, speed: 3, X_NdiModel: [1,0,0,0,0,1,0,0,0,0,1,0,0,0,0,1]}\n").find("unknown key 'speed'"), std::string::npos);
+  {
+    std::ofstream f(dir / "bad.csv");
+    f << "t_s,x_mm,y_mm,z_mm\n0,0,0,0\n1,0,x,0\n";
+  }
+  const std::string e = err("tools:\n  - name: a\n    motion: {path: bad.csv, X_NdiModel: [1,0,0,0,0,1,0,0,0,0,1,0,0,0,0,1]}\n");
+  EXPECT_NE(e.find("bad.csv:3: column y_mm must be a finite number, got 'x'"), std::string::npos) << e;
+  std::filesystem::remove_all(dir);
+}
+
+TEST(ToolPath, BadRowsNameTheLine) {
+  auto err = [](const std::string& text) {
+    try {
+      parse_tool_path_csv(text, "p.csv");
+    } catch (const ToolPathError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(err("").find("p.csv: no path rows"), std::string::npos);
+  EXPECT_NE(err("t_s,x_mm,y_mm,z_mm\n").find("no path rows"), std::string::npos);
+  EXPECT_NE(err("0,1,2\n").find("p.csv:1: expected 4 columns"), std::string::npos);
+  EXPECT_NE(err("0,1,2,3,\n").find("p.csv:1: expected 4 columns"), std::string::npos);
+  EXPECT_NE(err("0,1,2,3\n1,1,2,nan\n").find("p.csv:2: column z_mm must be a finite number"), std::string::npos);
+  EXPECT_NE(err("0,1,2,3\n0,1,2,3\n").find("p.csv:2: t_s must increase strictly"), std::string::npos);
+  EXPECT_NE(err("-1,1,2,3\n").find("p.csv:1: t_s -1 is outside"), std::string::npos);
+  EXPECT_NE(err("0,1,2,3000\n").find("p.csv:1: z_mm is outside"), std::string::npos);
+  EXPECT_NE(err("0,1,2,3,1,1,0,0\n").find("p.csv:1: orientation qw, qx, qy, qz must be a unit quaternion"), std::string::npos);
+  EXPECT_NE(err("t_s,x_mm,y_mm,z_mm\nt_s,x_mm,y_mm,z_mm\n").find("p.csv:2: column t_s"), std::string::npos);
 }
 
 }  // namespace
