@@ -79,4 +79,28 @@ void check_state_shape(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, int
 // Throws std::invalid_argument unless dt_s is finite and > 0.
 void check_dt(double dt_s);
 
+// One step of dt_s as `substeps` equal substeps through substep(h) -> StepSummary, folded
+// into one summary: iterations and wall time summed, the first substep's initial residual,
+// the last one's residual, termination, energies and inverted elements, warnings prefixed
+// "substep k: "; stops at the first unhealthy substep. One substep: its summary as is.
+template <typename Substep>
+StepSummary run_substeps(int substeps, double dt_s, Substep&& substep) {
+  if (substeps <= 1) return substep(dt_s);
+  StepSummary total;
+  for (int k = 0; k < substeps; ++k) {
+    const StepSummary s = substep(dt_s / substeps);
+    total.iterations += s.iterations;
+    if (k == 0) total.initial_residual = s.initial_residual;
+    total.final_residual = s.final_residual;
+    total.termination = s.termination;
+    total.wall_time_ms += s.wall_time_ms;
+    total.kinetic_energy = s.kinetic_energy;
+    total.elastic_energy = s.elastic_energy;
+    total.inverted_elements = s.inverted_elements;
+    if (!s.warning.empty()) report(total, "substep " + std::to_string(k) + ": " + s.warning, !s.healthy);
+    if (!s.healthy) break;
+  }
+  return total;
+}
+
 }  // namespace arnav::host

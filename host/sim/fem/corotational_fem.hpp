@@ -29,6 +29,7 @@
 #include "host/sim/fem/symmetric_pattern.hpp"
 #include "host/sim/model_config.hpp"
 #include "host/sim/step_health.hpp"
+#include "host/sim/fem/fem_attachments.hpp"
 #include "host/sim/tissue_model.hpp"
 
 namespace arnav::host {
@@ -102,10 +103,6 @@ class CorotationalFem final : public TissueModel {
     std::array<int, 2> tets;
     double beta;
   };
-  struct Attachment {
-    AttachmentSpec spec;
-    std::vector<int> map;  // block map into the pattern
-  };
 
   void build_pattern();
   void update_fixed_entries();
@@ -134,7 +131,7 @@ class CorotationalFem final : public TissueModel {
   std::optional<VesselEmbedding> embedding_;
   std::vector<Eigen::Quaterniond> q_;      // per-tet rotation (warm start)
   std::vector<Eigen::Matrix3d> R_beam_;
-  std::vector<std::optional<Attachment>> attachments_;
+  fem::FemAttachments attachments_;
   std::vector<char> fixed_;               // per vertex
   std::vector<int> fixed_entries_;        // nonzeros in rows/cols of fixed DOFs (off-diagonal)
   std::unique_ptr<SymmetricPattern> pattern_;

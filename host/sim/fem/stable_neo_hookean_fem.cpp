@@ -275,22 +275,7 @@ double StableNeoHookeanFem::attachment_energy(const Eigen::Matrix3Xd& x) const {
 
 StepSummary StableNeoHookeanFem::step(double dt_s) {
   check_dt(dt_s);
-  if (substeps_ == 1) return substep(dt_s);
-  StepSummary total;
-  for (int k = 0; k < substeps_; ++k) {
-    const StepSummary s = substep(dt_s / substeps_);
-    total.iterations += s.iterations;
-    if (k == 0) total.initial_residual = s.initial_residual;
-    total.final_residual = s.final_residual;
-    total.termination = s.termination;
-    total.wall_time_ms += s.wall_time_ms;
-    total.kinetic_energy = s.kinetic_energy;
-    total.elastic_energy = s.elastic_energy;
-    total.inverted_elements = s.inverted_elements;
-    if (!s.warning.empty()) report(total, "substep " + std::to_string(k) + ": " + s.warning, !s.healthy);
-    if (!s.healthy) break;
-  }
-  return total;
+  return run_substeps(substeps_, dt_s, [this](double h) { return substep(h); });
 }
 
 StepSummary StableNeoHookeanFem::substep(double h) {
@@ -499,19 +484,8 @@ StepSummary StableNeoHookeanFem::substep(double h) {
 
 AttachmentId StableNeoHookeanFem::add_attachment(const AttachmentSpec& spec) {
   const auto& p = spec.point;
-  const int nv = static_cast<int>(X_.cols());
-  const std::string who = "corotational_fem: attachment " + std::to_string(attachments_.size());
-  if (p.vertices.empty() || p.vertices.size() != p.weights.size())
-    throw std::invalid_argument(who + " needs as many weights as vertices (and at least one)");
-  check_vertex_indices(p.vertices, nv, who.c_str());
-  for (double w : p.weights)
-    if (!std::isfinite(w)) throw std::invalid_argument(who + " has a non-finite weight");
-  if (!(spec.stiffness_mN_per_mm >= 0.0) || !std::isfinite(spec.stiffness_mN_per_mm) || !spec.target_World_mm.allFinite())
-    throw std::invalid_argument(who + " needs a finite stiffness >= 0 mN/mm and a finite target");
-  std::vector<int> sorted = p.vertices;
-  std::sort(sorted.begin(), sorted.end());
-  if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) throw std::invalid_argument(who + " lists a vertex twice");
-  attachments_.push_back(Attachment{spec, {}});
+  fem::check_new_attachment(spec, static_cast<int>(X_.cols()), "corotational_fem: attachment " + std::to_string(attachments_.size()));
+  attachments_.push_back(fem::FemAttachment{spec, {}});
   if (pattern_->covers(p.vertices)) {
     attachments_.back()->map = pattern_->block_map(p.vertices);
   } else {
@@ -521,29 +495,19 @@ AttachmentId StableNeoHookeanFem::add_attachment(const AttachmentSpec& spec) {
   return static_cast<AttachmentId>(attachments_.size() - 1);
 }
 
-namespace {
-template <class V>
-auto& checked_attachment(V& attachments, AttachmentId id) {
-  if (id < 0 || id >= static_cast<int>(attachments.size()) || !attachments[id])
-    throw std::invalid_argument("corotational_fem: no attachment with id " + std::to_string(id));
-  return *attachments[id];
-}
-}  // namespace
-
 void StableNeoHookeanFem::set_attachment_target(AttachmentId id, const Eigen::Vector3d& target_World_mm) {
-  if (!target_World_mm.allFinite()) throw std::invalid_argument("corotational_fem: non-finite attachment target");
-  checked_attachment(attachments_, id).spec.target_World_mm = target_World_mm;
+  fem::check_attachment_target(target_World_mm, "corotational_fem");
+  fem::checked_attachment(attachments_, id, "corotational_fem").spec.target_World_mm = target_World_mm;
 }
 
 void StableNeoHookeanFem::set_attachment_stiffness(AttachmentId id, double stiffness_mN_per_mm) {
-  if (!(stiffness_mN_per_mm >= 0.0) || !std::isfinite(stiffness_mN_per_mm))
-    throw std::invalid_argument("corotational_fem: attachment stiffness must be finite and >= 0 mN/mm");
-  checked_attachment(attachments_, id).spec.stiffness_mN_per_mm = stiffness_mN_per_mm;
+  fem::check_attachment_stiffness(stiffness_mN_per_mm, "corotational_fem");
+  fem::checked_attachment(attachments_, id, "corotational_fem").spec.stiffness_mN_per_mm = stiffness_mN_per_mm;
   solver_.force_refactor();
 }
 
 void StableNeoHookeanFem::remove_attachment(AttachmentId id) {
-  checked_attachment(attachments_, id);
+  fem::checked_attachment(attachments_, id, "corotational_fem");
   attachments_[id].reset();
   solver_.force_refactor();
 }

@@ -36,6 +36,7 @@
 #include "host/sim/fem/symmetric_pattern.hpp"
 #include "host/sim/model_config.hpp"
 #include "host/sim/step_health.hpp"
+#include "host/sim/fem/fem_attachments.hpp"
 #include "host/sim/tissue_model.hpp"
 
 namespace arnav::host {
@@ -94,10 +95,6 @@ class StableNeoHookeanFem final : public TissueModel {
     Eigen::Matrix<double, 9, 12> dFdx;  // vec(F) = dFdx * (x_0, x_1, x_2, x_3)
     double volume, mu, lambda, beta;
   };
-  struct Attachment {
-    AttachmentSpec spec;
-    std::vector<int> map;
-  };
   void build_pattern();
   // Elastic forces into f_el_ and the projected stiffness (times scale_k) plus the
   // Rayleigh-beta matrix (when `damping_matrix`) into the value arrays; returns Psi.
@@ -116,7 +113,7 @@ class StableNeoHookeanFem final : public TissueModel {
   Eigen::Matrix3Xd X_, x_, v_;
   Eigen::VectorXd mass_, mass_alpha_;
   std::vector<Tet> tets_;
-  std::vector<std::optional<Attachment>> attachments_;
+  fem::FemAttachments attachments_;
   std::vector<char> fixed_;
   std::unique_ptr<SymmetricPattern> pattern_;
   std::vector<int> tet_map_;  // 90 entries per tet (full block maps)
