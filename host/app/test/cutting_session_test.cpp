@@ -23,22 +23,6 @@ namespace {
 
 using namespace arnav::host::test;
 
-input_event_t input_msg(const std::string& name, bool pressed, std::int64_t seq, std::int64_t t_us, bool snapshot = false) {
-  input_event_t m{};
-  m.input_name = name;
-  m.state = pressed ? input_event_t::STATE_PRESSED : input_event_t::STATE_RELEASED;
-  m.value = pressed ? 1.0 : 0.0;
-  m.cause = snapshot ? input_event_t::CAUSE_STATE : input_event_t::CAUSE_FRAME;
-  m.device = "pedal";
-  m.source_interface = "vcan0";
-  m.device_time_wall_us = -1;
-  m.receive_time_mono_us = t_us;
-  m.decided_time_mono_us = t_us;
-  m.publish_time_mono_us = t_us + 100;
-  m.sequence = seq;
-  return m;
-}
-
 std::string cut_session_text(const std::string& extra) {
   return "arnav_session_version: 1\n"
          "lcm_url: \"memq://\"\n"
@@ -442,14 +426,7 @@ TEST(LiveRegistration, PointerLandmarksRecoverAKnownRegistration) {
   EXPECT_NE(s.format_summary(1.0).find("registration (live, 4 landmarks, 2 refused): FRE"), std::string::npos);
 }
 
-std::string error_of(const SessionFolder& f, const std::string& text) {
-  try {
-    load_session(f.write("bad.yaml", text));
-  } catch (const SessionError& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
+std::string error_of(const SessionFolder& f, const std::string& text) { return session_error_of(f, text); }
 
 TEST(SessionConfig, BadInputsCuttingAndLiveRegistrationNameFileLineAndFix) {
   SessionFolder f("bad_inputs");

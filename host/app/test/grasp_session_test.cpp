@@ -162,14 +162,7 @@ TEST_F(Grasp, StaleGrasperPoseReleasesAndFarTipIsRefused) {
   EXPECT_FALSE(g.status().messages.empty());
 }
 
-std::string error_of(const SessionFolder& f, const std::string& text) {
-  try {
-    load_session(f.write("bad.yaml", text));
-  } catch (const SessionError& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
+std::string error_of(const SessionFolder& f, const std::string& text) { return session_error_of(f, text); }
 
 TEST(GraspConfig, ParsesAndNamesFileLineKey) {
   SessionFolder f("grasp_config");
@@ -203,19 +196,7 @@ TEST(GraspConfig, ParsesAndNamesFileLineKey) {
 }
 
 input_event_t pedal(bool pressed, std::int64_t seq, std::int64_t t_us, bool snapshot = false) {
-  input_event_t m{};
-  m.input_name = "pedal_left";
-  m.state = pressed ? input_event_t::STATE_PRESSED : input_event_t::STATE_RELEASED;
-  m.value = pressed ? 1.0 : 0.0;
-  m.cause = snapshot ? input_event_t::CAUSE_STATE : input_event_t::CAUSE_FRAME;
-  m.device = "pedal";
-  m.source_interface = "vcan0";
-  m.device_time_wall_us = -1;
-  m.receive_time_mono_us = t_us;
-  m.decided_time_mono_us = t_us;
-  m.publish_time_mono_us = t_us + 100;
-  m.sequence = seq;
-  return m;
+  return input_msg("pedal_left", pressed, seq, t_us, snapshot);
 }
 
 // The session end to end without a camera (replay-style, unthreaded): tracked reference and

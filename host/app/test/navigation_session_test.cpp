@@ -21,14 +21,7 @@ namespace {
 
 using namespace arnav::host::test;
 
-std::string error_of(const SessionFolder& f, const std::string& text) {
-  try {
-    load_session(f.write("bad.yaml", text));
-  } catch (const SessionError& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
+std::string error_of(const SessionFolder& f, const std::string& text) { return session_error_of(f, text); }
 
 TEST(SessionConfig, ErrorsNameFileLineKeyAndFix) {
   SessionFolder f("errors");

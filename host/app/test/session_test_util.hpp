@@ -15,9 +15,11 @@
 #include <unistd.h>
 
 #include "arnav/image_frame_t.hpp"
+#include "arnav/input_event_t.hpp"
 #include "arnav/tool_pose_t.hpp"
 #include "calibration/lib/camera_intrinsics.hpp"
 #include "calibration/lib/rigid_transform_file.hpp"
+#include "host/app/session_config.hpp"
 #include "protocol/pose_convert.hpp"
 
 namespace arnav::host::test {
@@ -133,6 +135,35 @@ inline image_frame_t frame_msg(std::int64_t sequence, std::int64_t capture_us, i
   cv::imencode(".jpg", img, m.data, {cv::IMWRITE_JPEG_QUALITY, 85});
   m.size = static_cast<std::int32_t>(m.data.size());
   return m;
+}
+
+// A pedal/button message as the appliance's CAN path publishes it: a change on ARNAV_INPUT,
+// or (snapshot) the periodic state on ARNAV_INPUT_STATE.
+inline input_event_t input_msg(const std::string& name, bool pressed, std::int64_t seq, std::int64_t t_us,
+                               bool snapshot = false) {
+  input_event_t m{};
+  m.input_name = name;
+  m.state = pressed ? input_event_t::STATE_PRESSED : input_event_t::STATE_RELEASED;
+  m.value = pressed ? 1.0 : 0.0;
+  m.cause = snapshot ? input_event_t::CAUSE_STATE : input_event_t::CAUSE_FRAME;
+  m.device = "pedal";
+  m.source_interface = "vcan0";
+  m.device_time_wall_us = -1;
+  m.receive_time_mono_us = t_us;
+  m.decided_time_mono_us = t_us;
+  m.publish_time_mono_us = t_us + 100;
+  m.sequence = seq;
+  return m;
+}
+
+// The SessionError text for a session file with this content ("(no error)" when it loads).
+inline std::string session_error_of(const SessionFolder& folder, const std::string& text) {
+  try {
+    load_session(folder.write("bad.yaml", text));
+  } catch (const SessionError& e) {
+    return e.what();
+  }
+  return "(no error)";
 }
 
 }  // namespace arnav::host::test
