@@ -1,6 +1,7 @@
 #pragma once
-// Test support (tests only, never production): run an executable as a child process and
-// find what ctest hands the tests (ARNAV_BINARY_DIR, ARNAV_DATA_DIR; cmake/ArnavCommon.cmake).
+// Test support (tests only, never production): run an executable as a child process, find
+// what ctest hands the tests (ARNAV_SOURCE_DIR, ARNAV_BINARY_DIR, ARNAV_DATA_DIR;
+// cmake/ArnavCommon.cmake) and read small text files.
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -9,6 +10,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 
@@ -43,6 +45,17 @@ inline std::string binary_path(const std::string& relative) { return required_en
 
 // The repository's data/ folder.
 inline std::string data_dir() { return required_env("ARNAV_DATA_DIR"); }
+
+// The repository's root folder.
+inline std::string source_dir() { return required_env("ARNAV_SOURCE_DIR"); }
+
+// The whole content of a text file ("" when it cannot be read: tests compare it).
+inline std::string read_text(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
 
 // Writes `content` to a file in the temporary folder whose name carries `prefix`, the
 // process id and `name`, and returns its path (the caller removes it).

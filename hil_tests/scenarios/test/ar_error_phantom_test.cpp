@@ -17,20 +17,16 @@
 #include "calibration/lib/rigid_transform_file.hpp"
 #include "hil_tests/scenarios/ar_error.hpp"
 #include "host/scene/scene.hpp"
+#include "protocol/testing/child_process.hpp"
 
 namespace arnav::hil {
 namespace {
 
-std::string slurp(const std::filesystem::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+std::string slurp(const std::filesystem::path& p) { return arnav::testing::read_text(p); }
 
 TEST(ArErrorPhantom, ScoresAgainstTheDeformedCentroidAndTheRigidOverlay) {
-  const std::filesystem::path src = std::string(std::getenv("ARNAV_SOURCE_DIR")) + "/hil_tests/scenarios/ar_demo";
-  const std::string data = std::getenv("ARNAV_DATA_DIR");
+  const std::filesystem::path src = arnav::testing::source_dir() + "/hil_tests/scenarios/ar_demo";
+  const std::string data = arnav::testing::data_dir();
   const auto dir = std::filesystem::temp_directory_path() / ("arnav_arerr_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
   for (const char* f : {"camera.yaml", "X_RefModel_phantom.yaml", "session_phantom.yaml"})

@@ -24,26 +24,16 @@
 #include "hil_tests/bench/child_process.hpp"
 #include "hil_tests/bench/namespaces.hpp"
 #include "hil_tests/scenarios/ar_error.hpp"
+#include "protocol/testing/child_process.hpp"
 
 namespace arnav::hil {
 namespace {
 
 const char* kUrl = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304";
 
-std::string bin(const std::string& rel) {
-  const char* d = std::getenv("ARNAV_BINARY_DIR");
-  return std::string(d ? d : ".") + "/" + rel;
-}
-std::string data(const std::string& rel) {
-  const char* d = std::getenv("ARNAV_DATA_DIR");
-  return std::string(d ? d : "data") + "/" + rel;
-}
-std::string slurp(const std::filesystem::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+std::string bin(const std::string& rel) { return arnav::testing::binary_path(rel); }
+std::string data(const std::string& rel) { return arnav::testing::data_dir() + "/" + rel; }
+std::string slurp(const std::filesystem::path& p) { return arnav::testing::read_text(p); }
 
 struct Bench {
   std::filesystem::path dir;
