@@ -58,9 +58,8 @@ PY
   exec unshare --net "$0" "$@"
 fi
 command -v lcm-logger >/dev/null || { echo "ar_phantom_session.sh: lcm-logger missing (Debian liblcm-bin, scripts/deps)" >&2; exit 1; }
-ip link set lo up
-ip route add 224.0.0.0/4 dev lo
-url="udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304"
+. "$here/ar_bench.sh"
+ar_bus_up
 data=$(cd "$here/../../data" && pwd)
 cp "$here"/ar_demo/{camera.yaml,marker_board.yaml,X_RefModel_phantom.yaml,X_CamNdi.yaml} "$out/"
 sed "s#^scene: [^ ]*#scene: $here/ar_demo/liver_navigation.scene.yaml#" "$here/ar_demo/session_phantom.yaml" >"$out/session.yaml"
@@ -68,40 +67,16 @@ sed -e "s#\.\./\.\./\.\./data/#$data/#" -e "s#^    frames: 255#    frames: $fram
 sed "s#\.\./\.\./\.\./data/#$data/#" "$here/ar_demo/polaris_phantom.yaml" >"$out/polaris_phantom.yaml"
 
 pids=()
-cleanup() { for p in "${pids[@]}"; do kill -TERM "$p" 2>/dev/null || true; done; }
-trap cleanup EXIT
-lcm-logger --lcm-url="$url" -f "$out/session.lcmlog" >"$out/logger.log" 2>&1 &
-logger_pid=$!
-pids+=("$logger_pid")
-"$host" "$out/session.yaml" --record "$out/recording" --quiet --summary --summary-json "$out/host.json" >"$out/host.log" 2>&1 &
-host_pid=$!
-pids+=("$host_pid")
-for _ in $(seq 1 600); do
-  grep -q "session ready" "$out/host.log" 2>/dev/null && break
-  kill -0 "$host_pid" 2>/dev/null || { echo "arnav-host failed:" >&2; cat "$out/host.log" >&2; exit 1; }
-  sleep 0.1
-done
-grep "session ready" "$out/host.log" || { echo "arnav-host not ready after 60 s" >&2; exit 1; }
+trap ar_stop_pids EXIT
+ar_start_logger
+ar_start_host "$host"
 echo "arnav-appliance: synthetic camera filming the deforming phantom, $frames frames at 15 Hz; simulated Polaris moving the grasper with the phantom's tool"
 (cd "$out" && exec "$appliance" appliance.yaml 2>"$out/appliance.log") &
 app_pid=$!
 pids+=("$app_pid")
-for _ in $(seq 1 3000); do
-  grep -q "CAMERA_END" "$out/appliance.log" 2>/dev/null && break
-  kill -0 "$app_pid" 2>/dev/null || break
-  sleep 0.1
-done
-sleep 1
-kill -TERM "$app_pid" 2>/dev/null || true
-app_rc=0
-wait "$app_pid" || app_rc=$?
-kill -TERM "$host_pid"
-wait "$host_pid" || true
-kill -TERM "$logger_pid"
-wait "$logger_pid" || true
+ar_finish "$app_pid" 3000
 trap - EXIT
-echo "== arnav-host =="
-sed -n '/^navigation:/,$p' "$out/host.log" | grep -v "^recorded" | sed 's/^/  /'
+ar_print_host_summary
 echo "== AR error against the deforming phantom (arnav-ar-error) =="
 "$ar_error" --session "$out/session.yaml" --ground-truth "$out/ground_truth.csv" --overlay-csv "$out/recording/overlay.csv" \
   | tee "$out/ar_error.json" | python3 -c '

@@ -37,9 +37,8 @@ for f in "$host" "$appliance" "$ar_error" "$can_sim" "$can_shim"; do
   [ -x "$f" ] || { echo "ar_session.sh: $f is missing: build first (scripts/build release)" >&2; exit 1; }
 done
 command -v lcm-logger >/dev/null || { echo "ar_session.sh: lcm-logger missing (Debian liblcm-bin, scripts/deps)" >&2; exit 1; }
-ip link set lo up
-ip route add 224.0.0.0/4 dev lo
-url="udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304"
+. "$here/ar_bench.sh"
+ar_bus_up
 # The configs name their files relative to themselves; the run writes into OUT.
 data=$(cd "$here/../../data" && pwd)
 cp "$here"/ar_demo/{camera.yaml,marker_board.yaml,X_RefModel.yaml,X_CamNdi.yaml} "$out/"
@@ -53,21 +52,10 @@ python3 "$here/ar_demo/make_demo_paths.py" --scene "$data/liver/liver_coarse_cut
   --pointer-start-s 5 --gap-s 3 --can-lead-s "${ARNAV_AR_CAN_LEAD_S:-0.3}" --out "$out" | sed 's/^/make_demo_paths.py: /'
 
 pids=()
-cleanup() { for p in "${pids[@]}"; do kill -TERM "$p" 2>/dev/null || true; done; }
-trap cleanup EXIT
+trap ar_stop_pids EXIT
 mkdir -p "$out/can"
-lcm-logger --lcm-url="$url" -f "$out/session.lcmlog" >"$out/logger.log" 2>&1 &
-logger_pid=$!
-pids+=("$logger_pid")
-"$host" "$out/session.yaml" --record "$out/recording" --quiet --summary --summary-json "$out/host.json" >"$out/host.log" 2>&1 &
-host_pid=$!
-pids+=("$host_pid")
-for _ in $(seq 1 600); do
-  grep -q "session ready" "$out/host.log" 2>/dev/null && break
-  kill -0 "$host_pid" 2>/dev/null || { echo "arnav-host failed:" >&2; cat "$out/host.log" >&2; exit 1; }
-  sleep 0.1
-done
-grep "session ready" "$out/host.log" || { echo "arnav-host not ready after 60 s" >&2; exit 1; }
+ar_start_logger
+ar_start_host "$host"
 echo "arnav-appliance: synthetic camera, 560 frames at 15 Hz (static board, camera unplugged 1 s at 18 s); simulated Polaris: pointer on 4 landmarks, scalpel ring; CAN pedal (arnav-can-sim)"
 # The pedal: arnav-can-sim serves the bus the appliance opens through the can_shim; its
 # steps (can_steps.yaml) run on its own clock, started just before the appliance.
@@ -81,23 +69,10 @@ case "${ready:-}" in READY*) ;; *) echo "arnav-can-sim did not start:" >&2; cat 
 (cd "$out" && LD_PRELOAD="$can_shim" ARNAV_HIL_CAN_DIR="$out/can" exec "$appliance" appliance.yaml 2>"$out/appliance.log") &
 app_pid=$!
 pids+=("$app_pid")
-for _ in $(seq 1 1800); do
-  grep -q "CAMERA_END" "$out/appliance.log" 2>/dev/null && break
-  kill -0 "$app_pid" 2>/dev/null || break
-  sleep 0.1
-done
-sleep 1
-kill -TERM "$app_pid" 2>/dev/null || true
-app_rc=0
-wait "$app_pid" || app_rc=$?
-kill -TERM "$host_pid"
-wait "$host_pid" || true
-kill -TERM "$logger_pid"
-wait "$logger_pid" || true
+ar_finish "$app_pid" 1800
 kill -TERM "$can_pid" 2>/dev/null || true
 trap - EXIT
-echo "== arnav-host =="
-sed -n '/^navigation:/,$p' "$out/host.log" | grep -v "^recorded" | sed 's/^/  /'
+ar_print_host_summary
 echo "== appliance: exit code $app_rc; camera faults and recoveries =="
 grep -E "CAMERA_LOST|CAMERA_RECOVERED|CAMERA_TOOL_LOST|CAMERA_TOOL_FOUND|NDI_TRACKING_STARTED|NDI_RECOVERED|CAN_" "$out/appliance.log" | sed 's/^arnav-appliance: /  /' | sort | uniq -c | sed 's/^/  /' || true
 echo "== AR error: overlay tumour centroid vs the synthetic camera's ground truth (arnav-ar-error) =="

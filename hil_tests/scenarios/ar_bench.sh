@@ -1,0 +1,58 @@
+# Sourced by ar_session.sh and ar_phantom_session.sh (docs/hil.md): the steps every AR
+# session on the bench shares, run inside the private network namespace. Uses and sets
+# the caller's variables: out (run folder), pids (processes to stop on exit).
+
+# Loopback up with a multicast route: LCM's udpm stays inside this namespace.
+ar_bus_up() {
+  ip link set lo up
+  ip route add 224.0.0.0/4 dev lo
+  ar_url="udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304"
+}
+
+ar_stop_pids() { for p in "${pids[@]}"; do kill -TERM "$p" 2>/dev/null || true; done; }
+
+# lcm-logger records the bus into OUT/session.lcmlog (sets logger_pid).
+ar_start_logger() {
+  lcm-logger --lcm-url="$ar_url" -f "$out/session.lcmlog" >"$out/logger.log" 2>&1 &
+  logger_pid=$!
+  pids+=("$logger_pid")
+}
+
+# arnav-host OUT/session.yaml, recording into OUT/recording; returns once it says
+# "session ready" (sets host_pid; exits 1 with its log if it fails or is not ready in 60 s).
+ar_start_host() {
+  "$1" "$out/session.yaml" --record "$out/recording" --quiet --summary --summary-json "$out/host.json" >"$out/host.log" 2>&1 &
+  host_pid=$!
+  pids+=("$host_pid")
+  for _ in $(seq 1 600); do
+    grep -q "session ready" "$out/host.log" 2>/dev/null && break
+    kill -0 "$host_pid" 2>/dev/null || { echo "arnav-host failed:" >&2; cat "$out/host.log" >&2; exit 1; }
+    sleep 0.1
+  done
+  grep "session ready" "$out/host.log" || { echo "arnav-host not ready after 60 s" >&2; exit 1; }
+}
+
+# Waits until the appliance (pid $1) reports its camera's last frame (at most $2 tenths of
+# a second), stops it, then the host and the logger (sets app_rc, the appliance's exit code).
+ar_finish() {
+  local app_pid=$1 limit=$2
+  for _ in $(seq 1 "$limit"); do
+    grep -q "CAMERA_END" "$out/appliance.log" 2>/dev/null && break
+    kill -0 "$app_pid" 2>/dev/null || break
+    sleep 0.1
+  done
+  sleep 1
+  kill -TERM "$app_pid" 2>/dev/null || true
+  app_rc=0
+  wait "$app_pid" || app_rc=$?
+  kill -TERM "$host_pid"
+  wait "$host_pid" || true
+  kill -TERM "$logger_pid"
+  wait "$logger_pid" || true
+}
+
+# The host's own summary block.
+ar_print_host_summary() {
+  echo "== arnav-host =="
+  sed -n '/^navigation:/,$p' "$out/host.log" | grep -v "^recorded" | sed 's/^/  /'
+}
