@@ -140,12 +140,16 @@ AppConfig parse_config(const std::string& text, const std::string& source, const
   return c;
 }
 
-AppConfig load_config(const std::filesystem::path& path) {
+std::string read_config_text(const std::filesystem::path& path) {
   std::ifstream in(path);
   if (!in) throw ConfigError(path.string() + ": cannot read the configuration file");
   std::stringstream ss;
   ss << in.rdbuf();
-  return parse_config(ss.str(), path.string(), path.parent_path());
+  return ss.str();
+}
+
+AppConfig load_config(const std::filesystem::path& path) {
+  return parse_config(read_config_text(path), path.string(), path.parent_path());
 }
 
 }  // namespace arnav::app

@@ -43,5 +43,7 @@ struct AppConfig {
 // Parses text; relative ROM paths are resolved against base_dir. Throws ConfigError.
 AppConfig parse_config(const std::string& text, const std::string& source, const std::filesystem::path& base_dir);
 AppConfig load_config(const std::filesystem::path& path);
+// The configuration file's text; throws ConfigError naming the file when it cannot be read.
+std::string read_config_text(const std::filesystem::path& path);
 
 }  // namespace arnav::app

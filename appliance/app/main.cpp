@@ -6,11 +6,9 @@
 
 #include <csignal>
 #include <cstdio>
-#include <fstream>
 #include <iostream>
 #include <memory>
 #include <optional>
-#include <sstream>
 #include <thread>
 
 #include <sys/stat.h>
@@ -74,43 +72,32 @@ static int main_body(int argc, char** argv) {
     return rc == 0 ? 0 : 2;
   }
 
+  // The configuration's sections, each loaded by its component (file:line errors, exit 2):
+  // NDI tools; the camera path (docs/camera.md, its own thread when the config has `camera:`);
+  // the CAN path (docs/can.md, `can:`); the pointer swab (docs/register.md, `swab:`).
   app::AppConfig cfg;
+  std::unique_ptr<camera::CameraRuntime> cam;
+  std::unique_ptr<can::CanRuntime> can_bus;
+  std::optional<app::SwabConfig> swab_config;
+  auto config_error = [](const std::exception& e) {
+    std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
+    return 2;
+  };
   try {
     cfg = app::load_config(config_path);
-  } catch (const app::ConfigError& e) {
-    std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
-    return 2;
-  }
-  // Camera path (docs/camera.md): runs on its own thread when the config has `camera:`.
-  std::unique_ptr<camera::CameraRuntime> cam;
-  try {
     cam = camera::CameraRuntime::load(config_path);
-  } catch (const camera::CameraConfigError& e) {
-    std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
-    return 2;
-  }
-  // CAN path (docs/can.md): runs on its own thread when the config has `can:`.
-  std::unique_ptr<can::CanRuntime> can_bus;
-  try {
     can_bus = can::CanRuntime::load(config_path);
-  } catch (const can::CanConfigError& e) {
-    std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
-    return 2;
-  }
-  // Pointer swab (docs/register.md): the tip sampled while a CAN input is held.
-  std::optional<app::SwabConfig> swab_config;
-  try {
-    std::ifstream in(config_path);
-    std::stringstream text;
-    text << in.rdbuf();
     std::vector<std::string> tool_names, input_names;
     for (const auto& t : cfg.tools) tool_names.push_back(t.name);
     if (can_bus)
       for (const auto& i : can_bus->config().inputs) input_names.push_back(i.name);
-    swab_config = app::parse_swab_config(text.str(), config_path, tool_names, input_names);
+    swab_config = app::load_swab_config(config_path, tool_names, input_names);
   } catch (const app::ConfigError& e) {
-    std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
-    return 2;
+    return config_error(e);
+  } catch (const camera::CameraConfigError& e) {
+    return config_error(e);
+  } catch (const can::CanConfigError& e) {
+    return config_error(e);
   }
   auto start_can = [&]() -> bool {
     if (!can_bus) return true;

@@ -45,6 +45,9 @@ struct SwabConfig {
 // ("<file>:<line>: key 'swab.<key>': <what>").
 std::optional<SwabConfig> parse_swab_config(const std::string& text, const std::string& source, const std::vector<std::string>& tool_names,
                                             const std::vector<std::string>& input_names);
+// The same from the configuration file (as the camera and CAN sections load theirs).
+std::optional<SwabConfig> load_swab_config(const std::string& path, const std::vector<std::string>& tool_names,
+                                           const std::vector<std::string>& input_names);
 
 class SwabSampler {
  public:
