@@ -131,7 +131,7 @@ class CorotationalFem final : public TissueModel {
   std::optional<VesselEmbedding> embedding_;
   std::vector<Eigen::Quaterniond> q_;      // per-tet rotation (warm start)
   std::vector<Eigen::Matrix3d> R_beam_;
-  fem::FemAttachments attachments_;
+  fem::FemAttachmentSet attachments_{"corotational_fem"};
   std::vector<char> fixed_;               // per vertex
   std::vector<int> fixed_entries_;        // nonzeros in rows/cols of fixed DOFs (off-diagonal)
   std::unique_ptr<SymmetricPattern> pattern_;

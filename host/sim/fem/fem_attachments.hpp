@@ -1,18 +1,15 @@
 #pragma once
-// Attachments of the implicit FEM models (co-rotational and stable Neo-Hookean): the spec
-// kept as given plus its block map into the sparse pattern. The checks every FEM model
-// applies before accepting or changing one; messages name the model and the problem.
-// Units: mm, mN/mm.
+// Attachments of the implicit FEM models (co-rotational and stable Neo-Hookean): zero-rest-
+// length springs from a material point to a target, each kept as given plus its block map into
+// the sparse pattern. One set serves both models: the checks before accepting or changing an
+// attachment, the pattern groups and maps, and the spring energy. Units: mm, mN/mm, mN*mm.
 #include <Eigen/Core>
 
-#include <algorithm>
-#include <cmath>
 #include <optional>
-#include <stdexcept>
 #include <string>
 #include <vector>
 
-#include "host/sim/step_health.hpp"
+#include "host/sim/fem/symmetric_pattern.hpp"
 #include "host/sim/tissue_model.hpp"
 
 namespace arnav::host::fem {
@@ -21,45 +18,37 @@ struct FemAttachment {
   AttachmentSpec spec;
   std::vector<int> map;  // block map into the symmetric pattern
 };
-using FemAttachments = std::vector<std::optional<FemAttachment>>;
 
-// A new attachment: at least one vertex, one finite weight per vertex, no vertex twice,
-// indices in the mesh, a finite stiffness >= 0 (0: inactive spring) and a finite target.
-inline void check_new_attachment(const AttachmentSpec& spec, int num_vertices, const std::string& who) {
-  const auto& p = spec.point;
-  if (p.vertices.empty() || p.vertices.size() != p.weights.size()) {
-    throw std::invalid_argument(who + " needs as many weights as vertices (and at least one)");
-  }
-  check_vertex_indices(p.vertices, num_vertices, who.c_str());
-  for (double w : p.weights) {
-    if (!std::isfinite(w)) throw std::invalid_argument(who + " has a non-finite weight");
-  }
-  if (!(spec.stiffness_mN_per_mm >= 0.0) || !std::isfinite(spec.stiffness_mN_per_mm) || !spec.target_World_mm.allFinite()) {
-    throw std::invalid_argument(who + " needs a finite stiffness >= 0 mN/mm and a finite target");
-  }
-  std::vector<int> sorted = p.vertices;
-  std::sort(sorted.begin(), sorted.end());
-  if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) {
-    throw std::invalid_argument(who + " lists a vertex twice");
-  }
-}
+class FemAttachmentSet {
+ public:
+  // `model` names the model in the messages of std::invalid_argument.
+  explicit FemAttachmentSet(std::string model) : model_(std::move(model)) {}
 
-inline void check_attachment_target(const Eigen::Vector3d& target_World_mm, const char* model) {
-  if (!target_World_mm.allFinite()) throw std::invalid_argument(std::string(model) + ": non-finite attachment target");
-}
+  // Checks the spec (at least one vertex, one finite weight each, no vertex twice, indices in
+  // the mesh, finite stiffness >= 0 (0: inactive spring), finite target) and adds it. When
+  // `pattern` already couples its vertices its block map is filled and needs_new_pattern is
+  // false; otherwise the caller builds a new pattern (append_groups, then map_into).
+  AttachmentId add(const AttachmentSpec& spec, int num_vertices, const SymmetricPattern& pattern, bool& needs_new_pattern);
+  void set_target(AttachmentId id, const Eigen::Vector3d& target_World_mm);
+  void set_stiffness(AttachmentId id, double stiffness_mN_per_mm);
+  void remove(AttachmentId id);  // the id is not reused; the pattern keeps its entries
 
-inline void check_attachment_stiffness(double stiffness_mN_per_mm, const char* model) {
-  if (!(stiffness_mN_per_mm >= 0.0) || !std::isfinite(stiffness_mN_per_mm)) {
-    throw std::invalid_argument(std::string(model) + ": attachment stiffness must be finite and >= 0 mN/mm");
-  }
-}
+  // The vertex groups the pattern must couple, and the block maps once it does.
+  void append_groups(std::vector<std::vector<int>>& groups) const;
+  void map_into(const SymmetricPattern& pattern);
 
-// The live attachment with this id, or std::invalid_argument naming the model.
-inline FemAttachment& checked_attachment(FemAttachments& attachments, AttachmentId id, const char* model) {
-  if (id < 0 || id >= static_cast<int>(attachments.size()) || !attachments[static_cast<std::size_t>(id)]) {
-    throw std::invalid_argument(std::string(model) + ": no attachment with id " + std::to_string(id));
-  }
-  return *attachments[static_cast<std::size_t>(id)];
-}
+  bool any() const;
+  // Sum of 0.5 k |p - target|^2 over the live attachments at positions x (mN*mm).
+  double energy(const Eigen::Matrix3Xd& x_World_mm) const;
+
+  // Every slot, removed ones empty (std::nullopt).
+  auto begin() const { return items_.begin(); }
+  auto end() const { return items_.end(); }
+
+ private:
+  FemAttachment& checked(AttachmentId id);
+  std::vector<std::optional<FemAttachment>> items_;
+  std::string model_;
+};
 
 }  // namespace arnav::host::fem

@@ -194,16 +194,14 @@ void StableNeoHookeanFem::build_pattern() {
   std::vector<std::vector<int>> elements;
   for (const Tet& t : tets_) elements.emplace_back(t.v.begin(), t.v.end());
   std::vector<std::vector<int>> groups = elements;
-  for (const auto& a : attachments_)
-    if (a) groups.push_back(a->spec.point.vertices);
+  attachments_.append_groups(groups);
   pattern_ = std::make_unique<SymmetricPattern>(static_cast<int>(X_.cols()), groups);
   tet_map_.resize(90 * tets_.size());
   for (std::size_t t = 0; t < tets_.size(); ++t) {
     const std::vector<int> m = pattern_->block_map(elements[t]);
     std::copy(m.begin(), m.end(), tet_map_.begin() + 90 * static_cast<std::ptrdiff_t>(t));
   }
-  for (auto& a : attachments_)
-    if (a) a->map = pattern_->block_map(a->spec.point.vertices);
+  attachments_.map_into(*pattern_);
   partition_ = partition_elements(X_, elements, threads_);
   A_ = pattern_->matrix();
   K_ = A_;
@@ -262,15 +260,7 @@ double StableNeoHookeanFem::elastic_energy_of(const Eigen::Matrix3Xd& x) const {
 double StableNeoHookeanFem::elastic_energy() const { return elastic_energy_of(x_); }
 
 double StableNeoHookeanFem::attachment_energy(const Eigen::Matrix3Xd& x) const {
-  double e = 0.0;
-  for (const auto& att : attachments_) {
-    if (!att) continue;
-    Eigen::Vector3d pos = Eigen::Vector3d::Zero();
-    for (std::size_t a = 0; a < att->spec.point.vertices.size(); ++a)
-      pos += att->spec.point.weights[a] * x.col(att->spec.point.vertices[a]);
-    e += 0.5 * att->spec.stiffness_mN_per_mm * (att->spec.target_World_mm - pos).squaredNorm();
-  }
-  return e;
+  return attachments_.energy(x);
 }
 
 StepSummary StableNeoHookeanFem::step(double dt_s) {
@@ -287,7 +277,7 @@ StepSummary StableNeoHookeanFem::substep(double h) {
   };
   const bool dynamic = integrator_ == "implicit_euler";
   const int nv = static_cast<int>(X_.cols());
-  const bool any_attachment = std::any_of(attachments_.begin(), attachments_.end(), [](const auto& a) { return a.has_value(); });
+  const bool any_attachment = attachments_.any();
   if (!dynamic && !any_attachment && std::none_of(fixed_.begin(), fixed_.end(), [](char f) { return f != 0; })) {
     summary.healthy = false;
     summary.termination = "not_run";
@@ -483,32 +473,24 @@ StepSummary StableNeoHookeanFem::substep(double h) {
 }
 
 AttachmentId StableNeoHookeanFem::add_attachment(const AttachmentSpec& spec) {
-  const auto& p = spec.point;
-  fem::check_new_attachment(spec, static_cast<int>(X_.cols()), "corotational_fem: attachment " + std::to_string(attachments_.size()));
-  attachments_.push_back(fem::FemAttachment{spec, {}});
-  if (pattern_->covers(p.vertices)) {
-    attachments_.back()->map = pattern_->block_map(p.vertices);
-  } else {
-    build_pattern();
-  }
+  bool needs_new_pattern = false;
+  const AttachmentId id = attachments_.add(spec, static_cast<int>(X_.cols()), *pattern_, needs_new_pattern);
+  if (needs_new_pattern) build_pattern();
   solver_.force_refactor();
-  return static_cast<AttachmentId>(attachments_.size() - 1);
+  return id;
 }
 
 void StableNeoHookeanFem::set_attachment_target(AttachmentId id, const Eigen::Vector3d& target_World_mm) {
-  fem::check_attachment_target(target_World_mm, "corotational_fem");
-  fem::checked_attachment(attachments_, id, "corotational_fem").spec.target_World_mm = target_World_mm;
+  attachments_.set_target(id, target_World_mm);
 }
 
 void StableNeoHookeanFem::set_attachment_stiffness(AttachmentId id, double stiffness_mN_per_mm) {
-  fem::check_attachment_stiffness(stiffness_mN_per_mm, "corotational_fem");
-  fem::checked_attachment(attachments_, id, "corotational_fem").spec.stiffness_mN_per_mm = stiffness_mN_per_mm;
+  attachments_.set_stiffness(id, stiffness_mN_per_mm);
   solver_.force_refactor();
 }
 
 void StableNeoHookeanFem::remove_attachment(AttachmentId id) {
-  fem::checked_attachment(attachments_, id, "corotational_fem");
-  attachments_[id].reset();
+  attachments_.remove(id);
   solver_.force_refactor();
 }
 

@@ -113,7 +113,7 @@ class StableNeoHookeanFem final : public TissueModel {
   Eigen::Matrix3Xd X_, x_, v_;
   Eigen::VectorXd mass_, mass_alpha_;
   std::vector<Tet> tets_;
-  fem::FemAttachments attachments_;
+  fem::FemAttachmentSet attachments_{"corotational_fem"};
   std::vector<char> fixed_;
   std::unique_ptr<SymmetricPattern> pattern_;
   std::vector<int> tet_map_;  // 90 entries per tet (full block maps)
