@@ -16,6 +16,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <sstream>
 #include <thread>
 
@@ -29,17 +30,26 @@
 #include "protocol/channels.hpp"
 #include "protocol/clock.hpp"
 #include "protocol/pose_convert.hpp"
+#include "protocol/testing/child_process.hpp"
 
 namespace arnav::hil {
 namespace {
 
-std::string host_exe() {
-  const char* d = std::getenv("ARNAV_BINARY_DIR");
-  return std::string(d ? d : ".") + "/host/app/arnav-host";
-}
-std::string data(const std::string& rel) {
-  const char* d = std::getenv("ARNAV_DATA_DIR");
-  return std::string(d ? d : "data") + "/" + rel;
+std::string data(const std::string& rel) { return arnav::testing::data_dir() + "/" + rel; }
+
+// Starts arnav-host on DIR/session.yaml (summary JSON DIR/host.json, log DIR/host.log) and
+// waits up to 600 s for "session ready"; false when it exits or does not get there.
+bool start_host(const std::filesystem::path& dir, std::unique_ptr<ChildProcess>& host) {
+  host = std::make_unique<ChildProcess>(
+      std::vector<std::string>{arnav::testing::binary_path("host/app/arnav-host"), (dir / "session.yaml").string(), "--quiet",
+                               "--summary", "--summary-json", (dir / "host.json").string()},
+      std::vector<std::string>{}, (dir / "host.log").string(), true);
+  for (int i = 0; i < 600; ++i) {
+    const auto line = host->read_line(1.0);
+    if (line && line->find("session ready") != std::string::npos) return true;
+    if (!line && !host->running()) return false;
+  }
+  return false;
 }
 
 TEST(HostCanE2e, ThePedalHeldOnTheCanBusArmsCuttingInTheSession) {
@@ -66,15 +76,8 @@ TEST(HostCanE2e, ThePedalHeldOnTheCanBusArmsCuttingInTheSession) {
       << "inputs: {cut_enable: {input: pedal_cut, state_stale_after_ms: 1500}}\nmodel: {rate_hz: 60, gravity: false}\n";
   }
   const std::string summary = (dir / "host.json").string();
-  ChildProcess host({host_exe(), (dir / "session.yaml").string(), "--quiet", "--summary", "--summary-json", summary}, {},
-                    (dir / "host.log").string(), true);
-  bool ready = false;
-  for (int i = 0; i < 600 && !ready; ++i) {
-    const auto line = host.read_line(1.0);
-    if (line && line->find("session ready") != std::string::npos) ready = true;
-    if (!line && !host.running()) break;
-  }
-  ASSERT_TRUE(ready) << host.log_tail();
+  std::unique_ptr<ChildProcess> host;
+  ASSERT_TRUE(start_host(dir, host)) << host->log_tail();
   // The scalpel: upright blade, tip 18 mm above the tumour's centre height, 20 mm beside it,
   // sweeping 50 mm back and forth through the liver at 60 Hz.
   lcm::LCM bus(CanRun::kLcmUrl);
@@ -114,9 +117,9 @@ TEST(HostCanE2e, ThePedalHeldOnTheCanBusArmsCuttingInTheSession) {
   std::this_thread::sleep_for(std::chrono::seconds(1));
   stop = true;
   tracker.join();
-  ASSERT_EQ(host.stop(15, 30.0), 0) << host.log_tail();
+  ASSERT_EQ(host->stop(15, 30.0), 0) << host->log_tail();
   std::ifstream in(summary);
-  ASSERT_TRUE(in) << host.log_tail();
+  ASSERT_TRUE(in) << host->log_tail();
   const nlohmann::json j = nlohmann::json::parse(in);
   ASSERT_TRUE(j.contains("navigation")) << j.dump(1);
   const auto& nav = j["navigation"];
@@ -159,15 +162,8 @@ TEST(HostCanE2e, LiveLandmarkRegistrationAcceptedByTheCanPedal) {
       << "tools:\n  reference: {name: liver_marker}\n  pointer: {name: pointer}\nmodel: {rate_hz: 30}\n";
   }
   const std::string summary = (dir / "host.json").string();
-  ChildProcess host({host_exe(), (dir / "session.yaml").string(), "--quiet", "--summary", "--summary-json", summary}, {},
-                    (dir / "host.log").string(), true);
-  bool ready = false;
-  for (int i = 0; i < 600 && !ready; ++i) {
-    const auto line = host.read_line(1.0);
-    if (line && line->find("session ready") != std::string::npos) ready = true;
-    if (!line && !host.running()) break;
-  }
-  ASSERT_TRUE(ready) << host.log_tail();
+  std::unique_ptr<ChildProcess> host;
+  ASSERT_TRUE(start_host(dir, host)) << host->log_tail();
   Eigen::Isometry3d X_RefModel = Eigen::Isometry3d::Identity();
   X_RefModel.linear() = Eigen::AngleAxisd(0.6, Eigen::Vector3d(0.2, 1, 0.3).normalized()).toRotationMatrix();
   X_RefModel.translation() = Eigen::Vector3d(-30, 45, -120);
@@ -208,13 +204,13 @@ TEST(HostCanE2e, LiveLandmarkRegistrationAcceptedByTheCanPedal) {
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   stop = true;
   pointer.join();
-  ASSERT_EQ(host.stop(15, 30.0), 0) << host.log_tail();
+  ASSERT_EQ(host->stop(15, 30.0), 0) << host->log_tail();
   std::ifstream in(summary);
-  ASSERT_TRUE(in) << host.log_tail();
+  ASSERT_TRUE(in) << host->log_tail();
   const nlohmann::json j = nlohmann::json::parse(in);
   const auto& reg = j["navigation"]["registration"];
   std::printf("[ host-can ] registration %s\n", reg.dump().c_str());
-  ASSERT_TRUE(reg["done"].get<bool>()) << reg.dump() << host.log_tail();
+  ASSERT_TRUE(reg["done"].get<bool>()) << reg.dump() << host->log_tail();
   EXPECT_EQ(reg["landmarks_taken"].get<int>(), 4);
   EXPECT_EQ(reg["refused"].get<int>(), 0);
   EXPECT_LT(reg["fre_mm"].get<double>(), 0.01) << "noise-free poses";
