@@ -195,14 +195,7 @@ void CanService::step(std::chrono::microseconds max_wait) {
       }
     } catch (const CanLinkLost& e) {
       last_fault_ = e.what();
-      const TransportCounters c = transport_->counters();
-      closed_counters_.frames += c.frames;
-      closed_counters_.error_frames += c.error_frames;
-      closed_counters_.garbage_bytes += c.garbage_bytes;
-      closed_counters_.resyncs += c.resyncs;
-      closed_counters_.malformed += c.malformed;
-      closed_counters_.adapter_errors += c.adapter_errors;
-      closed_counters_.overruns += c.overruns;
+      closed_counters_ += transport_->counters();
       transport_.reset();
       event(appliance_event_t::SEVERITY_ERROR, "CAN_LINK_LOST", std::string(e.what()) + "; every input released, reopening");
       decoder_.link_lost(monotonic_us(), *this);
@@ -219,16 +212,7 @@ void CanService::step(std::chrono::microseconds max_wait) {
 
 device_health_t CanService::fill_health(const app::LatencySummary& l, double rate) const {
   TransportCounters t = closed_counters_;
-  if (transport_) {
-    const TransportCounters c = transport_->counters();
-    t.frames += c.frames;
-    t.error_frames += c.error_frames;
-    t.garbage_bytes += c.garbage_bytes;
-    t.resyncs += c.resyncs;
-    t.malformed += c.malformed;
-    t.adapter_errors += c.adapter_errors;
-    t.overruns += c.overruns;
-  }
+  if (transport_) t += transport_->counters();
   const DecoderCounters& d = decoder_.counters();
   device_health_t h{};
   h.device = "can";

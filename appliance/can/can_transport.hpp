@@ -46,6 +46,18 @@ struct TransportCounters {
   std::int64_t malformed = 0;       // slcan: lines dropped
   std::int64_t adapter_errors = 0;  // slcan: BEL replies
   std::int64_t overruns = 0;        // frames dropped before the appliance read them (SO_RXQ_OVFL / slcan overrun flag)
+
+  // Adds another link's counts (the totals over the links opened so far).
+  TransportCounters& operator+=(const TransportCounters& o) {
+    frames += o.frames;
+    error_frames += o.error_frames;
+    garbage_bytes += o.garbage_bytes;
+    resyncs += o.resyncs;
+    malformed += o.malformed;
+    adapter_errors += o.adapter_errors;
+    overruns += o.overruns;
+    return *this;
+  }
 };
 
 class CanTransport {
