@@ -37,6 +37,21 @@ namespace {
 
 std::string data(const std::string& rel) { return arnav::testing::data_dir() + "/" + rel; }
 
+// A valid pose of `tool` in Ref as the appliance's NDI path publishes it (device frame k).
+tool_pose_t ref_pose_msg(const std::string& tool, const Eigen::Isometry3d& X_RefTool, std::int64_t k) {
+  tool_pose_t m{};
+  m.tool_name = tool;
+  m.source = tool_pose_t::SOURCE_NDI;
+  m.frame_parent = "Ref";
+  m.frame_child = "Tool";
+  set_pose(m, X_RefTool);
+  m.status = tool_pose_t::STATUS_VALID;
+  m.device_frame_number = k;
+  m.receive_time_mono_us = m.publish_time_mono_us = monotonic_us();
+  m.sequence = k;
+  return m;
+}
+
 // Starts arnav-host on DIR/session.yaml (summary JSON DIR/host.json, log DIR/host.log) and
 // waits up to 600 s for "session ready"; false when it exits or does not get there.
 bool start_host(const std::filesystem::path& dir, std::unique_ptr<ChildProcess>& host) {
@@ -90,16 +105,7 @@ TEST(HostCanE2e, ThePedalHeldOnTheCanBusArmsCuttingInTheSession) {
       const double t = static_cast<double>(monotonic_us() - t0) * 1e-6;
       Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
       X.translation() = Eigen::Vector3d(70 + 25 * std::sin(2 * M_PI * t / 4.0), 140, 158);
-      tool_pose_t m{};
-      m.tool_name = "scalpel";
-      m.source = tool_pose_t::SOURCE_NDI;
-      m.frame_parent = "Ref";
-      m.frame_child = "Tool";
-      set_pose(m, X);
-      m.status = tool_pose_t::STATUS_VALID;
-      m.device_frame_number = k;
-      m.receive_time_mono_us = m.publish_time_mono_us = monotonic_us();
-      m.sequence = k;
+      const tool_pose_t m = ref_pose_msg("scalpel", X, k);
       bus.publish(channels::pose("scalpel"), &m);
       ++sent;
       std::this_thread::sleep_for(std::chrono::microseconds(16'667));
@@ -176,16 +182,7 @@ TEST(HostCanE2e, LiveLandmarkRegistrationAcceptedByTheCanPedal) {
       Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
       X.linear() = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitX()).toRotationMatrix();
       X.translation() = X_RefModel * landmarks[static_cast<std::size_t>(std::min(target.load(), 3))];
-      tool_pose_t m{};
-      m.tool_name = "pointer";
-      m.source = tool_pose_t::SOURCE_NDI;
-      m.frame_parent = "Ref";
-      m.frame_child = "Tool";
-      set_pose(m, X);
-      m.status = tool_pose_t::STATUS_VALID;
-      m.device_frame_number = k;
-      m.receive_time_mono_us = m.publish_time_mono_us = monotonic_us();
-      m.sequence = k;
+      const tool_pose_t m = ref_pose_msg("pointer", X, k);
       bus.publish(channels::pose("pointer"), &m);
       std::this_thread::sleep_for(std::chrono::microseconds(16'667));
     }
