@@ -6,15 +6,11 @@
 // Usage and configuration errors exit 2 naming the file or option.
 #include <CLI/CLI.hpp>
 
-#include <poll.h>
-#include <sys/socket.h>
-#include <sys/un.h>
-#include <unistd.h>
 
 #include <csignal>
-#include <cstring>
 #include <iostream>
 
+#include "hil_tests/bench/control_client.hpp"
 #include "hil_tests/can_sim/can_sim.hpp"
 #include "protocol/guarded_main.hpp"
 
@@ -22,36 +18,6 @@ namespace {
 
 volatile bool g_stop = false;
 void on_signal(int) { g_stop = true; }
-
-int send_control(const std::string& socket_path, const std::string& command) {
-  const int fd = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-  sockaddr_un me{}, sim{};
-  me.sun_family = sim.sun_family = AF_UNIX;
-  if (fd < 0 || ::bind(fd, reinterpret_cast<sockaddr*>(&me), sizeof(sa_family_t)) != 0) {
-    std::cerr << "arnav-can-sim inject: cannot create a socket: " << std::strerror(errno) << "\n";
-    return 1;
-  }
-  if (socket_path.size() >= sizeof sim.sun_path) {
-    std::cerr << "arnav-can-sim inject: socket path too long\n";
-    return 2;
-  }
-  std::strncpy(sim.sun_path, socket_path.c_str(), sizeof sim.sun_path - 1);
-  if (::sendto(fd, command.data(), command.size(), 0, reinterpret_cast<sockaddr*>(&sim), sizeof sim) < 0) {
-    std::cerr << "arnav-can-sim inject: no simulator at " << socket_path << " (" << std::strerror(errno) << ")\n";
-    return 1;
-  }
-  pollfd p{fd, POLLIN, 0};
-  if (::poll(&p, 1, 3000) <= 0) {
-    std::cerr << "arnav-can-sim inject: no answer from " << socket_path << " within 3 s\n";
-    return 1;
-  }
-  char buf[2048];
-  const ssize_t n = ::recv(fd, buf, sizeof buf - 1, 0);
-  ::close(fd);
-  const std::string answer(buf, n > 0 ? static_cast<std::size_t>(n) : 0);
-  std::cout << answer << std::endl;
-  return answer == "OK" ? 0 : 1;
-}
 
 }  // namespace
 
@@ -84,7 +50,7 @@ static int main_body(int argc, char** argv) {
     const int rc = app.exit(e);
     return rc == 0 ? 0 : 2;
   }
-  if (*inject) return send_control(inject_socket, inject_command);
+  if (*inject) return arnav::hil::send_control_command("arnav-can-sim", inject_socket, inject_command);
   if (config.empty()) {
     std::cerr << "arnav-can-sim: --config APPLIANCE.yaml is required (its can: section names the devices)\n";
     return 2;

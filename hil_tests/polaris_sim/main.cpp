@@ -3,18 +3,14 @@
 // prints "READY <slave path>" once the port exists and serves until SIGTERM/SIGINT.
 //   arnav-polaris-sim inject --control SOCKET "cable_pull 2"
 // sends a fault command to a running simulator and prints its answer.
-#include <poll.h>
-#include <sys/socket.h>
-#include <sys/un.h>
-#include <unistd.h>
 
 #include <atomic>
 #include <csignal>
-#include <cstring>
 #include <iostream>
 
 #include <CLI/CLI.hpp>
 
+#include "hil_tests/bench/control_client.hpp"
 #include "hil_tests/polaris_sim/device_model.hpp"
 #include "hil_tests/polaris_sim/replay_device.hpp"
 #include "hil_tests/polaris_sim/simulator.hpp"
@@ -24,38 +20,6 @@ namespace {
 
 std::atomic<bool> g_stop{false};
 void on_signal(int) { g_stop.store(true); }
-
-int send_control(const std::string& socket_path, const std::string& command) {
-  const int fd = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-  sockaddr_un me{}, sim{};
-  me.sun_family = sim.sun_family = AF_UNIX;
-  // Autobind an abstract address so the simulator can answer.
-  if (fd < 0 || ::bind(fd, reinterpret_cast<sockaddr*>(&me), sizeof(sa_family_t)) != 0) {
-    std::cerr << "arnav-polaris-sim inject: cannot create a socket: " << std::strerror(errno) << "\n";
-    return 1;
-  }
-  if (socket_path.size() >= sizeof sim.sun_path) {
-    std::cerr << "arnav-polaris-sim inject: socket path too long\n";
-    return 2;
-  }
-  std::strncpy(sim.sun_path, socket_path.c_str(), sizeof sim.sun_path - 1);
-  if (::sendto(fd, command.data(), command.size(), 0, reinterpret_cast<sockaddr*>(&sim), sizeof sim) < 0) {
-    std::cerr << "arnav-polaris-sim inject: no simulator at " << socket_path << " (" << std::strerror(errno)
-              << "): start it with --control " << socket_path << "\n";
-    return 1;
-  }
-  pollfd p{fd, POLLIN, 0};
-  if (::poll(&p, 1, 3000) <= 0) {
-    std::cerr << "arnav-polaris-sim inject: no answer from " << socket_path << " within 3 s\n";
-    return 1;
-  }
-  char buf[512];
-  const ssize_t n = ::recv(fd, buf, sizeof buf - 1, 0);
-  ::close(fd);
-  const std::string answer(buf, n > 0 ? static_cast<std::size_t>(n) : 0);
-  std::cout << answer << std::endl;
-  return answer == "OK" ? 0 : 1;
-}
 
 }  // namespace
 
@@ -97,7 +61,9 @@ static int main_body(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
   }
-  if (*inject) return send_control(inject_socket, inject_command);
+  if (*inject)
+    return arnav::hil::send_control_command("arnav-polaris-sim", inject_socket, inject_command,
+                                            ": start it with --control " + inject_socket);
   if (opt.pty_link.empty()) {
     std::cerr << "arnav-polaris-sim: --pty-link PATH is required (see --help)\n";
     return 2;
