@@ -60,6 +60,9 @@ struct SessionHandler {
     session.submit_frame(*msg, arnav::monotonic_us());
   }
   void input(const lcm::ReceiveBuffer*, const std::string&, const arnav::input_event_t* msg) { session.on_input(*msg, arnav::monotonic_us()); }
+  void cloud(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+    session.on_cloud(rbuf->data, rbuf->data_size, channel, arnav::monotonic_us());
+  }
 };
 
 nlohmann::json summary(const arnav::host::ToolFreshnessTracker& tracker, double run_s) {
@@ -156,6 +159,9 @@ int run_replay(const Cli& cli, arnav::host::NavigationSession& session, const st
       arnav::input_event_t m;
       if (m.decode(ev->data, 0, ev->datalen) < 0) { ++undecodable; continue; }
       session.on_input(m, now(m.publish_time_mono_us, m.publish_time_wall_us));
+    } else if (!session.swab_channel().empty() && ch == session.swab_channel()) {
+      // Decoded and checked by the session (a corrupt message is counted there, not decoded here).
+      session.on_cloud(ev->data, static_cast<std::size_t>(ev->datalen), ch, offset_us ? ev->timestamp + *offset_us : 0);
     } else if (!frame_channel.empty() && ch == frame_channel) {
       arnav::image_frame_t m;
       if (m.decode(ev->data, 0, ev->datalen) < 0) { ++undecodable; continue; }
@@ -230,6 +236,7 @@ int run_session(const Cli& cli) {
   if (config.camera) bus.subscribe(arnav::channels::frame(config.camera->name), &SessionHandler::frame, &handler);
   bus.subscribe(std::string(arnav::channels::kInput), &SessionHandler::input, &handler);
   bus.subscribe(std::string(arnav::channels::kInputState), &SessionHandler::input, &handler);
+  if (!session->swab_channel().empty()) bus.subscribe(session->swab_channel(), &SessionHandler::cloud, &handler);
   session->start();
   // Scene loaded, model built, subscribed: what the bench waits for before it starts the appliance.
   std::cout << "arnav-host: session ready: " << config.source << (config.camera ? " (overlay on ARNAV_FRAME_" + config.camera->name + ")" : " (status monitor)")

@@ -116,7 +116,19 @@ NavigationSession::NavigationSession(const SessionConfig& config, std::unique_pt
     const Eigen::Vector3d target = scene_ && !scene_->tumours.empty()
                                        ? tumour_centroid_World_mm(*scene_, 0, scene_->problem.mesh.rest_positions_World_mm)
                                        : Eigen::Vector3d::Zero();
-    live_ = std::make_unique<LiveRegistration>(*config_.live_registration, target);
+    if (!config_.live_registration->landmarks_Model_mm.empty())
+      live_ = std::make_unique<LiveRegistration>(*config_.live_registration, target);
+    if (config_.live_registration->swab) {
+      if (!scene_)
+        throw SessionError(config_.source + ":" + std::to_string(config_.live_registration->swab->line) +
+                           ": key 'registration.live.swab': a swab registration needs a scene (scene: <file>)");
+      swab_ = std::make_unique<SwabRegistration>(*config_.live_registration->swab, scene_->organ_surface.positions_World_mm,
+                                                 scene_->organ_surface.tris, target);
+      if (config_.live_registration->X_RefModel_initial) {
+        X_RefModel_ = config_.live_registration->X_RefModel_initial;
+        swab_->begin(*X_RefModel_, "prior (" + config_.live_registration->initial_pose_path + ")");
+      }
+    }
   }
   if (!options_.record_dir.empty()) {
     if (!config_.camera) throw SessionError("--record " + options_.record_dir + ": the session " + config_.source + " has no camera: nothing to record");
@@ -186,6 +198,7 @@ void NavigationSession::stop() {
     frame_cv_.notify_all();
   }
   if (render_thread_.joinable()) render_thread_.join();
+  if (swab_thread_.joinable()) swab_thread_.join();
   if (model_) model_->stop();
   if (recorder_) {
     auto rec = std::move(recorder_);
@@ -346,21 +359,30 @@ void NavigationSession::on_input(const input_event_t& msg, std::int64_t now_us) 
   const bool press = inputs_.on_input(msg, now_us);
   if (config_.grasper && model_) grasp_request(now_us);
   if (!press) return;
-  const bool accept = (live_ && msg.input_name == config_.live_registration->accept_input) ||
-                      (config_.inputs.accept && msg.input_name == config_.inputs.accept->input);
-  if (!accept) return;
+  const bool landmark_accept = (live_ && msg.input_name == config_.live_registration->accept_input) ||
+                               (config_.inputs.accept && msg.input_name == config_.inputs.accept->input);
+  const bool swab_press = swab_ && msg.input_name == swab_->settings().accept_input;
+  if (!landmark_accept && !swab_press) return;
   ++accept_presses_;
+  if (landmark_accept && live_ && !live_->done()) {
+    const LandmarkTake t = live_->take(pointer_tips_Ref(now_us), now_us);
+    say(t.message);
+    if (live_->done()) {
+      X_RefModel_ = live_->X_RefModel();
+      registration_changed_ = true;
+      swab_begin_after_landmarks();
+    }
+    return;
+  }
+  if (swab_press) {
+    swab_accept(now_us);
+    return;
+  }
   if (!live_) {
     say("accept '" + msg.input_name + "' pressed: nothing to accept (no live registration in this session)");
     return;
   }
-  if (live_->done()) {
-    say("accept '" + msg.input_name + "' pressed: registration already complete");
-    return;
-  }
-  const LandmarkTake t = live_->take(pointer_tips_Ref(now_us), now_us);
-  say(t.message);
-  if (live_->done()) X_RefModel_ = live_->X_RefModel();
+  say("accept '" + msg.input_name + "' pressed: registration already complete");
 }
 
 void NavigationSession::advance_model(std::int64_t now_us) {
@@ -588,6 +610,15 @@ FrameResult NavigationSession::render_frame(const image_frame_t& msg, std::int64
     std::lock_guard lock(mutex_);
     X_RefModel = X_RefModel_;
     if (live_) registration_status = live_->status();
+    if (swab_ && swab_->started()) {
+      const std::string st = swab_->status();
+      registration_status = registration_status.empty() ? st : registration_status + "; " + st;
+      if (!swab_->done()) add_flag(r.flags, swab_->running() ? "swab_registering" : "swab");
+    }
+    if (registration_changed_ && X_RefModel_) {
+      add_flag(r.flags, "registration_changed");
+      registration_changed_ = false;
+    }
     if (cut_model) {
       std::string banner;
       cutting_enabled = cutting_armed(now_us, &banner);
@@ -600,7 +631,7 @@ FrameResult NavigationSession::render_frame(const image_frame_t& msg, std::int64
   if (!X_RefModel) {
     add_flag(r.flags, "unregistered");
     r.banners.push_back({registration_status.empty() ? std::string("NOT REGISTERED") : registration_status, cv::Scalar(0, 140, 230)});
-  } else if (live_ && !live_->done()) {
+  } else if ((live_ && !live_->done()) || (swab_ && swab_->started() && !swab_->done())) {
     r.banners.push_back({registration_status, cv::Scalar(0, 140, 230)});
   }
   // The blade in Model: handed to the model (cutting/pushing) whether or not the camera pose is known.
@@ -669,7 +700,7 @@ FrameResult NavigationSession::render_frame(const image_frame_t& msg, std::int64
   if (cut_model)
     footer_text += std::string(out.row.cutting.value_or(false) ? "  CUTTING" : "  cutting off") + "  cut " +
                    std::to_string(static_cast<int>(std::lround(out.row.cut_area_mm2))) + " mm2";
-  if (live_ && live_->done()) footer_text += "  " + registration_status;
+  if ((live_ && live_->done() && !swab_) || (swab_ && swab_->done())) footer_text += "  " + registration_status;
   overlay::draw_status(image, r.banners, distance, config_.overlay.warn_mm, footer_text);
   const double render_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   out.row.render_done_mono_us = options_.threaded ? monotonic_us() : now_us + static_cast<std::int64_t>(render_ms * 1000.0);
@@ -778,7 +809,7 @@ nlohmann::json NavigationSession::summary_json(double run_s) {
                     {"events", events},
                     {"disarmed_by_stale_input", {{"episodes", disarm_episodes_}, {"frames", disarmed_frames_}}}};
   }
-  if (!inputs_.levels().empty() || config_.inputs.cut_enable || config_.inputs.accept || live_) {
+  if (!inputs_.levels().empty() || config_.inputs.cut_enable || config_.inputs.accept || live_ || swab_) {
     nlohmann::json in = nlohmann::json::object();
     for (const auto& [name, l] : inputs_.levels())
       in[name] = {{"presses", l.presses}, {"resyncs", l.resyncs}, {"pressed_at_exit", l.pressed}};
@@ -796,7 +827,13 @@ nlohmann::json NavigationSession::summary_json(double run_s) {
         for (int c = 0; c < 4; ++c) m.push_back(X.matrix()(r, c));
       reg["X_RefModel"] = m;
     }
+    if (swab_) {
+      reg["method"] = "live landmarks + swab";
+      reg["swab"] = swab_summary();
+    }
     j["registration"] = reg;
+  } else if (swab_) {
+    j["registration"] = {{"method", "prior pose + swab"}, {"initial_pose", config_.live_registration->initial_pose_path}, {"swab", swab_summary()}};
   } else if (config_.X_RefModel) {
     j["registration"] = {{"method", "file"}, {"file", config_.registration_path}};
   }
@@ -833,7 +870,7 @@ std::string NavigationSession::format_summary(double run_s) {
                   j["model"]["step_ms_p50"].get<double>(), j["model"]["step_ms_p99"].get<double>());
     os << line;
   }
-  if (j.contains("registration") && j["registration"]["method"] == "live landmarks") {
+  if (j.contains("registration") && j["registration"]["method"].get<std::string>().rfind("live landmarks", 0) == 0) {
     const auto& g = j["registration"];
     if (g["done"].get<bool>())
       std::snprintf(line, sizeof line, "  registration (live, %d landmarks, %d refused): FRE %.2f mm, predicted TRE %.2f mm at the tumour\n",
@@ -843,6 +880,7 @@ std::string NavigationSession::format_summary(double run_s) {
                     g["landmarks"].get<int>(), g["refused"].get<int>());
     os << line;
   }
+  if (j.contains("registration") && j["registration"].contains("swab")) os << format_swab_summary(j["registration"]["swab"]);
   if (j.contains("cutting")) {
     const auto& c = j["cutting"];
     std::snprintf(line, sizeof line,

@@ -39,6 +39,7 @@
 #include "host/app/model_runner.hpp"
 #include "host/app/recorder.hpp"
 #include "host/app/session_config.hpp"
+#include "host/app/swab_registration.hpp"
 #include "host/app/tool_freshness.hpp"
 #include "host/scene/scene.hpp"
 
@@ -76,6 +77,11 @@ class NavigationSession {
   // ARNAV_INPUT changes and ARNAV_INPUT_STATE snapshots (input_event_t): cut_enable level,
   // accept presses (a live registration takes a landmark at once).
   void on_input(const input_event_t& msg, std::int64_t now_us);
+  // The swab channel's messages (arnav.point_cloud_t bytes; registration.live.swab):
+  // decoded and checked, brought into Ref, collected (navigation_session_swab.cpp).
+  void on_cloud(const void* data, std::size_t size, const std::string& channel, std::int64_t now_us);
+  // The channel on_cloud wants (empty: the session has no swab step).
+  std::string swab_channel() const;
   // Live: hands the frame to the rendering thread; a frame still waiting is replaced and
   // counted as dropped.
   void submit_frame(const image_frame_t& msg, std::int64_t now_us);
@@ -108,6 +114,9 @@ class NavigationSession {
   // The registration in use (file or live, once complete).
   std::optional<Eigen::Isometry3d> X_RefModel();
   const LiveRegistration* live_registration() const { return live_.get(); }
+  // The swab step (null without registration.live.swab); read it after stop() or in
+  // unthreaded sessions (a live worker may be finishing it).
+  const SwabRegistration* swab_registration() const { return swab_.get(); }
   // The grasper coupled to the model (tools.grasper; nullopt without one): its state after the last model step.
   std::optional<GraspStatus> grasp_status() const;
   // Messages printed with print_events (and kept for tests).
@@ -144,6 +153,13 @@ class NavigationSession {
   void grasp_frame(std::string& flags, std::vector<std::string>& banners);
   void drain_grasp();  // with mutex_ held
   nlohmann::json grasp_summary();  // with mutex_ held
+  // registration.live.swab (navigation_session_swab.cpp), all with mutex_ held.
+  void swab_begin_after_landmarks();
+  void swab_accept(std::int64_t now_us);
+  void swab_apply(const SwabOutcome& outcome);
+  std::optional<PointCloud> swab_cloud_to_Ref(const PointCloud& cloud, std::int64_t capture_wall_us, std::int64_t publish_wall_us,
+                                              std::string* why);
+  nlohmann::json swab_summary();
 
   SessionConfig config_;
   SessionOptions options_;
@@ -160,6 +176,11 @@ class NavigationSession {
   InputTracker inputs_;
   std::optional<Eigen::Isometry3d> X_RefModel_;
   std::unique_ptr<LiveRegistration> live_;
+  std::unique_ptr<SwabRegistration> swab_;             // with mutex_
+  std::thread swab_thread_;                            // live: the refinement off the render/model threads
+  std::int64_t swab_corrupt_messages_ = 0;             // with mutex_
+  std::set<std::string> swab_reported_;                // refusal kinds already said (with mutex_)
+  bool registration_changed_ = false;                  // flag the next frame (with mutex_)
   std::vector<std::string> messages_;
   std::int64_t accept_presses_ = 0;
 
@@ -196,6 +217,9 @@ class NavigationSession {
   std::size_t grasp_messages_seen_ = 0;                 // with mutex_
   std::int64_t grasper_stale_frames_ = 0;               // with mutex_
 };
+
+// The swab lines of format_summary from summary_json's registration.swab.
+std::string format_swab_summary(const nlohmann::json& swab);
 
 // Splits "a|b" flags.
 std::vector<std::string> split_flags(const std::string& flags);

@@ -57,12 +57,65 @@ InputBinding parse_binding(const Reader& r, const YAML::Node& n, const std::stri
   return b;
 }
 
+// registration.live.swab: {source: NAME | channel: CH, accept: INPUT, min_points: N, method: rigid, ...}.
+SwabRegistrationSettings parse_swab(const Reader& r, const YAML::Node& n) {
+  const std::string key = "registration.live.swab";
+  if (!n.IsMap())
+    r.fail(n, key, "expected a map, e.g. {source: pointer, accept: pedal_accept, min_points: 150, method: rigid}");
+  r.only(n, key, {"source", "channel", "accept", "min_points", "method", "min_extent_mm", "max_reference_motion_mm", "max_change_mm",
+                  "max_change_deg"});
+  SwabRegistrationSettings s;
+  s.line = line_of(n);
+  if (n["source"] && n["channel"]) r.fail(n["channel"], key + ".channel", "give source (channel ARNAV_CLOUD_<source>) or channel, not both");
+  if (n["source"]) {
+    const std::string src = r.text(n, key, "source", "");
+    if (src.empty()) r.fail(n["source"], key + ".source", "must name the appliance's swab source (its swab.source, e.g. pointer)");
+    s.channel = "ARNAV_CLOUD_" + src;
+  }
+  if (n["channel"]) {
+    s.channel = r.text(n, key, "channel", "");
+    if (s.channel.empty()) r.fail(n["channel"], key + ".channel", "must name an LCM channel (e.g. ARNAV_CLOUD_pointer)");
+  }
+  s.accept_input = r.text(n, key, "accept", "");
+  s.min_points = r.integer(n, key, "min_points", s.min_points, 10, 1000000);
+  s.method = r.text(n, key, "method", s.method);
+  if (s.method == "nonrigid")
+    r.fail(n["method"], key + ".method",
+           "'nonrigid' is not available in arnav-host: the session's tissue model cannot start from a registered shape yet; "
+           "use 'rigid' here (surface ICP) and arnav-register --lcm for the non-rigid fit (docs/register.md)");
+  if (s.method != "rigid") r.fail(n["method"], key + ".method", "must be 'rigid' (point-to-plane ICP from the landmark or prior pose)");
+  s.min_extent_mm = r.number(n, key, "min_extent_mm", s.min_extent_mm, 1.0, 1000.0);
+  s.max_reference_motion_mm = r.number(n, key, "max_reference_motion_mm", s.max_reference_motion_mm, 0.01, 100.0);
+  s.max_change_mm = r.number(n, key, "max_change_mm", s.max_change_mm, 0.1, 1000.0);
+  s.max_change_deg = r.number(n, key, "max_change_deg", s.max_change_deg, 0.1, 180.0);
+  return s;
+}
+
 LiveRegistrationSettings parse_live(const Reader& r, const YAML::Node& n, const std::string& base_dir) {
   const std::string key = "registration.live";
-  r.only(n, key, {"landmarks", "pointer", "accept", "tip_mm", "window_ms", "max_motion_mm", "stale_after_ms", "fle_mm"});
+  r.only(n, key, {"landmarks", "pointer", "accept", "tip_mm", "window_ms", "max_motion_mm", "stale_after_ms", "fle_mm", "swab",
+                  "initial_pose"});
   LiveRegistrationSettings l;
   l.line = line_of(n);
-  if (!n["landmarks"]) r.fail(n, key + ".landmarks", "missing: a CSV of model-frame landmarks (name,x_mm,y_mm,z_mm; at least 3)");
+  if (n["swab"]) l.swab = parse_swab(r, n["swab"]);
+  if (n["initial_pose"]) {
+    if (n["landmarks"])
+      r.fail(n["initial_pose"], key + ".initial_pose", "give landmarks (touched with the pointer) or initial_pose (a prior X_RefModel file), not both");
+    if (!l.swab)
+      r.fail(n["initial_pose"], key + ".initial_pose",
+             "initial_pose is refined by a surface swab: add swab: {source: pointer, accept: INPUT} (or use registration: FILE)");
+    l.initial_pose_path = resolve(base_dir, r.text(n, key, "initial_pose", ""));
+    try {
+      l.X_RefModel_initial = calib::read_transform(l.initial_pose_path, "X_RefModel").X_ParentChild;
+    } catch (const calib::CalibError& e) {
+      r.fail(n["initial_pose"], key + ".initial_pose", std::string(e.what()) + " (a rigid transform file named X_RefModel: parent_frame Ref, child_frame Model)");
+    }
+    if (n["pointer"]) l.pointer = r.text(n, key, "pointer", "");
+    l.accept_input = r.text(n, key, "accept", "");
+    return l;
+  }
+  if (!n["landmarks"])
+    r.fail(n, key + ".landmarks", "missing: a CSV of model-frame landmarks (name,x_mm,y_mm,z_mm; at least 3), or initial_pose: FILE with swab:");
   l.landmarks_path = resolve(base_dir, r.text(n, key, "landmarks", ""));
   try {
     for (const auto& p : read_targets(l.landmarks_path)) l.landmarks_Model_mm.emplace_back(p.name, p.p_mm);
@@ -184,10 +237,13 @@ SessionConfig parse_session(const std::string& text, const std::string& source, 
   if (c.live_registration) {
     LiveRegistrationSettings& l = *c.live_registration;
     const YAML::Node live = root["registration"]["live"];
-    if (l.accept_input.empty()) {
-      if (!c.inputs.accept)
-        r.fail(live, "registration.live.accept", "missing: the input whose press takes a landmark (accept: button_1, or inputs.accept)");
-      l.accept_input = c.inputs.accept->input;
+    if (l.accept_input.empty() && c.inputs.accept) l.accept_input = c.inputs.accept->input;
+    if (l.accept_input.empty() && !l.X_RefModel_initial)
+      r.fail(live, "registration.live.accept", "missing: the input whose press takes a landmark (accept: button_1, or inputs.accept)");
+    if (l.swab && l.swab->accept_input.empty()) {
+      if (l.accept_input.empty())
+        r.fail(live["swab"], "registration.live.swab.accept", "missing: the input whose press registers the swab (accept: pedal_accept, or inputs.accept)");
+      l.swab->accept_input = l.accept_input;
     }
     if (c.pointer && c.pointer->name == l.pointer) l.stale_after_ms = std::min(l.stale_after_ms, c.pointer->stale_after_ms);
   }

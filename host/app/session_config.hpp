@@ -86,8 +86,26 @@ struct CuttingSettings {
   int line = 0;
 };
 
+// Surface swab after the landmark step (or after a prior pose): the appliance's
+// point_cloud_t swab messages are collected and, on an accept press, refine the
+// registration by point-to-plane ICP (docs/overlay.md, "Swab registration").
+struct SwabRegistrationSettings {
+  std::string channel = "ARNAV_CLOUD_pointer";  // source: NAME -> ARNAV_CLOUD_NAME, or channel: FULL
+  std::string accept_input;            // empty: the live registration's accept input
+  int min_points = 100;                // fewer points: the accept press is refused (keep swabbing)
+  std::string method = "rigid";        // surface rigid ICP from the landmark (or prior) pose
+  double min_extent_mm = 30.0;         // the swab must span at least this (largest bounding-box side)
+  double max_reference_motion_mm = 2.0;  // a message not in Ref: refused when the reference moved more over it
+  double max_change_mm = 25.0;         // a refinement moving the model further than this (at the target) is refused
+  double max_change_deg = 15.0;        // ... or turning it more than this
+  int line = 0;
+};
+
 // Live paired-point registration with the tracked pointer (docs/overlay.md).
 struct LiveRegistrationSettings {
+  std::optional<SwabRegistrationSettings> swab;       // live.swab
+  std::optional<Eigen::Isometry3d> X_RefModel_initial; // live.initial_pose: a prior pose instead of landmarks (needs swab)
+  std::string initial_pose_path;
   std::string landmarks_path;
   std::vector<std::pair<std::string, Eigen::Vector3d>> landmarks_Model_mm;  // in the order they are taken
   std::string pointer;                 // tool name (its tip is the tool origin, mm)
