@@ -150,6 +150,7 @@ std::string CanRun::start(const CanRunOptions& o) {
         << "    - {name: pedal_accept, node: pedal, id: 0x190, byte: 0, bit: 1, active: low, debounce_ms: " << o.pedal_debounce_ms << "}\n"
         << "    - {name: pedal_analog, node: pedal, id: 0x191, byte: 1, size: 2, range: [200, 800], debounce_ms: 0}\n"
         << "    - {name: grasper_close, node: grasper, id: 0x185, byte: 0, bit: 7, debounce_ms: 10}\n";
+    cfg << o.extra_config;
   }
   lcm_ = std::make_unique<CanCapture>(kLcmUrl);
   if (!lcm_->good()) return "cannot open LCM at " + std::string(kLcmUrl);

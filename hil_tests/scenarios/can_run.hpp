@@ -35,6 +35,9 @@ struct CanRunOptions {
   std::vector<std::string> appliance_env;
   int appliance_priority = 50;       // can.priority of the appliance (50 as shipped; 0: normal)
   int sim_priority = 0;              // SCHED_FIFO for the simulator (0: normal)
+  // Appended to the appliance configuration (top-level sections, e.g. `port: sim` with
+  // tools and a `swab:` on one of the inputs above).
+  std::string extra_config;
 };
 
 std::string can_sim_exe();
