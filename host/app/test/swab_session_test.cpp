@@ -4,14 +4,18 @@
 // refines it towards the truth on an accept press; refused presses and clouds keep the
 // landmark pose with a message; points in Cam are brought into Ref through the
 // reference's poses; a prior pose (initial_pose) is refined without landmarks; the
-// refinement runs off the caller's thread in live sessions; bad swab sections name
-// file:line and the fix.
+// refinement runs off the caller's thread in live sessions; arnav-host --replay registers
+// the swab of a log the same way twice; bad swab sections name file:line and the fix.
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cstdio>
 #include <fstream>
 #include <random>
 #include <thread>
+
+#include <lcm/lcm-cpp.hpp>
+#include <nlohmann/json.hpp>
 
 #include "arnav/point_cloud_t.hpp"
 #include "host/app/navigation_session.hpp"
@@ -375,6 +379,86 @@ TEST(SwabSessionConfig, BadSwabSectionsNameFileLineAndFix) {
   ASSERT_TRUE(prior.live_registration->X_RefModel_initial);
   EXPECT_EQ(prior.live_registration->swab->channel, "ARNAV_CLOUD_stylus");
   EXPECT_TRUE(prior.live_registration->landmarks_Model_mm.empty());
+}
+
+int run_command(const std::string& cmd, std::string* output) {
+  FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
+  if (!p) return -1;
+  char buf[4096];
+  std::string out;
+  while (std::fgets(buf, sizeof buf, p)) out += buf;
+  const int status = ::pclose(p);
+  *output = out;
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// arnav-host --replay on an lcm-logger log with the swab channel: a prior pose refined by
+// the swab in the log (one corrupt message among them, counted), the same result twice.
+TEST_F(SwabSession, ReplayOfALogRegistersTheSwabTheSameWay) {
+  Eigen::Isometry3d off = Eigen::Isometry3d::Identity();
+  off.linear() = Eigen::AngleAxisd(2.0 * M_PI / 180.0, Eigen::Vector3d(1, 0.3, 0).normalized()).toRotationMatrix();
+  off.translation() = Eigen::Vector3d(-3, 2, 3);
+  calib::RigidTransformRecord rec;
+  rec.parent_frame = "Ref";
+  rec.child_frame = "Model";
+  rec.X_ParentChild = off * X_true_;
+  rec.method = "test";
+  rec.date = "2026-11-26T00:00:00Z";
+  calib::write_transform(f_.dir / "prior.yaml", rec);
+  const std::string session = f_.write("replay.yaml", "arnav_session_version: 1\nscene: " + data_dir() +
+                                                         "/liver/liver_coarse.scene.yaml\n"
+                                                         "registration:\n  live: {initial_pose: prior.yaml, swab: {source: pointer, accept: pedal_swab}}\n"
+                                                         "tools:\n  reference: {name: liver_marker}\nmodel: {rate_hz: 30}\n");
+  const std::string log_path = (f_.dir / "swab.lcmlog").string();
+  {
+    lcm::LogFile log(log_path, "w");
+    ASSERT_TRUE(log.good());
+    const auto write = [&](const std::string& channel, const std::vector<std::uint8_t>& bytes, std::int64_t t_us) {
+      lcm::LogEvent ev{};
+      ev.timestamp = t_us + 1'700'000'000'000'000;
+      ev.channel = channel;
+      ev.datalen = static_cast<std::int32_t>(bytes.size());
+      ev.data = const_cast<std::uint8_t*>(bytes.data());
+      log.writeEvent(&ev);
+    };
+    const auto input = [&](bool pressed, std::int64_t t_us) {
+      input_event_t m = input_msg("pedal_swab", pressed, ++seq_, t_us);
+      m.publish_time_wall_us = m.publish_time_mono_us + 1'700'000'000'000'000;
+      std::vector<std::uint8_t> b(static_cast<std::size_t>(m.getEncodedSize()));
+      m.encode(b.data(), 0, static_cast<int>(b.size()));
+      write("ARNAV_INPUT", b, t_us);
+    };
+    input(false, 1'000'000);
+    std::int64_t t_us = 1'100'000;
+    for (const auto& b : messages(surface_points_Ref(300, 0.3), "Ref", t_us)) write("ARNAV_CLOUD_pointer", b, t_us += 50'000);
+    write("ARNAV_CLOUD_pointer", {0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13}, t_us += 50'000);
+    input(true, t_us += 200'000);
+    input(false, t_us += 100'000);
+  }
+  const char* bin = std::getenv("ARNAV_BINARY_DIR");
+  const std::string host = std::string(bin ? bin : ".") + "/host/app/arnav-host";
+  std::vector<nlohmann::json> runs;
+  for (int i = 0; i < 2; ++i) {
+    const std::string json = (f_.dir / ("replay" + std::to_string(i) + ".json")).string();
+    std::string out;
+    ASSERT_EQ(run_command(host + " " + session + " --replay " + log_path + " --replay-speed 0 --quiet --summary-json " + json, &out), 0) << out;
+    EXPECT_NE(out.find("swab registration done: 300 points"), std::string::npos) << out;
+    EXPECT_NE(out.find("swab: message refused: ARNAV_CLOUD_pointer"), std::string::npos) << out;
+    std::ifstream in(json);
+    runs.push_back(nlohmann::json::parse(in)["navigation"]["registration"]);
+  }
+  const auto& sw = runs[0]["swab"];
+  EXPECT_EQ(runs[0]["method"], "prior pose + swab");
+  EXPECT_TRUE(sw["done"].get<bool>()) << sw.dump();
+  EXPECT_EQ(sw["messages_corrupt"], 1);
+  EXPECT_EQ(sw["points_collected"], 300);
+  const auto m = sw["result"]["X_RefModel"].get<std::vector<double>>();
+  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 4; ++c) X.matrix()(r, c) = m[static_cast<std::size_t>(4 * r + c)];
+  EXPECT_GT(error_at_tumour(off * X_true_), 3.0);
+  EXPECT_LT(error_at_tumour(X), 0.5);
+  EXPECT_EQ(runs[0]["swab"]["result"]["X_RefModel"], runs[1]["swab"]["result"]["X_RefModel"]) << "replays differ";
 }
 
 }  // namespace
