@@ -152,6 +152,10 @@ void NavigationSession::swab_apply(const SwabOutcome& o) {
 
 nlohmann::json NavigationSession::swab_summary() {
   const SwabRegistration& s = *swab_;
+  std::vector<double> in_use;  // the registration in use now (landmark/prior pose, or the swab's)
+  if (X_RefModel_)
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c) in_use.push_back(X_RefModel_->matrix()(r, c));
   nlohmann::json j = {{"channel", s.settings().channel},
                       {"accept", s.settings().accept_input},
                       {"method", s.settings().method},
@@ -166,7 +170,8 @@ nlohmann::json NavigationSession::swab_summary() {
                       {"messages_refused", s.refused_messages()},
                       {"messages_corrupt", swab_corrupt_messages_},
                       {"messages_ignored", s.ignored_messages()},
-                      {"last_refusal", s.last_refusal()}};
+                      {"last_refusal", s.last_refusal()},
+                      {"X_RefModel_in_use", in_use}};
   if (const auto& o = s.last_outcome()) {
     std::vector<double> m;
     for (int r = 0; r < 4; ++r)
@@ -202,9 +207,8 @@ std::string format_swab_summary(const nlohmann::json& s) {
     return line;
   }
   std::string out;
-  std::snprintf(line, sizeof line, "  swab: not applied (%d points collected, %d attempt(s), %d press(es) refused)%s\n",
-                s["points_collected"].get<int>(), s["attempts"].get<int>(), s["refused_presses"].get<int>(),
-                s.contains("result") ? "" : "");
+  std::snprintf(line, sizeof line, "  swab: not applied (%d points collected, %d attempt(s), %d press(es) refused)\n",
+                s["points_collected"].get<int>(), s["attempts"].get<int>(), s["refused_presses"].get<int>());
   out = line;
   if (s.contains("result")) out += "    last: " + s["result"]["message"].get<std::string>() + "\n";
   return out;

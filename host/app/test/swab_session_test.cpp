@@ -218,6 +218,7 @@ TEST_F(SwabSession, SwabRefinesTheLandmarkPoseTowardTheTruth) {
   EXPECT_LT(sw["result"]["surface_rms_after_mm"].get<double>(), 0.5);
   EXPECT_NEAR(sw["result"]["change_at_target_mm"].get<double>(), (X * kTumourCentre_Model - X_landmarks * kTumourCentre_Model).norm(), 1e-6);
   EXPECT_GT(sw["result"]["change_deg"].get<double>(), 0.0);
+  EXPECT_EQ(sw["X_RefModel_in_use"], sw["result"]["X_RefModel"]);
   const std::string summary = s->format_summary(1.0);
   EXPECT_NE(summary.find("swab (rigid, from the landmark pose): 400 points, surface RMS"), std::string::npos) << summary;
 }
