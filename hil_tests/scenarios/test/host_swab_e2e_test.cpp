@@ -222,7 +222,13 @@ TEST(HostSwabE2e, PedalHeldSwabRefinesTheLandmarkRegistration) {
   Eigen::Isometry3d X_RefModel = Eigen::Isometry3d::Identity();
   X_RefModel.linear() = Eigen::AngleAxisd(0.6, Eigen::Vector3d(0.2, 1, 0.3).normalized()).toRotationMatrix();
   X_RefModel.translation() = Eigen::Vector3d(-30, 45, -120);
-  const std::string tmp = make_temp_dir("arnav-swab-paths");
+  const std::string tmp = make_temp_dir("arnav-swab");
+  struct Cleanup {  // also when an assertion returns early
+    std::string dir;
+    ~Cleanup() {
+      if (!std::getenv("ARNAV_HIL_KEEP")) std::filesystem::remove_all(dir);
+    }
+  } cleanup{tmp};
   write_path(tmp + "/pointer_path.csv", path);
   write_path(tmp + "/reference_path.csv", {{0.0, Eigen::Vector3d::Zero()}, {1.0, Eigen::Vector3d::Zero()}});
   const std::string roms = arnav::testing::data_dir() + "/ndi_roms/";
@@ -371,7 +377,6 @@ TEST(HostSwabE2e, PedalHeldSwabRefinesTheLandmarkRegistration) {
   EXPECT_GT(landmark_error, 1.0) << "the touch errors should put the landmark pose off";
   EXPECT_LT(swab_error, 1.0);
   EXPECT_LT(swab_error, 0.5 * landmark_error);
-  if (!std::getenv("ARNAV_HIL_KEEP")) std::filesystem::remove_all(tmp);
 }
 
 }  // namespace
