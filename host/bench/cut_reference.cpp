@@ -208,8 +208,7 @@ void write_cut_reference_png(const std::string& path, const std::vector<CutBench
   for (const auto& r : rows) ref_tets = std::max(ref_tets, r.reference_tets);
   write_pareto_png(path, plot,
                    {"median wall time per 1/60 s frame of the cut run (ms)", "error against the reference cut (mm)",
-                    "filled: run on the reference mesh itself; x: unhealthy run; error against the same path cut on " + std::to_string(ref_tets) +
-                        " tets with the same model"});
+                    "x: unhealthy run; reference: same path, same model, " + std::to_string(ref_tets) + " tets"});
 }
 
 }  // namespace arnav::host
