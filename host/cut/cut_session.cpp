@@ -263,7 +263,12 @@ void CutSession::reembed(CarriedPoints& points, const CutStepReport& step, const
     // possibly across the cut). Look through the structure's region.
     if (best < -1e-9)
       for (int input : region)
-        for (int piece : cutter_.pieces_of(input)) consider(piece);
+        for (int piece : cutter_.pieces_of(input)) {
+          const auto& tet = mesh.tets[static_cast<std::size_t>(piece)];
+          Aabb box;
+          for (int w : tet) box.extend(Eigen::Vector3d(rest.col(w)));
+          if (box.inflated(1e-9).overlaps(Aabb{p, p})) consider(piece);  // only tets whose box holds the point
+        }
     points.embedding.tet[static_cast<std::size_t>(i)] = best_tet;
     points.embedding.weights.col(i) = best_w;
   }

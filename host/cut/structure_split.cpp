@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <map>
 #include <unordered_map>
+#include <unordered_set>
 
 namespace arnav::host::cut {
 
@@ -290,12 +291,17 @@ SplitStructure split_surface(const TetMesh& mesh, const CutLips& lips, const Eig
   // Close the loops the split opened: fans around each loop's centroid.
   int caps = 0;
   if (crossed > 0) {
-    std::map<std::pair<int, int>, int> directed;
+    const auto key = [](int i, int j) { return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(i)) << 32) | static_cast<std::uint32_t>(j); };
+    std::unordered_set<std::uint64_t> directed;
+    directed.reserve(3 * out.size());
     for (const auto& t : out)
-      for (int k = 0; k < 3; ++k) ++directed[{t[static_cast<std::size_t>(k)], t[static_cast<std::size_t>((k + 1) % 3)]}];
+      for (int k = 0; k < 3; ++k) directed.insert(key(t[static_cast<std::size_t>(k)], t[static_cast<std::size_t>((k + 1) % 3)]));
     std::multimap<int, int> next;  // boundary edge i -> j (no opposite edge j -> i)
-    for (const auto& [e, n] : directed)
-      if (!directed.count({e.second, e.first})) next.emplace(e.first, e.second);
+    for (const auto& t : out)
+      for (int k = 0; k < 3; ++k) {
+        const int i = t[static_cast<std::size_t>(k)], j = t[static_cast<std::size_t>((k + 1) % 3)];
+        if (!directed.count(key(j, i))) next.emplace(i, j);
+      }
     while (!next.empty()) {
       std::vector<int> loop{next.begin()->first};
       for (;;) {
