@@ -264,15 +264,17 @@ void ModelRunner::step_once(std::int64_t now_us) {
     if (!cut_faces.tris.empty()) snap->cut_surface = std::move(cut_faces);
     for (std::size_t i = 0; i < cut_->tumours().size(); ++i) {
       TriMesh t;
-      t.tris = scene_.tumours[i].rest.tris;
+      t.tris = cut_->tumour_tris()[i];  // split along the cut (closed again)
       t.positions_World_mm = cut_->tumours()[i].embedding.apply(mesh, x);
       snap->margins.push_back(overlay::offset_surface(t, margin_mm_));
       snap->tumour_centroids_mm.push_back(closed_centroid(t));
       snap->tumours.push_back(std::move(t));
     }
     if (scene_.vessels && cut_->vessels()) {
-      VesselTree v = scene_.vessels->rest;
+      VesselTree v;  // split along the cut: new nodes take the radius of the node they came from
       v.nodes_World_mm = cut_->vessels()->embedding.apply(mesh, x);
+      v.segments = cut_->vessel_segments();
+      for (int src : cut_->vessel_node_source()) v.radius_mm.push_back(scene_.vessels->rest.radius_mm[static_cast<std::size_t>(src)]);
       snap->vessels = std::move(v);
     }
     snap->volume_positions_mm = x;

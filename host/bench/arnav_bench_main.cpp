@@ -15,6 +15,7 @@
 #include <iostream>
 
 #include "host/bench/cut_bench.hpp"
+#include "host/bench/cut_reference.hpp"
 #include "host/bench/deform_bench.hpp"
 #include "host/bench/pareto_plot.hpp"
 #include "host/bench/register_bench.hpp"
@@ -85,6 +86,8 @@ static int main_body(int argc, char** argv) {
   cut->add_option("--mesh", cut_options.meshes, "meshes (coarse: 4,768 tets; paper: 26,054 tets)")->check(CLI::IsMember({"coarse", "paper"}));
   cut->add_option("--scenario", cut_options.scenarios, "scenarios (right_lobe, ring)")->check(CLI::IsMember({"right_lobe", "ring"}));
   cut->add_option("--setting", cut_options.setting_prefixes, "run only the models whose label starts with this (repeatable)");
+  cut->add_option("--reference", cut_options.reference_mesh, "also cut each run's path on this mesh with the same model: tumour-centroid and cut-surface error (cut_reference.csv, cut_reference.png)")
+      ->check(CLI::IsMember({"coarse", "paper"}));
   cut->add_option("--frames", cut_options.max_frames, "cap the frames per run")->check(CLI::PositiveNumber);
   std::string rebuild = "inline";
   cut->add_option("--rebuild", rebuild, "model rebuild after a cut: inline, background or both")->check(CLI::IsMember({"inline", "background", "both"}));
@@ -194,6 +197,10 @@ static int main_body(int argc, char** argv) {
       rows = run_cut_bench(cut_options);
       std::filesystem::create_directories(out_dir);
       write_cut_csv(out_dir + "/cut.csv", rows);
+      if (!cut_options.reference_mesh.empty()) {
+        write_cut_reference_csv(out_dir + "/cut_reference.csv", rows);
+        write_cut_reference_png(out_dir + "/cut_reference.png", rows);
+      }
     } catch (const std::exception& e) {
       std::cerr << "arnav-bench: " << e.what() << "\n";
       return 2;

@@ -6,6 +6,7 @@
 #include <iostream>
 #include <stdexcept>
 
+#include "host/bench/cut_reference.hpp"
 #include "host/cut/cut_session.hpp"
 #include "host/cut/mesh_checks.hpp"
 #include "host/cut/scalpel_path.hpp"
@@ -38,6 +39,7 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
   std::vector<std::string> scenarios = o.quick ? std::vector<std::string>{"right_lobe"} : o.scenarios;
   std::vector<std::string> prefixes = o.quick ? std::vector<std::string>{"xpbd"} : o.setting_prefixes;
   std::vector<CutBenchRow> rows;
+  CutReferences references(o);
   for (const auto& mesh_name : meshes) {
     if (mesh_name != "coarse" && mesh_name != "paper") throw std::invalid_argument("cut bench: unknown mesh '" + mesh_name + "' (coarse, paper)");
     const Scene scene = load_scene(o.data_dir + (mesh_name == "coarse" ? "/liver/liver_coarse_cut.scene.yaml" : "/liver/liver.scene.yaml"));
@@ -124,6 +126,7 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
         row.rebuilds = session.rebuilds();
         row.local_median_ms = percentile(local, 0.5);
         row.local_p99_ms = percentile(local, 0.99);
+        if (!o.reference_mesh.empty()) add_reference_errors(references, scenario, variant, settings, session, row);
         std::cerr << "arnav-bench cut: " << mesh_name << " " << scenario << " " << variant.label << (background ? " (background rebuild)" : "") << ": " << row.frames << " frames, frame "
                   << row.frame_median_ms << "/" << row.frame_p99_ms << " ms (median/p99), topology " << row.topology_median_ms << "/"
                   << row.topology_p99_ms << " ms, local update " << row.local_median_ms << "/" << row.local_p99_ms << " ms (" << row.local_updates

@@ -16,6 +16,7 @@ struct CutBenchOptions {
   std::vector<std::string> setting_prefixes;                   // model labels to run (prefix match; empty: all)
   int max_frames = 0;                                          // cap per run (0: the whole path)
   std::vector<bool> background = {false};                      // rebuild the model inline and/or in the background
+  std::string reference_mesh;                                  // coarse/paper: compare each run with the same path cut on it (cut_reference.hpp); empty: none
 };
 
 struct CutBenchRow {
@@ -36,6 +37,13 @@ struct CutBenchRow {
   double local_median_ms = 0, local_p99_ms = 0;  // model update time of the local updates
   bool healthy = true, mesh_valid = true;
   std::string warning;
+  // Against the reference mesh (CutBenchOptions::reference_mesh; cut_reference.hpp), at the last frame run.
+  std::string reference_mesh;
+  int reference_tets = 0;
+  bool reference_healthy = true;
+  double reference_wall_s = 0;
+  double tumour_centroid_error_mm = -1;            // -1: not measured (no tumour, no reference)
+  double cut_surface_mean_mm = -1, cut_surface_max_mm = -1;  // symmetric distance of the cut faces; -1: a run has none
 };
 
 std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& options);

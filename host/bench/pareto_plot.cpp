@@ -32,7 +32,7 @@ void text(cv::Mat& img, const std::string& s, cv::Point p, double scale = 0.45, 
 
 }  // namespace
 
-void write_pareto_png(const std::string& path, const DeformBenchResult& result) {
+void write_pareto_png(const std::string& path, const DeformBenchResult& result, const ParetoLabels& labels) {
   std::vector<std::string> scenarios;
   for (const auto& r : result.rows)
     if (std::find(scenarios.begin(), scenarios.end(), r.scenario) == scenarios.end()) scenarios.push_back(r.scenario);
@@ -76,8 +76,8 @@ void write_pareto_png(const std::string& path, const DeformBenchResult& result) 
     cv::line(img, {area.x, Y(1.0)}, {area.x + area.width, Y(1.0)}, kRed, 1, cv::LINE_AA);
     text(img, "1 mm", {area.x + area.width - 40, Y(1.0) - 4}, 0.4, kRed);
     text(img, scenarios[p], {ox + margin_l, 22}, 0.6);
-    text(img, "median CPU time per 1/60 s frame (ms, 1 thread)", {ox + margin_l, panel_h - 20});
-    text(img, "tumour-centroid error (mm)", {ox + 5, margin_t - 8}, 0.4);
+    text(img, labels.x.empty() ? "median CPU time per 1/60 s frame (ms, 1 thread)" : labels.x, {ox + margin_l, panel_h - 20});
+    text(img, labels.y.empty() ? "tumour-centroid error (mm)" : labels.y, {ox + 5, margin_t - 8}, 0.4);
     // Points: filled = fine mesh, hollow = coarse; unhealthy runs are not drawn.
     std::vector<std::pair<double, double>> pts;
     for (const auto& r : result.rows) {
@@ -112,8 +112,10 @@ void write_pareto_png(const std::string& path, const DeformBenchResult& result) 
   }
   int ref_tets = 0;
   for (const auto& r : result.rows) ref_tets = std::max(ref_tets, r.reference_tets);
-  text(img, "filled: fine mesh, hollow: coarse, x: unhealthy run; line: Pareto front; error against the FEM static equilibrium on " +
-                std::to_string(ref_tets) + " tets", {lx, ly}, 0.4);
+  text(img, labels.note.empty() ? "filled: fine mesh, hollow: coarse, x: unhealthy run; line: Pareto front; error against the FEM static equilibrium on " +
+                                      std::to_string(ref_tets) + " tets"
+                                : labels.note,
+       {lx, ly}, 0.4);
   if (!cv::imwrite(path, img)) throw std::runtime_error(path + ": cannot write the PNG");
 }
 

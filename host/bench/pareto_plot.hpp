@@ -8,6 +8,11 @@
 
 namespace arnav::host {
 
-void write_pareto_png(const std::string& path, const DeformBenchResult& result);
+// Axis and legend texts; empty: the deform benchmark's.
+struct ParetoLabels {
+  std::string x, y, note;
+};
+
+void write_pareto_png(const std::string& path, const DeformBenchResult& result, const ParetoLabels& labels = {});
 
 }  // namespace arnav::host

@@ -85,21 +85,47 @@ CutSession::CutSession(const SimProblem& problem, const ModelConfig& config, con
       config_(config),
       settings_(settings),
       cutter_(problem.mesh, settings.cut),
-      tumours_(std::move(tumours)),
-      tumour_tris_(std::move(tumour_tris)),
-      vessels_(std::move(vessels)),
-      vessel_segments_(std::move(vessel_segments)) {
+      tumour_input_(std::move(tumours)),
+      tumour_input_tris_(std::move(tumour_tris)),
+      vessel_input_(std::move(vessels)),
+      vessel_input_segments_(std::move(vessel_segments)) {
   if (settings_.sweep_strips < 1) throw std::invalid_argument("cutting: sweep_strips must be >= 1");
   if (!(settings_.tumour_margin_mm >= 0.0)) throw std::invalid_argument("cutting: tumour_margin_mm must be >= 0");
   if (!(settings_.push_stiffness_mN_per_mm > 0.0)) throw std::invalid_argument("cutting: push_stiffness_mN_per_mm must be > 0");
-  if (tumour_tris_.size() != tumours_.size()) throw std::invalid_argument("cut session: one triangle list per tumour");
+  if (tumour_input_tris_.size() != tumour_input_.size()) throw std::invalid_argument("cut session: one triangle list per tumour");
+  tumours_ = tumour_input_;
+  tumour_tris_ = tumour_input_tris_;
+  vessels_ = vessel_input_;
+  vessel_segments_ = vessel_input_segments_;
+  if (vessels_) {
+    vessel_node_source_.resize(static_cast<std::size_t>(vessels_->rest_World_mm.cols()));
+    for (std::size_t i = 0; i < vessel_node_source_.size(); ++i) vessel_node_source_[i] = static_cast<int>(i);
+  }
+  // Input tets near each structure (rest boxes, 1 mm around): the cut can split it only there.
+  const auto near = [&](const Eigen::Matrix3Xd& points) {
+    std::vector<int> out;
+    if (points.cols() == 0) return out;
+    Aabb box;
+    for (int i = 0; i < points.cols(); ++i) box.extend(Eigen::Vector3d(points.col(i)));
+    box = box.inflated(1.0);
+    const auto& mesh = problem_.mesh;
+    for (int t = 0; t < mesh.num_tets(); ++t) {
+      Aabb b;
+      for (int w : mesh.tets[static_cast<std::size_t>(t)]) b.extend(Eigen::Vector3d(mesh.rest_positions_World_mm.col(w)));
+      if (b.overlaps(box)) out.push_back(t);
+    }
+    return out;
+  };
+  for (const auto& t : tumour_input_) tumour_region_.push_back(near(t.rest_World_mm));
+  if (vessel_input_) vessel_region_ = near(vessel_input_->rest_World_mm);
+  tumour_edges_cut_.assign(tumour_input_.size(), 0);
   model_ = make_tissue_model(problem_, config_);
   n0_ = problem_.mesh.num_vertices();
   fixed_.assign(static_cast<std::size_t>(problem_.mesh.num_vertices()), 0);
   for (int v : problem_.fixed_vertices) fixed_[static_cast<std::size_t>(v)] = 1;
   in_margin_.assign(tumours_.size(), 0);
   tumour_cut_.assign(tumours_.size(), 0);
-  vessel_segment_crossed_.assign(vessel_segments_.size(), 0);
+  vessel_segment_crossed_.assign(vessel_input_segments_.size(), 0);
 }
 
 const std::vector<std::array<int, 3>>& CutSession::surface_tris() {
@@ -208,7 +234,7 @@ double CutSession::poll_build() {
   return ms_since(t0);
 }
 
-void CutSession::reembed(CarriedPoints& points, const CutStepReport& step) {
+void CutSession::reembed(CarriedPoints& points, const CutStepReport& step, const std::vector<int>& region) {
   const auto& changed = step.changed_tets;
   const TetMesh& mesh = cutter_.mesh();
   const auto& rest = mesh.rest_positions_World_mm;
@@ -219,21 +245,75 @@ void CutSession::reembed(CarriedPoints& points, const CutStepReport& step) {
     double best = -1e300;
     int best_tet = t;
     Eigen::Vector4d best_w = points.embedding.weights.col(i);
-    for (int piece : cutter_.pieces_of(cutter_.origin_tet(t))) {
+    const auto consider = [&](int piece) {
       const auto& tet = mesh.tets[static_cast<std::size_t>(piece)];
       Eigen::Matrix3d D;
       for (int k = 0; k < 3; ++k) D.col(k) = rest.col(tet[static_cast<std::size_t>(k + 1)]) - rest.col(tet[0]);
       const Eigen::Vector3d l = D.partialPivLu().solve(p - rest.col(tet[0]));
       const Eigen::Vector4d w(1.0 - l.sum(), l[0], l[1], l[2]);
-      if (w.minCoeff() > best) {
+      if (w.allFinite() && w.minCoeff() > best) {
         best = w.minCoeff();
         best_tet = piece;
         best_w = w;
       }
-    }
+    };
+    for (int piece : cutter_.pieces_of(cutter_.origin_tet(t))) consider(piece);
+    // A vertex moved onto the cut reshapes tets of several input tets: the point may now lie
+    // in a piece of a neighbouring input tet (outside its own family; weights negative, and
+    // possibly across the cut). Look through the structure's region.
+    if (best < -1e-9)
+      for (int input : region)
+        for (int piece : cutter_.pieces_of(input)) {
+          const auto& tet = mesh.tets[static_cast<std::size_t>(piece)];
+          Aabb box;
+          for (int w : tet) box.extend(Eigen::Vector3d(rest.col(w)));
+          if (box.inflated(1e-9).overlaps(Aabb{p, p})) consider(piece);  // only tets whose box holds the point
+        }
     points.embedding.tet[static_cast<std::size_t>(i)] = best_tet;
     points.embedding.weights.col(i) = best_w;
   }
+}
+
+std::vector<int> CutSession::region_tets(const std::vector<int>& input_tets) const {
+  // Only tets with a face on a cut can hold a lip: three or more vertices on a cut.
+  std::vector<int> out;
+  const auto& tets = cutter_.mesh().tets;
+  for (int t : input_tets)
+    for (int piece : cutter_.pieces_of(t)) {
+      int on = 0;
+      for (int v : tets[static_cast<std::size_t>(piece)]) on += cutter_.on_cut(v) ? 1 : 0;
+      if (on >= 3) out.push_back(piece);
+    }
+  return out;
+}
+
+void CutSession::split_structures(const CutStepReport& step, CutFrameReport& report) {
+  const TetMesh& mesh = cutter_.mesh();
+  const auto touched = [&](const std::vector<int>& region) {
+    for (int t : step.changed_tets)
+      if (std::binary_search(region.begin(), region.end(), cutter_.origin_tet(t))) return true;
+    return false;
+  };
+  for (std::size_t k = 0; k < tumour_input_.size(); ++k) {
+    if (!touched(tumour_region_[k])) continue;
+    const CutLips lips(mesh, region_tets(tumour_region_[k]));
+    SplitStructure s = split_surface(mesh, lips, tumour_input_[k].rest_World_mm, tumour_input_[k].embedding, tumour_input_tris_[k]);
+    tumours_[k].rest_World_mm = std::move(s.rest_World_mm);
+    tumours_[k].embedding = std::move(s.embedding);
+    tumour_tris_[k] = std::move(s.tris);
+    tumour_edges_cut_[k] = s.crossed_edges;
+  }
+  if (vessel_input_ && touched(vessel_region_)) {
+    const CutLips lips(mesh, region_tets(vessel_region_));
+    SplitStructure s = split_segments(mesh, lips, vessel_input_->rest_World_mm, vessel_input_->embedding, vessel_input_segments_);
+    vessels_->rest_World_mm = std::move(s.rest_World_mm);
+    vessels_->embedding = std::move(s.embedding);
+    vessel_segments_ = std::move(s.segments);
+    vessel_node_source_ = std::move(s.source);
+    vessel_segments_cut_ = s.crossed_edges;
+  }
+  report.structure_edges_cut = vessel_segments_cut_;
+  for (int n : tumour_edges_cut_) report.structure_edges_cut += n;
 }
 
 void CutSession::check_events(const BladeSegment& blade, const SweptSurface* sweep, CutFrameReport& report) {
@@ -262,12 +342,13 @@ void CutSession::check_events(const BladeSegment& blade, const SweptSurface* swe
       }
     }
   }
-  if (sweep && vessels_) {
-    const Eigen::Matrix3Xd p = vessels_->embedding.apply(mesh, x);
+  if (sweep && vessel_input_) {
+    // The input segments (their end nodes stay embedded; a split segment's parts follow them).
+    const Eigen::Matrix3Xd p = vessel_input_->embedding.apply(mesh, x);
     const auto tris = sweep->triangles();
-    for (std::size_t s = 0; s < vessel_segments_.size(); ++s) {
+    for (std::size_t s = 0; s < vessel_input_segments_.size(); ++s) {
       if (vessel_segment_crossed_[s]) continue;
-      const auto [a, b] = vessel_segments_[s];
+      const auto [a, b] = vessel_input_segments_[s];
       for (const auto& t : tris) {
         double u = 0;
         if (segment_triangle_intersection(p.col(a), p.col(b), t, u)) {
@@ -287,8 +368,9 @@ void CutSession::absorb(CutFrameReport& report, const Eigen::Matrix3Xd& x, const
   rebuild_model(report.cut, x, v, report);
   report.rebuild_ms = ms_since(t0);
   t0 = std::chrono::steady_clock::now();
-  for (auto& t : tumours_) reembed(t, report.cut);
-  if (vessels_) reembed(*vessels_, report.cut);
+  for (std::size_t k = 0; k < tumour_input_.size(); ++k) reembed(tumour_input_[k], report.cut, tumour_region_[k]);
+  if (vessel_input_) reembed(*vessel_input_, report.cut, vessel_region_);
+  split_structures(report.cut, report);
   report.reembed_ms = ms_since(t0);
   surface_dirty_ = true;
 }

@@ -24,6 +24,7 @@
 
 #include "host/cut/blade.hpp"
 #include "host/cut/bvh.hpp"
+#include "host/cut/structure_split.hpp"
 #include "host/cut/tet_cutter.hpp"
 #include "host/scene/embedding.hpp"
 #include "host/scene/scene.hpp"
@@ -68,7 +69,8 @@ struct CutFrameReport {
   double rebuild_ms = 0.0;        // model rebuilt or updated on the new mesh (0 without topology change)
   bool local_update = false;      // the model was updated in place (not rebuilt)
   MeshChangeStats local;          // what that update touched
-  double reembed_ms = 0.0;
+  double reembed_ms = 0.0;        // re-embedding and splitting the tumours and vessels
+  int structure_edges_cut = 0;    // tumour edges and vessel segments crossing the cut (all cuts so far)
   Contact contact;                // blade against the organ surface
   bool pushing = false;           // contact attachment active (cutting disabled)
   std::vector<CutEvent> events;   // raised this frame
@@ -103,8 +105,15 @@ class CutSession {
   const std::vector<int>& fixed_vertices() const { return problem_.fixed_vertices; }
   // Organ surface: boundary faces of the cut volume (closed, outward), cut faces included.
   const std::vector<std::array<int, 3>>& surface_tris();
+  // Tumours and vessels split along the cut (structure_split.hpp): points (the input ones
+  // first, then the crossings' copies and cap centres) with their embedding in mesh(), and
+  // the split triangles (closed, outward) / segments. Unchanged until the cut crosses them.
   const std::vector<CarriedPoints>& tumours() const { return tumours_; }
+  const std::vector<std::vector<std::array<int, 3>>>& tumour_tris() const { return tumour_tris_; }
   const std::optional<CarriedPoints>& vessels() const { return vessels_; }
+  const std::vector<std::array<int, 2>>& vessel_segments() const { return vessel_segments_; }
+  // Per vessel point: the input node it was made from (its radius, ...); itself for input nodes.
+  const std::vector<int>& vessel_node_source() const { return vessel_node_source_; }
   int frame() const { return frame_; }
   int rebuilds() const { return rebuilds_; }
   int local_updates() const { return local_updates_; }
@@ -115,7 +124,9 @@ class CutSession {
   void launch_build();
   double poll_build();  // swaps a finished background model in; returns the ms it took
   void absorb(CutFrameReport& report, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v);
-  void reembed(CarriedPoints& points, const CutStepReport& step);
+  void reembed(CarriedPoints& points, const CutStepReport& step, const std::vector<int>& region);
+  void split_structures(const CutStepReport& step, CutFrameReport& report);
+  std::vector<int> region_tets(const std::vector<int>& input_tets) const;
   void check_events(const BladeSegment& blade, const SweptSurface* sweep, CutFrameReport& report);
 
   SimProblem problem_;
@@ -124,10 +135,20 @@ class CutSession {
   TetCutter cutter_;
   std::unique_ptr<TissueModel> model_;
   std::vector<char> fixed_;
+  // As given (re-embedded after each cut) and split along the cut (what the accessors show).
+  std::vector<CarriedPoints> tumour_input_;
+  std::vector<std::vector<std::array<int, 3>>> tumour_input_tris_;
+  std::optional<CarriedPoints> vessel_input_;
+  std::vector<std::array<int, 2>> vessel_input_segments_;
+  std::vector<std::vector<int>> tumour_region_;   // per tumour: input tets whose rest box meets its box
+  std::vector<int> vessel_region_;
   std::vector<CarriedPoints> tumours_;
   std::vector<std::vector<std::array<int, 3>>> tumour_tris_;
   std::optional<CarriedPoints> vessels_;
   std::vector<std::array<int, 2>> vessel_segments_;
+  std::vector<int> vessel_node_source_;
+  std::vector<int> tumour_edges_cut_;
+  int vessel_segments_cut_ = 0;
   std::vector<char> in_margin_, tumour_cut_;
   std::vector<char> vessel_segment_crossed_;
   std::optional<BladeSegment> previous_blade_;

@@ -82,16 +82,18 @@ SimRunResult run_scene_with_scalpel(const Scene& scene, const SimRunOptions& o, 
     for (std::size_t k = 0; k < session.tumours().size(); ++k) {
       const Eigen::Matrix3Xd p = session.tumours()[k].embedding.apply(mesh, x);
       const std::string stem = "tumour_" + session.tumours()[k].name;
-      if (o.format == "obj") write_obj(numbered(o.out_dir, stem, frame, "obj"), p, scene.tumours[k].rest.tris);
-      else write_vtk_surface(numbered(o.out_dir, stem, frame, "vtk"), p, scene.tumours[k].rest.tris);
+      if (o.format == "obj") write_obj(numbered(o.out_dir, stem, frame, "obj"), p, session.tumour_tris()[k]);
+      else write_vtk_surface(numbered(o.out_dir, stem, frame, "vtk"), p, session.tumour_tris()[k]);
     }
-    if (session.vessels() && o.format != "obj")
-      write_vtk_lines(numbered(o.out_dir, "vessels", frame, "vtk"), session.vessels()->embedding.apply(mesh, x), scene.vessels->rest.segments,
-                      scene.vessels->rest.radius_mm);
+    if (session.vessels() && o.format != "obj") {
+      std::vector<double> radius;  // split nodes take the radius of the node they came from
+      for (int src : session.vessel_node_source()) radius.push_back(scene.vessels->rest.radius_mm[static_cast<std::size_t>(src)]);
+      write_vtk_lines(numbered(o.out_dir, "vessels", frame, "vtk"), session.vessels()->embedding.apply(mesh, x), session.vessel_segments(), radius);
+    }
   };
   const bool has_tumour = !scene.tumours.empty();
   auto tumour_centroid = [&]() {
-    return closed_surface_centroid(session.tumours()[0].embedding.apply(session.mesh(), session.positions_World_mm()), scene.tumours[0].rest.tris);
+    return closed_surface_centroid(session.tumours()[0].embedding.apply(session.mesh(), session.positions_World_mm()), session.tumour_tris()[0]);
   };
   const Eigen::Vector3d tumour0 = has_tumour ? tumour_centroid() : Eigen::Vector3d::Zero();
   csv << "frame,time_s,wall_ms,iterations,initial_residual,final_residual,termination,kinetic_energy,elastic_energy,"

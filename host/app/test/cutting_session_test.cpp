@@ -8,11 +8,13 @@
 
 #include <fstream>
 #include <random>
+#include <set>
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "arnav/input_event_t.hpp"
+#include "host/app/model_runner.hpp"
 #include "host/app/navigation_session.hpp"
 #include "host/app/session_config.hpp"
 #include "host/app/test/session_test_util.hpp"
@@ -474,6 +476,39 @@ TEST(SessionConfig, BadInputsCuttingAndLiveRegistrationNameFileLineAndFix) {
   ASSERT_TRUE(ok.live_registration);
   EXPECT_EQ(ok.live_registration->accept_input, "button_1");
   EXPECT_EQ(ok.live_registration->landmarks_Model_mm.size(), 4u);
+}
+
+// The overlay's geometry after a cut through the tumour: the model snapshot draws the tumour
+// split along the cut (more triangles, closed again: every directed edge has its opposite,
+// every new point drawn) and the vessel tree with one radius per (split) node.
+TEST(ModelRunnerCut, SnapshotDrawsTheTumourAndVesselsSplitAlongTheCut) {
+  const Scene scene = load_scene(data_dir() + "/liver/liver_coarse_cut.scene.yaml");
+  ModelRunner runner(scene, 60.0, false, 5.0, 0, cut::CutSessionSettings{});
+  std::int64_t t = 1'000'000;
+  for (int f = 0; f <= 45; ++f, t += 16'667) {  // vertical blade at x = 71.3 through the tumour, y 125 .. 215
+    runner.set_scalpel(std::array<Eigen::Vector3d, 2>{Eigen::Vector3d(71.3, 125 + 2 * f, 100), Eigen::Vector3d(71.3, 125 + 2 * f, 200)}, true);
+    runner.advance_to(t, 1);
+  }
+  const auto snap = runner.snapshot();
+  ASSERT_TRUE(snap);
+  ASSERT_EQ(snap->tumours.size(), 1u);
+  const TriMesh& tumour = snap->tumours[0];
+  EXPECT_GT(tumour.tris.size(), scene.tumours[0].rest.tris.size());
+  std::set<std::pair<int, int>> directed;
+  for (const auto& tri : tumour.tris)
+    for (int k = 0; k < 3; ++k) directed.insert({tri[static_cast<std::size_t>(k)], tri[static_cast<std::size_t>((k + 1) % 3)]});
+  EXPECT_EQ(directed.size(), 3 * tumour.tris.size());  // no edge used twice in one direction
+  for (const auto& [a, b] : directed) EXPECT_TRUE(directed.count({b, a})) << "open edge " << a << "-" << b;
+  int highest = 0;
+  for (const auto& tri : tumour.tris) highest = std::max({highest, tri[0], tri[1], tri[2]});
+  EXPECT_EQ(highest + 1, static_cast<int>(tumour.positions_World_mm.cols()));  // every split point is drawn
+  EXPECT_EQ(snap->margins.size(), 1u);
+  ASSERT_TRUE(snap->vessels);
+  EXPECT_EQ(snap->vessels->radius_mm.size(), static_cast<std::size_t>(snap->vessels->nodes_World_mm.cols()));
+  for (const auto& [a, b] : snap->vessels->segments) {
+    EXPECT_LT(a, snap->vessels->nodes_World_mm.cols());
+    EXPECT_LT(b, snap->vessels->nodes_World_mm.cols());
+  }
 }
 
 }  // namespace

@@ -1,0 +1,314 @@
+// Tumour surfaces and vessel centerlines split along the cut (issue 11 item 3,
+// host/cut/structure_split.hpp): a sphere tumour in a bar cut by a plane gives two closed,
+// consistently oriented halves whose volumes are the sphere polyhedron clipped by the plane
+// (and the analytic spherical caps to the discretisation); a vessel line crossed becomes two
+// segments whose ends separate when the cut opens under gravity; the bundled liver's tumour
+// cut through.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <map>
+#include <set>
+
+#include "host/cut/cut_session.hpp"
+#include "host/cut/mesh_checks.hpp"
+#include "host/scene/box_mesh.hpp"
+#include "host/scene/scene.hpp"
+#include "host/scene/surface_shapes.hpp"
+#include "host/sim/model_factory.hpp"
+
+using namespace arnav::host;
+using namespace arnav::host::cut;
+
+namespace {
+
+ModelConfig variant(const std::string& label) {
+  for (const auto& v : model_variants())
+    if (v.label == label) return v.config;
+  throw std::runtime_error("no model variant " + label);
+}
+
+SimProblem bar_problem(const Eigen::Vector3d& size, int nx, int ny, int nz) {
+  SimProblem p;
+  p.mesh = make_box_tet_mesh(nx, ny, nz, size);
+  Material m;
+  m.youngs_modulus_kPa = 10.0;
+  m.poisson_ratio = 0.4;
+  m.damping_mass_per_s = 5.0;
+  p.region_materials = {m};
+  return p;
+}
+
+struct SurfaceCheck {
+  int open_edges = 0, misoriented_edges = 0, nonmanifold_edges = 0;
+  std::vector<int> component;  // per triangle
+  int components = 0;
+  bool closed_manifold() const { return open_edges == 0 && misoriented_edges == 0 && nonmanifold_edges == 0; }
+};
+
+// Every directed edge once and its opposite once: closed, 2-manifold, consistently oriented.
+SurfaceCheck check_surface(const std::vector<std::array<int, 3>>& tris) {
+  SurfaceCheck c;
+  std::map<std::pair<int, int>, std::vector<int>> directed;
+  for (std::size_t t = 0; t < tris.size(); ++t)
+    for (int k = 0; k < 3; ++k) directed[{tris[t][static_cast<std::size_t>(k)], tris[t][static_cast<std::size_t>((k + 1) % 3)]}].push_back(static_cast<int>(t));
+  std::vector<int> parent(tris.size());
+  for (std::size_t i = 0; i < parent.size(); ++i) parent[i] = static_cast<int>(i);
+  std::function<int(int)> find = [&](int i) { return parent[static_cast<std::size_t>(i)] == i ? i : parent[static_cast<std::size_t>(i)] = find(parent[static_cast<std::size_t>(i)]); };
+  for (const auto& [e, ts] : directed) {
+    if (ts.size() > 1) ++c.misoriented_edges;
+    const auto opp = directed.find({e.second, e.first});
+    if (opp == directed.end()) {
+      ++c.open_edges;
+      continue;
+    }
+    if (opp->second.size() > 1) ++c.nonmanifold_edges;
+    for (int a : ts)
+      for (int b : opp->second) parent[static_cast<std::size_t>(find(a))] = find(b);
+  }
+  std::map<int, int> ids;
+  for (std::size_t t = 0; t < tris.size(); ++t) {
+    const auto [it, fresh] = ids.emplace(find(static_cast<int>(t)), static_cast<int>(ids.size()));
+    c.component.push_back(it->second);
+  }
+  c.components = static_cast<int>(ids.size());
+  return c;
+}
+
+double signed_volume(const Eigen::Matrix3Xd& p, const std::vector<std::array<int, 3>>& tris, const std::vector<int>& component, int which) {
+  double v = 0;
+  for (std::size_t t = 0; t < tris.size(); ++t)
+    if (which < 0 || component[t] == which)
+      v += p.col(tris[t][0]).dot(Eigen::Vector3d(p.col(tris[t][1])).cross(Eigen::Vector3d(p.col(tris[t][2])))) / 6.0;
+  return v;
+}
+
+// Volume of the closed surface clipped to x < c (side -1) or x > c (side +1): each
+// triangle clipped to the half space, the divergence theorem about a point on the plane
+// (the plane's cap then adds nothing).
+double clipped_volume(const TriMesh& s, double c, int side) {
+  const Eigen::Vector3d o(c, 0, 0);
+  double v = 0;
+  for (const auto& t : s.tris) {
+    std::vector<Eigen::Vector3d> poly;
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d a = s.positions_World_mm.col(t[static_cast<std::size_t>(k)]), b = s.positions_World_mm.col(t[static_cast<std::size_t>((k + 1) % 3)]);
+      const double da = side * (a.x() - c), db = side * (b.x() - c);
+      if (da >= 0) poly.push_back(a);
+      if ((da >= 0) != (db >= 0)) poly.push_back(a + da / (da - db) * (b - a));
+    }
+    for (std::size_t i = 1; i + 1 < poly.size(); ++i) v += (poly[0] - o).dot((poly[i] - o).cross(poly[i + 1] - o)) / 6.0;
+  }
+  return v;
+}
+
+double cap_volume(double r, double h) { return M_PI * h * h * (3 * r - h) / 3.0; }
+
+// Pieces (face-connected components of the cut mesh) holding a structure's points, per component of the structure.
+std::vector<std::set<int>> pieces_per_component(const CutMeshCheck& mc, const Embedding& e, const std::vector<std::array<int, 3>>& tris,
+                                                const SurfaceCheck& sc) {
+  std::vector<std::set<int>> out(static_cast<std::size_t>(sc.components));
+  for (std::size_t t = 0; t < tris.size(); ++t)
+    for (int v : tris[t]) out[static_cast<std::size_t>(sc.component[t])].insert(mc.piece_of_tet[static_cast<std::size_t>(e.tet[static_cast<std::size_t>(v)])]);
+  return out;
+}
+
+}  // namespace
+
+// A sphere (r 7 mm, 1,280 triangles) in a 100 x 20 x 20 mm bar, no load, cut through by a
+// vertical blade swept across the bar at x = 52.3 (between vertex layers, off the centre).
+TEST(StructureSplit, SphereTumourCutByAPlaneGivesTwoClosedHalves) {
+  SimProblem problem = bar_problem(Eigen::Vector3d(100, 20, 20), 10, 4, 4);
+  problem.gravity_World_mm_s2.setZero();
+  for (int v = 0; v < problem.mesh.num_vertices(); ++v)
+    if (problem.mesh.rest_positions_World_mm(0, v) < 1e-9) problem.fixed_vertices.push_back(v);
+  const double r = 7.0, c = 52.3;
+  const TriMesh sphere = make_ellipsoid_surface(Eigen::Vector3d(50, 10, 10), Eigen::Vector3d::Constant(r), 3);
+  CarriedPoints tumour{"tumour", sphere.positions_World_mm, embed_points(problem.mesh, sphere.positions_World_mm, 0.0, "tumour")};
+  CutSession session(problem, variant("xpbd"), CutSessionSettings{}, {tumour}, {sphere.tris});
+  int events_cut = 0;
+  for (int f = 0; f <= 30; ++f) {
+    const CutFrameReport rep = session.apply_blade({Eigen::Vector3d(c, -5 + f, -5), Eigen::Vector3d(c, -5 + f, 25)}, true);
+    for (const auto& e : rep.events)
+      if (e.kind == "tumour_cut") {
+        ++events_cut;
+        EXPECT_EQ(e.distance_mm, 0.0);
+        EXPECT_NEAR(e.location_World_mm.x(), c, 1e-6);  // on the blade
+        EXPECT_LE((e.location_World_mm - Eigen::Vector3d(50, 10, 10)).norm(), r + 1e-6);
+      }
+    ASSERT_TRUE(session.step(1.0 / 60.0).healthy);
+  }
+  EXPECT_EQ(events_cut, 1);
+  const CutMeshCheck mc = check_cut_mesh(session.mesh());
+  ASSERT_TRUE(mc.valid()) << mc.summary();
+  ASSERT_EQ(mc.piece_volume_mm3.size(), 2u);
+  const auto& tris = session.tumour_tris()[0];
+  const CarriedPoints& t = session.tumours()[0];
+  const SurfaceCheck sc = check_surface(tris);
+  EXPECT_TRUE(sc.closed_manifold()) << sc.open_edges << " open, " << sc.misoriented_edges << " misoriented, " << sc.nonmanifold_edges << " non-manifold";
+  ASSERT_EQ(sc.components, 2);
+  // The new points lie on the plane, the embedding reproduces every rest point.
+  const Eigen::Matrix3Xd again = t.embedding.apply(session.mesh(), session.mesh().rest_positions_World_mm);
+  EXPECT_LT((again - t.rest_World_mm).cwiseAbs().maxCoeff(), 1e-9);
+  for (int i = static_cast<int>(sphere.positions_World_mm.cols()); i < t.rest_World_mm.cols(); ++i) EXPECT_NEAR(t.rest_World_mm(0, i), c, 1e-9);
+  // Volumes: the polyhedron clipped by the plane (exact), the spherical caps (discretisation).
+  const double whole = signed_volume(sphere.positions_World_mm, sphere.tris, {}, -1);
+  double halves[2];
+  for (int k = 0; k < 2; ++k) halves[k] = signed_volume(t.rest_World_mm, tris, sc.component, k);
+  const bool first_left = halves[0] > halves[1];  // the larger one holds the centre (x = 50 < c)
+  const double left = first_left ? halves[0] : halves[1], right = first_left ? halves[1] : halves[0];
+  EXPECT_NEAR(left / clipped_volume(sphere, c, -1), 1.0, 1e-9);
+  EXPECT_NEAR(right / clipped_volume(sphere, c, +1), 1.0, 1e-9);
+  EXPECT_NEAR((left + right) / whole, 1.0, 1e-12);
+  const double h_right = r - (c - 50);
+  const double sphere_volume = 4.0 / 3.0 * M_PI * r * r * r;
+  EXPECT_NEAR(right / whole, cap_volume(r, h_right) / sphere_volume, 2e-3);
+  EXPECT_NEAR(left / whole, 1.0 - cap_volume(r, h_right) / sphere_volume, 2e-3);
+  // Each half rides one piece, the two halves different ones.
+  const auto pieces = pieces_per_component(mc, t.embedding, tris, sc);
+  ASSERT_EQ(pieces[0].size(), 1u);
+  ASSERT_EQ(pieces[1].size(), 1u);
+  EXPECT_NE(*pieces[0].begin(), *pieces[1].begin());
+}
+
+// A 20 x 20 x 100 mm column hanging from its top face, a tumour sphere and a vessel line
+// along its axis; cut through at z = 52 by a quick horizontal stroke: the lower piece falls
+// with its half of the tumour and its part of the vessel; nothing stretches over the gap.
+TEST(StructureSplit, HalvesAndVesselEndsSeparateWhenTheCutOpensUnderGravity) {
+  SimProblem problem = bar_problem(Eigen::Vector3d(20, 20, 100), 3, 3, 9);
+  for (int v = 0; v < problem.mesh.num_vertices(); ++v)
+    if (problem.mesh.rest_positions_World_mm(2, v) > 100 - 1e-9) problem.fixed_vertices.push_back(v);
+  // The column hangs and stretches while the blade crosses it at z = 52: the cut lies at
+  // rest z ~ 58 (the vessel's crossing), so the sphere sits there.
+  const TriMesh sphere = make_ellipsoid_surface(Eigen::Vector3d(10, 10, 57), Eigen::Vector3d::Constant(6.0), 2);
+  CarriedPoints tumour{"tumour", sphere.positions_World_mm, embed_points(problem.mesh, sphere.positions_World_mm, 0.0, "tumour")};
+  CarriedPoints vessel{"vessel", Eigen::Matrix3Xd(3, 9), {}};
+  std::vector<std::array<int, 2>> segments;
+  for (int i = 0; i < 9; ++i) {
+    vessel.rest_World_mm.col(i) = Eigen::Vector3d(12.3, 8.1, 10.0 + 10.0 * i);
+    if (i > 0) segments.push_back({i - 1, i});
+  }
+  vessel.embedding = embed_points(problem.mesh, vessel.rest_World_mm, 0.0, "vessel");
+  CutSession session(problem, variant("xpbd"), CutSessionSettings{}, {tumour}, {sphere.tris}, vessel, segments);
+  const double dt = 1.0 / 60.0;
+  int crossed_events = 0;
+  for (int f = 0; f <= 15; ++f) {
+    const CutFrameReport rep = session.apply_blade({Eigen::Vector3d(-10, -5 + 3 * f, 52), Eigen::Vector3d(30, -5 + 3 * f, 52)}, true);
+    for (const auto& e : rep.events)
+      if (e.kind == "vessel_crossed") {
+        ++crossed_events;
+        EXPECT_EQ(e.distance_mm, 0.0);
+        EXPECT_NEAR(e.location_World_mm.x(), 12.3, 2.0);  // where the blade met the (slightly stretched) line
+        EXPECT_NEAR(e.location_World_mm.z(), 52, 2.0);
+      }
+    ASSERT_TRUE(session.step(dt).healthy);
+  }
+  EXPECT_EQ(crossed_events, 1);
+  ASSERT_EQ(session.vessel_segments().size(), 9u);  // the crossed segment is now two
+  const CutMeshCheck mc = check_cut_mesh(session.mesh());
+  ASSERT_TRUE(mc.valid()) << mc.summary();
+  ASSERT_EQ(mc.piece_volume_mm3.size(), 2u);
+  const SurfaceCheck sc = check_surface(session.tumour_tris()[0]);
+  EXPECT_TRUE(sc.closed_manifold());
+  ASSERT_EQ(sc.components, 2);
+  // The two new vessel ends (the last two nodes) start together and part as the lower piece falls.
+  const int n = static_cast<int>(session.vessels()->rest_World_mm.cols());
+  ASSERT_EQ(n, 11);
+  const auto ends = [&] {
+    const Eigen::Matrix3Xd p = session.vessels()->embedding.apply(session.mesh(), session.positions_World_mm());
+    return (p.col(n - 1) - p.col(n - 2)).norm();
+  };
+  // Together in the rest shape (one point on each lip); the lower piece has started falling
+  // since the stroke went through.
+  EXPECT_LT((session.vessels()->rest_World_mm.col(n - 1) - session.vessels()->rest_World_mm.col(n - 2)).norm(), 1e-12);
+  const double parted = ends();
+  for (int f = 0; f < 24; ++f) {
+    session.apply_blade({Eigen::Vector3d(-10, 60, 52), Eigen::Vector3d(30, 60, 52)}, false);
+    ASSERT_TRUE(session.step(dt).healthy);
+  }
+  EXPECT_GT(ends(), parted + 100.0);  // 0.4 s more of (damped) free fall
+  // No vessel segment and no tumour edge spans the gap: lengths stay near their rest lengths.
+  const Eigen::Matrix3Xd pv = session.vessels()->embedding.apply(session.mesh(), session.positions_World_mm());
+  for (const auto& [a, b] : session.vessel_segments())
+    EXPECT_LT((pv.col(a) - pv.col(b)).norm(), 1.5 * (session.vessels()->rest_World_mm.col(a) - session.vessels()->rest_World_mm.col(b)).norm() + 1.0);
+  const Eigen::Matrix3Xd pt = session.tumours()[0].embedding.apply(session.mesh(), session.positions_World_mm());
+  double longest = 0;
+  for (const auto& t : session.tumour_tris()[0])
+    for (int k = 0; k < 3; ++k) longest = std::max(longest, (pt.col(t[static_cast<std::size_t>(k)]) - pt.col(t[static_cast<std::size_t>((k + 1) % 3)])).norm());
+  EXPECT_LT(longest, 15.0);  // the sphere is 12 mm across; a triangle across the gap would be > 20 mm
+  // Each half of the tumour rides one piece, the vessel parts theirs.
+  const auto pieces = pieces_per_component(mc, session.tumours()[0].embedding, session.tumour_tris()[0], sc);
+  EXPECT_EQ(pieces[0].size(), 1u);
+  EXPECT_EQ(pieces[1].size(), 1u);
+  EXPECT_NE(*pieces[0].begin(), *pieces[1].begin());
+}
+
+// A cut that ends inside the tumour (crack tip inside): the surface is split where the cut
+// crosses it and stays one closed, consistently oriented surface.
+TEST(StructureSplit, PartialCutIntoTheTumourKeepsItClosed) {
+  SimProblem problem = bar_problem(Eigen::Vector3d(100, 20, 20), 10, 4, 4);
+  problem.gravity_World_mm_s2.setZero();
+  for (int v = 0; v < problem.mesh.num_vertices(); ++v)
+    if (problem.mesh.rest_positions_World_mm(0, v) < 1e-9) problem.fixed_vertices.push_back(v);
+  const TriMesh sphere = make_ellipsoid_surface(Eigen::Vector3d(50, 10, 10), Eigen::Vector3d::Constant(7.0), 3);
+  CarriedPoints tumour{"tumour", sphere.positions_World_mm, embed_points(problem.mesh, sphere.positions_World_mm, 0.0, "tumour")};
+  CutSession session(problem, variant("xpbd"), CutSessionSettings{}, {tumour}, {sphere.tris});
+  for (int f = 0; f <= 15; ++f) {  // the blade stops at y = 10, the tumour's middle
+    session.apply_blade({Eigen::Vector3d(52.3, -5 + f, -5), Eigen::Vector3d(52.3, -5 + f, 25)}, true);
+    ASSERT_TRUE(session.step(1.0 / 60.0).healthy);
+  }
+  const auto& tris = session.tumour_tris()[0];
+  EXPECT_GT(tris.size(), sphere.tris.size());  // split where crossed
+  const SurfaceCheck sc = check_surface(tris);
+  EXPECT_TRUE(sc.closed_manifold()) << sc.open_edges << " open, " << sc.misoriented_edges << " misoriented, " << sc.nonmanifold_edges << " non-manifold";
+  EXPECT_EQ(sc.components, 1);
+  const CarriedPoints& t = session.tumours()[0];
+  EXPECT_NEAR(signed_volume(t.rest_World_mm, tris, sc.component, -1) / signed_volume(sphere.positions_World_mm, sphere.tris, {}, -1), 1.0, 1e-9);
+}
+
+// The bundled coarse liver at rest: a vertical blade swept through its tumour at x = 71.3.
+TEST(StructureSplit, BundledLiverTumourCutThrough) {
+  const std::string data = std::getenv("ARNAV_DATA_DIR") ? std::getenv("ARNAV_DATA_DIR") : "data";
+  Scene scene = load_scene(data + "/liver/liver_coarse_cut.scene.yaml");
+  scene.problem.gravity_World_mm_s2.setZero();
+  const std::unique_ptr<CutSession> session = make_cut_session(scene, scene.model, CutSessionSettings{});
+  const double x_cut = 71.3;
+  std::vector<double> split_ms;
+  for (int f = 0; f <= 45; ++f) {  // y 125 .. 215 at 2 mm per frame, z 100 .. 200
+    const CutFrameReport r = session->apply_blade({Eigen::Vector3d(x_cut, 125 + 2 * f, 100), Eigen::Vector3d(x_cut, 125 + 2 * f, 200)}, true);
+    if (r.cut.topology_changed) split_ms.push_back(r.reembed_ms);
+    ASSERT_TRUE(session->step(scene.time_step_s).healthy);
+  }
+  std::sort(split_ms.begin(), split_ms.end());
+  ASSERT_FALSE(split_ms.empty());
+  std::cerr << "[structure split] bundled coarse liver: re-embed + split per topology change, median " << split_ms[split_ms.size() / 2]
+            << " ms, max " << split_ms.back() << " ms over " << split_ms.size() << " changes (not asserted)\n";
+  const CutMeshCheck mc = check_cut_mesh(session->mesh());
+  ASSERT_TRUE(mc.valid()) << mc.summary();
+  const auto& tris = session->tumour_tris()[0];
+  const CarriedPoints& t = session->tumours()[0];
+  const SurfaceCheck sc = check_surface(tris);
+  EXPECT_TRUE(sc.closed_manifold()) << sc.open_edges << " open, " << sc.misoriented_edges << " misoriented, " << sc.nonmanifold_edges << " non-manifold";
+  ASSERT_EQ(sc.components, 2);
+  const Eigen::Matrix3Xd again = t.embedding.apply(session->mesh(), session->mesh().rest_positions_World_mm);
+  EXPECT_LT((again - t.rest_World_mm).cwiseAbs().maxCoeff(), 1e-9);
+  const double whole = signed_volume(scene.tumours[0].rest.positions_World_mm, scene.tumours[0].rest.tris, {}, -1);
+  const double v0 = signed_volume(t.rest_World_mm, tris, sc.component, 0), v1 = signed_volume(t.rest_World_mm, tris, sc.component, 1);
+  EXPECT_NEAR((v0 + v1) / whole, 1.0, 1e-9);
+  EXPECT_NEAR(std::min(v0, v1) / clipped_volume(scene.tumours[0].rest, x_cut, +1), 1.0, 1e-6);  // the cut is on the plane to path_tolerance_mm
+  // The halves' points are embedded on their own side of the cut: every tet holding a point
+  // of the smaller (x > 71.3) half lies at x >= 71.3 - path_tolerance_mm.
+  const int small = v0 < v1 ? 0 : 1;
+  for (std::size_t k = 0; k < tris.size(); ++k) {
+    if (sc.component[k] != small) continue;
+    for (int v : tris[k])
+      for (int w : session->mesh().tets[static_cast<std::size_t>(t.embedding.tet[static_cast<std::size_t>(v)])])
+        EXPECT_GE(session->mesh().rest_positions_World_mm(0, w), x_cut - 0.1 - 1e-9);
+  }
+  // Vessels crossed by the blade were split (one more segment per crossing).
+  ASSERT_TRUE(session->vessels());
+  EXPECT_EQ(session->vessel_segments().size() - scene.vessels->rest.segments.size(),
+            static_cast<std::size_t>(session->vessels()->rest_World_mm.cols() - scene.vessels->rest.nodes_World_mm.cols()) / 2);
+}
