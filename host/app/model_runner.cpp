@@ -94,7 +94,6 @@ void ModelRunner::set_scalpel(const std::optional<std::array<Eigen::Vector3d, 2>
 }
 
 void ModelRunner::enable_grasper(const GrasperRole& role) {
-  if (cut_) throw std::invalid_argument("a grasper cannot be coupled to a cutting model yet (host/cut has no attachment removal)");
   grasp_ = std::make_unique<GraspCoupling>(role, scene_);
 }
 
@@ -136,6 +135,18 @@ std::shared_ptr<const ModelSnapshot> ModelRunner::snapshot() const {
 std::vector<double> ModelRunner::step_times_ms() const {
   std::lock_guard lock(mutex_);
   return step_ms_;
+}
+
+void ModelRunner::apply_grasp(GraspBody& body, std::int64_t now_us) {
+  GraspCommand cmd;
+  {
+    std::lock_guard lock(mutex_);
+    cmd = grasp_cmd_;
+  }
+  grasp_->apply(body, cmd, now_us);
+  grasper_device_time_us_ = cmd.device_time_us;
+  std::lock_guard lock(mutex_);
+  grasp_status_ = grasp_->status();
 }
 
 void ModelRunner::step_once(std::int64_t now_us) {
@@ -187,18 +198,16 @@ void ModelRunner::step_once(std::int64_t now_us) {
         blade_gap_ = true;
         previous_blade_.reset();
       }
+      if (grasp_) {  // after the blade: the grasp holds the tissue as the cut left it
+        cut::CutSession& session = *cut_;
+        CutSessionBody body(session);
+        apply_grasp(body, now_us);
+      }
       s = cut_->step(1.0 / rate_hz_);
     } else {
       if (grasp_) {
-        GraspCommand cmd;
-        {
-          std::lock_guard lock(mutex_);
-          cmd = grasp_cmd_;
-        }
-        grasp_->apply(*model_, cmd, now_us);
-        grasper_device_time_us_ = cmd.device_time_us;
-        std::lock_guard lock(mutex_);
-        grasp_status_ = grasp_->status();
+        TissueModelBody body(*model_);
+        apply_grasp(body, now_us);
       }
       s = model_->step(1.0 / rate_hz_);
     }

@@ -98,9 +98,10 @@ class ModelRunner {
   // Blade {tip, heel} in Model (nullopt: not tracked now) and whether it cuts.
   void set_scalpel(const std::optional<std::array<Eigen::Vector3d, 2>>& blade_Model_mm, bool cutting_enabled = false);
   bool cutting() const { return cut_ != nullptr; }
-  // A tracked grasper coupled to the model (host/app/grasp_coupling.hpp); not with cutting
-  // (throws std::invalid_argument). set_grasper hands in its newest pose and request;
-  // the model thread grasps, follows or releases before each step.
+  // A tracked grasper coupled to the model (host/app/grasp_coupling.hpp), also on a cutting
+  // model (its springs kept through cuts and rebuilds, applied after the blade). set_grasper
+  // hands in its newest pose and request; the model thread grasps, follows or releases
+  // before each step.
   void enable_grasper(const GrasperRole& role);
   void set_grasper(const GraspCommand& cmd);
   bool has_grasper() const { return grasp_ != nullptr; }
@@ -120,6 +121,7 @@ class ModelRunner {
 
  private:
   void step_once(std::int64_t now_us);
+  void apply_grasp(GraspBody& body, std::int64_t now_us);
   const Scene& scene_;
   double rate_hz_;
   double margin_mm_;
