@@ -70,6 +70,8 @@ pids=()
 trap ar_stop_pids EXIT
 ar_start_logger
 ar_start_host "$host"
+# The camera's phantom and the simulated Polaris' grasper on one world clock from now on.
+ar_world_clock "$out/polaris_phantom.yaml" "$out/appliance.yaml"
 echo "arnav-appliance: synthetic camera filming the deforming phantom, $frames frames at 15 Hz; simulated Polaris moving the grasper with the phantom's tool"
 (cd "$out" && exec "$appliance" appliance.yaml 2>"$out/appliance.log") &
 app_pid=$!
