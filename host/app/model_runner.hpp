@@ -64,11 +64,16 @@ struct ModelCutEvent {
   cut::CutEvent event;
 };
 
-// Per step that put new vertices on the cut faces: the cut-path error, the largest distance
-// of those vertices (after the step) from the surface the blade swept while cutting (the
-// cutting steps' swept triangles of the last 10 minutes, in Model at the time of the sweep). Measured
-// here, independently of the cutter's own bookkeeping (CutStepReport::max_path_deviation_mm,
-// kept as cutter_path_error_mm).
+// Per step that put vertices on the cut (split points, vertices snapped or moved onto it):
+// the cut-path error, the largest distance of those vertices from the surfaces the blade
+// swept while cutting, both in the material (rest) frame: each frame's swept surface (its
+// start carried with the tissue, as the cutter used it) is pulled back into the rest
+// configuration at the instant of the sweep through the tets holding it; a vertex's rest
+// position is where in the material the cut put it. So the tissue's motion after the cut
+// (the grasper pulling, the cut opening, the piece inside a ring moving once cut round)
+// does not count as path error, and a cut put where the blade was not does. Measured here
+// from the mesh and the blade, independently of the cutter's own bookkeeping
+// (CutStepReport::max_path_deviation_mm, kept as cutter_path_error_mm).
 struct CutStepRecord {
   std::int64_t step = 0;
   double path_error_mm = 0.0;
@@ -142,8 +147,11 @@ class ModelRunner {
     Eigen::AlignedBox3d box;
     std::vector<cut::Triangle> tris;
   };
-  std::deque<Sweep> sweeps_;                        // swept triangles of the cutting steps (last 10 min)
-  std::vector<char> on_cut_face_;                   // vertex already seen on a cut face
+  std::deque<Sweep> sweeps_;                        // swept triangles of the cutting steps (last 2 min of cutting), in the material (rest) frame
+  std::vector<char> on_cut_seen_;                   // vertex already measured on the cut
+  std::vector<std::pair<int, double>> cut_path_;    // this step: vertices new on the cut, their largest distance (mm)
+  void record_material_sweep(const cut::SweptSurface& sweep);
+  int measure_new_cut_vertices(double& worst_mm);
   mutable std::mutex mutex_;
   std::shared_ptr<const ModelSnapshot> snapshot_;
   std::optional<std::array<Eigen::Vector3d, 2>> scalpel_;

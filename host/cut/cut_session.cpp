@@ -317,6 +317,7 @@ void CutSession::absorb(CutFrameReport& report, const Eigen::Matrix3Xd& x, const
 CutFrameReport CutSession::apply_blade(const BladeSegment& blade, bool cutting_enabled) {
   ++frame_;
   CutFrameReport report;
+  last_sweep_.reset();
   report.rebuild_ms = poll_build();
   const auto& tris = surface_tris();
   const Eigen::Matrix3Xd x_now = positions_World_mm();
@@ -373,6 +374,7 @@ CutFrameReport CutSession::apply_blade(const BladeSegment& blade, bool cutting_e
           moved = std::max(moved, (d - d.dot(dir) * dir).norm());
       }
       if (moved > settings_.min_sweep_mm) {
+        last_sweep_ = sweep;
         report.cut = cutter_.step(sweep, x, v);
         absorb(report, x, v);
       }

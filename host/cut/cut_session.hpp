@@ -111,6 +111,10 @@ class CutSession {
   const std::vector<CarriedPoints>& tumours() const { return tumours_; }
   const std::optional<CarriedPoints>& vessels() const { return vessels_; }
   int frame() const { return frame_; }
+  // The surface the blade swept in the last apply_blade that cut (its start carried with the
+  // tissue, as the cutter used it), in the configuration of that instant; nullopt when the
+  // last frame swept nothing.
+  const std::optional<SweptSurface>& last_sweep() const { return last_sweep_; }
   int rebuilds() const { return rebuilds_; }
   int local_updates() const { return local_updates_; }
 
@@ -136,6 +140,7 @@ class CutSession {
   std::vector<char> in_margin_, tumour_cut_;
   std::vector<char> vessel_segment_crossed_;
   std::optional<BladeSegment> previous_blade_;
+  std::optional<SweptSurface> last_sweep_;
   Eigen::Matrix3Xd x_at_blade_;  // positions when the previous blade was applied
   bool previous_cutting_ = false;
   Bvh surface_bvh_;
