@@ -119,6 +119,24 @@ if "rigid_overlay" in j:
           % (r["mean"], r["p95"], r["max"], d["max"]))
 print("  frames with the board clearly visible but no overlay: %d" % j["visible_without_overlay"])
 ' || echo "  (python3 missing: see $out/ar_error.json)"
+# The same session replayed from its LCM log (deterministic, as fast as possible): the host's
+# chain without this machine's load (a starved host thread sees poses late and releases the
+# grasp as stale; the replay's clock is the log's). Same ground truth, same frames.
+"$host" "$out/session.yaml" --replay "$out/session.lcmlog" --replay-speed 0 --quiet --record "$out/replay" \
+  --summary-json "$out/replay.json" >"$out/replay.log" 2>&1 || echo "  (replay failed: $out/replay.log)"
+"$ar_error" --session "$out/session_truth.yaml" --ground-truth "$out/ground_truth.csv" --overlay-csv "$out/replay/overlay.csv" \
+  >"$out/ar_error_replay.json" 2>>"$out/replay.log" && python3 - "$out/ar_error_replay.json" "$out/replay.json" <<'PY' || true
+import json, sys
+j = json.load(open(sys.argv[1]))
+e, p = j["ar_error_mm"], j["ar_error_px"]
+print("  AR error, replay of the session's log (%d frames): mean %.2f mm, p95 %.2f mm, max %.2f mm; mean %.2f px, p95 %.2f px, max %.2f px"
+      % (j["frames_evaluated"], e["mean"], e["p95"], e["max"], p["mean"], p["p95"], p["max"]))
+nav = json.load(open(sys.argv[2])).get("navigation", {})
+c, g = nav.get("cutting"), nav.get("grasper")
+if c and g:
+    print("    replay: cut-path error p50 %.2f mm, p95 %.2f mm, max %.2f mm; grasper %d grasp(s), %d released stale"
+          % (c["path_error_mm"]["p50"], c["path_error_mm"]["p95"], c["path_error_mm"]["max"], g["grasps"], g["stale_releases"]))
+PY
 python3 - "$out/host.json" <<'PY' || true
 import json, sys
 nav = json.load(open(sys.argv[1])).get("navigation", {})
@@ -174,6 +192,6 @@ echo "== files =="
 echo "  phantom:       $out/phantom.txt"
 echo "  video:         $out/recording/overlay.avi"
 echo "  contact sheet: $out/recording/contact_sheet.png"
-echo "  overlay.csv:   $out/recording/overlay.csv"
+echo "  overlay.csv:   $out/recording/overlay.csv (replay: $out/replay/overlay.csv)"
 echo "  LCM log:       $out/session.lcmlog  (replay: $host $out/session.yaml --replay $out/session.lcmlog)"
 exit "$app_rc"
