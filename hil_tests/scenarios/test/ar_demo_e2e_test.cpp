@@ -121,7 +121,7 @@ TEST(ArDemoSession, LiveRegistrationRingCutFaultAndRecording) {
   // replay, whose frames carry the cut of their own scalpel pose (live, on a loaded machine,
   // a late frame can show cut faces the model made from poses the frames in between carried).
   struct CsvCounts {
-    int rows = 0, gap_rows = 0, unregistered = 0, last_faces = 0, growth_rows = 0;
+    int rows = 0, gap_rows = 0, unregistered = 0, last_faces = 0, growth_rows = 0, on_ring_rows = 0;
   };
   const auto read_csv = [&](const std::filesystem::path& path, bool check_ring) {
     CsvCounts n;
@@ -153,14 +153,17 @@ TEST(ArDemoSession, LiveRegistrationRingCutFaultAndRecording) {
       // The ring's radius is the tumour's largest radius + 5 mm margin + 3 mm clearance, so
       // the blade-to-margin distance is about 3 mm where the ellipsoid is widest and more
       // elsewhere (radii 13, 11, 10), give or take how far the grasper has moved the tumour
-      // (the ring is scripted at rest).
+      // (the ring is scripted at rest). During the entry (the blade drawn in over a quarter
+      // ring from above the surface) the pull brings the tissue onto the blade early: there
+      // the cut grows with the blade farther out, never beyond the blade's reach (40 mm).
       if (faces > n.last_faces && !cells[static_cast<std::size_t>(i_margin)].empty()) {
         ++n.growth_rows;
         const double d = std::stod(cells[static_cast<std::size_t>(i_margin)]);
         if (check_ring) {
           EXPECT_GT(d, 1.0 - displacement) << line;
-          EXPECT_LT(d, 9.0 + displacement) << line;
+          EXPECT_LT(d, 40.0) << line;
         }
+        n.on_ring_rows += d < 9.0 + displacement ? 1 : 0;
       }
       n.last_faces = faces;
       n.gap_rows += cells[static_cast<std::size_t>(i_flags)].find("camera_gap") != std::string::npos;
@@ -177,6 +180,7 @@ TEST(ArDemoSession, LiveRegistrationRingCutFaultAndRecording) {
   EXPECT_EQ(replayed.rows, rep["csv_rows"].get<int>());
   EXPECT_GT(replayed.last_faces, 20);
   EXPECT_GE(replayed.growth_rows, 3) << "the cut should grow over several frames along the ring";
+  EXPECT_GE(2 * replayed.on_ring_rows, replayed.growth_rows) << "most of the cut grew with the blade on the ring";
 
   // The injected fault: the camera unplugged for 1 s and recovered; the host saw the gap.
   std::ifstream app_in(out / "appliance.log");
