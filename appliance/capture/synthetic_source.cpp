@@ -61,7 +61,9 @@ void SyntheticSource::open() {
       throw CaptureError(std::string("synthetic camera: ") + e.what());
     }
   }
-  if (start_us_ < 0) start_us_ = monotonic_us();
+  // On the bench's world clock the camera's frames count from the epoch (frame k captured at
+  // epoch + k / fps; a camera that opens later skips the frames already due, like late ones).
+  if (start_us_ < 0) start_us_ = settings_.phantom && settings_.phantom->epoch_mono_us ? *settings_.phantom->epoch_mono_us : monotonic_us();
   open_ = true;
 }
 
