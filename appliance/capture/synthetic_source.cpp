@@ -61,7 +61,9 @@ void SyntheticSource::open() {
       throw CaptureError(std::string("synthetic camera: ") + e.what());
     }
   }
-  if (start_us_ < 0) start_us_ = monotonic_us();
+  // On the bench's world clock the camera's frames count from the epoch (frame k captured at
+  // epoch + k / fps; a camera that opens later skips the frames already due, like late ones).
+  if (start_us_ < 0) start_us_ = settings_.phantom && settings_.phantom->epoch_mono_us ? *settings_.phantom->epoch_mono_us : monotonic_us();
   open_ = true;
 }
 
@@ -95,6 +97,8 @@ ReadResult SyntheticSource::read(Frame& frame) {
     }
   }
   const std::int64_t seq = next_++;
+  const std::int64_t capture_time_mono_us = settings_.realtime ? start_us_ + static_cast<std::int64_t>(static_cast<double>(seq) * period_us)
+                                                               : monotonic_us();
   std::vector<camera_sim::BoardInScene> scene;
   for (size_t b = 0; b < settings_.boards.size(); ++b) scene.push_back({&settings_.boards[b].board, X_CamBoard(b, seq)});
   camera_sim::RenderOptions opt = settings_.render;
@@ -104,7 +108,9 @@ ReadResult SyntheticSource::read(Frame& frame) {
   std::vector<Eigen::Vector3d> targets_Cam_mm;
   if (settings_.phantom) {
     const auto& ph = *settings_.phantom;
-    const camera_sim::PhantomFrame pf = ph.recording->at(ph.start_s + static_cast<double>(seq) / settings_.fps);
+    const double t_s = ph.epoch_mono_us ? 1e-6 * static_cast<double>(capture_time_mono_us - *ph.epoch_mono_us)
+                                        : static_cast<double>(seq) / settings_.fps;
+    const camera_sim::PhantomFrame pf = ph.recording->at(ph.start_s + t_s);
     const Eigen::Isometry3d X_CamModel = scene[ph.board_index].X_CamBoard * ph.X_BoardModel;
     organ_Cam_mm = X_CamModel * pf.vertices_Model_mm;
     for (const auto& p : pf.targets_Model_mm) targets_Cam_mm.push_back(X_CamModel * p);
@@ -113,9 +119,7 @@ ReadResult SyntheticSource::read(Frame& frame) {
   camera_sim::RenderResult r = renderer_->render(scene, surfaces, opt);
   frame.image = r.image;
   frame.sequence = seq;
-  frame.capture_time_mono_us = settings_.realtime
-                                   ? start_us_ + static_cast<std::int64_t>(static_cast<double>(seq) * period_us)
-                                   : monotonic_us();
+  frame.capture_time_mono_us = capture_time_mono_us;
   frame.origin.clear();
 
   std::string file;

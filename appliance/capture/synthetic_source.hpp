@@ -39,6 +39,12 @@ struct SyntheticPhantom {
   Eigen::Isometry3d X_BoardModel = Eigen::Isometry3d::Identity();  // the host's X_RefModel
   double reflectance = 0.6;
   double start_s = 0.0;
+  // The bench's world clock (CLOCK_MONOTONIC, us): when set, the camera's frames count from
+  // it (frame k captured at epoch + k / fps, the outage timed from it too) and a frame shows
+  // the recording at t = start_s + (its capture time - epoch), the clock the simulated
+  // Polaris moves the phantom's tool on when its scenario names the same epoch
+  // (docs/hil.md): the tool and the filmed tissue agree however late each device starts.
+  std::optional<std::int64_t> epoch_mono_us;
 };
 
 struct SyntheticSettings {

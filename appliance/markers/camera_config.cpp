@@ -287,7 +287,7 @@ std::optional<CameraConfig> parse_camera_config(const std::string& yaml_text, co
     if (const YAML::Node ph = s ? s["phantom"] : none) {
       // A deforming organ phantom (hil_tests' arnav-phantom-record) fixed to one board.
       const std::string kp = k + ".phantom";
-      r.only(ph, kp, {"recording", "board", "X_BoardModel", "reflectance", "start_s"});
+      r.only(ph, kp, {"recording", "board", "X_BoardModel", "reflectance", "start_s", "epoch_mono_us"});
       capture::SyntheticPhantom p;
       if (!ph["recording"]) r.fail(ph, kp + ".recording", "missing: the phantom recording file (arnav-phantom-record writes one)");
       const std::filesystem::path rec_path = resolve(base_dir, r.text(ph, kp, "recording", ""));
@@ -313,6 +313,7 @@ std::optional<CameraConfig> parse_camera_config(const std::string& yaml_text, co
       }
       p.reflectance = r.number(ph, kp, "reflectance", p.reflectance, 0.01, 1);
       p.start_s = r.number(ph, kp, "start_s", 0, -1e6, 1e6);
+      if (ph["epoch_mono_us"]) p.epoch_mono_us = static_cast<std::int64_t>(r.number(ph, kp, "epoch_mono_us", 0, 0, 9e15));
       syn.phantom = std::move(p);
     }
     c.synthetic = std::move(syn);

@@ -174,8 +174,10 @@ std::string CanSim::start() {
 
 void CanSim::at(std::int64_t t_us, std::function<void()> fn) { actions_.push({t_us, ++seq_, std::move(fn)}); }
 
-void CanSim::schedule(double at_s, const std::string& text) {
-  at(start_us_ + static_cast<std::int64_t>(at_s * 1e6), [this, text] {
+void CanSim::schedule(double at_s, const std::string& text) { schedule_from_epoch(start_us_, at_s, text); }
+
+void CanSim::schedule_from_epoch(std::int64_t epoch_mono_us, double at_s, const std::string& text) {
+  at(epoch_mono_us + static_cast<std::int64_t>(at_s * 1e6), [this, text] {
     const std::string r = command(text);
     std::cerr << "arnav-can-sim: " << text << ": " << r << "\n";
   });

@@ -53,6 +53,9 @@ class CanSim {
   // Checks and runs (or schedules) a command; "OK" or "ERROR <why>". dry_run: check only.
   std::string command(const std::string& text, bool dry_run = false);
   void schedule(double at_s_from_start, const std::string& command);
+  // Steps at epoch_mono_us + at_s instead (the bench's world clock shared with the simulated
+  // Polaris and the synthetic camera, docs/hil.md); a step already past runs at once.
+  void schedule_from_epoch(std::int64_t epoch_mono_us, double at_s, const std::string& command);
   // Serves until stop is set.
   void run(const volatile bool& stop);
   // Frames sent so far (data and error), for tests.

@@ -34,6 +34,10 @@ static int main_body(int argc, char** argv) {
   app.add_option("--pty-link", o.pty_link, "slcan adapter on a pty; symlink to its slave");
   app.add_option("--bind-over", o.bind_over, "also bind-mount the pty slave over this node (root, private mount namespace)");
   app.add_option("--scenario", scenario, "YAML scenario: steps: [{at_s, do}]");
+  std::int64_t epoch_mono_us = -1;
+  app.add_option("--epoch-mono-us", epoch_mono_us,
+                 "steps at this CLOCK_MONOTONIC time (us) + at_s instead of the start (the bench's world clock, docs/hil.md)")
+      ->check(CLI::Range(std::int64_t{0}, std::int64_t{9'000'000'000'000'000}));
   app.add_option("--do", steps, "AT_S:COMMAND, a step given on the command line");
   app.add_option("--control", o.control_socket, "unix datagram socket accepting commands");
   app.add_option("--log", o.log_path, "candump log of every frame on the simulated bus");
@@ -97,7 +101,10 @@ static int main_body(int argc, char** argv) {
         std::cerr << "arnav-can-sim: step at " << st.at_s << " s '" << st.command << "': " << check << "\n";
         return 2;
       }
-      sim.schedule(st.at_s, st.command);
+      if (epoch_mono_us >= 0)
+        sim.schedule_from_epoch(epoch_mono_us, st.at_s, st.command);
+      else
+        sim.schedule(st.at_s, st.command);
     }
     std::cout << "READY " << where << std::endl;
     sim.run(g_stop);

@@ -118,8 +118,10 @@ camera_sim::PhantomRecording record_phantom(const std::string& scene_path, const
   const int frames = static_cast<int>(std::floor(script.duration_s * script.fps + 1e-9)) + 1;
   const double dt = 1.0 / script.fps / script.substeps;
   std::vector<double> step_ms;
+  int written = 0;
   for (int k = 0; k < frames; ++k) {
     const double t = k / script.fps;
+    if (script.skip_rest_frames && k > 0 && k + 1 < frames && (k + 1) / script.fps <= script.start_s) continue;  // at rest, and the next one too
     if (k > 0) {
       for (int s = 1; s <= script.substeps; ++s) {
         const double ts = (k - 1) / script.fps + s * dt;
@@ -152,9 +154,10 @@ camera_sim::PhantomRecording record_phantom(const std::string& scene_path, const
     stats.max_surface_displacement_mm =
         std::max(stats.max_surface_displacement_mm, (f.vertices_Model_mm - surface_rest).colwise().norm().maxCoeff());
     rec.frames.push_back(std::move(f));
+    ++written;
     if (progress) progress(k, frames);
   }
-  stats.frames = frames;
+  stats.frames = written;
   if (!step_ms.empty()) {
     std::nth_element(step_ms.begin(), step_ms.begin() + static_cast<std::ptrdiff_t>(step_ms.size() / 2), step_ms.end());
     stats.median_step_ms = step_ms[step_ms.size() / 2];

@@ -27,6 +27,11 @@ struct PhantomScript {
   Eigen::Vector3d pull_mm = Eigen::Vector3d(0, 0, -20);
   double start_s = 0.5, ramp_s = 2.5, hold_s = 2.0, rest_s = 1.0;
   int substeps = 1;                  // model steps per recorded frame
+  // Frames before the pull whose next frame is at rest too are neither solved nor written
+  // (frame 0 and the last rest frame are): the organ is exactly at rest there (no gravity,
+  // springs at their rest targets), and the camera's interpolation between the two frames
+  // kept is the rest shape. Makes a long wait before the pull cheap (scripts/demo).
+  bool skip_rest_frames = false;
   bool gravity = false;              // frame 0 = the rest shape (what the host registered)
   double interior_offset_mm = 15.0;  // extra targets: tumour centroid +- this along x, y, z (inside the volume)
 

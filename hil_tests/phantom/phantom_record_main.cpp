@@ -34,6 +34,8 @@ static int main_body(int argc, char** argv) {
   app.add_option("--hold", s.hold_s, "pull held, s")->capture_default_str();
   app.add_option("--rest", s.rest_s, "released between pulls, s")->capture_default_str();
   app.add_option("--substeps", s.substeps, "model steps per recorded frame")->capture_default_str();
+  app.add_flag("--skip-rest-frames", s.skip_rest_frames,
+               "neither solve nor write the frames at rest before the pull (frame 0 and the last one before it are kept)");
   app.add_flag("--gravity", s.gravity, "apply the scene's gravity (default off: frame 0 is the rest shape the host registered)");
   app.add_flag("--quiet", quiet, "no progress on stderr");
   app.add_option("--compare-scene", compare_scene,

@@ -48,6 +48,13 @@ std::uint32_t PolarisModel::frame_at(double now_s) const {
   return scenario_.first_frame + static_cast<std::uint32_t>(std::floor(elapsed * scenario_.frame_rate_hz));
 }
 
+double PolarisModel::motion_time_s(std::uint32_t frame) const {
+  const double t_s = static_cast<double>(frame) / scenario_.frame_rate_hz;
+  if (!scenario_.epoch_mono_us) return t_s;
+  // Motions subtract first_frame / rate (the boot): add back the boot's world time.
+  return t_s + clock_origin_mono_s_ + boot_s_ - static_cast<double>(*scenario_.epoch_mono_us) * 1e-6;
+}
+
 Bytes PolarisModel::reset(double now_s) {
   input_.clear();
   baud_ = 9600;
@@ -262,7 +269,7 @@ PolarisModel::Reply PolarisModel::reply_tracking(bool binary, const std::string&
   if ((option & ~(unsigned{kReplyTransforms} | kReplyOutOfVolume)) != 0 || !(option & kReplyTransforms))
     return reply(error_reply(kOutOfRange));  // the simulator models transform data only
   const std::uint32_t frame = frame_at(now_s);
-  const double t_s = static_cast<double>(frame) / scenario_.frame_rate_hz;
+  const double t_s = motion_time_s(frame);
   ndi::TrackingReply out;
   for (const auto& [h, p] : ports_) {
     if (out.count == out.handles.size()) break;  // more handles than a frame can carry

@@ -47,6 +47,12 @@ class PolarisModel {
   void set_baud(int baud) { baud_ = baud; }
   bool tracking() const { return tracking_; }
   std::optional<double> first_tstart_s() const { return first_tstart_s_; }
+  // CLOCK_MONOTONIC (s) at now_s = 0: with the scenario's epoch_mono_us the motions run on
+  // the world clock (the frame's monotonic time minus the epoch).
+  void set_clock_origin_mono_s(double t0_mono_s) { clock_origin_mono_s_ = t0_mono_s; }
+  // The time the tools' motions are evaluated at for frame `frame` (s): frame / rate, or,
+  // with an epoch, shifted so that path time = the frame's monotonic time - epoch.
+  double motion_time_s(std::uint32_t frame) const;
   std::uint32_t frame_at(double now_s) const;
   const Scenario& scenario() const { return scenario_; }
 
@@ -79,6 +85,7 @@ class PolarisModel {
   bool initialised_ = false;
   bool tracking_ = false;
   double boot_s_ = 0.0;
+  double clock_origin_mono_s_ = 0.0;
   std::optional<double> first_tstart_s_;
   std::map<std::uint8_t, Port> ports_;
   std::map<std::string, double> missing_until_;

@@ -267,7 +267,8 @@ Scenario parse_scenario(const std::string& yaml_text, const std::string& source_
   try {
     const YAML::Node root = YAML::Load(yaml_text);
     if (!root.IsMap()) throw ScenarioError(source_name + ": expected a YAML map at the top level");
-    check_keys(root, {"frame_rate_hz", "first_frame", "serial_number", "tools", "faults"}, source_name);
+    check_keys(root, {"frame_rate_hz", "first_frame", "serial_number", "tools", "faults", "epoch_mono_us"}, source_name);
+    if (root["epoch_mono_us"]) s.epoch_mono_us = static_cast<std::int64_t>(number(root["epoch_mono_us"], source_name + ": epoch_mono_us", 0, 9e15));
     if (root["frame_rate_hz"]) s.frame_rate_hz = number(root["frame_rate_hz"], source_name + ": frame_rate_hz", 1.0, kMaxFrameRateHz);
     if (root["first_frame"]) s.first_frame = static_cast<std::uint32_t>(number(root["first_frame"], source_name + ": first_frame", 0, 4e9));
     if (root["serial_number"]) s.serial_number = root["serial_number"].as<std::string>();

@@ -69,6 +69,12 @@ struct Scenario {
   std::string serial_number = "P9-00042";
   std::vector<SimTool> tools;
   std::vector<TimedFault> faults;
+  // The bench's world clock (epoch_mono_us: a CLOCK_MONOTONIC time, microseconds): when
+  // set, the tools' motions run on the time since it (the frame's time), not on the time
+  // since the device booted, so the simulated Polaris, the synthetic camera's phantom and
+  // the CAN simulator's steps that name the same epoch see the same world at the same
+  // instant however late each of them starts (docs/hil.md).
+  std::optional<std::int64_t> epoch_mono_us;
 };
 
 inline constexpr double kMaxFrameRateHz = 400.0;

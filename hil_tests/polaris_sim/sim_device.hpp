@@ -17,6 +17,8 @@ class SimDevice {
   virtual int baud() const = 0;
   virtual void set_baud(int baud) = 0;
   virtual std::optional<double> first_tstart_s() const = 0;
+  // The CLOCK_MONOTONIC time (s) of the simulator's time 0 (for a scenario's epoch_mono_us).
+  virtual void set_clock_origin_mono_s(double /*t0_mono_s*/) {}
   // Faults that need the device's cooperation; a device that cannot model one returns
   // false (the Simulator reports it) rather than pretending.
   virtual bool force_errors(std::uint8_t /*code*/, int /*count*/) { return false; }
@@ -33,6 +35,7 @@ class ModelDevice : public SimDevice {
   int baud() const override { return model_.baud(); }
   void set_baud(int baud) override { model_.set_baud(baud); }
   std::optional<double> first_tstart_s() const override { return model_.first_tstart_s(); }
+  void set_clock_origin_mono_s(double t0_mono_s) override { model_.set_clock_origin_mono_s(t0_mono_s); }
   bool force_errors(std::uint8_t code, int count) override;
   bool swallow_commands(int count) override;
   bool hide_tool(const std::string& tool, double until_s, bool out_of_volume) override;

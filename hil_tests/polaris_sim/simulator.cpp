@@ -51,6 +51,7 @@ Simulator::Simulator(SimDevice& device, std::vector<TimedFault> timeline, Simula
       link_(options_.pty_link, options_.bind_over),
       rng_(options_.seed) {
   t0_mono_s_ = static_cast<double>(monotonic_us()) * 1e-6;
+  device_.set_clock_origin_mono_s(t0_mono_s_);
 }
 
 Simulator::~Simulator() {

@@ -56,3 +56,18 @@ ar_print_host_summary() {
   echo "== arnav-host =="
   sed -n '/^navigation:/,$p' "$out/host.log" | grep -v "^recorded" | sed 's/^/  /'
 }
+
+# The bench's world clock: a CLOCK_MONOTONIC epoch (us) now, written into the simulated
+# Polaris' scenario (epoch_mono_us: the tools' motions) and the synthetic camera's phantom
+# (phantom.epoch_mono_us: the filmed tissue), and given to arnav-can-sim (--epoch-mono-us:
+# the pedal's steps), so every simulated device plays the same world time however late each
+# starts (docs/hil.md). The world's time 0 is ARNAV_AR_WORLD_LEAD_S (default 5 s) from now:
+# the appliance, the simulated Polaris and the camera come up meanwhile (each loads the
+# phantom recording first). Sets ar_epoch_us; $1: the Polaris scenario, $2: the appliance config.
+ar_world_clock() {
+  ar_epoch_us=$(python3 -c 'import sys, time; print(time.clock_gettime_ns(time.CLOCK_MONOTONIC) // 1000 + round(float(sys.argv[1]) * 1e6))' \
+    "${ARNAV_AR_WORLD_LEAD_S:-5}")
+  printf 'epoch_mono_us: %s   # the bench world clock (ar_bench.sh ar_world_clock)\n' "$ar_epoch_us" >>"$1"
+  sed -i "s#^\(    phantom: {recording: [^}]*\)}#\1, epoch_mono_us: $ar_epoch_us}#" "$2"
+  grep -q "epoch_mono_us: $ar_epoch_us" "$2" || { echo "ar_bench.sh: no 'phantom: {recording: ...}' line in $2 to put the world clock in" >&2; exit 1; }
+}

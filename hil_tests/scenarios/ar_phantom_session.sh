@@ -70,6 +70,8 @@ pids=()
 trap ar_stop_pids EXIT
 ar_start_logger
 ar_start_host "$host"
+# The camera's phantom and the simulated Polaris' grasper on one world clock from now on.
+ar_world_clock "$out/polaris_phantom.yaml" "$out/appliance.yaml"
 echo "arnav-appliance: synthetic camera filming the deforming phantom, $frames frames at 15 Hz; simulated Polaris moving the grasper with the phantom's tool"
 (cd "$out" && exec "$appliance" appliance.yaml 2>"$out/appliance.log") &
 app_pid=$!
@@ -93,6 +95,18 @@ if "rigid_overlay" in j:
           % (r["mean"], r["p95"], r["max"], rp["mean"], rp["p95"], rp["max"]))
     print("  tumour displacement (deformed vs rest, 3D): mean %.2f mm, max %.2f mm" % (d["mean"], d["max"]))
 ' || echo "  (python3 missing: see $out/ar_error.json)"
+# The same session replayed from its LCM log (deterministic, as fast as possible): the host's
+# chain without this machine's load, scored against the same truth (docs/hil.md).
+"$host" "$out/session.yaml" --replay "$out/session.lcmlog" --replay-speed 0 --quiet --record "$out/replay" \
+  --summary-json "$out/replay.json" >"$out/replay.log" 2>&1 || echo "  (replay failed: $out/replay.log)"
+"$ar_error" --session "$out/session.yaml" --ground-truth "$out/ground_truth.csv" --overlay-csv "$out/replay/overlay.csv" \
+  >"$out/ar_error_replay.json" 2>>"$out/replay.log" && python3 -c '
+import json, sys
+j = json.load(open(sys.argv[1]))
+e, p = j["ar_error_mm"], j["ar_error_px"]
+print("  replay of the log: mean %.2f mm, p95 %.2f mm, max %.2f mm; mean %.2f px, p95 %.2f px, max %.2f px (%d frames)"
+      % (e["mean"], e["p95"], e["max"], p["mean"], p["p95"], p["max"], j["frames_evaluated"]))
+' "$out/ar_error_replay.json" || true
 echo "== files =="
 echo "  phantom:       $out/phantom.txt"
 echo "  ground truth:  $out/ground_truth.csv"

@@ -1,28 +1,24 @@
 #!/usr/bin/env bash
 # The AR navigation session on the bench, by hand or from scripts/demo:
 #   ar_session.sh BUILD_DIR OUT_DIR
-# Re-executes itself in a private network namespace (root): make_demo_paths.py writes the
-# landmarks, the pointer's and the scalpel's paths in the model frame and the pedal's steps
-# from the scene; lcm-logger records the bus; arnav-host ar_demo/session_live.yaml registers
-# with the pointer (accept pressed on the pedal), cuts a ring around the tumour (pedal held),
-# runs the model and the overlay and records the video, overlay.csv and a contact sheet;
+# make_demo_paths.py writes the landmarks, the pointer's and the scalpel's paths in the
+# model frame and the pedal's steps from the scene; arnav-phantom-record writes the
+# deforming phantom (OUT/phantom.txt: at rest through the registration, then a grasper pulls
+# the organ's underside twice while the scalpel cuts; reused if present). Re-executes itself
+# in a private network namespace (root): lcm-logger records the bus; arnav-host
+# ar_demo/session_live.yaml registers with the pointer (accept pressed on the pedal), couples
+# the tracked grasper to its model, cuts a ring around the tumour (pedal held), runs the
+# model and the overlay and records the video, overlay.csv and a contact sheet;
 # arnav-can-sim serves the pedal (through the bench's can_shim), arnav-appliance runs the
-# synthetic camera (static board, 1 s unplugged), the simulated Polaris (pointer, scalpel)
-# and the CAN path (ar_demo/appliance_live.yaml) until the camera's frames are done. Then
-# arnav-ar-error compares the overlay with the camera's ground truth (through the bench's
-# true X_RefModel.yaml) and a summary is printed. docs/hil.md.
+# synthetic camera filming the deforming phantom (static board, 1 s unplugged), the
+# simulated Polaris (pointer, scalpel, the phantom's grasper) and the CAN path
+# (ar_demo/appliance_live.yaml) until the camera's frames are done. Then arnav-ar-error
+# compares the overlay with the camera's ground truth (the deformed tumour of each frame,
+# through the bench's true X_RefModel_phantom.yaml) and a summary is printed. docs/hil.md.
 set -euo pipefail
 if [ "$#" -lt 2 ]; then
-  sed -n '2,13p' "$0" >&2
+  sed -n '2,18p' "$0" >&2
   exit 2
-fi
-if [ "${ARNAV_AR_INSIDE:-}" != "1" ]; then
-  if [ "$(id -u)" -ne 0 ]; then
-    echo "ar_session.sh: needs root for a private network namespace (run with sudo)" >&2
-    exit 1
-  fi
-  export ARNAV_AR_INSIDE=1
-  exec unshare --net "$0" "$@"
 fi
 here=$(cd "$(dirname "$0")" && pwd)
 build=$(cd "$1" && pwd)
@@ -33,34 +29,66 @@ appliance=$build/appliance/app/arnav-appliance
 ar_error=$build/hil_tests/scenarios/arnav-ar-error
 can_sim=$build/hil_tests/can_sim/arnav-can-sim
 can_shim=$build/hil_tests/interposer/libarnav_hil_can_shim.so
-for f in "$host" "$appliance" "$ar_error" "$can_sim" "$can_shim"; do
+record=$build/hil_tests/phantom/arnav-phantom-record
+for f in "$host" "$appliance" "$ar_error" "$can_sim" "$can_shim" "$record"; do
   [ -x "$f" ] || { echo "ar_session.sh: $f is missing: build first (scripts/build release)" >&2; exit 1; }
 done
+data=$(cd "$here/../../data" && pwd)
+if [ "${ARNAV_AR_INSIDE:-}" != "1" ]; then
+  if [ "$(id -u)" -ne 0 ]; then
+    echo "ar_session.sh: needs root for a private network namespace (run with sudo)" >&2
+    exit 1
+  fi
+  # The model frame faces the camera along -z (X_CamModel's rotation is the identity, polaris_live.yaml).
+  python3 "$here/ar_demo/make_demo_paths.py" --scene "$data/liver/liver_coarse_cut.scene.yaml" --toward-camera 0,0,-1 \
+    --pointer-start-s 5 --gap-s 3 --out "$out" | tee "$out/paths.txt" | sed 's/^/make_demo_paths.py: /'
+  # The deforming phantom: at rest while the pointer registers, the grasper's pull starts when
+  # the scalpel comes in (two pulls of 8 s period) until the camera's last frame (600 at 15 Hz,
+  # the world's ~38 s).
+  # The rest frames are not solved (--skip-rest-frames); 5 frames per second, interpolated by
+  # the camera and the simulated Polaris (docs/hil.md).
+  if [ ! -s "$out/phantom.txt" ]; then
+    pull_start=$(sed -n 's/.*ring \([0-9.]*\)-.*/\1/p' "$out/paths.txt")
+    [ -n "$pull_start" ] || { echo "ar_session.sh: make_demo_paths.py did not print the ring's times" >&2; exit 1; }
+    echo "arnav-phantom-record: reference deformation, 37.4 s at 5 Hz, the grasper pulls from ${pull_start} s (co-rotational FEM, fine mesh)"
+    "$record" --scene "$here/ar_demo/phantom_reference.scene.yaml" --out "$out/phantom.txt" --fps 5 --duration 37.4 \
+      --pull 20 10 -15 --grasp-radius 15 --start "$pull_start" --skip-rest-frames --quiet >"$out/phantom_record.json"
+    python3 - "$out/phantom_record.json" <<'PY' || cat "$out/phantom_record.json"
+import json, sys
+j = json.load(open(sys.argv[1]))
+print("  reference: %s, %d vertices / %d tets, %d frames, median step %.0f ms; surface moved up to %.1f mm, tumour up to %.1f mm"
+      % (j["model"], j["volume_vertices"], j["volume_tets"], j["frames"], j["median_step_ms"], j["max_surface_displacement_mm"], j["max_tumour_displacement_mm"]))
+PY
+  fi
+  export ARNAV_AR_INSIDE=1
+  exec unshare --net "$0" "$@"
+fi
 command -v lcm-logger >/dev/null || { echo "ar_session.sh: lcm-logger missing (Debian liblcm-bin, scripts/deps)" >&2; exit 1; }
 . "$here/ar_bench.sh"
 ar_bus_up
 # The configs name their files relative to themselves; the run writes into OUT.
-data=$(cd "$here/../../data" && pwd)
-cp "$here"/ar_demo/{camera.yaml,marker_board.yaml,X_RefModel.yaml,X_CamNdi.yaml} "$out/"
+cp "$here"/ar_demo/{camera.yaml,marker_board.yaml,X_RefModel_phantom.yaml,X_CamNdi.yaml} "$out/"
 sed "s#\.\./\.\./\.\./data/#$data/#" "$here/ar_demo/session_live.yaml" >"$out/session.yaml"
 sed "s#\.\./\.\./\.\./data/#$data/#" "$here/ar_demo/appliance_live.yaml" >"$out/appliance.yaml"
 sed "s#\.\./\.\./\.\./data/#$data/#" "$here/ar_demo/polaris_live.yaml" >"$out/polaris_live.yaml"
-# The truth for arnav-ar-error: the same camera and scene through the bench's true registration.
-sed "s#^scene: [^ ]*#scene: $data/liver/liver_coarse_cut.scene.yaml#" "$here/ar_demo/session.yaml" >"$out/session_truth.yaml"
-# The model frame faces the camera along -z (X_CamModel's rotation is the identity, polaris_live.yaml).
-python3 "$here/ar_demo/make_demo_paths.py" --scene "$data/liver/liver_coarse_cut.scene.yaml" --toward-camera 0,0,-1 \
-  --pointer-start-s 5 --gap-s 3 --can-lead-s "${ARNAV_AR_CAN_LEAD_S:-0.3}" --out "$out" | sed 's/^/make_demo_paths.py: /'
+# The truth for arnav-ar-error: the same camera and scene through the bench's true
+# registration (the phantom fixed to its board); the tumour's truth is the deformed one.
+sed -e "s#^scene: [^ ]*#scene: $data/liver/liver_coarse_cut.scene.yaml#" -e "s#^registration: X_RefModel.yaml#registration: X_RefModel_phantom.yaml#" \
+  "$here/ar_demo/session.yaml" >"$out/session_truth.yaml"
 
 pids=()
 trap ar_stop_pids EXIT
 mkdir -p "$out/can"
 ar_start_logger
 ar_start_host "$host"
-echo "arnav-appliance: synthetic camera, 560 frames at 15 Hz (static board, camera unplugged 1 s at 18 s); simulated Polaris: pointer on 4 landmarks, scalpel ring; CAN pedal (arnav-can-sim)"
+echo "arnav-appliance: synthetic camera filming the deforming phantom, 600 frames at 15 Hz (static board, camera unplugged 1 s at 20 s); simulated Polaris: pointer on 4 landmarks, scalpel ring, the phantom's grasper; CAN pedal (arnav-can-sim)"
+# One world clock for the pointer's and scalpel's paths, the phantom (filmed and its grasper)
+# and the pedal's steps: from now on, however long each device takes to start.
+ar_world_clock "$out/polaris_live.yaml" "$out/appliance.yaml"
 # The pedal: arnav-can-sim serves the bus the appliance opens through the can_shim; its
-# steps (can_steps.yaml) run on its own clock, started just before the appliance.
+# steps (can_steps.yaml) run on the world clock.
 exec 3< <(exec "$can_sim" --config "$out/appliance.yaml" --socketcan "$out/can" --interface vcan0 \
-  --scenario "$out/can_steps.yaml" --log "$out/can/bus.log" 2>"$out/can_sim.log")
+  --scenario "$out/can_steps.yaml" --epoch-mono-us "$ar_epoch_us" --log "$out/can/bus.log" 2>"$out/can_sim.log")
 can_pid=$!
 pids+=("$can_pid")
 read -r -t 20 ready <&3 || true
@@ -83,10 +111,32 @@ j = json.load(sys.stdin)
 e, p = j["ar_error_mm"], j["ar_error_px"]
 n, rows, made, missing = j["frames_evaluated"], j["csv_rows"], j["truth_frames"], j["missing_in_csv"]
 print(f"  frames with overlay: {n} of {rows} displayed ({made} made by the camera, {missing} of them not displayed)")
-print("  AR error: mean %.2f mm, p95 %.2f mm, max %.2f mm; mean %.2f px, p95 %.2f px, max %.2f px"
+print("  AR error (against the deformed tumour): mean %.2f mm, p95 %.2f mm, max %.2f mm; mean %.2f px, p95 %.2f px, max %.2f px"
       % (e["mean"], e["p95"], e["max"], p["mean"], p["p95"], p["max"]))
+if "rigid_overlay" in j:
+    r, d = j["rigid_overlay"]["ar_error_mm"], j["tumour_displacement_mm"]
+    print("  an overlay that ignores the deformation: mean %.2f mm, p95 %.2f mm, max %.2f mm; tumour moved up to %.1f mm (3D)"
+          % (r["mean"], r["p95"], r["max"], d["max"]))
 print("  frames with the board clearly visible but no overlay: %d" % j["visible_without_overlay"])
 ' || echo "  (python3 missing: see $out/ar_error.json)"
+# The same session replayed from its LCM log (deterministic, as fast as possible): the host's
+# chain without this machine's load (a starved host thread sees poses late and releases the
+# grasp as stale; the replay's clock is the log's). Same ground truth, same frames.
+"$host" "$out/session.yaml" --replay "$out/session.lcmlog" --replay-speed 0 --quiet --record "$out/replay" \
+  --summary-json "$out/replay.json" >"$out/replay.log" 2>&1 || echo "  (replay failed: $out/replay.log)"
+"$ar_error" --session "$out/session_truth.yaml" --ground-truth "$out/ground_truth.csv" --overlay-csv "$out/replay/overlay.csv" \
+  >"$out/ar_error_replay.json" 2>>"$out/replay.log" && python3 - "$out/ar_error_replay.json" "$out/replay.json" <<'PY' || true
+import json, sys
+j = json.load(open(sys.argv[1]))
+e, p = j["ar_error_mm"], j["ar_error_px"]
+print("  AR error, replay of the session's log (%d frames): mean %.2f mm, p95 %.2f mm, max %.2f mm; mean %.2f px, p95 %.2f px, max %.2f px"
+      % (j["frames_evaluated"], e["mean"], e["p95"], e["max"], p["mean"], p["p95"], p["max"]))
+nav = json.load(open(sys.argv[2])).get("navigation", {})
+c, g = nav.get("cutting"), nav.get("grasper")
+if c and g:
+    print("    replay: cut-path error p50 %.2f mm, p95 %.2f mm, max %.2f mm; grasper %d grasp(s), %d released stale"
+          % (c["path_error_mm"]["p50"], c["path_error_mm"]["p95"], c["path_error_mm"]["max"], g["grasps"], g["stale_releases"]))
+PY
 python3 - "$out/host.json" <<'PY' || true
 import json, sys
 nav = json.load(open(sys.argv[1])).get("navigation", {})
@@ -127,6 +177,10 @@ lost, back = app.count("CAMERA_LOST"), app.count("CAMERA_RECOVERED")
 g = nav.get("camera_gaps", {})
 print("  injected fault: camera unplugged 1 s: appliance CAMERA_LOST %d, CAMERA_RECOVERED %d; host: %d camera gap(s) over its limit, longest %.0f ms"
       % (lost, back, g.get("count", 0), g.get("max_ms", 0.0)))
+gr = nav.get("grasper")
+if gr:
+    print("  grasper: %d grasp(s), %d released, %d released stale; %d model steps grasping, tip travel up to %.1f mm"
+          % (gr["grasps"], gr["releases"], gr["stale_releases"], gr["steps_grasping"], gr["max_tip_travel_mm"]))
 i = nav.get("inputs", {}).get("by_input", {})
 print("  pedal (CAN): accept pressed %d, cut pedal pressed %d" % (i.get("pedal_accept", {}).get("presses", 0), i.get("pedal_cut", {}).get("presses", 0)))
 m, lat = nav.get("model", {}), nav.get("motion_to_photon_ms", {})
@@ -135,8 +189,9 @@ if lat:
           % (lat.get("p50", 0), lat.get("p99", 0), nav.get("frames_dropped", 0), m.get("rate_hz", 0), m.get("step_ms_p50", 0), m.get("step_ms_p99", 0)))
 PY
 echo "== files =="
+echo "  phantom:       $out/phantom.txt"
 echo "  video:         $out/recording/overlay.avi"
 echo "  contact sheet: $out/recording/contact_sheet.png"
-echo "  overlay.csv:   $out/recording/overlay.csv"
+echo "  overlay.csv:   $out/recording/overlay.csv (replay: $out/replay/overlay.csv)"
 echo "  LCM log:       $out/session.lcmlog  (replay: $host $out/session.yaml --replay $out/session.lcmlog)"
 exit "$app_rc"

@@ -7,9 +7,9 @@ namespace arnav::host {
 
 GraspCoupling::GraspCoupling(const GrasperRole& role, const Scene& scene) : role_(role), scene_(scene) {}
 
-void GraspCoupling::release(TissueModel& model, const std::string& why) {
+void GraspCoupling::release(GraspBody& model, const std::string& why) {
   if (!status_.grasping) return;
-  for (const AttachmentId id : ids_) model.remove_attachment(id);
+  for (const int id : ids_) model.remove_attachment(id);
   char text[240];
   std::snprintf(text, sizeof text, "grasper '%s' released %d vertices (%s; tip moved %.1f mm while grasping)", role_.name.c_str(),
                 status_.attached_vertices, why.c_str(), status_.tip_travel_mm);
@@ -22,7 +22,7 @@ void GraspCoupling::release(TissueModel& model, const std::string& why) {
   status_.tip_travel_mm = 0.0;
 }
 
-void GraspCoupling::apply(TissueModel& model, const GraspCommand& cmd, std::int64_t now_us) {
+void GraspCoupling::apply(GraspBody& model, const GraspCommand& cmd, std::int64_t now_us) {
   const bool fresh = cmd.X_ModelTool && cmd.pose_time_us >= 0 &&
                      static_cast<double>(now_us - cmd.pose_time_us) <= role_.stale_after_ms * 1000.0;
   status_.stale = !fresh;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <set>
 #include <stdexcept>
 
@@ -94,7 +95,6 @@ void ModelRunner::set_scalpel(const std::optional<std::array<Eigen::Vector3d, 2>
 }
 
 void ModelRunner::enable_grasper(const GrasperRole& role) {
-  if (cut_) throw std::invalid_argument("a grasper cannot be coupled to a cutting model yet (host/cut has no attachment removal)");
   grasp_ = std::make_unique<GraspCoupling>(role, scene_);
 }
 
@@ -138,6 +138,109 @@ std::vector<double> ModelRunner::step_times_ms() const {
   return step_ms_;
 }
 
+void ModelRunner::record_material_sweep(const cut::SweptSurface& sweep) {
+  cut::TetCutter& cutter = cut_->cutter();
+  const Eigen::Matrix3Xd x = cut_->positions_World_mm();
+  const Eigen::Matrix3Xd& rest = cutter.mesh().rest_positions_World_mm;
+  // The pull-back is affine per tet; over a blade segment that spans tets of different
+  // strain (the tissue the blade pushed before cutting, a grasp nearby) the segment's image
+  // is curved: the lines are resampled every ~1 mm (at most 64 segments) so the chords stay on it.
+  const int strips = sweep.strips;
+  const double length = (sweep.to.heel_World_mm - sweep.to.tip_World_mm).norm();
+  const int n = std::clamp(static_cast<int>(std::ceil(length / 1.0)), strips, 64);
+  const bool carried = sweep.from_points.size() == static_cast<std::size_t>(strips + 1);
+  // The blade's start (carried with the tissue) and end lines, tip first: 2 (n + 1) points.
+  std::vector<Eigen::Vector3d> p(static_cast<std::size_t>(2 * (n + 1)));
+  for (int i = 0; i <= n; ++i) {
+    const double u = static_cast<double>(i) / n;
+    if (carried) {
+      const double f = u * strips;
+      const int j = std::min(static_cast<int>(std::floor(f)), strips - 1);
+      const double a = f - j;
+      p[static_cast<std::size_t>(i)] = (1 - a) * sweep.from_points[static_cast<std::size_t>(j)] + a * sweep.from_points[static_cast<std::size_t>(j + 1)];
+    } else {
+      p[static_cast<std::size_t>(i)] = (1 - u) * sweep.from.tip_World_mm + u * sweep.from.heel_World_mm;
+    }
+    p[static_cast<std::size_t>(n + 1 + i)] = (1 - u) * sweep.to.tip_World_mm + u * sweep.to.heel_World_mm;
+  }
+  // Pull back: rest = the barycentric combination of the rest positions of the tet holding
+  // the point now; a point outside the tissue (or in the opening of a cut) keeps the
+  // displacement of the nearest mapped point of its line (the blade's part outside the
+  // organ cuts nothing).
+  std::vector<Eigen::Vector3d> r(p.size());
+  std::vector<char> mapped(p.size(), 0);
+  bool refit = true;
+  for (std::size_t k = 0; k < p.size(); ++k) {
+    Eigen::Vector4d w;
+    const int t = cutter.locate(p[k], x, w, refit);
+    refit = false;
+    if (t < 0 || w.minCoeff() < -1e-6) continue;  // outside the tissue (or in a cut's opening)
+    const auto& tet = cutter.mesh().tets[static_cast<std::size_t>(t)];
+    r[k].setZero();
+    for (int j = 0; j < 4; ++j) r[k] += w[j] * rest.col(tet[static_cast<std::size_t>(j)]);
+    mapped[k] = 1;
+  }
+  for (int line = 0; line < 2; ++line) {
+    const int base = line * (n + 1);
+    for (int i = 0; i <= n; ++i) {
+      const auto k = static_cast<std::size_t>(base + i);
+      if (mapped[k]) continue;
+      int nearest = -1;
+      for (int j = 0; j <= n; ++j)
+        if (mapped[static_cast<std::size_t>(base + j)] && (nearest < 0 || std::abs(j - i) < std::abs(nearest - i))) nearest = j;
+      if (nearest < 0) return;  // a whole line outside the tissue: nothing swept in the material
+      const auto m = static_cast<std::size_t>(base + nearest);
+      r[k] = p[k] + (r[m] - p[m]);
+    }
+  }
+  Sweep sw;
+  for (int i = 0; i < n; ++i) {
+    const auto f0 = static_cast<std::size_t>(i), f1 = f0 + 1, t0 = static_cast<std::size_t>(n + 1 + i), t1 = t0 + 1;
+    sw.tris.push_back({r[f0], r[f1], r[t0]});
+    sw.tris.push_back({r[f1], r[t1], r[t0]});
+  }
+  for (const auto& t : sw.tris) {
+    sw.box.extend(t.a);
+    sw.box.extend(t.b);
+    sw.box.extend(t.c);
+  }
+  sweeps_.push_back(std::move(sw));
+  if (sweeps_.size() > static_cast<std::size_t>(120 * rate_hz_)) sweeps_.pop_front();  // two minutes of cutting
+}
+
+int ModelRunner::measure_new_cut_vertices(double& worst_mm) {
+  const cut::TetCutter& cutter = cut_->cutter();
+  const Eigen::Matrix3Xd& rest = cutter.mesh().rest_positions_World_mm;
+  on_cut_seen_.resize(static_cast<std::size_t>(rest.cols()), 0);
+  int fresh = 0;
+  worst_mm = -1.0;
+  for (Eigen::Index v = 0; v < rest.cols(); ++v) {
+    if (on_cut_seen_[static_cast<std::size_t>(v)] || !cutter.on_cut(static_cast<int>(v))) continue;
+    on_cut_seen_[static_cast<std::size_t>(v)] = 1;
+    ++fresh;
+    double best = 1e300;
+    const Eigen::Vector3d p = rest.col(v);
+    for (auto it = sweeps_.rbegin(); it != sweeps_.rend(); ++it) {
+      if (it->box.exteriorDistance(p) >= best) continue;  // newest first: the bound tightens fast
+      for (const auto& t : it->tris) best = std::min(best, cut::point_triangle_distance(p, t));
+    }
+    if (best < 1e299) worst_mm = std::max(worst_mm, best);
+  }
+  return fresh;
+}
+
+void ModelRunner::apply_grasp(GraspBody& body, std::int64_t now_us) {
+  GraspCommand cmd;
+  {
+    std::lock_guard lock(mutex_);
+    cmd = grasp_cmd_;
+  }
+  grasp_->apply(body, cmd, now_us);
+  grasper_device_time_us_ = cmd.device_time_us;
+  std::lock_guard lock(mutex_);
+  grasp_status_ = grasp_->status();
+}
+
 void ModelRunner::step_once(std::int64_t now_us) {
   auto snap = std::make_shared<ModelSnapshot>();
   std::vector<ModelCutEvent> new_events;
@@ -156,21 +259,15 @@ void ModelRunner::step_once(std::int64_t now_us) {
       if (blade) {
         const bool cuts = enabled && !blade_gap_;
         const cut::CutFrameReport cr = cut_->apply_blade(cut::BladeSegment{(*blade)[0], (*blade)[1]}, cuts);
-        if (cuts && previous_blade_) {
-          cut::SweptSurface sweep;
-          sweep.from = {(*previous_blade_)[0], (*previous_blade_)[1]};
-          sweep.to = {(*blade)[0], (*blade)[1]};
-          sweep.strips = 8;
-          if (!sweep.degenerate(1e-6)) {
-            Sweep sw;
-            sw.tris = sweep.triangles();
-            for (const auto& t : sw.tris) {
-              sw.box.extend(t.a);
-              sw.box.extend(t.b);
-              sw.box.extend(t.c);
-            }
-            sweeps_.push_back(std::move(sw));
-            if (sweeps_.size() > static_cast<std::size_t>(600 * rate_hz_)) sweeps_.pop_front();
+        // Cut-path fidelity, in the material: the surface this frame's blade swept (as the
+        // cutter used it), pulled back into the rest configuration at this instant; every
+        // vertex put on the cut is compared with those surfaces at its rest position (below).
+        if (cuts && cut_->last_sweep()) record_material_sweep(*cut_->last_sweep());
+        if (cr.cut.topology_changed || cr.cut.vertices_snapped > 0) {
+          double worst = -1.0;
+          const int fresh = measure_new_cut_vertices(worst);
+          if (fresh > 0) {
+            cut_path_.emplace_back(fresh, worst);
           }
         }
         previous_blade_ = blade;
@@ -183,22 +280,26 @@ void ModelRunner::step_once(std::int64_t now_us) {
           cut_record->rebuild_ms = cr.rebuild_ms;
           cut_record->tets_cut = cr.cut.tets_cut;
         }
+        if (!cut_path_.empty()) {
+          if (!cut_record) cut_record = CutStepRecord{};
+          cut_record->new_cut_vertices = cut_path_.back().first;
+          cut_record->path_error_mm = cut_path_.back().second;
+          cut_path_.clear();
+        }
       } else {
         blade_gap_ = true;
         previous_blade_.reset();
       }
+      if (grasp_) {  // after the blade: the grasp holds the tissue as the cut left it
+        cut::CutSession& session = *cut_;
+        CutSessionBody body(session);
+        apply_grasp(body, now_us);
+      }
       s = cut_->step(1.0 / rate_hz_);
     } else {
       if (grasp_) {
-        GraspCommand cmd;
-        {
-          std::lock_guard lock(mutex_);
-          cmd = grasp_cmd_;
-        }
-        grasp_->apply(*model_, cmd, now_us);
-        grasper_device_time_us_ = cmd.device_time_us;
-        std::lock_guard lock(mutex_);
-        grasp_status_ = grasp_->status();
+        TissueModelBody body(*model_);
+        apply_grasp(body, now_us);
       }
       s = model_->step(1.0 / rate_hz_);
     }
@@ -223,28 +324,6 @@ void ModelRunner::step_once(std::int64_t now_us) {
         cut_faces.tris.push_back(f);
         area2 += (x.col(f[1]) - x.col(f[0])).cross(x.col(f[2]) - x.col(f[0])).norm();
       }
-    // Cut-path error of the vertices new on the cut faces: distance from the swept surface.
-    on_cut_face_.resize(static_cast<std::size_t>(x.cols()), 0);
-    double worst = -1.0;
-    int fresh = 0;
-    for (const auto& f : cut_faces.tris)
-      for (int v : f) {
-        if (on_cut_face_[static_cast<std::size_t>(v)]) continue;
-        on_cut_face_[static_cast<std::size_t>(v)] = 1;
-        ++fresh;
-        double best = 1e300;
-        const Eigen::Vector3d p = x.col(v);
-        for (auto it = sweeps_.rbegin(); it != sweeps_.rend(); ++it) {
-          if (it->box.exteriorDistance(p) >= best) continue;  // newest first: the bound tightens fast
-          for (const auto& t : it->tris) best = std::min(best, cut::point_triangle_distance(p, t));
-        }
-        if (best < 1e299) worst = std::max(worst, best);
-      }
-    if (fresh > 0 && worst >= 0.0) {
-      if (!cut_record) cut_record = CutStepRecord{};
-      cut_record->path_error_mm = worst;
-      cut_record->new_cut_vertices = fresh;
-    }
     // The cut's rim on the organ surface: cut-face edges shared with an uncut boundary face.
     if (!cut_faces.tris.empty()) {
       std::set<std::pair<int, int>> outer;

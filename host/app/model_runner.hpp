@@ -64,11 +64,16 @@ struct ModelCutEvent {
   cut::CutEvent event;
 };
 
-// Per step that put new vertices on the cut faces: the cut-path error, the largest distance
-// of those vertices (after the step) from the surface the blade swept while cutting (the
-// cutting steps' swept triangles of the last 10 minutes, in Model at the time of the sweep). Measured
-// here, independently of the cutter's own bookkeeping (CutStepReport::max_path_deviation_mm,
-// kept as cutter_path_error_mm).
+// Per step that put vertices on the cut (split points, vertices snapped or moved onto it):
+// the cut-path error, the largest distance of those vertices from the surfaces the blade
+// swept while cutting, both in the material (rest) frame: each frame's swept surface (its
+// start carried with the tissue, as the cutter used it) is pulled back into the rest
+// configuration at the instant of the sweep through the tets holding it; a vertex's rest
+// position is where in the material the cut put it. So the tissue's motion after the cut
+// (the grasper pulling, the cut opening, the piece inside a ring moving once cut round)
+// does not count as path error, and a cut put where the blade was not does. Measured here
+// from the mesh and the blade, independently of the cutter's own bookkeeping
+// (CutStepReport::max_path_deviation_mm, kept as cutter_path_error_mm).
 struct CutStepRecord {
   std::int64_t step = 0;
   double path_error_mm = 0.0;
@@ -98,9 +103,10 @@ class ModelRunner {
   // Blade {tip, heel} in Model (nullopt: not tracked now) and whether it cuts.
   void set_scalpel(const std::optional<std::array<Eigen::Vector3d, 2>>& blade_Model_mm, bool cutting_enabled = false);
   bool cutting() const { return cut_ != nullptr; }
-  // A tracked grasper coupled to the model (host/app/grasp_coupling.hpp); not with cutting
-  // (throws std::invalid_argument). set_grasper hands in its newest pose and request;
-  // the model thread grasps, follows or releases before each step.
+  // A tracked grasper coupled to the model (host/app/grasp_coupling.hpp), also on a cutting
+  // model (its springs kept through cuts and rebuilds, applied after the blade). set_grasper
+  // hands in its newest pose and request; the model thread grasps, follows or releases
+  // before each step.
   void enable_grasper(const GrasperRole& role);
   void set_grasper(const GraspCommand& cmd);
   bool has_grasper() const { return grasp_ != nullptr; }
@@ -120,6 +126,7 @@ class ModelRunner {
 
  private:
   void step_once(std::int64_t now_us);
+  void apply_grasp(GraspBody& body, std::int64_t now_us);
   const Scene& scene_;
   double rate_hz_;
   double margin_mm_;
@@ -140,8 +147,11 @@ class ModelRunner {
     Eigen::AlignedBox3d box;
     std::vector<cut::Triangle> tris;
   };
-  std::deque<Sweep> sweeps_;                        // swept triangles of the cutting steps (last 10 min)
-  std::vector<char> on_cut_face_;                   // vertex already seen on a cut face
+  std::deque<Sweep> sweeps_;                        // swept triangles of the cutting steps (last 2 min of cutting), in the material (rest) frame
+  std::vector<char> on_cut_seen_;                   // vertex already measured on the cut
+  std::vector<std::pair<int, double>> cut_path_;    // this step: vertices new on the cut, their largest distance (mm)
+  void record_material_sweep(const cut::SweptSurface& sweep);
+  int measure_new_cut_vertices(double& worst_mm);
   mutable std::mutex mutex_;
   std::shared_ptr<const ModelSnapshot> snapshot_;
   std::optional<std::array<Eigen::Vector3d, 2>> scalpel_;

@@ -68,7 +68,9 @@ void NavigationSession::grasp_frame(std::string& flags, std::vector<std::string>
   drain_grasp();
   const GraspStatus s = model_->grasp_status();
   const GrasperRole& g = *config_.grasper;
-  if (s.stale && (s.stale_releases > 0 || grasp_cmd_.requested)) {
+  // Before a live registration the grasper has no pose in Model: the frame says
+  // `unregistered` and the registration banner why; the grasper is not stale for that.
+  if (s.stale && (s.stale_releases > 0 || (grasp_cmd_.requested && X_RefModel_))) {
     // Never a silently frozen grasp: the organ is released and the banner says why.
     flags += (flags.empty() ? "" : "|") + std::string("grasper_stale");
     ++grasper_stale_frames_;

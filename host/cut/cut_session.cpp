@@ -189,18 +189,39 @@ void CutSession::rebuild_model(const CutStepReport& step, const Eigen::Matrix3Xd
 }
 
 int CutSession::add_attachment(const AttachmentSpec& spec) {
-  attachments_.push_back(spec);
+  attachments_.emplace_back(spec);
   attachment_ids_.push_back(model_->add_attachment(spec));
   return static_cast<int>(attachments_.size()) - 1;
 }
 
+namespace {
+std::size_t active_index(const std::vector<std::optional<AttachmentSpec>>& a, int id) {
+  if (id < 0 || static_cast<std::size_t>(id) >= a.size() || !a[static_cast<std::size_t>(id)])
+    throw std::out_of_range("cut session: no attachment " + std::to_string(id) + " (never added, or removed)");
+  return static_cast<std::size_t>(id);
+}
+}  // namespace
+
 void CutSession::set_attachment_target(int id, const Eigen::Vector3d& target_World_mm) {
-  attachments_.at(static_cast<std::size_t>(id)).target_World_mm = target_World_mm;
-  model_->set_attachment_target(attachment_ids_.at(static_cast<std::size_t>(id)), target_World_mm);
+  const std::size_t i = active_index(attachments_, id);
+  attachments_[i]->target_World_mm = target_World_mm;
+  model_->set_attachment_target(attachment_ids_[i], target_World_mm);
+}
+
+void CutSession::remove_attachment(int id) {
+  const std::size_t i = active_index(attachments_, id);
+  model_->remove_attachment(attachment_ids_[i]);
+  attachments_[i].reset();
+  attachment_ids_[i] = -1;
+}
+
+int CutSession::attachments_active() const {
+  return static_cast<int>(std::count_if(attachments_.begin(), attachments_.end(), [](const auto& a) { return a.has_value(); }));
 }
 
 void CutSession::readd_attachments() {
-  for (std::size_t i = 0; i < attachments_.size(); ++i) attachment_ids_[i] = model_->add_attachment(attachments_[i]);
+  for (std::size_t i = 0; i < attachments_.size(); ++i)
+    attachment_ids_[i] = attachments_[i] ? model_->add_attachment(*attachments_[i]) : -1;
 }
 
 Eigen::Matrix3Xd CutSession::extended(const Eigen::Matrix3Xd& m) const {
@@ -378,6 +399,7 @@ void CutSession::absorb(CutFrameReport& report, const Eigen::Matrix3Xd& x, const
 CutFrameReport CutSession::apply_blade(const BladeSegment& blade, bool cutting_enabled) {
   ++frame_;
   CutFrameReport report;
+  last_sweep_.reset();
   report.rebuild_ms = poll_build();
   const auto& tris = surface_tris();
   const Eigen::Matrix3Xd x_now = positions_World_mm();
@@ -434,6 +456,7 @@ CutFrameReport CutSession::apply_blade(const BladeSegment& blade, bool cutting_e
           moved = std::max(moved, (d - d.dot(dir) * dir).norm());
       }
       if (moved > settings_.min_sweep_mm) {
+        last_sweep_ = sweep;
         report.cut = cutter_.step(sweep, x, v);
         absorb(report, x, v);
       }

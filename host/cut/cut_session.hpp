@@ -91,9 +91,14 @@ class CutSession {
   StepSummary step(double dt_s) { return model_->step(dt_s); }
 
   // Attachments (grasp, lobe pull) that survive cuts: re-added to every rebuilt model (their
-  // material points keep their vertex ids: a cut only appends vertices).
+  // material points keep their vertex ids: a cut only appends vertices). An id stays valid
+  // until remove_attachment (the grasper releasing); a removed attachment is gone from the
+  // current model and from every model rebuilt later. Throws std::out_of_range for an id
+  // that was never added or is removed already.
   int add_attachment(const AttachmentSpec& spec);
   void set_attachment_target(int id, const Eigen::Vector3d& target_World_mm);
+  void remove_attachment(int id);
+  int attachments_active() const;
 
   TissueModel& model() { return *model_; }
   // Positions and velocities of every vertex of the current (cut) mesh: the model's, plus
@@ -115,6 +120,10 @@ class CutSession {
   // Per vessel point: the input node it was made from (its radius, ...); itself for input nodes.
   const std::vector<int>& vessel_node_source() const { return vessel_node_source_; }
   int frame() const { return frame_; }
+  // The surface the blade swept in the last apply_blade that cut (its start carried with the
+  // tissue, as the cutter used it), in the configuration of that instant; nullopt when the
+  // last frame swept nothing.
+  const std::optional<SweptSurface>& last_sweep() const { return last_sweep_; }
   int rebuilds() const { return rebuilds_; }
   int local_updates() const { return local_updates_; }
 
@@ -152,14 +161,15 @@ class CutSession {
   std::vector<char> in_margin_, tumour_cut_;
   std::vector<char> vessel_segment_crossed_;
   std::optional<BladeSegment> previous_blade_;
+  std::optional<SweptSurface> last_sweep_;
   Eigen::Matrix3Xd x_at_blade_;  // positions when the previous blade was applied
   bool previous_cutting_ = false;
   Bvh surface_bvh_;
   bool surface_dirty_ = true;
   std::optional<AttachmentId> push_;
   AttachmentSpec push_spec_;
-  std::vector<AttachmentSpec> attachments_;        // session attachments
-  std::vector<AttachmentId> attachment_ids_;       // their ids in the current model
+  std::vector<std::optional<AttachmentSpec>> attachments_;  // session attachments (nullopt: removed)
+  std::vector<AttachmentId> attachment_ids_;                 // their ids in the current model
   void readd_attachments();
   std::vector<VertexOrigin> origins_;  // of vertices n0_, n0_ + 1, ... (made by cuts)
   int n0_ = 0;

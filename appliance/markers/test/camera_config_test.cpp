@@ -117,6 +117,10 @@ TEST(CameraConfig, PhantomSectionLoadsTheRecordingAndNamesMistakes) {
   EXPECT_EQ(c->synthetic->phantom->recording->frames.size(), 1u);
   EXPECT_TRUE(c->synthetic->phantom->X_BoardModel.translation().isApprox(Eigen::Vector3d(-235, 206, 40)));
   EXPECT_DOUBLE_EQ(c->synthetic->phantom->reflectance, 0.5);
+  EXPECT_FALSE(c->synthetic->phantom->epoch_mono_us.has_value());  // the camera's own clock unless the bench names one
+  const auto with_epoch = parse_camera_config(replace(phantom, "reflectance: 0.5", "reflectance: 0.5, epoch_mono_us: 123456789"), "app.yaml", dir);
+  ASSERT_TRUE(with_epoch && with_epoch->synthetic && with_epoch->synthetic->phantom);
+  EXPECT_EQ(with_epoch->synthetic->phantom->epoch_mono_us, 123456789);
   const auto expect_dir_error = [&](const std::string& text, const std::string& needle) {
     try {
       parse_camera_config(text, "app.yaml", dir);
@@ -131,6 +135,7 @@ TEST(CameraConfig, PhantomSectionLoadsTheRecordingAndNamesMistakes) {
   expect_dir_error(replace(phantom, "X_BoardModel: X_RefModel.yaml", "X_BoardModel: nope.yaml"), "camera.synthetic.phantom.X_BoardModel");
   expect_dir_error(replace(phantom, "reflectance: 0.5", "reflectance: 5"), "phantom.reflectance': must be between");
   expect_dir_error(replace(phantom, "reflectance: 0.5", "colour: 5"), "unknown key");
+  expect_dir_error(replace(phantom, "reflectance: 0.5", "epoch_mono_us: -1"), "phantom.epoch_mono_us'");
   expect_dir_error(replace(phantom, "recording: phantom.txt, ", ""), "phantom.recording': missing");
   std::filesystem::remove_all(dir);
 }

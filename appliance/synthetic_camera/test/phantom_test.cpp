@@ -3,6 +3,8 @@
 // the ground-truth projection of the deformed targets (against cv::projectPoints).
 #include <gtest/gtest.h>
 
+#include <map>
+
 #include <opencv2/calib3d.hpp>
 
 #include <filesystem>
@@ -15,6 +17,7 @@
 #include "appliance/markers/camera_model.hpp"
 #include "appliance/synthetic_camera/ground_truth.hpp"
 #include "appliance/synthetic_camera/phantom_recording.hpp"
+#include "protocol/clock.hpp"
 #include "appliance/synthetic_camera/synthetic_renderer.hpp"
 
 namespace arnav::camera_sim {
@@ -250,6 +253,62 @@ TEST(PhantomSource, GroundTruthHoldsDeformedTargetsProjectedLikeOpenCv) {
     ++checked;
   }
   EXPECT_EQ(checked, 6);
+}
+
+// The bench's world clock (docs/hil.md "World clock"): with an epoch, the camera's frames
+// count from it (those already due when it opens are skipped) and a frame shows the phantom
+// at its capture time minus the epoch (the time the simulated Polaris moves the phantom's
+// tool on), not at k / fps since the camera opened.
+TEST(PhantomSource, WorldClockEpochPicksThePhantomAtTheCaptureTime) {
+  const auto dir = std::filesystem::temp_directory_path() / ("arnav_phepoch_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  capture::SyntheticSettings s;
+  s.camera = test_camera();
+  s.fps = 20;
+  s.realtime = true;
+  s.frame_count = 20;
+  s.ground_truth_csv = dir / "gt.csv";
+  markers::TagBoard board = markers::single_tag_board("liver_marker", "tag36h11", 3, 40);
+  Trajectory tr;
+  tr.amplitude_mm.setZero();
+  tr.tilt_deg = tr.spin_deg = 0;
+  tr.distance_mm = 400;
+  tr.image_offset_mm = Eigen::Vector2d(80, 0);
+  s.boards.push_back({board, tr});
+  capture::SyntheticPhantom ph;
+  ph.recording = std::make_shared<const PhantomRecording>(small_recording());
+  ph.X_BoardModel.linear() = Eigen::AngleAxisd(std::numbers::pi, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  ph.X_BoardModel.translation() = Eigen::Vector3d(-120, 0, -20);
+  ph.epoch_mono_us = monotonic_us() - 400'000;  // the world started 0.4 s before the camera opens
+  s.phantom = ph;
+  capture::SyntheticSource src(s);
+  src.open();
+  std::map<std::int64_t, std::int64_t> capture_us;
+  for (int k = 0; k < 3; ++k) {
+    capture::Frame f;
+    ASSERT_EQ(src.read(f).status, capture::ReadStatus::Ok);
+    capture_us[f.sequence] = f.capture_time_mono_us;
+    // The frames count from the epoch: those already due when the camera opened are skipped.
+    EXPECT_GE(f.sequence, 7);
+    EXPECT_EQ(f.capture_time_mono_us, *ph.epoch_mono_us + f.sequence * 50'000);
+  }
+  src.close();
+  const auto rows = read_ground_truth(dir / "gt.csv");
+  std::filesystem::remove_all(dir);
+  int checked = 0;
+  for (const auto& row : rows) {
+    if (row.board != "target:tumour_centroid") continue;
+    const double t_world = 1e-6 * static_cast<double>(capture_us.at(row.sequence) - *ph.epoch_mono_us);
+    EXPECT_GT(t_world, 0.35);
+    const Eigen::Isometry3d X_CamModel = src.X_CamBoard(0, row.sequence) * ph.X_BoardModel;
+    const Eigen::Vector3d expected = X_CamModel * ph.recording->at(t_world).targets_Model_mm[0];
+    EXPECT_TRUE(row.X_CamBoard.translation().isApprox(expected, 1e-6)) << row.X_CamBoard.translation().transpose() << " vs " << expected.transpose();
+    // Without the epoch the first frame would be sequence 0 at the camera's opening, showing
+    // the recording at 0 s; here the phantom is 0.35+ s in.
+    EXPECT_GT((expected - X_CamModel * ph.recording->at(0.0).targets_Model_mm[0]).norm(), 0.1);
+    ++checked;
+  }
+  EXPECT_EQ(checked, 3);
 }
 
 }  // namespace

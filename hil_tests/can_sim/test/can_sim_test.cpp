@@ -2,10 +2,13 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <chrono>
 #include <fstream>
+#include <thread>
 
 #include "appliance/can/test/test_config.hpp"
 #include "hil_tests/can_sim/can_sim.hpp"
+#include "protocol/clock.hpp"
 
 namespace arnav::hil {
 namespace {
@@ -72,6 +75,30 @@ TEST(CanSimCommands, CheckedBeforeTheyRun) {
   EXPECT_EQ(sim.command("frame 123#XYZ").rfind("ERROR usage", 0), 0u);
   EXPECT_EQ(sim.command("garbage 10").rfind("ERROR garbage is for the slcan path", 0), 0u);  // no pty here
   EXPECT_EQ(sim.command("jump").rfind("ERROR unknown command 'jump'", 0), 0u);
+}
+
+}  // namespace
+}  // namespace arnav::hil
+
+namespace arnav::hil {
+namespace {
+
+// --epoch-mono-us (the bench's world clock, docs/hil.md): a step runs at epoch + at_s on
+// CLOCK_MONOTONIC, not at the simulator's start; one already past runs at once.
+TEST(CanSimCommands, StepsOnTheWorldClockRunAtEpochPlusAt) {
+  CanSim sim({}, *can::parse_can_config(can::test::kPedalConfig, "t.yaml"));
+  const std::int64_t epoch = monotonic_us() + 300'000;
+  sim.schedule_from_epoch(epoch, 0.1, "frame 123#00");      // at epoch + 0.1 s
+  sim.schedule_from_epoch(epoch - 10'000'000, 2.0, "frame 124#00");  // 8 s ago: at once
+  volatile bool stop = false;
+  std::thread t([&] { sim.run(stop); });
+  std::this_thread::sleep_for(std::chrono::milliseconds(150));
+  const std::int64_t early = sim.frames_sent();
+  while (monotonic_us() < epoch + 250'000) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  stop = true;
+  t.join();
+  EXPECT_EQ(early, 1) << "only the past step by 150 ms";
+  EXPECT_EQ(sim.frames_sent(), 2) << "the world-clock step by epoch + 0.25 s";
 }
 
 }  // namespace

@@ -77,6 +77,37 @@ TEST(PhantomRecord, NoPullNoMotion) {
   EXPECT_LT(st.max_tumour_displacement_mm, 1e-6);
 }
 
+// Skipping the rest frames before the pull (scripts/demo waits ~20 s for the registration):
+// frame 0 and the last rest frame are kept, nothing at rest is solved, and the phantom at
+// any time (the camera's interpolation) equals the recording made frame by frame.
+TEST(PhantomRecord, SkippedRestFramesGiveTheSamePhantomAtEveryTime) {
+  PhantomScript s;
+  s.fps = 10;
+  s.duration_s = 1.6;
+  s.start_s = 0.85;
+  s.ramp_s = 0.5;
+  s.hold_s = 2.0;
+  s.pull_mm = Eigen::Vector3d(10, 5, -15);
+  PhantomRecordStats full_st, skip_st;
+  const camera_sim::PhantomRecording full = record_phantom(coarse_scene(), s, full_st);
+  s.skip_rest_frames = true;
+  const camera_sim::PhantomRecording skipped = record_phantom(coarse_scene(), s, skip_st);
+  ASSERT_EQ(full.frames.size(), 17u);
+  // Kept: 0, then 0.8 s (the last rest frame: 0.9 s is past the start) and every frame after.
+  ASSERT_EQ(skipped.frames.size(), 10u);
+  EXPECT_EQ(skip_st.frames, 10);
+  EXPECT_NEAR(skipped.frames[0].t_s, 0.0, 1e-12);
+  EXPECT_NEAR(skipped.frames[1].t_s, 0.8, 1e-12);
+  EXPECT_LT((skipped.frames[1].vertices_Model_mm - full.frames[0].vertices_Model_mm).cwiseAbs().maxCoeff(), 1e-9);
+  for (double t = 0.0; t <= 1.6; t += 0.0375) {
+    const camera_sim::PhantomFrame a = full.at(t), b = skipped.at(t);
+    EXPECT_LT((a.vertices_Model_mm - b.vertices_Model_mm).cwiseAbs().maxCoeff(), 1e-6) << "t = " << t;
+    EXPECT_LT((a.targets_Model_mm[0] - b.targets_Model_mm[0]).norm(), 1e-6) << "t = " << t;
+    EXPECT_LT((a.X_ModelTool[0].translation() - b.X_ModelTool[0].translation()).norm(), 1e-9) << "t = " << t;
+  }
+  EXPECT_GT((full.frames.back().targets_Model_mm[0] - full.frames[0].targets_Model_mm[0]).norm(), 0.1) << "the pull moved the tumour";
+}
+
 TEST(PhantomRecord, CompareTumourCentroidsAgainstTheReference) {
   camera_sim::PhantomRecording ref, model;
   for (int k = 0; k < 5; ++k) {

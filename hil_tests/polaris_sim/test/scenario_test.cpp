@@ -6,6 +6,7 @@
 #include <numbers>
 #include <unistd.h>
 
+#include "hil_tests/polaris_sim/device_model.hpp"
 #include "hil_tests/polaris_sim/scenario.hpp"
 
 namespace arnav::hil {
@@ -214,6 +215,52 @@ TEST(ToolPath, BadRowsNameTheLine) {
   EXPECT_NE(err("0,1,2,3000\n").find("p.csv:1: z_mm is outside"), std::string::npos);
   EXPECT_NE(err("0,1,2,3,1,1,0,0\n").find("p.csv:1: orientation qw, qx, qy, qz must be a unit quaternion"), std::string::npos);
   EXPECT_NE(err("t_s,x_mm,y_mm,z_mm\nt_s,x_mm,y_mm,z_mm\n").find("p.csv:2: column t_s"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace arnav::hil
+
+namespace arnav::hil {
+namespace {
+
+// The bench's world clock (docs/hil.md "World clock"): with epoch_mono_us the tools' motions
+// run on the frame's CLOCK_MONOTONIC time minus the epoch, whenever the device booted; without
+// it, on the time since the boot. A negative epoch is refused.
+TEST(Scenario, WorldClockEpochShiftsTheMotionToTheSharedTime) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("arnav_epoch_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  {
+    std::ofstream f(dir / "tip.csv");
+    f << "t_s,x_mm,y_mm,z_mm\n0,0,0,0\n100,1000,0,0\n";  // 10 mm per second of path time
+  }
+  const std::string base = "frame_rate_hz: 50\nfirst_frame: 100\ntools:\n  - name: pointer\n"
+                           "    motion: {path: tip.csv, X_NdiModel: [1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,1]}\n";
+  // Monotonic clock 1000 s at the simulator's time 0; the device booted 2.5 s later; the
+  // world's epoch at monotonic 1001 s.
+  PolarisModel with_epoch(parse_scenario(base + "epoch_mono_us: 1001000000\n", "sc.yaml", dir));
+  with_epoch.set_clock_origin_mono_s(1000.0);
+  with_epoch.reset(2.5);
+  PolarisModel without(parse_scenario(base, "sc.yaml", dir));
+  without.set_clock_origin_mono_s(1000.0);
+  without.reset(2.5);
+  // Frame 100 + 50: 1 s after the boot = monotonic 1003.5 s = world 2.5 s.
+  const auto x_at = [&](const PolarisModel& m, std::uint32_t frame) {
+    return parse_scenario(base, "sc.yaml", dir).tools[0].motion.X_NdiTool(m.motion_time_s(frame)).translation().x();
+  };
+  EXPECT_NEAR(x_at(with_epoch, 150), 25.0, 1e-6);
+  EXPECT_NEAR(x_at(without, 150), 10.0, 1e-6);
+  // Another boot time, same world instant, same pose.
+  PolarisModel late(parse_scenario(base + "epoch_mono_us: 1001000000\n", "sc.yaml", dir));
+  late.set_clock_origin_mono_s(1000.0);
+  late.reset(3.0);  // booted 0.5 s later: monotonic 1003.5 s is its frame 100 + 25
+  EXPECT_NEAR(x_at(late, 125), 25.0, 1e-6);
+  try {
+    parse_scenario(base + "epoch_mono_us: -5\n", "sc.yaml", dir);
+    ADD_FAILURE() << "a negative epoch was accepted";
+  } catch (const ScenarioError& e) {
+    EXPECT_NE(std::string(e.what()).find("epoch_mono_us"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

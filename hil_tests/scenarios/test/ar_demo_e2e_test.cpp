@@ -1,12 +1,16 @@
-// scripts/demo's AR session end to end (hil_tests/scenarios/ar_session.sh, ~1 min): the
-// simulated Polaris moves the pointer over four landmarks and the scalpel round a ring
-// about the tumour on paths scripted in the model frame (make_demo_paths.py from the
-// scene); arnav-can-sim presses the pedal's accept switch at each dwell and holds the cut
-// pedal through the ring, through the can_shim and arnav-appliance's CAN path; the camera
-// is unplugged for 1 s between registration and cut. Checked from the run's files: live
-// registration complete with a small FRE and X_RefModel near the bench's truth, a cut
-// made (cut faces in overlay.csv only while the pedal was held, cut-path error), the AR
-// error against the ground truth, the camera fault and its recovery, the CSV complete.
+// scripts/demo's AR session end to end (hil_tests/scenarios/ar_session.sh, ~2 min with the
+// phantom's recording): the synthetic camera films the deforming phantom (a grasper pulls
+// the organ's underside from when the scalpel comes in), the simulated Polaris moves the
+// pointer over four landmarks and the scalpel round a ring about the tumour on paths
+// scripted in the model frame (make_demo_paths.py from the scene) and the grasper on the
+// phantom's recorded path; arnav-can-sim presses the pedal's accept switch at each dwell and
+// holds the cut pedal through the ring, through the can_shim and arnav-appliance's CAN path;
+// all on the bench's world clock; the camera is unplugged for 1 s between registration and
+// cut. Checked from the run's files: live registration complete with a small FRE and
+// X_RefModel near the bench's truth, the grasper coupled to the cutting model through the
+// pull, a cut made (cut faces in overlay.csv only while the pedal was held, cut-path error
+// in the material), the AR error against the deformed ground truth clearly below an
+// overlay that ignores the deformation, the camera fault and its recovery, the CSV complete.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -64,7 +68,7 @@ TEST(ArDemoSession, LiveRegistrationRingCutFaultAndRecording) {
   EXPECT_LT(r["fre_mm"].get<double>(), 1.0);
   Eigen::Matrix4d M;
   for (int i = 0; i < 16; ++i) M(i / 4, i % 4) = r["X_RefModel"][static_cast<std::size_t>(i)].get<double>();
-  const Eigen::Isometry3d X_true = calib::read_transform(src + "/hil_tests/scenarios/ar_demo/X_RefModel.yaml").X_ParentChild;
+  const Eigen::Isometry3d X_true = calib::read_transform(src + "/hil_tests/scenarios/ar_demo/X_RefModel_phantom.yaml").X_ParentChild;
   EXPECT_LT((M.topRightCorner<3, 1>() - X_true.translation()).norm(), 1.5) << M;
   EXPECT_LT(Eigen::AngleAxisd(M.topLeftCorner<3, 3>().transpose() * X_true.linear()).angle(), 0.01) << M;
 
@@ -74,63 +78,111 @@ TEST(ArDemoSession, LiveRegistrationRingCutFaultAndRecording) {
   EXPECT_GT(c["frames_cutting"].get<int>(), 30) << c.dump();
   EXPECT_GT(c["cut_faces"].get<int>(), 20) << c.dump();
   EXPECT_GT(c["cut_area_mm2"].get<double>(), 200.0) << c.dump();
-  EXPECT_LT(c["path_error_mm"]["p50"].get<double>(), 3.0) << c.dump();
-  EXPECT_LT(c["path_error_mm"]["p95"].get<double>(), 25.0) << c.dump();
 
-  // AR error against the ground truth (the bench's true registration), targets of issue 12.
+  // The grasper: coupled to the cutting model once registered, held through the pull.
+  const nlohmann::json& g = nav["grasper"];
+  EXPECT_GE(g["grasps"].get<int>(), 1) << g.dump();
+  EXPECT_GT(g["max_tip_travel_mm"].get<double>(), 15.0) << g.dump();
+  EXPECT_GT(g["steps_grasping"].get<int>(), 300) << g.dump();
+
+  // AR error against the deformed ground truth (the bench's true registration, the phantom's
+  // tumour of each frame): the organ moved. Live, on this machine's load, it is printed; the
+  // targets are checked on the replay of the session's own log (ar_session.sh: the same
+  // frames, poses and pedal, the host's clock the log's), which a starved host thread
+  // cannot spoil (it sees poses late and releases the grasp as stale, docs/hil.md).
   std::ifstream ar_in(out / "ar_error.json");
   const nlohmann::json ar = nlohmann::json::parse(ar_in);
   EXPECT_GE(ar["frames_evaluated"].get<int>(), 50) << ar.dump();
-  EXPECT_LE(ar["ar_error_mm"]["mean"].get<double>(), 1.0) << ar.dump();
-  EXPECT_LE(ar["ar_error_mm"]["p95"].get<double>(), 2.0) << ar.dump();
+  ASSERT_TRUE(ar.contains("rigid_overlay")) << "the ground truth is not the deforming phantom's: " << ar.dump();
+  const double displacement = ar["tumour_displacement_mm"]["max"].get<double>();
+  EXPECT_GT(displacement, 5.0) << ar.dump();
+  std::ifstream replay_in(out / "ar_error_replay.json");
+  ASSERT_TRUE(replay_in.good()) << log.str();
+  const nlohmann::json rep = nlohmann::json::parse(replay_in);
+  EXPECT_GE(rep["frames_evaluated"].get<int>(), 50) << rep.dump();
+  EXPECT_LE(rep["ar_error_mm"]["mean"].get<double>(), 1.0) << rep.dump();
+  EXPECT_LE(rep["ar_error_mm"]["p95"].get<double>(), 2.0) << rep.dump();
+  EXPECT_LT(rep["ar_error_mm"]["mean"].get<double>(), 0.5 * rep["rigid_overlay"]["ar_error_mm"]["mean"].get<double>()) << rep.dump();
+  // The replay's cut, measured in the material (docs/overlay.md): the tissue's motion after
+  // the cut (the grasper's pull, the ring's plug) is not path error. The median is at the
+  // cutter's path tolerance; the tail (1.4-8.2 mm p95 over six runs, not explained,
+  // docs/benchmarks.md) is bounded loosely.
+  std::ifstream replay_host_in(out / "replay.json");
+  const nlohmann::json replay_cut = nlohmann::json::parse(replay_host_in)["navigation"]["cutting"];
+  EXPECT_GT(replay_cut["cut_faces"].get<int>(), 20) << replay_cut.dump();
+  EXPECT_LT(replay_cut["path_error_mm"]["p50"].get<double>(), 0.5) << replay_cut.dump();
+  EXPECT_LT(replay_cut["path_error_mm"]["p95"].get<double>(), 10.0) << replay_cut.dump();
   EXPECT_EQ(ar["invisible_with_overlay"].get<int>(), 0) << ar.dump();
   // The CSV holds every frame the camera made that the host displayed (the host may drop a
   // few under load; its own count says how many).
   EXPECT_EQ(ar["csv_rows"].get<int>() + ar["missing_in_csv"].get<int>(), ar["truth_frames"].get<int>());
   EXPECT_LE(ar["missing_in_csv"].get<int>(), nav["frames_dropped"].get<int>());
 
-  // overlay.csv: complete rows; cut faces appear only after cutting started, never shrink.
-  std::ifstream csv(out / "recording" / "overlay.csv");
-  std::string line;
-  ASSERT_TRUE(std::getline(csv, line));
-  const std::vector<std::string> header = split(line);
-  const auto col = [&](const char* name) {
-    for (std::size_t i = 0; i < header.size(); ++i)
-      if (header[i] == name) return static_cast<int>(i);
-    ADD_FAILURE() << "overlay.csv: no column " << name;
-    return 0;
+  // overlay.csv (live and replayed): complete rows; cut faces appear only after cutting
+  // started, never shrink. Where the cut grew, the blade was on the ring: checked on the
+  // replay, whose frames carry the cut of their own scalpel pose (live, on a loaded machine,
+  // a late frame can show cut faces the model made from poses the frames in between carried).
+  struct CsvCounts {
+    int rows = 0, gap_rows = 0, unregistered = 0, last_faces = 0, growth_rows = 0, on_ring_rows = 0;
   };
-  const int i_cutting = col("cutting"), i_faces = col("cut_faces"), i_flags = col("flags"), i_margin = col("blade_to_margin_mm");
-  int rows = 0, gap_rows = 0, unregistered = 0, last_faces = 0, growth_rows = 0;
-  bool cut_seen = false;
-  while (std::getline(csv, line)) {
-    const auto cells = split(line);
-    ASSERT_EQ(cells.size(), header.size()) << line;
-    ++rows;
-    const int faces = cells[static_cast<std::size_t>(i_faces)].empty() ? 0 : std::stoi(cells[static_cast<std::size_t>(i_faces)]);
-    cut_seen = cut_seen || cells[static_cast<std::size_t>(i_cutting)] == "1";
-    if (faces > 0) {
-      EXPECT_TRUE(cut_seen) << "cut faces before any cutting frame: " << line;
+  const auto read_csv = [&](const std::filesystem::path& path, bool check_ring) {
+    CsvCounts n;
+    std::ifstream csv(path);
+    std::string line;
+    EXPECT_TRUE(std::getline(csv, line)) << path;
+    const std::vector<std::string> header = split(line);
+    const auto col = [&](const char* name) {
+      for (std::size_t i = 0; i < header.size(); ++i)
+        if (header[i] == name) return static_cast<int>(i);
+      ADD_FAILURE() << path << ": no column " << name;
+      return 0;
+    };
+    const int i_cutting = col("cutting"), i_faces = col("cut_faces"), i_flags = col("flags"), i_margin = col("blade_to_margin_mm");
+    bool cut_seen = false;
+    while (std::getline(csv, line)) {
+      const auto cells = split(line);
+      if (cells.size() != header.size()) {
+        ADD_FAILURE() << path << ": " << line;
+        break;
+      }
+      ++n.rows;
+      const int faces = cells[static_cast<std::size_t>(i_faces)].empty() ? 0 : std::stoi(cells[static_cast<std::size_t>(i_faces)]);
+      cut_seen = cut_seen || cells[static_cast<std::size_t>(i_cutting)] == "1";
+      if (faces > 0) {
+        EXPECT_TRUE(cut_seen) << "cut faces before any cutting frame: " << line;
+      }
+      EXPECT_GE(faces, n.last_faces) << line;
+      // The ring's radius is the tumour's largest radius + 5 mm margin + 3 mm clearance, so
+      // the blade-to-margin distance is about 3 mm where the ellipsoid is widest and more
+      // elsewhere (radii 13, 11, 10), give or take how far the grasper has moved the tumour
+      // (the ring is scripted at rest). During the entry (the blade drawn in over a quarter
+      // ring from above the surface) the pull brings the tissue onto the blade early: there
+      // the cut grows with the blade farther out, never beyond the blade's reach (40 mm).
+      if (faces > n.last_faces && !cells[static_cast<std::size_t>(i_margin)].empty()) {
+        ++n.growth_rows;
+        const double d = std::stod(cells[static_cast<std::size_t>(i_margin)]);
+        if (check_ring) {
+          EXPECT_GT(d, 1.0 - displacement) << line;
+          EXPECT_LT(d, 40.0) << line;
+        }
+        n.on_ring_rows += d < 9.0 + displacement ? 1 : 0;
+      }
+      n.last_faces = faces;
+      n.gap_rows += cells[static_cast<std::size_t>(i_flags)].find("camera_gap") != std::string::npos;
+      n.unregistered += cells[static_cast<std::size_t>(i_flags)].find("unregistered") != std::string::npos;
     }
-    EXPECT_GE(faces, last_faces) << line;
-    // Where the cut grew, the blade was on the ring: the ring's radius is the tumour's
-    // largest radius + 5 mm margin + 3 mm clearance, so the blade-to-margin distance is
-    // about 3 mm where the ellipsoid is widest and more elsewhere (radii 13, 11, 10).
-    if (faces > last_faces && !cells[static_cast<std::size_t>(i_margin)].empty()) {
-      ++growth_rows;
-      const double d = std::stod(cells[static_cast<std::size_t>(i_margin)]);
-      EXPECT_GT(d, 1.0) << line;
-      EXPECT_LT(d, 9.0) << line;
-    }
-    last_faces = faces;
-    gap_rows += cells[static_cast<std::size_t>(i_flags)].find("camera_gap") != std::string::npos;
-    unregistered += cells[static_cast<std::size_t>(i_flags)].find("unregistered") != std::string::npos;
-  }
-  EXPECT_EQ(rows, ar["csv_rows"].get<int>());
-  EXPECT_GT(last_faces, 20);
-  EXPECT_GE(growth_rows, 3) << "the cut should grow over several frames along the ring";
-  EXPECT_GT(unregistered, 0) << "frames before the registration carry 'unregistered'";
-  EXPECT_GT(gap_rows, 0);
+    return n;
+  };
+  const CsvCounts live = read_csv(out / "recording" / "overlay.csv", false);
+  EXPECT_EQ(live.rows, ar["csv_rows"].get<int>());
+  EXPECT_GT(live.last_faces, 20);
+  EXPECT_GT(live.unregistered, 0) << "frames before the registration carry 'unregistered'";
+  EXPECT_GT(live.gap_rows, 0);
+  const CsvCounts replayed = read_csv(out / "replay" / "overlay.csv", true);
+  EXPECT_EQ(replayed.rows, rep["csv_rows"].get<int>());
+  EXPECT_GT(replayed.last_faces, 20);
+  EXPECT_GE(replayed.growth_rows, 3) << "the cut should grow over several frames along the ring";
+  EXPECT_GE(2 * replayed.on_ring_rows, replayed.growth_rows) << "most of the cut grew with the blade on the ring";
 
   // The injected fault: the camera unplugged for 1 s and recovered; the host saw the gap.
   std::ifstream app_in(out / "appliance.log");

@@ -351,3 +351,81 @@ INSTANTIATE_TEST_SUITE_P(Models, LocalUpdate, ::testing::Values("xpbd", "mass_sp
                              if (ch == '/') ch = '_';
                            return s;
                          });
+
+// Grasp attachments through cuts (the navigation session's grasper on a cutting scene,
+// docs/overlay.md "Grasper"): a bar held at x = 0, its two far corners held sideways by
+// springs (+10 mm and -10 mm in y), cut 15 mm deep at x = 45; the model is rebuilt (or
+// updated in place) and both springs still hold. Then one is removed and the bar is cut
+// again: the removed spring stays gone in every later model, the other one still holds.
+class AttachmentsThroughCuts : public ::testing::TestWithParam<bool> {};
+
+TEST_P(AttachmentsThroughCuts, SurviveCutsAndARemovalSticks) {
+  const bool local = GetParam();
+  SimProblem problem = bar_problem(Eigen::Vector3d(100, 20, 20), 10, 2, 2, 50.0);
+  problem.gravity_World_mm_s2.setZero();
+  int top = -1, bottom = -1;
+  for (int v = 0; v < problem.mesh.num_vertices(); ++v) {
+    const Eigen::Vector3d p = problem.mesh.rest_positions_World_mm.col(v);
+    if (p.x() < 1e-9) problem.fixed_vertices.push_back(v);
+    if ((p - Eigen::Vector3d(100, 20, 20)).norm() < 1e-9) top = v;
+    if ((p - Eigen::Vector3d(100, 0, 0)).norm() < 1e-9) bottom = v;
+  }
+  ASSERT_GE(top, 0);
+  ASSERT_GE(bottom, 0);
+  ModelConfig config;
+  for (const auto& v : model_variants())
+    if (v.label == "xpbd") config = v.config;
+  CutSessionSettings settings;
+  settings.local_updates = local;
+  CutSession session(problem, config, settings);
+  const auto spring = [](int v, const Eigen::Vector3d& target) {
+    AttachmentSpec s;
+    s.point.vertices = {v};
+    s.point.weights = {1.0};
+    s.target_World_mm = target;
+    s.stiffness_mN_per_mm = 200.0;
+    return s;
+  };
+  const Eigen::Vector3d top_target(100, 25, 20), bottom_target(100, -5, 0);
+  const int a = session.add_attachment(spring(top, top_target));
+  const int b = session.add_attachment(spring(bottom, bottom_target));
+  EXPECT_EQ(session.attachments_active(), 2);
+  const double dt = 1.0 / 60.0;
+  const auto run = [&](double x_blade, double z0, int frames, bool cut) {
+    int changes = 0;
+    for (int f = 0; f <= frames; ++f) {
+      const double y = cut ? -5 + f : 40.0;
+      const CutFrameReport r = session.apply_blade({Eigen::Vector3d(x_blade, y, z0), Eigen::Vector3d(x_blade, y, 40)}, cut);
+      changes += r.cut.topology_changed ? 1 : 0;
+      EXPECT_TRUE(session.step(dt).healthy) << "frame " << f;
+    }
+    return changes;
+  };
+  EXPECT_GT(run(45.3, 5, 30, true), 0);
+  run(45.3, 5, 120, false);  // settle, the blade out of the bar
+  EXPECT_TRUE(local ? session.local_updates() > 0 : session.rebuilds() > 0);
+  Eigen::Matrix3Xd x = session.positions_World_mm();
+  EXPECT_LT((x.col(top) - top_target).norm(), 1.5) << "the top spring did not survive the cut";
+  EXPECT_LT((x.col(bottom) - bottom_target).norm(), 1.5) << "the bottom spring did not survive the cut";
+
+  session.remove_attachment(b);
+  EXPECT_EQ(session.attachments_active(), 1);
+  EXPECT_THROW(session.remove_attachment(b), std::out_of_range);
+  EXPECT_THROW(session.set_attachment_target(b, bottom_target), std::out_of_range);
+  EXPECT_THROW(session.set_attachment_target(7, bottom_target), std::out_of_range);
+  const int before = local ? session.local_updates() : session.rebuilds();
+  EXPECT_GT(run(75.3, 5, 30, true), 0);  // a second cut: the model changes again
+  EXPECT_GT(local ? session.local_updates() : session.rebuilds(), before);
+  run(75.3, 5, 240, false);
+  x = session.positions_World_mm();
+  EXPECT_LT((x.col(top) - top_target).norm(), 1.5) << "the kept spring was lost";
+  // The removed spring pulled the bottom corner 5 mm to -y; the top spring pulls the bar
+  // +5 mm in y: released, the bottom corner follows the bar, not its old target.
+  EXPECT_GT(x.col(bottom).y(), 1.0) << "the removed spring came back with the new model";
+  session.set_attachment_target(a, Eigen::Vector3d(100, 30, 20));  // the kept id still moves its spring
+  run(75.3, 5, 120, false);
+  EXPECT_LT((session.positions_World_mm().col(top) - Eigen::Vector3d(100, 30, 20)).norm(), 1.5);
+}
+
+INSTANTIATE_TEST_SUITE_P(RebuiltOrLocal, AttachmentsThroughCuts, ::testing::Values(false, true),
+                         [](const ::testing::TestParamInfo<bool>& i) { return i.param ? std::string("local") : std::string("rebuilt"); });
