@@ -17,6 +17,7 @@
 // one thread for a deterministic run. The GL context lives on the rendering thread.
 #include <opencv2/core.hpp>
 
+#include <atomic>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
@@ -33,6 +34,7 @@
 
 #include "arnav/image_frame_t.hpp"
 #include "arnav/input_event_t.hpp"
+#include "host/app/cpu_partition.hpp"
 #include "host/app/cut_trace.hpp"
 #include "host/app/input_state.hpp"
 #include "host/app/live_registration.hpp"
@@ -42,12 +44,22 @@
 #include "host/app/tool_freshness.hpp"
 #include "host/scene/scene.hpp"
 
+struct GLFWwindow;
+
 namespace arnav::host {
 
 namespace overlay {
 class OverlayRenderer;
+class OverlayWindow;
 struct OverlayCamera;
 }
+
+// display.window asked for a window and there is no display to open it on (exit 2: the
+// session file asks for what this machine cannot give). The text names file:line and the fix.
+class DisplayUnavailable : public SessionError {
+ public:
+  using SessionError::SessionError;
+};
 
 struct SessionOptions {
   bool threaded = true;           // live: model and rendering threads; replay: false
@@ -85,7 +97,16 @@ class NavigationSession {
   // Replay: model steps due by now_us.
   void advance_model(std::int64_t now_us);
 
-  void start();   // live: model and rendering threads
+  void start();   // live: model and rendering threads (and the window); throws DisplayUnavailable, SessionError
+  // Replay (unthreaded): opens the display window on the calling thread (the one that calls
+  // render_frame) when the session asks for one. Throws DisplayUnavailable.
+  void open_window();
+  // The user closed the display window: the caller ends the session.
+  bool window_closed() const { return window_closed_.load(); }
+  // Frames shown in the window so far (0 without one).
+  std::int64_t window_frames() const;
+  // The window (null without one; tests read its pixels back from the X server).
+  GLFWwindow* window_handle() const;
   void stop();    // joins them, closes the recording (throws SessionError if it failed)
 
   std::string status_table(std::int64_t now_us);
@@ -147,9 +168,17 @@ class NavigationSession {
 
   SessionConfig config_;
   SessionOptions options_;
+  CpuPlan cpu_plan_;                   // model.cpu_partition (live sessions)
+  std::string render_pin_error_;       // with mutex_
+  std::string lp_num_threads_;         // LP_NUM_THREADS the renderer started with
   std::unique_ptr<Scene> scene_;
   std::unique_ptr<ModelRunner> model_;
   std::unique_ptr<overlay::OverlayRenderer> renderer_;  // created on the rendering thread
+  std::unique_ptr<overlay::OverlayWindow> window_;      // display.window: the rendering thread's too
+  std::atomic<bool> window_closed_{false};
+  std::atomic<std::int64_t> window_frames_{0};
+  std::string window_description_;                      // with mutex_
+  std::vector<double> display_ms_;                      // with mutex_: window upload + swap per frame
   std::unique_ptr<Recorder> recorder_;
   std::vector<std::string> recorded_files_;
   std::int64_t video_frames_skipped_ = 0;
@@ -172,7 +201,7 @@ class NavigationSession {
 
   // Statistics.
   std::int64_t frames_received_ = 0, frames_displayed_ = 0, frames_dropped_ = 0, decode_failures_ = 0;
-  std::vector<double> latency_ms_, host_latency_ms_, render_ms_, decode_ms_, overlay_ms_;
+  std::vector<double> latency_ms_, host_latency_ms_, render_ms_, decode_ms_, overlay_ms_, render_cpu_ms_;
   std::map<std::string, std::int64_t> flag_frames_;   // frames showing each flag
   std::map<std::string, std::int64_t> flag_episodes_; // onsets
   std::map<std::string, std::vector<std::pair<std::int64_t, std::int64_t>>> flag_spans_;  // capture time onset, recovery (-1 open)
