@@ -88,8 +88,8 @@ class NavigationSession {
   // ARNAV_INPUT changes and ARNAV_INPUT_STATE snapshots (input_event_t): cut_enable level,
   // accept presses (a live registration takes a landmark at once).
   void on_input(const input_event_t& msg, std::int64_t now_us);
-  // Live: hands the frame to the rendering thread; a frame still waiting is replaced and
-  // counted as dropped.
+  // Live: decodes the frame (on the calling thread) and hands it to the rendering thread;
+  // a frame still waiting is replaced and counted as dropped.
   void submit_frame(const image_frame_t& msg, std::int64_t now_us);
   // Renders on the calling thread. render_done = now_us + the time the rendering took
   // (live: the monotonic clock at the end).
@@ -144,6 +144,7 @@ class NavigationSession {
   };
   struct Resolved;
   Resolved resolve_poses(const image_frame_t& msg, std::int64_t now_us);
+  FrameResult render_decoded(const image_frame_t& msg, cv::Mat image, double decode_ms, std::int64_t now_us);
   void render_loop();
   // The renderer for frames of width x height (intrinsics scaled when they differ).
   overlay::OverlayCamera ensure_renderer(int width, int height);
@@ -195,7 +196,13 @@ class NavigationSession {
   // Rendering thread mailbox.
   std::mutex frame_mutex_;
   std::condition_variable frame_cv_;
-  std::optional<std::pair<image_frame_t, std::int64_t>> pending_;
+  struct PendingFrame {
+    image_frame_t msg;            // without its JPEG bytes (decoded)
+    std::int64_t now_us = 0;
+    cv::Mat image;                // empty: undecodable
+    double decode_ms = 0.0;
+  };
+  std::optional<PendingFrame> pending_;
   bool stopping_ = false;
   std::thread render_thread_;
 
