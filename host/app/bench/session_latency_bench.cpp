@@ -32,9 +32,12 @@ namespace {
 // The first three fields of /proc/loadavg ("" where unreadable).
 std::string load_average() {
   std::ifstream in("/proc/loadavg");
-  std::string a, b, c;
-  in >> a >> b >> c;
-  return in ? a + " " + b + " " + c : std::string();
+  std::string line;
+  std::getline(in, line);
+  // "1.23 0.98 0.75 2/180 12345": the three averages.
+  std::size_t end = 0;
+  for (int field = 0; field < 3 && end != std::string::npos; ++field) end = line.find(' ', end + (field > 0 ? 1 : 0));
+  return line.substr(0, end);
 }
 }  // namespace
 
