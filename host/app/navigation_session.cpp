@@ -144,10 +144,7 @@ NavigationSession::~NavigationSession() {
 
 void NavigationSession::start() {
   if (!options_.threaded) return;
-  if (model_ && cpu_plan_.active) model_->set_cpus(cpu_plan_.model_cpus);
-  if (model_) model_->start();
-  if (!config_.camera) return;
-  if (cpu_plan_.active) {
+  if (cpu_plan_.active) {  // before any thread of the session starts (setenv)
     // llvmpipe sizes its rasteriser thread pool from LP_NUM_THREADS when the GL context is
     // made (default: every CPU of the machine): as many as the rendering side has, and with
     // one CPU none at all (rasterised on the rendering thread, no hand-offs). An explicit
@@ -161,6 +158,9 @@ void NavigationSession::start() {
     if (cpu_plan_.render_cpus.size() == 1) cv::setNumThreads(1);
   }
   if (const char* lp = std::getenv("LP_NUM_THREADS")) lp_num_threads_ = lp;
+  if (model_ && cpu_plan_.active) model_->set_cpus(cpu_plan_.model_cpus);
+  if (model_) model_->start();
+  if (!config_.camera) return;
   // The GL context belongs to the rendering thread: it is made there, before any frame
   // arrives (building it and the lens tables takes a few hundred ms), and start() waits.
   std::string error;
