@@ -4,6 +4,8 @@
 #include <sched.h>
 
 #include <cerrno>
+#include <cstdio>
+#include <fstream>
 #include <cstring>
 #include <ctime>
 #include <stdexcept>
@@ -26,7 +28,18 @@ std::vector<int> current_thread_cpus() {
   return out;
 }
 
+double load_average_1min() {
+  std::ifstream in("/proc/loadavg");
+  double load = -1.0;
+  in >> load;
+  return in ? load : -1.0;
+}
+
 CpuPlan plan_cpu_partition(const std::string& mode, bool overlay, bool model) {
+  return plan_cpu_partition(mode, overlay, model, mode == "auto" ? load_average_1min() : 0.0);
+}
+
+CpuPlan plan_cpu_partition(const std::string& mode, bool overlay, bool model, double load_1min) {
   CpuPlan p;
   if (mode == "off") {
     p.reason = "off (model.cpu_partition: off)";
@@ -50,10 +63,23 @@ CpuPlan plan_cpu_partition(const std::string& mode, bool overlay, bool model) {
     p.reason = "off (auto: only " + std::to_string(cpus.size()) + " CPU available)";
     return p;
   }
+  if (mode == "auto" && !(load_1min >= 0.0 && load_1min < static_cast<double>(cpus.size()))) {
+    char text[160];
+    std::snprintf(text, sizeof text, "off (auto: load average %.2f, not below the %zu CPUs: the machine is busy with other work)", load_1min,
+                  cpus.size());
+    p.reason = text;
+    return p;
+  }
   p.active = true;
   p.model_cpus = {cpus.back()};
   p.render_cpus.assign(cpus.begin(), cpus.end() - 1);
-  p.reason = mode == "on" ? "on" : "on (auto)";
+  if (mode == "on") {
+    p.reason = "on";
+  } else {
+    char text[120];
+    std::snprintf(text, sizeof text, "on (auto: load average %.2f below the %zu CPUs)", load_1min, cpus.size());
+    p.reason = text;
+  }
   return p;
 }
 

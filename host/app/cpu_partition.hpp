@@ -21,7 +21,15 @@ struct CpuPlan {
 // what the session renders and steps. Partitions the CPUs this process may run on
 // (sched_getaffinity): the last one for the model, the others for rendering. "on" with
 // fewer than 2 CPUs throws std::invalid_argument (the caller adds file:line).
-CpuPlan plan_cpu_partition(const std::string& mode, bool overlay, bool model);
+// "auto" partitions only when the machine is not busy with other work when the session
+// starts: 1-minute load average `load_1min` below the number of CPUs (a pinned thread
+// cannot move to a CPU another process leaves idle: on the shared development machine,
+// pinning made the latency worse, docs/benchmarks.md). Negative load: unknown (auto: off).
+CpuPlan plan_cpu_partition(const std::string& mode, bool overlay, bool model, double load_1min);
+CpuPlan plan_cpu_partition(const std::string& mode, bool overlay, bool model);  // load from /proc/loadavg
+
+// The 1-minute load average (/proc/loadavg), -1 when unreadable.
+double load_average_1min();
 
 // The calling thread (and the threads it starts from now on) runs only on `cpus`.
 // Returns an error text, empty on success.

@@ -53,7 +53,8 @@ struct ModelSettings {
   // Cores: "on": the model thread (and the solver's workers) on a core of its own, the
   // rendering thread and the software rasteriser's threads on the others (docs/overlay.md,
   // "Threads and cores"); "off": the scheduler places them; "auto": on when the session
-  // renders an overlay and the process may use 2 or more CPUs.
+  // renders an overlay, the process may use 2 or more CPUs and the 1-minute load average
+  // at start is below that count (a machine busy with other work: off).
   std::string cpu_partition = "auto";
   int cpu_partition_line = 0;
 };

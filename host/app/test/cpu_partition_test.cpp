@@ -31,12 +31,13 @@ void on_cpus(const std::vector<int>& cpus, F f) {
 TEST(CpuPartition, Plan) {
   const std::vector<int> all = current_thread_cpus();
   ASSERT_FALSE(all.empty());
-  EXPECT_FALSE(plan_cpu_partition("off", true, true).active);
-  EXPECT_FALSE(plan_cpu_partition("auto", false, true).active);  // no overlay: nothing to separate
-  EXPECT_FALSE(plan_cpu_partition("auto", true, false).active);
+  EXPECT_FALSE(plan_cpu_partition("off", true, true, 0.0).active);
+  EXPECT_FALSE(plan_cpu_partition("auto", false, true, 0.0).active);  // no overlay: nothing to separate
+  EXPECT_FALSE(plan_cpu_partition("auto", true, false, 0.0).active);
   EXPECT_THROW(plan_cpu_partition("on", false, true), std::invalid_argument);
+  EXPECT_GE(load_average_1min(), 0.0);
   on_cpus({all.front()}, [] {
-    EXPECT_FALSE(plan_cpu_partition("auto", true, true).active);
+    EXPECT_FALSE(plan_cpu_partition("auto", true, true, 0.0).active);
     try {
       plan_cpu_partition("on", true, true);
       ADD_FAILURE() << "on with one CPU accepted";
@@ -45,8 +46,15 @@ TEST(CpuPartition, Plan) {
     }
   });
   if (all.size() < 2) GTEST_SKIP() << "this machine gives the process one CPU: the two-CPU plan cannot be checked";
-  const CpuPlan p = plan_cpu_partition("auto", true, true);
+  const double n = static_cast<double>(all.size());
+  // auto: on while the machine is quieter than its CPU count, off when it is busy or the load is unknown.
+  EXPECT_FALSE(plan_cpu_partition("auto", true, true, n).active);
+  EXPECT_NE(plan_cpu_partition("auto", true, true, n + 3).reason.find("busy with other work"), std::string::npos);
+  EXPECT_FALSE(plan_cpu_partition("auto", true, true, -1.0).active);
+  EXPECT_TRUE(plan_cpu_partition("on", true, true, n + 3).active);  // on: whatever the load
+  const CpuPlan p = plan_cpu_partition("auto", true, true, n - 0.5);
   EXPECT_TRUE(p.active);
+  EXPECT_NE(p.reason.find("on (auto"), std::string::npos);
   EXPECT_EQ(p.model_cpus, std::vector<int>{all.back()});
   EXPECT_EQ(p.render_cpus, std::vector<int>(all.begin(), all.end() - 1));
   on_cpus({all[0], all[1]}, [&] {
@@ -64,7 +72,9 @@ TEST(CpuPartition, SessionPinsItsThreadsAndSaysSo) {
   SessionFolder f("cpu_partition");
   SessionOptions o;
   o.threaded = true;
-  NavigationSession s(load_session(f.session()), std::make_unique<Scene>(scene), o);  // cpu_partition: auto
+  SessionConfig config = load_session(f.session());
+  config.model.cpu_partition = "on";  // auto depends on the machine's load
+  NavigationSession s(config, std::make_unique<Scene>(scene), o);
   s.start();
   for (int k = 0; k < 3; ++k) {
     const std::int64_t t = monotonic_us();
