@@ -168,6 +168,10 @@ int run_replay(const Cli& cli, arnav::host::NavigationSession& session, const st
       const std::int64_t t = now(m.capture_time_mono_us, m.capture_time_wall_us);
       session.advance_model(t);
       session.render_frame(m, t);
+      if (session.window_closed()) {
+        std::cout << "arnav-host: the display window was closed: ending the replay" << std::endl;
+        break;
+      }
     }
     if (offset_us && !cli.quiet) {
       if (next_print < 0) next_print = last_now;
@@ -221,7 +225,15 @@ int run_session(const Cli& cli) {
   }
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
-  if (!cli.replay_log.empty()) return run_replay(cli, *session, config.camera ? arnav::channels::frame(config.camera->name) : std::string());
+  if (!cli.replay_log.empty()) {
+    try {
+      session->open_window();  // display.window: on this thread, which renders the replay
+    } catch (const arnav::host::DisplayUnavailable& e) {
+      std::cerr << "arnav-host: " << e.what() << "\n";
+      return 2;
+    }
+    return run_replay(cli, *session, config.camera ? arnav::channels::frame(config.camera->name) : std::string());
+  }
 
   lcm::LCM bus(config.lcm_url);
   if (!bus.good()) {
@@ -237,7 +249,12 @@ int run_session(const Cli& cli) {
   bus.subscribe(std::string(arnav::channels::kInput), &SessionHandler::input, &handler);
   bus.subscribe(std::string(arnav::channels::kInputState), &SessionHandler::input, &handler);
   if (!session->swab_channel().empty()) bus.subscribe(session->swab_channel(), &SessionHandler::cloud, &handler);
-  session->start();
+  try {
+    session->start();
+  } catch (const arnav::host::DisplayUnavailable& e) {
+    std::cerr << "arnav-host: " << e.what() << "\n";
+    return 2;
+  }
   // Scene loaded, model built, subscribed: what the bench waits for before it starts the appliance.
   std::cout << "arnav-host: session ready: " << config.source << (config.camera ? " (overlay on ARNAV_FRAME_" + config.camera->name + ")" : " (status monitor)")
             << std::endl;
@@ -260,6 +277,10 @@ int run_session(const Cli& cli) {
       next_print += static_cast<std::int64_t>(config.print_period_s * 1e6);
     }
     if (cli.duration_s > 0 && now - t0 >= static_cast<std::int64_t>(cli.duration_s * 1e6)) break;
+    if (session->window_closed()) {
+      std::cout << "arnav-host: the display window was closed: ending the session" << std::endl;
+      break;
+    }
   }
   try {
     session->stop();

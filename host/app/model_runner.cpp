@@ -9,6 +9,7 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include "host/app/cpu_partition.hpp"
 #include "host/overlay/overlay_geometry.hpp"
 #include "host/sim/model_factory.hpp"
 #include "protocol/clock.hpp"
@@ -56,6 +57,12 @@ void ModelRunner::start() {
     // The overlay's latency matters more than the model's rate: on a machine with few
     // cores the model thread (and the solver threads it starts) yields to rendering.
     if (nice_ > 0) setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), nice_);
+    // A core of its own (cpu_partition): the solver's workers started from here inherit it.
+    if (!cpus_.empty()) {
+      const std::string e = pin_current_thread(cpus_);  // refused (cgroup): the scheduler places it, reported in the summary
+      std::lock_guard lock(mutex_);
+      pin_error_ = e;
+    }
     const auto period = std::chrono::duration<double>(1.0 / rate_hz_);
     auto next = std::chrono::steady_clock::now();
     while (!stop_.load()) {
@@ -131,6 +138,11 @@ std::vector<CutStepRecord> ModelRunner::cut_steps(std::size_t from) const {
 std::shared_ptr<const ModelSnapshot> ModelRunner::snapshot() const {
   std::lock_guard lock(mutex_);
   return snapshot_;
+}
+
+std::string ModelRunner::pin_error() const {
+  std::lock_guard lock(mutex_);
+  return pin_error_;
 }
 
 std::vector<double> ModelRunner::step_times_ms() const {

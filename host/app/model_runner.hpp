@@ -94,6 +94,11 @@ class ModelRunner {
   ModelRunner(const ModelRunner&) = delete;
   ModelRunner& operator=(const ModelRunner&) = delete;
 
+  // Live: the model thread (and the threads it starts) only on these CPUs (empty: any);
+  // before start(). host/app/cpu_partition.hpp.
+  void set_cpus(const std::vector<int>& cpus) { cpus_ = cpus; }
+  // Why the model thread could not be pinned (empty: it was, or no CPUs were given).
+  std::string pin_error() const;
   // Live: steps on a thread every 1/rate_hz until stop().
   void start();
   void stop();
@@ -131,6 +136,8 @@ class ModelRunner {
   double rate_hz_;
   double margin_mm_;
   int nice_ = 0;
+  std::vector<int> cpus_;
+  std::string pin_error_;  // mutex_
   std::unique_ptr<TissueModel> model_;
   std::unique_ptr<cut::CutSession> cut_;
   std::unique_ptr<GraspCoupling> grasp_;  // model thread

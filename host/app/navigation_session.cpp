@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <sstream>
 
 #include <opencv2/calib3d.hpp>
@@ -13,6 +14,7 @@
 #include "host/overlay/egl_context.hpp"
 #include "host/overlay/overlay_geometry.hpp"
 #include "host/overlay/overlay_renderer.hpp"
+#include "host/overlay/overlay_window.hpp"
 #include "protocol/clock.hpp"
 #include "protocol/pose_convert.hpp"
 
@@ -130,6 +132,15 @@ NavigationSession::NavigationSession(const SessionConfig& config, std::unique_pt
       }
     }
   }
+  if (options_.threaded) {
+    try {
+      cpu_plan_ = plan_cpu_partition(config_.model.cpu_partition, config_.camera.has_value(), model_ != nullptr);
+    } catch (const std::invalid_argument& e) {
+      throw SessionError(config_.source + ":" + std::to_string(config_.model.cpu_partition_line) + ": key 'model.cpu_partition': " + e.what());
+    }
+  } else {
+    cpu_plan_.reason = "off (replay: one thread)";
+  }
   if (!options_.record_dir.empty()) {
     if (!config_.camera) throw SessionError("--record " + options_.record_dir + ": the session " + config_.source + " has no camera: nothing to record");
     recorder_ = std::make_unique<Recorder>(options_.record_dir, config_.record);
@@ -145,22 +156,53 @@ NavigationSession::~NavigationSession() {
 
 void NavigationSession::start() {
   if (!options_.threaded) return;
+  if (cpu_plan_.active) {  // before any thread of the session starts (setenv)
+    // llvmpipe sizes its rasteriser thread pool from LP_NUM_THREADS when the GL context is
+    // made (default: every CPU of the machine): as many as the rendering side has, and with
+    // one CPU none at all (rasterised on the rendering thread, no hand-offs). An explicit
+    // LP_NUM_THREADS in the environment is kept.
+    if (!std::getenv("LP_NUM_THREADS")) {
+      const std::size_t n = cpu_plan_.render_cpus.size();
+      setenv("LP_NUM_THREADS", n == 1 ? "0" : std::to_string(n).c_str(), 1);
+    }
+    // OpenCV's worker threads (lens warp, compositing) would run on the model's CPU:
+    // one rendering CPU, OpenCV runs serially (process-wide setting).
+    if (cpu_plan_.render_cpus.size() == 1) cv::setNumThreads(1);
+  }
+  if (const char* lp = std::getenv("LP_NUM_THREADS")) lp_num_threads_ = lp;
+  if (model_ && cpu_plan_.active) model_->set_cpus(cpu_plan_.model_cpus);
   if (model_) model_->start();
   if (!config_.camera) return;
   // The GL context belongs to the rendering thread: it is made there, before any frame
   // arrives (building it and the lens tables takes a few hundred ms), and start() waits.
   std::string error;
-  bool ready = false;
-  render_thread_ = std::thread([this, &error, &ready] {
+  bool ready = false, display_error = false;
+  render_thread_ = std::thread([this, &error, &ready, &display_error] {
     std::string failed;  // error and ready live in start(): not touched after ready is set
+    if (cpu_plan_.active) {
+      // Before the GL context: llvmpipe's threads are started by this thread and inherit it.
+      const std::string e = pin_current_thread(cpu_plan_.render_cpus);
+      std::lock_guard lock(mutex_);
+      render_pin_error_ = e;
+    }
+    bool no_display = false;
     try {
       ensure_renderer(config_.camera->intrinsics.image_width, config_.camera->intrinsics.image_height);
+      open_window();
+    } catch (const DisplayUnavailable& e) {
+      failed = e.what();
+      no_display = true;
     } catch (const std::exception& e) {
       failed = e.what();
+    }
+    if (!failed.empty()) {
+      window_.reset();
+      renderer_.reset();  // the GL objects die on the thread that made them
     }
     {
       std::lock_guard lock(frame_mutex_);
       error = failed;
+      display_error = no_display;
       ready = true;
       frame_cv_.notify_all();
     }
@@ -171,9 +213,26 @@ void NavigationSession::start() {
   if (!error.empty()) {
     lock.unlock();
     render_thread_.join();
+    if (display_error) throw DisplayUnavailable(error);
     throw SessionError(config_.source + ": camera '" + config_.camera->name + "': the overlay renderer cannot start: " + error);
   }
 }
+
+void NavigationSession::open_window() {
+  if (!config_.display.window || window_) return;
+  try {
+    const CameraSettings& cam = *config_.camera;
+    window_ = std::make_unique<overlay::OverlayWindow>(cam.intrinsics.image_width, cam.intrinsics.image_height, config_.display.title);
+  } catch (const overlay::DisplayError& e) {
+    throw DisplayUnavailable(config_.source + ":" + std::to_string(config_.display.line) + ": key 'display.window': " + e.what());
+  }
+  std::lock_guard lock(mutex_);
+  window_description_ = window_->description();
+}
+
+std::int64_t NavigationSession::window_frames() const { return window_frames_.load(); }
+
+GLFWwindow* NavigationSession::window_handle() const { return window_ ? window_->handle() : nullptr; }
 
 overlay::OverlayCamera NavigationSession::ensure_renderer(int width, int height) {
   const CameraSettings& cam = *config_.camera;
@@ -390,11 +449,18 @@ void NavigationSession::advance_model(std::int64_t now_us) {
 }
 
 void NavigationSession::submit_frame(const image_frame_t& msg, std::int64_t now_us) {
+  // Decoded here, on the receiving thread: the JPEG of frame k+1 is decoded while the
+  // rendering thread still draws frame k (same latency per frame, more frames per second).
+  const auto t0 = std::chrono::steady_clock::now();
+  PendingFrame f{msg, now_us, cv::imdecode(msg.data, cv::IMREAD_COLOR), 0.0};
+  f.decode_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  f.msg.data.clear();  // decoded: the bytes are not needed again
+  f.msg.size = 0;
   bool dropped = false;
   {
     std::lock_guard lock(frame_mutex_);
     dropped = pending_.has_value();
-    pending_.emplace(msg, now_us);
+    pending_ = std::move(f);
     frame_cv_.notify_one();
   }
   if (dropped) {
@@ -404,8 +470,15 @@ void NavigationSession::submit_frame(const image_frame_t& msg, std::int64_t now_
 }
 
 void NavigationSession::render_loop() {
+  struct ReleaseGl {  // the window and the GL context belong to this thread: destroyed here
+    NavigationSession& s;
+    ~ReleaseGl() {
+      s.window_.reset();
+      s.renderer_.reset();
+    }
+  } release{*this};
   for (;;) {
-    std::pair<image_frame_t, std::int64_t> item;
+    PendingFrame item;
     {
       std::unique_lock lock(frame_mutex_);
       frame_cv_.wait(lock, [this] { return stopping_ || pending_.has_value(); });
@@ -414,7 +487,7 @@ void NavigationSession::render_loop() {
       pending_.reset();
     }
     try {
-      render_frame(item.first, item.second);
+      render_decoded(item.msg, std::move(item.image), item.decode_ms, item.now_us);
     } catch (const std::exception& e) {
       std::lock_guard lock(mutex_);
       render_error_ = std::string("overlay: ") + e.what();
@@ -557,6 +630,17 @@ NavigationSession::Resolved NavigationSession::resolve_poses(const image_frame_t
 
 FrameResult NavigationSession::render_frame(const image_frame_t& msg, std::int64_t now_us) {
   const auto t0 = std::chrono::steady_clock::now();
+  cv::Mat image = cv::imdecode(msg.data, cv::IMREAD_COLOR);
+  const double decode_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return render_decoded(msg, std::move(image), decode_ms, now_us);
+}
+
+FrameResult NavigationSession::render_decoded(const image_frame_t& msg, cv::Mat image, double decode_ms, std::int64_t now_us) {
+  // The frame's time starts with its decode (done by the caller: live, the thread that
+  // received it, while this thread may still draw the previous frame).
+  const auto t0 = std::chrono::steady_clock::now() - std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                        std::chrono::duration<double, std::milli>(decode_ms));
+  const double cpu0 = thread_cpu_ms();
   FrameResult out;
   out.row.camera_sequence = msg.sequence;
   out.row.capture_time_mono_us = msg.capture_time_mono_us;
@@ -564,8 +648,6 @@ FrameResult NavigationSession::render_frame(const image_frame_t& msg, std::int64
     std::lock_guard lock(mutex_);
     ++frames_received_;
   }
-  cv::Mat image = cv::imdecode(msg.data, cv::IMREAD_COLOR);
-  const double decode_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   if (image.empty()) {
     std::lock_guard lock(mutex_);
     ++decode_failures_;
@@ -677,7 +759,7 @@ FrameResult NavigationSession::render_frame(const image_frame_t& msg, std::int64
     overlay::RenderTiming timing;
     const cv::Mat layer = renderer_->render(content, &timing);
     overlay_ms = timing.total_ms;
-    overlay::composite(image, layer);
+    overlay::composite(image, layer, timing.drawn_px);
     if (!snap->tumour_centroids_mm.empty()) {
       const Eigen::Vector3d p = X_CamModel * snap->tumour_centroids_mm[0];
       std::vector<cv::Point3d> in{{p.x(), p.y(), p.z()}};
@@ -715,7 +797,17 @@ FrameResult NavigationSession::render_frame(const image_frame_t& msg, std::int64
     render_ms_.push_back(render_ms);
     decode_ms_.push_back(decode_ms);
     overlay_ms_.push_back(overlay_ms);
+    render_cpu_ms_.push_back(thread_cpu_ms() - cpu0);
     note_flags(out.row);
+  }
+  if (window_) {
+    // After "overlay ready" (the latency's end): upload to the window's texture and swap.
+    const auto d0 = std::chrono::steady_clock::now();
+    window_->show(image);
+    window_frames_ = window_->frames_shown();
+    if (window_->close_requested()) window_closed_ = true;
+    std::lock_guard lock(mutex_);
+    display_ms_.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - d0).count());
   }
   if (recorder_) recorder_->add(out.row, options_.keep_last_frame ? image.clone() : image);
   if (options_.keep_last_frame) {
@@ -780,6 +872,20 @@ nlohmann::json NavigationSession::summary_json(double run_s) {
   j["render_ms"] = {{"p50", percentile(render_ms_, 0.5)}, {"p99", percentile(render_ms_, 0.99)}};  // whole frame
   j["jpeg_decode_ms"] = {{"p50", percentile(decode_ms_, 0.5)}, {"p99", percentile(decode_ms_, 0.99)}};
   j["overlay_render_ms"] = {{"p50", percentile(overlay_ms_, 0.5)}, {"p99", percentile(overlay_ms_, 0.99)}};  // OverlayRenderer::render
+  // The rendering thread's own CPU time per frame (without llvmpipe's or OpenCV's worker threads).
+  j["render_thread_cpu_ms"] = {{"p50", percentile(render_cpu_ms_, 0.5)}, {"p99", percentile(render_cpu_ms_, 0.99)}};
+  {
+    nlohmann::json cp = {{"active", cpu_plan_.active}, {"mode", config_.model.cpu_partition}, {"reason", cpu_plan_.reason},
+                         {"render_cpus", cpu_plan_.render_cpus}, {"model_cpus", cpu_plan_.model_cpus},
+                         {"lp_num_threads", lp_num_threads_.empty() ? nlohmann::json() : nlohmann::json(lp_num_threads_)}};
+    if (!render_pin_error_.empty()) cp["render_pin_error"] = render_pin_error_;
+    if (model_ && !model_->pin_error().empty()) cp["model_pin_error"] = model_->pin_error();
+    j["cpu_partition"] = cp;
+  }
+  if (config_.display.window)
+    j["display"] = {{"window", true}, {"context", window_description_}, {"frames_shown", window_frames_.load()},
+                    {"closed_by_user", window_closed_.load()},
+                    {"show_ms", {{"p50", percentile(display_ms_, 0.5)}, {"p99", percentile(display_ms_, 0.99)}}}};
   if (model_) {
     const auto steps = model_->step_times_ms();
     j["model"] = {{"steps", steps.size()},

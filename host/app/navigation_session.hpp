@@ -17,6 +17,7 @@
 // one thread for a deterministic run. The GL context lives on the rendering thread.
 #include <opencv2/core.hpp>
 
+#include <atomic>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
@@ -33,6 +34,7 @@
 
 #include "arnav/image_frame_t.hpp"
 #include "arnav/input_event_t.hpp"
+#include "host/app/cpu_partition.hpp"
 #include "host/app/cut_trace.hpp"
 #include "host/app/input_state.hpp"
 #include "host/app/live_registration.hpp"
@@ -43,12 +45,22 @@
 #include "host/app/tool_freshness.hpp"
 #include "host/scene/scene.hpp"
 
+struct GLFWwindow;
+
 namespace arnav::host {
 
 namespace overlay {
 class OverlayRenderer;
+class OverlayWindow;
 struct OverlayCamera;
 }
+
+// display.window asked for a window and there is no display to open it on (exit 2: the
+// session file asks for what this machine cannot give). The text names file:line and the fix.
+class DisplayUnavailable : public SessionError {
+ public:
+  using SessionError::SessionError;
+};
 
 struct SessionOptions {
   bool threaded = true;           // live: model and rendering threads; replay: false
@@ -82,8 +94,8 @@ class NavigationSession {
   void on_cloud(const void* data, std::size_t size, const std::string& channel, std::int64_t now_us);
   // The channel on_cloud wants (empty: the session has no swab step).
   std::string swab_channel() const;
-  // Live: hands the frame to the rendering thread; a frame still waiting is replaced and
-  // counted as dropped.
+  // Live: decodes the frame (on the calling thread) and hands it to the rendering thread;
+  // a frame still waiting is replaced and counted as dropped.
   void submit_frame(const image_frame_t& msg, std::int64_t now_us);
   // Renders on the calling thread. render_done = now_us + the time the rendering took
   // (live: the monotonic clock at the end).
@@ -91,7 +103,16 @@ class NavigationSession {
   // Replay: model steps due by now_us.
   void advance_model(std::int64_t now_us);
 
-  void start();   // live: model and rendering threads
+  void start();   // live: model and rendering threads (and the window); throws DisplayUnavailable, SessionError
+  // Replay (unthreaded): opens the display window on the calling thread (the one that calls
+  // render_frame) when the session asks for one. Throws DisplayUnavailable.
+  void open_window();
+  // The user closed the display window: the caller ends the session.
+  bool window_closed() const { return window_closed_.load(); }
+  // Frames shown in the window so far (0 without one).
+  std::int64_t window_frames() const;
+  // The window (null without one; tests read its pixels back from the X server).
+  GLFWwindow* window_handle() const;
   void stop();    // joins them, closes the recording (throws SessionError if it failed)
 
   std::string status_table(std::int64_t now_us);
@@ -132,6 +153,7 @@ class NavigationSession {
   };
   struct Resolved;
   Resolved resolve_poses(const image_frame_t& msg, std::int64_t now_us);
+  FrameResult render_decoded(const image_frame_t& msg, cv::Mat image, double decode_ms, std::int64_t now_us);
   void render_loop();
   // The renderer for frames of width x height (intrinsics scaled when they differ).
   overlay::OverlayCamera ensure_renderer(int width, int height);
@@ -163,9 +185,17 @@ class NavigationSession {
 
   SessionConfig config_;
   SessionOptions options_;
+  CpuPlan cpu_plan_;                   // model.cpu_partition (live sessions)
+  std::string render_pin_error_;       // with mutex_
+  std::string lp_num_threads_;         // LP_NUM_THREADS the renderer started with
   std::unique_ptr<Scene> scene_;
   std::unique_ptr<ModelRunner> model_;
   std::unique_ptr<overlay::OverlayRenderer> renderer_;  // created on the rendering thread
+  std::unique_ptr<overlay::OverlayWindow> window_;      // display.window: the rendering thread's too
+  std::atomic<bool> window_closed_{false};
+  std::atomic<std::int64_t> window_frames_{0};
+  std::string window_description_;                      // with mutex_
+  std::vector<double> display_ms_;                      // with mutex_: window upload + swap per frame
   std::unique_ptr<Recorder> recorder_;
   std::vector<std::string> recorded_files_;
   std::int64_t video_frames_skipped_ = 0;
@@ -187,13 +217,19 @@ class NavigationSession {
   // Rendering thread mailbox.
   std::mutex frame_mutex_;
   std::condition_variable frame_cv_;
-  std::optional<std::pair<image_frame_t, std::int64_t>> pending_;
+  struct PendingFrame {
+    image_frame_t msg;            // without its JPEG bytes (decoded)
+    std::int64_t now_us = 0;
+    cv::Mat image;                // empty: undecodable
+    double decode_ms = 0.0;
+  };
+  std::optional<PendingFrame> pending_;
   bool stopping_ = false;
   std::thread render_thread_;
 
   // Statistics.
   std::int64_t frames_received_ = 0, frames_displayed_ = 0, frames_dropped_ = 0, decode_failures_ = 0;
-  std::vector<double> latency_ms_, host_latency_ms_, render_ms_, decode_ms_, overlay_ms_;
+  std::vector<double> latency_ms_, host_latency_ms_, render_ms_, decode_ms_, overlay_ms_, render_cpu_ms_;
   std::map<std::string, std::int64_t> flag_frames_;   // frames showing each flag
   std::map<std::string, std::int64_t> flag_episodes_; // onsets
   std::map<std::string, std::vector<std::pair<std::int64_t, std::int64_t>>> flag_spans_;  // capture time onset, recovery (-1 open)

@@ -166,7 +166,7 @@ SessionConfig parse_session(const std::string& text, const std::string& source, 
   const Reader r(source);
   const YAML::Node root = r.load_root(text);
   r.only(root, "", {"arnav_session_version", "lcm_url", "stale_after_ms", "print_period_s", "scene", "registration", "tools",
-                    "camera", "model", "overlay", "record", "inputs", "cutting"});
+                    "camera", "model", "overlay", "record", "inputs", "cutting", "display"});
   SessionConfig c;
   c.source = source;
   if (!root["arnav_session_version"]) r.fail(root, "arnav_session_version", "missing: add 'arnav_session_version: 1' at the top");
@@ -287,10 +287,21 @@ SessionConfig parse_session(const std::string& text, const std::string& source, 
   }
 
   if (const YAML::Node m = root["model"]) {
-    r.only(m, "model", {"rate_hz", "gravity", "nice"});
+    r.only(m, "model", {"rate_hz", "gravity", "nice", "cpu_partition"});
     c.model.rate_hz = r.number(m, "model", "rate_hz", c.model.rate_hz, 1.0, 1000.0);
     c.model.gravity = r.boolean(m, "model", "gravity", c.model.gravity);
     c.model.nice = r.integer(m, "model", "nice", c.model.nice, 0, 19);
+    c.model.cpu_partition = r.text(m, "model", "cpu_partition", c.model.cpu_partition);
+    c.model.cpu_partition_line = line_of(m["cpu_partition"]);
+    if (c.model.cpu_partition != "auto" && c.model.cpu_partition != "on" && c.model.cpu_partition != "off")
+      r.fail(m["cpu_partition"], "model.cpu_partition",
+             "must be 'auto' (a core of its own for the model when there is an overlay), 'on' or 'off' (the scheduler places the threads)");
+  }
+  if (const YAML::Node d = root["display"]) {
+    r.only(d, "display", {"window", "title"});
+    c.display.window = r.boolean(d, "display", "window", c.display.window);
+    c.display.title = r.text(d, "display", "title", c.display.title);
+    c.display.line = line_of(d);
   }
   if (const YAML::Node o = root["overlay"]) {
     r.only(o, "overlay", {"margin_mm", "warn_mm", "msaa", "layers"});
@@ -321,6 +332,8 @@ SessionConfig parse_session(const std::string& text, const std::string& source, 
              "the overlay needs a registration: add 'registration: X_RefModel.yaml' or 'registration: {live: {landmarks: FILE, pointer: TOOL, accept: INPUT}}'");
     if (!c.reference) r.fail(root["camera"], "camera", "the overlay needs tools.reference (the patient reference tool)");
   }
+  if (c.display.window && !c.camera)
+    r.fail(root["display"], "display.window", "a window shows the overlay: it needs a camera (camera: ...); remove display.window or add the camera");
   if (c.scalpel && !c.reference) r.fail(root["tools"]["scalpel"], "tools.scalpel", "a scalpel needs tools.reference (its pose is taken relative to it)");
   if ((c.X_RefModel || c.live_registration) && !c.scene_path)
     r.fail(root["registration"], "registration", "a registration needs a scene (scene: <file>)");

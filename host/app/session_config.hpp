@@ -50,6 +50,21 @@ struct ModelSettings {
   double rate_hz = 60.0;        // model steps per second on the model thread
   bool gravity = false;         // the scene's gravity; off: the CT shape is already the loaded one
   int nice = 5;                 // model thread yields to rendering (0: same priority)
+  // Cores: "on": the model thread (and the solver's workers) on a core of its own, the
+  // rendering thread and the software rasteriser's threads on the others (docs/overlay.md,
+  // "Threads and cores"); "off": the scheduler places them; "auto": on when the session
+  // renders an overlay, the process may use 2 or more CPUs and the 1-minute load average
+  // at start is below that count (a machine busy with other work: off).
+  std::string cpu_partition = "auto";
+  int cpu_partition_line = 0;
+};
+
+// Where the overlay is shown besides the recording: a window (GLFW) on a workstation's
+// display; headless (EGL surfaceless) otherwise, the default for tests and CI.
+struct DisplaySettings {
+  bool window = false;
+  std::string title = "ARNav overlay";
+  int line = 0;
 };
 
 struct OverlaySettings {
@@ -150,6 +165,7 @@ struct SessionConfig {
   ModelSettings model;
   OverlaySettings overlay;
   RecordSettings record;
+  DisplaySettings display;
 };
 
 // Reads the file and the files it names (intrinsics, hand-eye, registration; not the

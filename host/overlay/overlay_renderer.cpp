@@ -92,6 +92,13 @@ struct OverlayRenderer::Impl {
   std::vector<std::array<int, 3>> adjacency_tris;
   std::vector<EdgeFaces> adjacency;
   cv::Mat canvas;
+  cv::Rect canvas_roi;             // the canvas part read back last frame (the rest is zero)
+  // The lens warp by tiles of the output image: the canvas rectangle each tile samples
+  // (bilinear neighbours included; empty where it samples nothing), so a frame warps only
+  // the output tiles that can see what was drawn.
+  static constexpr int kTile = 16;
+  int tiles_x = 0, tiles_y = 0;
+  std::vector<cv::Rect> tile_source;
 
   Impl(const OverlayCamera& cam, const OverlayStyle& st) : camera(cam), style(st) {
     validate(camera);
@@ -150,8 +157,81 @@ struct OverlayRenderer::Impl {
     glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, draw_depth);
     if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
       throw OverlayError("overlay framebuffer " + std::to_string(w) + "x" + std::to_string(h) + " is incomplete (too large for the driver?)");
-    canvas.create(h, w, CV_8UC4);
+    canvas = cv::Mat::zeros(h, w, CV_8UC4);
+    if (!warp.identity) {
+      tiles_x = (camera.width + kTile - 1) / kTile;
+      tiles_y = (camera.height + kTile - 1) / kTile;
+      tile_source.assign(static_cast<std::size_t>(tiles_x) * tiles_y, cv::Rect());
+      for (int ty = 0; ty < tiles_y; ++ty)
+        for (int tx = 0; tx < tiles_x; ++tx) {
+          int x0 = w, y0 = h, x1 = -1, y1 = -1;
+          for (int v = ty * kTile; v < std::min(camera.height, (ty + 1) * kTile); ++v) {
+            const auto* m = warp.map1.ptr<cv::Vec2s>(v);
+            for (int u = tx * kTile; u < std::min(camera.width, (tx + 1) * kTile); ++u) {
+              const int x = m[u][0], y = m[u][1];  // bilinear: (x, y) .. (x + 1, y + 1)
+              if (x + 1 < 0 || y + 1 < 0 || x >= w || y >= h) continue;
+              x0 = std::min(x0, std::max(x, 0));
+              y0 = std::min(y0, std::max(y, 0));
+              x1 = std::max(x1, std::min(x + 1, w - 1));
+              y1 = std::max(y1, std::min(y + 1, h - 1));
+            }
+          }
+          if (x1 >= x0 && y1 >= y0) tile_source[static_cast<std::size_t>(ty) * tiles_x + tx] = cv::Rect(x0, y0, x1 - x0 + 1, y1 - y0 + 1);
+        }
+    }
     check_gl("overlay set-up");
+  }
+
+  // Canvas pixels that the geometry can cover: the projected vertices' bounding box, padded
+  // by pad_mm at each vertex's depth (tube radii) and by the line width. A vertex at or
+  // behind the near plane covers the whole canvas.
+  struct Bounds {
+    double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
+    bool everything = false;
+  };
+  void extend(Bounds& b, const Eigen::Matrix3Xd& p_Cam, double pad_mm) const {
+    const cv::Matx33d& K = camera.K;
+    for (Eigen::Index i = 0; i < p_Cam.cols(); ++i) {
+      const double z = p_Cam(2, i);
+      if (!(z > style.near_mm)) {
+        b.everything = true;
+        return;
+      }
+      const double x = p_Cam(0, i) / z, y = p_Cam(1, i) / z;
+      const double u = K(0, 0) * x + K(0, 1) * y + K(0, 2) + warp.offset_px.x, v = K(1, 1) * y + K(1, 2) + warp.offset_px.y;
+      const double r = pad_mm * std::max(K(0, 0), K(1, 1)) / z;
+      b.x0 = std::min(b.x0, u - r);
+      b.y0 = std::min(b.y0, v - r);
+      b.x1 = std::max(b.x1, u + r);
+      b.y1 = std::max(b.y1, v + r);
+    }
+  }
+  cv::Rect to_rect(const Bounds& b) const {
+    const cv::Rect all(0, 0, warp.canvas_width, warp.canvas_height);
+    if (b.everything) return all;
+    if (b.x1 < b.x0) return {};
+    const double pad = 2.0 + 2.0 * static_cast<double>(style.line_width_px);  // pixel centres, rasterisation rules, thick lines
+    const double x0 = std::max(-1.0, std::floor(b.x0 - pad)), y0 = std::max(-1.0, std::floor(b.y0 - pad));
+    const double x1 = std::min(static_cast<double>(all.width), std::ceil(b.x1 + pad));
+    const double y1 = std::min(static_cast<double>(all.height), std::ceil(b.y1 + pad));
+    if (x1 <= x0 || y1 <= y0) return {};
+    return cv::Rect(static_cast<int>(x0), static_cast<int>(y0), static_cast<int>(x1 - x0), static_cast<int>(y1 - y0)) & all;
+  }
+  // Output pixels whose warp samples the canvas rectangle `r`.
+  cv::Rect output_roi(const cv::Rect& r) const {
+    if (r.area() == 0) return {};
+    if (warp.identity) return r;
+    int x0 = camera.width, y0 = camera.height, x1 = 0, y1 = 0;
+    for (int ty = 0; ty < tiles_y; ++ty)
+      for (int tx = 0; tx < tiles_x; ++tx) {
+        const cv::Rect& s = tile_source[static_cast<std::size_t>(ty) * tiles_x + tx];
+        if ((s & r).area() == 0) continue;
+        x0 = std::min(x0, tx * kTile);
+        y0 = std::min(y0, ty * kTile);
+        x1 = std::max(x1, std::min(camera.width, (tx + 1) * kTile));
+        y1 = std::max(y1, std::min(camera.height, (ty + 1) * kTile));
+      }
+    return x1 > x0 && y1 > y0 ? cv::Rect(x0, y0, x1 - x0, y1 - y0) : cv::Rect();
   }
 
   ~Impl() {
@@ -210,9 +290,48 @@ struct OverlayRenderer::Impl {
     context.make_current();
     const auto to_cam = [&](const Eigen::Matrix3Xd& p_Model) -> Eigen::Matrix3Xd { return c.X_CamModel * p_Model; };
     const unsigned L = c.layers;
+    double geometry_ms = 0;
+    const auto geo = [&](auto&& f) {
+      const auto g0 = Clock::now();
+      f();
+      geometry_ms += ms_since(g0);
+    };
+
+    // What this frame can cover on the canvas: clear, draw and read back only that.
+    cv::Rect roi;
+    geo([&] {
+      Bounds b;
+      const auto add = [&](const TriMesh* m, double pad_mm) {
+        if (m && !b.everything) extend(b, to_cam(m->positions_World_mm), pad_mm);
+      };
+      if (L & kTumour)
+        for (const TriMesh* m : c.tumours) add(m, 0.0);
+      if (L & kMargin)
+        for (const TriMesh* m : c.margins) add(m, 0.0);
+      if ((L & kVessels) && c.vessels && !c.vessels->segments.empty() && !b.everything) {
+        const double r = c.vessels->radius_mm.empty() ? 0.0 : *std::max_element(c.vessels->radius_mm.begin(), c.vessels->radius_mm.end());
+        extend(b, to_cam(c.vessels->nodes_World_mm), r);
+      }
+      if (L & kCut) {
+        add(c.cut_surface, 0.0);
+        for (const auto& path : c.cut_paths_mm)
+          for (const auto& p : path)
+            if (!b.everything) extend(b, c.X_CamModel * p, 0.0);
+      }
+      if (L & (kOrganVeil | kOutline)) add(c.organ, 0.0);
+      if (c.scalpel_mm && (L & kScalpel) && !b.everything) {
+        Eigen::Matrix3Xd ends(3, 2);
+        ends.col(0) = c.X_CamModel * (*c.scalpel_mm)[0];
+        ends.col(1) = c.X_CamModel * (*c.scalpel_mm)[1];
+        extend(b, ends, style.scalpel_radius_mm * 1.1);  // the 8-sided tube's corners
+      }
+      roi = to_rect(b);
+    });
 
     glBindFramebuffer(GL_FRAMEBUFFER, draw_fbo);
     glViewport(0, 0, warp.canvas_width, warp.canvas_height);
+    glEnable(GL_SCISSOR_TEST);
+    glScissor(roi.x, roi.y, roi.width, roi.height);  // canvas rows = window rows (no flip)
     glClearColor(0, 0, 0, 0);
     glClearDepthf(1.0f);
     glDepthMask(GL_TRUE);
@@ -228,12 +347,6 @@ struct OverlayRenderer::Impl {
     glFrontFace(GL_CW);  // outward faces turned to the camera are clockwise in window coordinates (no y flip)
     glDisable(GL_CULL_FACE);
     glLineWidth(style.line_width_px);
-    double geometry_ms = 0;
-    const auto geo = [&](auto&& f) {
-      const auto g0 = Clock::now();
-      f();
-      geometry_ms += ms_since(g0);
-    };
 
     // 1. Inside structures, depth-tested among themselves.
     if (L & kTumour)
@@ -323,24 +436,42 @@ struct OverlayRenderer::Impl {
       glDepthFunc(GL_LESS);
       glDepthMask(GL_TRUE);
     }
-    if (samples > 0) {
+    if (samples > 0 && roi.area() > 0) {
       glBindFramebuffer(GL_READ_FRAMEBUFFER, draw_fbo);
       glBindFramebuffer(GL_DRAW_FRAMEBUFFER, resolve_fbo);
-      glBlitFramebuffer(0, 0, warp.canvas_width, warp.canvas_height, 0, 0, warp.canvas_width, warp.canvas_height,
-                        GL_COLOR_BUFFER_BIT, GL_NEAREST);
+      glBlitFramebuffer(roi.x, roi.y, roi.br().x, roi.br().y, roi.x, roi.y, roi.br().x, roi.br().y, GL_COLOR_BUFFER_BIT, GL_NEAREST);
     }
-    glBindFramebuffer(GL_READ_FRAMEBUFFER, resolve_fbo);
-    glPixelStorei(GL_PACK_ALIGNMENT, 4);
-    glReadPixels(0, 0, warp.canvas_width, warp.canvas_height, GL_RGBA, GL_UNSIGNED_BYTE, canvas.data);
+    glDisable(GL_SCISSOR_TEST);
+    // The canvas outside roi must read as transparent: clear what the last frame left there.
+    if (canvas_roi.area() > 0) canvas(canvas_roi).setTo(cv::Scalar::all(0));
+    canvas_roi = roi;
+    if (roi.area() > 0) {
+      glBindFramebuffer(GL_READ_FRAMEBUFFER, resolve_fbo);
+      glPixelStorei(GL_PACK_ALIGNMENT, 4);
+      glPixelStorei(GL_PACK_ROW_LENGTH, canvas.cols);
+      glReadPixels(roi.x, roi.y, roi.width, roi.height, GL_RGBA, GL_UNSIGNED_BYTE, canvas.ptr<std::uint8_t>(roi.y) + 4 * roi.x);
+      glPixelStorei(GL_PACK_ROW_LENGTH, 0);
+    } else {
+      glFinish();
+    }
     check_gl("overlay render");
     const double gl_total = ms_since(t0);
     const auto w0 = Clock::now();
-    cv::Mat out = warp.identity ? canvas.clone() : warp.apply(canvas);
+    const cv::Rect out_roi = output_roi(roi);
+    cv::Mat out(camera.height, camera.width, CV_8UC4, cv::Scalar::all(0));
+    if (out_roi.area() > 0) {
+      cv::Mat dst = out(out_roi);
+      if (warp.identity)
+        canvas(out_roi).copyTo(dst);
+      else
+        cv::remap(canvas, dst, warp.map1(out_roi), warp.map2(out_roi), cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar::all(0));
+    }
     if (timing) {
       timing->geometry_ms = geometry_ms;
       timing->gl_ms = gl_total - geometry_ms;
       timing->warp_ms = ms_since(w0);
       timing->total_ms = ms_since(t0);
+      timing->drawn_px = out_roi;
     }
     return out;
   }
@@ -351,6 +482,16 @@ OverlayRenderer::~OverlayRenderer() = default;
 const OverlayCamera& OverlayRenderer::camera() const { return impl_->camera; }
 std::string OverlayRenderer::gl_description() const { return impl_->context.description(); }
 cv::Mat OverlayRenderer::render(const OverlayContent& content, RenderTiming* timing) { return impl_->render(content, timing); }
+
+void composite(cv::Mat& image_bgr, const cv::Mat& overlay, const cv::Rect& roi) {
+  if (image_bgr.size() != overlay.size())
+    throw OverlayError("composite: the camera image (" + std::to_string(image_bgr.cols) + "x" + std::to_string(image_bgr.rows) +
+                       ") and the overlay (" + std::to_string(overlay.cols) + "x" + std::to_string(overlay.rows) + ") must have the same size");
+  const cv::Rect r = roi & cv::Rect(0, 0, image_bgr.cols, image_bgr.rows);
+  if (r.area() == 0) return;
+  cv::Mat dst = image_bgr(r);
+  composite(dst, overlay(r));
+}
 
 void composite(cv::Mat& image_bgr, const cv::Mat& overlay) {
   if (image_bgr.type() != CV_8UC3 || overlay.type() != CV_8UC4 || image_bgr.size() != overlay.size())

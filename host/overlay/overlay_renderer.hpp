@@ -79,6 +79,10 @@ struct RenderTiming {
   double gl_ms = 0;         // draw + read back (glReadPixels waits for the rasteriser)
   double warp_ms = 0;       // lens distortion
   double total_ms = 0;
+  // The part of the returned layer that can be non-transparent (every pixel outside it is
+  // zero): the drawn geometry's screen bounding box (padded for lines and the lens warp's
+  // interpolation). Read-back, warp and compositing only touch it.
+  cv::Rect drawn_px;
 };
 
 class OverlayRenderer {
@@ -101,8 +105,10 @@ class OverlayRenderer {
   std::unique_ptr<Impl> impl_;
 };
 
-// image (CV_8UC3 BGR, in place) = overlay over image; sizes must match.
+// image (CV_8UC3 BGR, in place) = overlay over image; sizes must match. With `roi` only
+// that rectangle is blended (RenderTiming::drawn_px: the overlay is transparent elsewhere).
 void composite(cv::Mat& image_bgr, const cv::Mat& overlay_bgra_premultiplied);
+void composite(cv::Mat& image_bgr, const cv::Mat& overlay_bgra_premultiplied, const cv::Rect& roi);
 
 // Text on the finished frame.
 struct Banner {

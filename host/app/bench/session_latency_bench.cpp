@@ -12,6 +12,7 @@
 // session's cutting summary (cut area, cut-path error, events).
 #include <chrono>
 #include <cmath>
+#include <fstream>
 #include <iostream>
 #include <thread>
 
@@ -27,6 +28,19 @@
 #include "protocol/pose_convert.hpp"
 #include "protocol/guarded_main.hpp"
 
+namespace {
+// The first three fields of /proc/loadavg ("" where unreadable).
+std::string load_average() {
+  std::ifstream in("/proc/loadavg");
+  std::string line;
+  std::getline(in, line);
+  // "1.23 0.98 0.75 2/180 12345": the three averages.
+  std::size_t end = 0;
+  for (int field = 0; field < 3 && end != std::string::npos; ++field) end = line.find(' ', end + (field > 0 ? 1 : 0));
+  return line.substr(0, end);
+}
+}  // namespace
+
 static int main_body(int argc, char** argv) {
   CLI::App app{"arnav-host-latency-bench: capture -> overlay ready latency of the navigation session (JSON)"};
   std::string scene_path;
@@ -38,6 +52,8 @@ static int main_body(int argc, char** argv) {
   app.add_option("--rate", rate, "camera frames per second")->check(CLI::Range(1.0, 240.0));
   app.add_option("--model-rate", model_rate, "model steps per second")->check(CLI::Range(1.0, 1000.0));
   app.add_option("--seconds", seconds)->check(CLI::Range(1.0, 3600.0));
+  std::string cpu_partition = "auto";
+  app.add_option("--cpu-partition", cpu_partition, "model.cpu_partition: auto (default), on, off")->check(CLI::IsMember({"auto", "on", "off"}));
   bool cut = false;
   double cut_radius = 25.0, cut_period = 20.0;
   app.add_flag("--cut", cut, "scalpel cutting a ring around the first tumour, pedal held (scene with cutting:)");
@@ -65,6 +81,7 @@ static int main_body(int argc, char** argv) {
     cam.intrinsics.distortion = {-0.1, 0.02, 0, 0, 0};
     c.camera = cam;
     c.model.rate_hz = model_rate;
+    c.model.cpu_partition = cpu_partition;
     const Eigen::Vector3d centre = scene->organ_surface.positions_World_mm.rowwise().mean();
     Eigen::Isometry3d X_RefModel = Eigen::Isometry3d::Identity();
     X_RefModel.linear() = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
@@ -83,6 +100,7 @@ static int main_body(int argc, char** argv) {
       c.inputs.cut_enable = InputBinding{"pedal", 500.0, 0};
       c.cutting.mode = "input";
     }
+    const std::string load_before = load_average();
     SessionOptions o;
     o.threaded = true;
     NavigationSession session(c, std::move(scene), o);
@@ -164,6 +182,7 @@ static int main_body(int argc, char** argv) {
     j["rate_hz"] = rate;
     j["model_rate_hz"] = model_rate;
     j["frames_sent"] = n;
+    j["load_average"] = {{"before", load_before}, {"after", load_average()}};  // /proc/loadavg: 1, 5, 15 min
     if (cut) {
       j["cut"] = {{"radius_mm", cut_radius}, {"period_s", cut_period}};
       if (j.contains("cutting")) j["cutting"].erase("events");

@@ -69,7 +69,7 @@ static int main_body(int argc, char** argv) {
     for (const auto& t : scene.tumours) content.tumours.push_back(&t.rest);
     for (const auto& m : margins) content.margins.push_back(&m);
     if (scene.vessels) content.vessels = &scene.vessels->rest;
-    std::vector<double> geometry, gl, warp, comp, total;
+    std::vector<double> geometry, gl, warp, comp, total, drawn_fraction;
     cv::Mat image(height, width, CV_8UC3, cv::Scalar(60, 80, 120));
     for (int i = 0; i < frames; ++i) {
       const double a = 0.3 * std::sin(2 * M_PI * i / 120.0);
@@ -84,7 +84,8 @@ static int main_body(int argc, char** argv) {
       const cv::Mat overlay = renderer.render(content, &t);
       const auto c0 = std::chrono::steady_clock::now();
       cv::Mat frame = image.clone();
-      composite(frame, overlay);
+      composite(frame, overlay, t.drawn_px);
+      drawn_fraction.push_back(static_cast<double>(t.drawn_px.area()) / (width * height));
       draw_status(frame, {}, 7.5, 5.0, "bench");
       const auto t1 = std::chrono::steady_clock::now();
       geometry.push_back(t.geometry_ms);
@@ -110,6 +111,11 @@ static int main_body(int argc, char** argv) {
     j["lens_warp"] = stats(warp);
     j["composite_and_text"] = stats(comp);
     j["total"] = stats(total);
+    {
+      // Area of RenderTiming::drawn_px / image area: what read-back, warp and compositing touch.
+      std::sort(drawn_fraction.begin(), drawn_fraction.end());
+      j["drawn_fraction_of_image"] = {{"min", drawn_fraction.front()}, {"median", drawn_fraction[drawn_fraction.size() / 2]}, {"max", drawn_fraction.back()}};
+    }
     std::cout << j.dump(2) << std::endl;
   } catch (const std::exception& e) {
     std::cerr << "arnav-overlay-bench: " << e.what() << "\n";

@@ -142,6 +142,52 @@ INSTANTIATE_TEST_SUITE_P(Cases, TumourProjection,
                                            Case{true, {-250, 125, 400}, "distorted_corner"}),
                          [](const ::testing::TestParamInfo<Case>& param_info) { return std::string(param_info.param.name); });
 
+// Only the drawn region is cleared, read back, warped and composited: every visible pixel
+// lies inside RenderTiming::drawn_px, nothing of the previous frame survives elsewhere
+// (the same output as a fresh renderer), and geometry reaching the near plane falls back
+// to the whole image.
+TEST(DrawnRegion, HoldsEveryPixelAndLeavesNothingBehind) {
+  const OverlayCamera cam = bench_camera(true);
+  OverlayRenderer renderer(cam);
+  const Eigen::Vector3d centre(70, 160, 140);
+  const TriMesh tumour = make_ellipsoid_surface(centre, Eigen::Vector3d(13, 11, 10), 3);
+  OverlayContent a;
+  a.tumours = {&tumour};
+  a.margins = {};
+  a.X_CamModel = pose_looking_at(centre, {-280, -150, 520});  // top left, where the lens bends most
+  OverlayContent b = a;
+  b.X_CamModel = pose_looking_at(centre, {250, 130, 480});    // bottom right
+  RenderTiming ta, tb;
+  const cv::Mat out_a = renderer.render(a, &ta).clone();
+  const cv::Mat out_b = renderer.render(b, &tb).clone();
+  for (const auto& [out, t] : {std::pair{out_a, ta}, std::pair{out_b, tb}}) {
+    const cv::Mat visible = alpha_mask(out);
+    ASSERT_GT(cv::countNonZero(visible), 500);
+    cv::Mat outside = visible.clone();
+    outside(t.drawn_px).setTo(0);
+    EXPECT_EQ(cv::countNonZero(outside), 0) << "pixels outside drawn_px " << t.drawn_px;
+    EXPECT_LT(t.drawn_px.area(), cam.width * cam.height / 10) << t.drawn_px;
+  }
+  EXPECT_EQ((ta.drawn_px & tb.drawn_px).area(), 0);
+  // Frame b after frame a equals frame b alone: nothing of a is left in the canvas.
+  OverlayRenderer fresh(cam);
+  const cv::Mat alone = fresh.render(b);
+  EXPECT_EQ(cv::norm(out_b, alone, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::countNonZero(alpha_mask(out_b)(ta.drawn_px)), 0);
+  // A scalpel reaching behind the near plane: the whole image.
+  OverlayContent c = b;
+  c.scalpel_mm = std::array<Eigen::Vector3d, 2>{centre, c.X_CamModel.inverse() * Eigen::Vector3d(0, 0, -10)};
+  RenderTiming tc;
+  renderer.render(c, &tc);
+  EXPECT_EQ(tc.drawn_px, cv::Rect(0, 0, cam.width, cam.height));
+  // In front of the camera but far outside the view: nothing drawn, an empty region.
+  OverlayContent d = a;
+  d.X_CamModel = pose_looking_at(centre, {3000, 0, 400});
+  RenderTiming td;
+  EXPECT_EQ(cv::countNonZero(alpha_mask(renderer.render(d, &td))), 0);
+  EXPECT_EQ(td.drawn_px.area(), 0);
+}
+
 TEST(OverlayRenderer, ScaledCameraKeepsThePixelCentreConvention) {
   const OverlayCamera cam = bench_camera(false);
   const OverlayCamera half = cam.scaled_to(640, 360);
