@@ -193,8 +193,11 @@ LoadBasis build_load_basis(const Scene& scene, const LoadBasisOptions& o) {
   for (int v = 0; v < nv; ++v)
     if (fixed[static_cast<std::size_t>(v)]) support_vertices.push_back(v);
   const int nsc = b.supported && o.support_clusters > 0 ? std::min<int>(o.support_clusters, static_cast<int>(support_vertices.size())) : 0;
-  b.gravity = o.gravity_modes ? 3 : 0;
-  b.support = 3 * nsc;
+  // Without a support a uniform body force only translates the body: no gravity modes.
+  b.gravity = o.gravity_modes && b.supported ? 3 : 0;
+  // Cluster 0 stays: moving all clusters alike is a rigid translation (the pose's, with no
+  // strain energy to regularise it).
+  b.support = nsc >= 2 ? 3 * (nsc - 1) : 0;
   const int m = 3 * b.patches + b.gravity + b.support;
   Eigen::MatrixXd F = Eigen::MatrixXd::Zero(nf, m);
   Eigen::MatrixXd Us = Eigen::MatrixXd::Zero(b.dofs, m);  // prescribed support displacements
@@ -207,18 +210,18 @@ LoadBasis build_load_basis(const Scene& scene, const LoadBasisOptions& o) {
     for (int i = 0; i < 3; ++i) F(free_index[static_cast<std::size_t>(3 * v + i)], 3 * p + i) = area[v] / patch_area[static_cast<std::size_t>(p)];
   }
   int col = 3 * b.patches;
-  if (o.gravity_modes) {
+  if (b.gravity > 0) {
     for (int i = 0; i < 3; ++i, ++col) {
       b.mode_kind.push_back(std::string("gravity ") + axis[i]);
       for (int v = 0; v < nv; ++v)
         if (!fixed[static_cast<std::size_t>(v)]) F(free_index[static_cast<std::size_t>(3 * v + i)], col) = mass[v];
     }
   }
-  if (nsc > 0) {
+  if (b.support > 0) {
     Eigen::Matrix3Xd fp(3, static_cast<Eigen::Index>(support_vertices.size()));
     for (std::size_t i = 0; i < support_vertices.size(); ++i) fp.col(static_cast<Eigen::Index>(i)) = X.col(support_vertices[i]);
     const std::vector<int> cl = cluster_points(fp, nsc);
-    for (int c = 0; c < nsc; ++c)
+    for (int c = 1; c < nsc; ++c)
       for (int i = 0; i < 3; ++i, ++col) {
         b.mode_kind.push_back("support " + std::to_string(c) + " " + axis[i]);
         for (std::size_t k = 0; k < support_vertices.size(); ++k)
@@ -279,7 +282,7 @@ LoadFitResult fit_load_basis(const Scene& scene, const LoadBasis& basis, const E
       res.wall_time_s = seconds_since(t0);
       return res;
     }
-    if (p0.rms <= o.noise_mm) {
+    if (p0.rms <= o.discrepancy_factor * o.noise_mm) {
       res.message = "the rigid fit already reaches the expected noise (" + std::to_string(p0.rms) + " mm RMS <= " + std::to_string(o.noise_mm) +
                     " mm): no deformation needed; the rigid result is kept";
       res.wall_time_s = seconds_since(t0);
@@ -290,21 +293,19 @@ LoadFitResult fit_load_basis(const Scene& scene, const LoadBasis& basis, const E
   Eigen::VectorXd alpha = Eigen::VectorXd::Zero(m);
   Eigen::Isometry3d D = Eigen::Isometry3d::Identity();
   Eigen::Matrix3Xd x = rest;
-  std::string stop = "max_iterations";
-  double prev_lambda = 0.0;
-  for (int it = 0; it < o.max_iterations; ++it) {
-    if (o.time_budget_s > 0 && seconds_since(t0) > o.time_budget_s) {
-      stop = "time budget reached";
-      break;
-    }
+  std::string stop = "schedule completed";
+  double hscale = -1.0;  // lambda's unit: trace of the data term's weight block over trace(G), fixed at the start
+  int total = 0;
+  // One Gauss-Newton iteration at regularisation weight lambda: correspondences at the
+  // current state, then the regularised step. Returns false when too few points remain.
+  Eigen::VectorXd prev_step;
+  double beta = 1.0;
+  auto iterate = [&](double lambda, LoadFitIteration& rec) -> bool {
     const Eigen::Matrix3Xd q = D * data;
     const SurfaceIndex idx(x, mesh.surface_tris);
     const Pairs pr = correspond(idx, q, o.keep_fraction, o.max_distance_mm);
     const int n = static_cast<int>(pr.kept.size());
-    if (n < kMinPoints) {
-      stop = "too few points";
-      break;
-    }
+    if (n < kMinPoints) return false;
     // Residuals, robust weights and the Jacobian [pose | weights].
     Eigen::VectorXd r(n), w(n);
     std::vector<double> absr(static_cast<std::size_t>(n));
@@ -337,58 +338,28 @@ LoadFitResult fit_load_basis(const Scene& scene, const LoadBasis& basis, const E
     H.selfadjointView<Eigen::Lower>().rankUpdate(Jw.transpose());
     H.triangularView<Eigen::StrictlyUpper>() = H.transpose();
     const Eigen::VectorXd g = Jw.transpose() * rw;
-    const double rr = rw.squaredNorm();
-    const double wsum = w.sum();
-    const double hscale = H.bottomRightCorner(m, m).trace() / std::max(gtrace, 1e-300);
-    Eigen::VectorXd Ga = Eigen::VectorXd::Zero(np + m);
-    Ga.tail(m) = basis.G * alpha;
-    auto solve = [&](double lambda, Eigen::VectorXd& delta) {
-      Eigen::MatrixXd A = H;
-      A.bottomRightCorner(m, m) += lambda * hscale * basis.G;
-      A.diagonal().array() += 1e-10 * A.diagonal().maxCoeff();
-      delta = A.ldlt().solve(-(g + lambda * hscale * Ga));
-      // |rw + Jw delta|^2 without touching the n x (6 + m) Jacobian again
-      return std::sqrt(std::max(0.0, rr + 2.0 * g.dot(delta) + delta.dot(H * delta)) / wsum);
-    };
-    // Discrepancy principle: the largest lambda whose predicted residual reaches the noise.
-    // While the correspondences are still far off, a step may lower the residual by at most
-    // the fraction max_reduction (stiff to flexible: lambda falls over the iterations, and a
-    // wrong early match cannot buy a large deformation).
-    const double now = std::sqrt(rr / wsum);
-    double target = std::max(o.noise_mm, (1.0 - o.max_reduction) * now);
-    double lo = -8.0, hi = 4.0;  // log10 lambda
-    Eigen::VectorXd delta;
-    double lambda = 0.0, pred = 0.0;
-    // What the basis can reach at all: a target below it (model error, wrong matches) is
-    // raised to a tenth of the way from there to the current residual, so an unreachable
-    // target does not buy an unregularised deformation for a last fraction of a mm.
-    const double floor_rms = solve(std::pow(10.0, lo), delta);
-    target = std::max(target, floor_rms + 0.1 * std::max(0.0, now - floor_rms));
-    if (solve(std::pow(10.0, hi), delta) <= target) {
-      lambda = std::pow(10.0, hi);
-    } else {
-      for (int s = 0; s < 20; ++s) {
-        const double mid = 0.5 * (lo + hi);
-        if (solve(std::pow(10.0, mid), delta) <= target) lo = mid;
-        else hi = mid;
-      }
-      lambda = std::pow(10.0, lo);
-    }
-    // Continuation: lambda falls by at most max_lambda_drop per iteration (stiff to
-    // flexible), so the fit follows the correspondences instead of overshooting them.
-    if (prev_lambda > 0) lambda = std::max(lambda, prev_lambda / o.max_lambda_drop);
-    prev_lambda = lambda;
-    pred = solve(lambda, delta);
+    const double rr = rw.squaredNorm(), wsum = w.sum();
+    if (hscale < 0) hscale = H.bottomRightCorner(m, m).trace() / std::max(gtrace, 1e-300);
+    Eigen::MatrixXd A = H;
+    A.bottomRightCorner(m, m) += lambda * hscale * basis.G;
+    A.diagonal().array() += 1e-10 * A.diagonal().maxCoeff();
+    Eigen::VectorXd rhs = -g;
+    rhs.tail(m) -= lambda * hscale * (basis.G * alpha);
+    Eigen::VectorXd delta = A.ldlt().solve(rhs);
     if (!delta.allFinite()) {
       stop = "numerical failure";
-      break;
+      return false;
     }
-    LoadFitIteration rec;
     rec.rms_mm = pr.rms;
-    rec.predicted_rms_mm = pred;
+    rec.predicted_rms_mm = std::sqrt(std::max(0.0, rr + 2.0 * g.dot(delta) + delta.dot(H * delta)) / wsum);
     rec.lambda = lambda;
     rec.points_used = n;
-    // Apply: pose about the data centre, weights.
+    // Damping: a weight step that reverses the previous one (in the energy metric) is an
+    // oscillation between two sets of correspondences: halve the step factor.
+    if (prev_step.size() == m && delta.tail(m).dot(basis.G * prev_step) < 0) beta = std::max(0.125, 0.5 * beta);
+    else beta = std::min(1.0, 2.0 * beta);
+    delta *= beta;
+    prev_step = delta.tail(m);
     if (np) {
       const Eigen::Vector3d om = delta.head<3>();
       Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
@@ -404,12 +375,62 @@ LoadFitResult fit_load_basis(const Scene& scene, const LoadBasis& basis, const E
     const Eigen::VectorXd u = basis.U * alpha;
     x = rest + Eigen::Map<const Eigen::Matrix3Xd>(u.data(), 3, nv);
     rec.strain_energy = 0.5 * alpha.dot(basis.G * alpha);
-    res.iterations.push_back(rec);
-    if (rec.step_pose_mm < o.converged_step_mm && rec.step_shape_mm < o.converged_step_mm) {
-      stop = "converged";
+    return true;
+  };
+  // Stiff to flexible: lambda falls level by level; each level iterates to convergence
+  // (correspondences recomputed every iteration). Discrepancy principle: the first level
+  // whose residual reaches the expected noise ends the schedule; a level that lowers the
+  // residual by less than min_improvement is a plateau (the basis explains no more of the
+  // data: model error, not noise) and the previous, stiffer level is kept.
+  double level_rms = res.rigid_rms_mm;
+  Eigen::VectorXd kept_alpha = alpha;
+  Eigen::Isometry3d kept_D = D;
+  Eigen::Matrix3Xd kept_x = x;
+  bool done = false;
+  for (double lambda : o.lambda_schedule) {
+    if (done) break;
+    if (o.time_budget_s > 0 && seconds_since(t0) > o.time_budget_s) {
+      stop = "time budget reached";
+      break;
+    }
+    beta = 1.0;
+    prev_step.resize(0);
+    for (int it = 0; it < o.iterations_per_level && total < o.max_iterations; ++it, ++total) {
+      LoadFitIteration rec;
+      if (!iterate(lambda, rec)) {
+        if (stop != "numerical failure") stop = "too few points";
+        done = true;
+        break;
+      }
+      res.iterations.push_back(rec);
+      if (rec.step_pose_mm < o.converged_step_mm && rec.step_shape_mm < o.converged_step_mm) break;
+    }
+    if (done) break;
+    const SurfaceIndex idx(x, mesh.surface_tris);
+    const double rms = correspond(idx, D * data, o.keep_fraction, o.max_distance_mm).rms;
+    res.level_rms_mm.push_back(rms);
+    res.level_lambda.push_back(lambda);
+    if (rms > level_rms * (1.0 - o.plateau_improvement)) {
+      stop = "residual stopped improving (plateau above the noise: model error)";
+      break;  // keep the previous level
+    }
+    level_rms = rms;
+    kept_alpha = alpha;
+    kept_D = D;
+    kept_x = x;
+    res.lambda = lambda;
+    if (rms <= o.discrepancy_factor * o.noise_mm) {
+      stop = "reached the expected noise level";
+      break;
+    }
+    if (total >= o.max_iterations) {
+      stop = "max_iterations";
       break;
     }
   }
+  alpha = kept_alpha;
+  D = kept_D;
+  x = kept_x;
   const Eigen::Matrix3Xd q = D * data;
   const SurfaceIndex idx(x, mesh.surface_tris);
   const Pairs pf = correspond(idx, q, o.keep_fraction, o.max_distance_mm);
@@ -429,7 +450,7 @@ LoadFitResult fit_load_basis(const Scene& scene, const LoadBasis& basis, const E
     }
     const SelfContactDetector check(rest, mesh.surface_tris);
     res.crossed_vertices = check.count_crossed(x, 0.5 * check.exclusion_mm());
-    res.message = stop == "converged" ? "converged" : stop;
+    res.message = stop;
   } else {
     res.message = "data does not support a non-rigid fit (surface residual " + std::to_string(res.rigid_rms_mm) + " mm rigid, " +
                   std::to_string(pf.rms) + " mm with the load basis; " + stop + "); the rigid result is kept";

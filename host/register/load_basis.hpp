@@ -7,8 +7,8 @@
 //     tile the WHOLE organ surface (farthest-point clustering of the volume's surface
 //     vertices; not the part the data cover, not where any tool acted);
 //   - a change of the body force (gravity) along x, y and z;
-//   - translations along x, y and z of `support_clusters` parts of the supported region
-//     (the ligaments move a little with the diaphragm);
+//   - translations along x, y and z of `support_clusters` - 1 parts of the supported region
+//     relative to the first (the ligaments move a little with the diaphragm);
 // each response is one solve with the factorised stiffness (CHOLMOD). The registration
 // then solves, by Gauss-Newton over recomputed, trimmed, Huber-weighted point-to-plane
 // correspondences, for a rigid correction of the pose (6 numbers) and the basis weights
@@ -30,8 +30,8 @@ namespace arnav::host {
 
 struct LoadBasisOptions {
   int patches = 48;               // surface patches (3 force modes each), over the whole surface
-  bool gravity_modes = true;      // 3 body-force (gravity change) modes
-  int support_clusters = 4;       // parts of the fixed region translated (3 modes each); 0: none
+  bool gravity_modes = true;      // 3 body-force (gravity change) modes (only with a support: on a free body they are rigid)
+  int support_clusters = 4;       // parts of the fixed region; each but the first translated (3 modes each); < 2: none
 };
 
 struct LoadBasis {
@@ -59,11 +59,19 @@ struct LoadFitOptions {
   double huber_sigmas = 1.345;
   double min_sigma_mm = 0.3;
   double noise_mm = 1.0;          // expected RMS point-to-plane noise: the discrepancy target
-  int max_iterations = 30;
-  double max_reduction = 0.3;     // a step may lower the predicted residual by at most this fraction (then the noise)
-  double max_lambda_drop = 4.0;   // the regularisation weight falls by at most this factor per iteration
-  double converged_step_mm = 0.02;  // stop when no point / vertex moves more than this in a step
-  double min_improvement = 0.02;  // accepted only if the residual falls by this fraction (never worse than rigid)
+  // Regularisation weights, stiff to flexible (units: trace of the data term's normal
+  // matrix over trace(G), so they do not depend on the point count or the basis scale).
+  std::vector<double> lambda_schedule = {1.0, 0.1, 0.01, 1e-3, 1e-4, 1e-5, 1e-6};
+  int iterations_per_level = 4;   // Gauss-Newton iterations (correspondences recomputed) per level at most
+  int max_iterations = 28;        // over all levels
+  // Morozov's discrepancy principle: the schedule stops at the first level whose residual
+  // is at most discrepancy_factor * noise_mm (a factor > 1: the linear model and the
+  // volume's discretisation have errors of their own).
+  double discrepancy_factor = 1.1;
+  double plateau_improvement = 0.05;  // a level (10x less regularisation) lowering the residual by less is a plateau
+  double converged_step_mm = 0.05;  // a level ends when no point / vertex moves more than this in a step
+  double min_improvement = 0.02;  // a level must lower the residual by this fraction; the fit is accepted only
+                                  // if it lowers the rigid residual by it (never worse than rigid)
   bool estimate_pose = true;      // false: only the loads (the pose of the rigid stage kept)
   double time_budget_s = 0.0;     // 0: none
 };
@@ -91,6 +99,8 @@ struct LoadFitResult {
   double gravity_fraction = 0.0;  // share of the strain energy in the gravity modes (diagnostic)
   int crossed_vertices = 0;       // surface vertices left inside another part of the organ
   std::vector<LoadFitIteration> iterations;
+  std::vector<double> level_lambda, level_rms_mm;  // per level run: its lambda and converged residual
+  double lambda = 0.0;            // the level kept
   double wall_time_s = 0.0;       // fit only (the basis is timed by build_time_s)
 };
 
