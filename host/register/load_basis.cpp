@@ -386,7 +386,7 @@ LoadFitResult fit_load_basis(const Scene& scene, const LoadBasis& basis, const E
   Eigen::VectorXd kept_alpha = alpha;
   Eigen::Isometry3d kept_D = D;
   Eigen::Matrix3Xd kept_x = x;
-  bool done = false;
+  bool done = false, moved = false;
   for (double lambda : o.lambda_schedule) {
     if (done) break;
     if (o.time_budget_s > 0 && seconds_since(t0) > o.time_budget_s) {
@@ -410,10 +410,13 @@ LoadFitResult fit_load_basis(const Scene& scene, const LoadBasis& basis, const E
     const double rms = correspond(idx, D * data, o.keep_fraction, o.max_distance_mm).rms;
     res.level_rms_mm.push_back(rms);
     res.level_lambda.push_back(lambda);
-    if (rms > level_rms * (1.0 - o.plateau_improvement)) {
+    const bool gain = rms <= level_rms * (1.0 - o.plateau_improvement);
+    if (!gain && moved) {
       stop = "residual stopped improving (plateau above the noise: model error)";
       break;  // keep the previous level
     }
+    if (!gain) continue;  // still too stiff to move: next level
+    moved = true;
     level_rms = rms;
     kept_alpha = alpha;
     kept_D = D;

@@ -86,11 +86,16 @@ TEST(LoadBasis, CoversTheWholeSurfaceWithASymmetricEnergyMetric) {
   }
 }
 
-TEST(LoadBasis, RecoversABarUnderAnEndLoadFromItsTopFaceAndEnd) {
+struct BarFit {
+  double mean = 0, axis_worst = 0, worst = 0, rigid_worst = 0;
+  LoadFitResult r;
+};
+
+// The bar pulled at its end (tip displacement delta), seen through its top face (z = 20)
+// and the loaded end (x = 100), every 2.5 mm, noise-free; the bottom, the sides and the
+// clamped end are not seen (about 40 % of the surface). Errors against the exact solution.
+BarFit fit_bar(int patches, double delta) {
   const Scene s = bar(true);
-  const double delta = 5.0;  // tip displacement (mm): traction E delta / L = 0.25 kPa
-  // Data: the deformed top face (z = 20) and the loaded end (x = 100), every 2.5 mm; the
-  // bottom, the sides and the clamped end are not seen (about 40 % of the surface).
   std::vector<Eigen::Vector3d> pts;
   for (double x = 0.0; x <= 100.0; x += 2.5)
     for (double y = 0.0; y <= 20.0; y += 2.5) pts.push_back(stretched(Eigen::Vector3d(x, y, 20.0), delta));
@@ -99,36 +104,49 @@ TEST(LoadBasis, RecoversABarUnderAnEndLoadFromItsTopFaceAndEnd) {
   Eigen::Matrix3Xd data(3, static_cast<Eigen::Index>(pts.size()));
   for (std::size_t i = 0; i < pts.size(); ++i) data.col(static_cast<Eigen::Index>(i)) = pts[i];
   LoadBasisOptions bo;
-  bo.patches = 16;
+  bo.patches = patches;
+  bo.support_clusters = 0;  // the bar is clamped (support modes would let the clamp move)
   const LoadBasis b = build_load_basis(s, bo);
   LoadFitOptions fo;
   fo.noise_mm = 0.02;       // noise-free data: fit to the discretisation level
   fo.estimate_pose = false; // a translation along x would look like the stretch from these faces
-  fo.keep_fraction = 1.0;
-  const LoadFitResult r = fit_load_basis(s, b, data, fo);
-  ASSERT_TRUE(r.accepted) << r.message;
-  EXPECT_LT(r.final_rms_mm, 0.1);
-  // Interior (axis) and all vertices against the exact solution.
-  double worst = 0.0, rigid_worst = 0.0, sum = 0.0, axis_worst = 0.0;
+  fo.keep_fraction = 1.0;    // no outliers:
+  fo.huber_sigmas = 1e9;     // no robust down-weighting (the end face is 5 mm off at the start, the top face not)
+  BarFit f;
+  f.r = fit_load_basis(s, b, data, fo);
   for (int v = 0; v < s.problem.mesh.num_vertices(); ++v) {
     const Eigen::Vector3d p = s.problem.mesh.rest_positions_World_mm.col(v);
-    const double e = (r.x_Model_mm.col(v) - stretched(p, delta)).norm();
-    worst = std::max(worst, e);
-    sum += e;
-    if (std::abs(p.y() - 10.0) < 1e-9 && std::abs(p.z() - 10.0) < 1e-9) axis_worst = std::max(axis_worst, e);
-    rigid_worst = std::max(rigid_worst, (p - stretched(p, delta)).norm());
+    const double e = (f.r.x_Model_mm.col(v) - stretched(p, delta)).norm();
+    f.worst = std::max(f.worst, e);
+    f.mean += e / s.problem.mesh.num_vertices();
+    f.rigid_worst = std::max(f.rigid_worst, (p - stretched(p, delta)).norm());
+    if (std::abs(p.y() - 10.0) < 1e-9 && std::abs(p.z() - 10.0) < 1e-9) f.axis_worst = std::max(f.axis_worst, e);
   }
-  for (const auto& it : r.iterations)
-    std::cout << "  rms " << it.rms_mm << " predicted " << it.predicted_rms_mm << " lambda " << it.lambda << " step " << it.step_shape_mm << "\n";
-  const double mean = sum / s.problem.mesh.num_vertices();
-  std::cout << "bar: vertex error mean " << mean << " mm, on the axis at most " << axis_worst << " mm, worst " << worst << " mm (rigid " << rigid_worst << " mm), " << r.iterations.size() << " iterations, "
-            << r.message << "\n";
-  EXPECT_NEAR(rigid_worst, delta, 1e-9);
-  EXPECT_LT(mean, 0.05 * delta);
-  EXPECT_LT(axis_worst, 0.1 * delta);  // the patches (Euclidean clusters) do not follow the end face exactly
-  EXPECT_LT(worst, 0.15 * delta);  // unseen faces (bottom, sides) are left to the regularisation
-  // the pose was not touched
-  EXPECT_TRUE(r.D.isApprox(Eigen::Isometry3d::Identity()));
+  std::cout << "bar, " << patches << " patches: vertex error mean " << f.mean << " mm, on the axis at most " << f.axis_worst << " mm, worst "
+            << f.worst << " mm (rigid " << f.rigid_worst << " mm), " << f.r.iterations.size() << " iterations, " << f.r.message << ", strain energy " << f.r.strain_energy << " mN mm (exact 250), final rms " << f.r.final_rms_mm << "\n";
+  return f;
+}
+
+TEST(LoadBasis, RecoversABarUnderAnEndLoadFromItsTopFaceAndEnd) {
+  const double delta = 5.0;  // tip displacement (mm): traction E delta / L = 0.25 kPa
+  // A coarse basis (16 patches: Euclidean clusters that do not follow the end face) and
+  // one patch per surface vertex (every surface load is in the span).
+  const BarFit coarse = fit_bar(16, delta);
+  const BarFit fine = fit_bar(200, delta);
+  for (const BarFit* f : {&coarse, &fine}) {
+    ASSERT_TRUE(f->r.accepted) << f->r.message;
+    EXPECT_LT(f->r.final_rms_mm, 0.1);
+    EXPECT_NEAR(f->rigid_worst, delta, 1e-9);
+    EXPECT_TRUE(f->r.D.isApprox(Eigen::Isometry3d::Identity()));  // the pose was not touched
+  }
+  // (measured: 16 patches mean 0.12 / axis 0.22 / worst 0.42 mm; one patch per vertex
+  // 0.11 / 0.54 / 1.30 mm: the schedule stops at the discrepancy level with a strain
+  // energy 4-9 % above the exact 250 mN mm, the unseen bottom and sides left to it)
+  EXPECT_LT(coarse.mean, 0.05 * delta);
+  EXPECT_LT(coarse.axis_worst, 0.1 * delta);
+  EXPECT_LT(coarse.worst, 0.15 * delta);
+  EXPECT_LT(fine.mean, 0.05 * delta);
+  EXPECT_LT(fine.axis_worst, 0.15 * delta);
 }
 
 TEST(LoadBasis, NoDeformationWhenTheDataFitTheRestShape) {
