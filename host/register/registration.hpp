@@ -6,6 +6,7 @@
 // Intraop. Units: mm.
 #include <Eigen/Geometry>
 
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -33,6 +34,9 @@ struct RegistrationRequest {
   std::string nonrigid_method = "loads";
   NonrigidOptions nonrigid;
   LoadBasisOptions basis;
+  // A basis built beforehand for this scene (build_load_basis: it depends only on the
+  // scene, so it can be made before surgery); null: built here (timed in basis_time_s).
+  std::shared_ptr<const LoadBasis> prebuilt_basis;
   LoadFitOptions loads;                               // its noise/trimming are taken from nonrigid
 };
 
@@ -44,7 +48,7 @@ struct RegistrationResult {
   std::optional<NonrigidResult> nonrigid;             // absent with rigid_only (with "loads": the fit in its terms)
   std::optional<LoadFitResult> loads;                 // the "loads" method's own result
   int basis_modes = 0;                                // "loads": modes of the basis
-  double basis_time_s = 0.0;                          // "loads": time to build the basis (in nonrigid->wall_time_s)
+  double basis_time_s = 0.0;                          // "loads": time to build the basis (in nonrigid->wall_time_s; 0 when prebuilt)
   Eigen::Matrix3Xd x_Model_mm;                        // volume positions in Model (rest when rigid)
   bool deformed = false;                              // the non-rigid result was accepted
   double wall_time_s = 0.0;

@@ -16,6 +16,7 @@
 #include <stdexcept>
 
 #include "host/register/load_basis.hpp"
+#include "host/register/registration.hpp"
 #include "host/scene/box_mesh.hpp"
 
 using namespace arnav::host;
@@ -211,5 +212,22 @@ TEST(LoadBasis, UnsupportedSceneHasNoRigidPartInItsModes) {
     const Eigen::VectorXd u = b.U.col(j);
     const Eigen::Vector3d mean = Eigen::Map<const Eigen::Matrix3Xd>(u.data(), 3, s.problem.mesh.num_vertices()).rowwise().mean();
     EXPECT_LT(mean.norm(), 1e-6) << b.mode_kind[static_cast<std::size_t>(j)];
+  }
+}
+
+TEST(LoadBasis, PrebuiltBasisOfAnotherMeshIsRefused) {
+  const Scene s = bar(true);
+  Scene other = s;
+  other.problem.mesh = make_box_tet_mesh(4, 2, 2, kSize);
+  other.problem.mesh.tet_region.assign(other.problem.mesh.tets.size(), 0);
+  RegistrationRequest rq;
+  rq.points_Intraop_mm = Eigen::Matrix3Xd::Random(3, 50) * 10.0 + Eigen::Vector3d(50, 10, 20).replicate(1, 50);
+  rq.X_IntraopModel_initial = Eigen::Isometry3d::Identity();
+  rq.prebuilt_basis = std::make_shared<const LoadBasis>(build_load_basis(other, {}));
+  try {
+    register_patient(s, rq);
+    ADD_FAILURE() << "no throw";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("prebuilt load basis"), std::string::npos) << e.what();
   }
 }
