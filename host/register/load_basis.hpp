@@ -13,10 +13,11 @@
 // then solves, by Gauss-Newton over recomputed, trimmed, Huber-weighted point-to-plane
 // correspondences, for a rigid correction of the pose (6 numbers) and the basis weights
 // alpha, Tikhonov-regularised by the strain energy 1/2 alpha^T G alpha of the deformation
-// (G = U^T K U): every iteration picks the regularisation weight by the discrepancy
-// principle, the largest weight whose predicted residual RMS reaches the expected noise,
-// so nothing is tuned per case. Frames: Model (the scene frame World); the data are given
-// in Model after the rigid stage, and the result adds a rigid correction D of them.
+// (G = U^T K U), the regularisation weight falling level by level (stiff to flexible) until
+// the residual reaches the expected noise (Morozov's discrepancy principle) or stops
+// improving (model error), so nothing is tuned per case. Frames: Model (the scene frame
+// World); the data are given in Model after the rigid stage, and the result adds a rigid
+// correction D of them.
 // Units: mm, mN, kPa (= mN/mm^2).
 #include <Eigen/Core>
 #include <Eigen/Geometry>
