@@ -59,6 +59,17 @@ static int main_body(int argc, char** argv) {
   reg->add_option("--model", reg_options.model_kind, "registering tissue model kind (default: the registration scene's)");
   reg->add_option("--schedule", reg_options.schedule, "data-weight schedule, stiff to flexible")->check(CLI::PositiveNumber);
   reg->add_option("--scene", reg_options.registration_scene, "registration scene in data/liver");
+  std::string reg_patient;
+  reg->add_option("--patient", reg_patient,
+                  "another patient: patients/NAME registers on data/patients/NAME_coarse.scene.yaml against states of NAME.scene.yaml "
+                  "(patients/sksurgery_liver, patients/sksurgery_liver_fine)");
+  reg->add_option("--method", reg_options.methods, "non-rigid methods: energy (rows 'nonrigid'), loads (rows 'nonrigid_loads'); default both")
+      ->check(CLI::IsMember({"energy", "loads"}));
+  reg->add_option("--patches", reg_options.basis_patches, "loads: surface patches of the load basis")->check(CLI::PositiveNumber);
+  reg->add_option("--support-clusters", reg_options.support_clusters, "loads: parts of the fixed region translated (0: none)")->check(CLI::NonNegativeNumber);
+  reg->add_flag("--no-gravity-modes", reg_options.no_gravity_modes, "loads: no gravity-change modes");
+  reg->add_flag("--fixed-pose", reg_options.loads_fixed_pose, "loads: keep the ICP pose, fit the weights only");
+  reg->add_flag("--prebuilt-basis", reg_options.prebuilt_basis, "loads: build the basis once per run (as before surgery); case times exclude it");
   reg->add_flag("--scene-boundary", reg_options.scene_boundary, "hold the scene's fixed vertices during the non-rigid stage");
   reg->add_flag("--gravity-change", reg_options.gravity_change, "with a held boundary, fit a change of gravity (3 numbers) first");
   reg->add_flag("--no-self-contact", reg_options.no_self_contact, "switch the self-contact term off");
@@ -152,15 +163,26 @@ static int main_body(int argc, char** argv) {
     return 0;
   }
   if (reg->parsed()) {
+    if (!reg_patient.empty()) {
+      const auto slash = reg_patient.find_last_of('/');
+      if (slash == std::string::npos || slash == 0 || slash + 1 == reg_patient.size()) {
+        std::cerr << "arnav-bench register: --patient wants DIR/NAME (e.g. patients/sksurgery_liver), got '" << reg_patient << "'\n";
+        return 2;
+      }
+      reg_options.scene_dir = reg_patient.substr(0, slash);
+      reg_options.truth_scene = reg_patient.substr(slash + 1) + ".scene.yaml";
+      reg_options.registration_scene = reg_patient.substr(slash + 1) + "_coarse.scene.yaml";
+    }
     try {
       const std::vector<RegisterBenchRow> rows = run_register_bench(reg_options);
       std::filesystem::create_directories(out_dir);
       write_register_csv(out_dir + "/register.csv", rows);
       write_register_plots(out_dir, rows);
       // Summary: mean over cases of each statistic, per method.
-      std::cout << "{\"csv\":\"" << out_dir << "/register.csv\",\"cases\":" << rows.size() / 4 << ",\"methods\":{";
+      const auto cases = std::count_if(rows.begin(), rows.end(), [](const RegisterBenchRow& r) { return r.method == "optimal_rigid"; });
+      std::cout << "{\"csv\":\"" << out_dir << "/register.csv\",\"cases\":" << cases << ",\"methods\":{";
       bool first = true;
-      for (const std::string m : {"optimal_rigid", "landmark_rigid", "surface_rigid", "nonrigid"}) {
+      for (const std::string m : {"optimal_rigid", "landmark_rigid", "surface_rigid", "nonrigid", "nonrigid_loads"}) {
         double mean = 0, median = 0, p90 = 0, max = 0, wall = 0, worst_mean = 0;
         int n = 0;
         for (const auto& r : rows)

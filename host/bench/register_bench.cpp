@@ -144,8 +144,8 @@ TruthState solve_state(const Scene& truth, const SimProblem& het, int state, con
 std::vector<RegisterBenchRow> run_register_bench(const RegisterBenchOptions& o) {
   std::vector<RegisterBenchRow> rows;
   std::cerr << "loading scenes...\n";
-  const Scene truth = load_scene(o.data_dir + "/liver/" + o.truth_scene);
-  const Scene reg = load_scene(o.data_dir + "/liver/" + o.registration_scene);
+  const Scene truth = load_scene(o.data_dir + "/" + o.scene_dir + "/" + o.truth_scene);
+  const Scene reg = load_scene(o.data_dir + "/" + o.scene_dir + "/" + o.registration_scene);
   std::cerr << "truth: " << truth.problem.mesh.num_tets() << " tets; registration: " << reg.problem.mesh.num_tets() << " tets\n";
   std::mt19937 rng(o.seed);
 
@@ -203,6 +203,15 @@ std::vector<RegisterBenchRow> run_register_bench(const RegisterBenchOptions& o) 
 
   std::mt19937 het_rng(o.seed + 100);
   const SimProblem het = heterogeneous_problem(truth, het_rng);
+  std::shared_ptr<const LoadBasis> basis;
+  if (o.prebuilt_basis) {
+    LoadBasisOptions bo;
+    if (o.basis_patches > 0) bo.patches = o.basis_patches;
+    if (o.support_clusters >= 0) bo.support_clusters = o.support_clusters;
+    bo.gravity_modes = !o.no_gravity_modes;
+    basis = std::make_shared<const LoadBasis>(build_load_basis(reg, bo));
+    std::cerr << "load basis built once: " << basis->modes() << " modes in " << basis->build_time_s << " s\n";
+  }
   const int states = o.quick ? 1 : o.states;
   const std::vector<double> coverages = o.quick ? std::vector<double>{0.3} : o.coverages;
   const std::vector<double> noises = o.quick ? std::vector<double>{1.0} : o.noises_mm;
@@ -330,23 +339,48 @@ std::vector<RegisterBenchRow> run_register_bench(const RegisterBenchOptions& o) 
         if (!o.schedule.empty()) rq.nonrigid.data_weight_schedule = o.schedule;
         if (o.updates_per_level > 0) rq.nonrigid.max_updates_per_level = o.updates_per_level;
         if (o.steps_per_update > 0) rq.nonrigid.steps_per_update = o.steps_per_update;
-        const RegistrationResult res = register_patient(reg, rq);
-        row("landmark_rigid", res.landmarks->X_IntraopModel * targets_rest, 0.0, 0.0, "");
-        row("surface_rigid", res.icp.X_IntraopModel * targets_rest, res.icp.summary.final_rms_mm, res.icp.summary.wall_time_s,
-            res.icp.summary.termination);
-        std::string note = res.nonrigid->message;
-        for (const auto& l : res.nonrigid->levels)
-          note += "; w" + std::to_string(static_cast<int>(l.data_weight)) + ": " + std::to_string(l.updates) + " updates " +
-                  std::to_string(l.rms_mm).substr(0, 5) + " mm " + std::to_string(l.wall_time_s).substr(0, 4) + " s (model " + std::to_string(l.model_time_s).substr(0, 4) + ")";
-        note += "; rigid rms " + std::to_string(res.nonrigid->rigid_rms_mm).substr(0, 5);
-        if (res.nonrigid->gravity_change_mm_s2.norm() > 0) {
-          const Eigen::Vector3d gc = res.nonrigid->gravity_change_mm_s2 / 9810.0;
-          note += "; gravity change (g) " + std::to_string(gc.x()).substr(0, 6) + " " + std::to_string(gc.y()).substr(0, 6) + " " +
-                  std::to_string(gc.z()).substr(0, 6) + " in " + std::to_string(res.nonrigid->gravity_time_s).substr(0, 4) + " s";
+        if (o.basis_patches > 0) rq.basis.patches = o.basis_patches;
+        if (o.support_clusters >= 0) rq.basis.support_clusters = o.support_clusters;
+        rq.basis.gravity_modes = !o.no_gravity_modes;
+        rq.loads.estimate_pose = !o.loads_fixed_pose;
+        rq.prebuilt_basis = basis;
+        bool rigid_rows = false;
+        for (const std::string& method : o.methods) {
+          rq.nonrigid_method = method;
+          const RegistrationResult res = register_patient(reg, rq);
+          if (!rigid_rows) {
+            row("landmark_rigid", res.landmarks->X_IntraopModel * targets_rest, 0.0, 0.0, "");
+            row("surface_rigid", res.icp.X_IntraopModel * targets_rest, res.icp.summary.final_rms_mm, res.icp.summary.wall_time_s,
+                res.icp.summary.termination);
+            rigid_rows = true;
+          }
+          std::string note = res.nonrigid->message;
+          if (method == "loads") {
+            const LoadFitResult& f = *res.loads;
+            note += "; " + std::to_string(res.basis_modes) + " modes " + (basis ? std::string("prebuilt") : "built in " + std::to_string(res.basis_time_s).substr(0, 5) + " s") + "; " +
+                    std::to_string(f.iterations.size()) + " iterations in " + std::to_string(f.wall_time_s).substr(0, 5) + " s";
+            if (!f.iterations.empty())
+              note += "; lambda " + std::to_string(f.iterations.back().lambda) + "; predicted " + std::to_string(f.iterations.back().predicted_rms_mm).substr(0, 5) + " mm";
+            const Eigen::AngleAxisd corr(f.D.linear());
+            note += "; pose correction " + std::to_string(f.D.translation().norm()).substr(0, 5) + " mm / " +
+                    std::to_string(corr.angle() * 180.0 / std::numbers::pi).substr(0, 5) + " deg; max displacement " +
+                    std::to_string(f.max_displacement_mm).substr(0, 5) + " mm; gravity share " + std::to_string(f.gravity_fraction).substr(0, 4);
+          } else {
+            for (const auto& l : res.nonrigid->levels)
+              note += "; w" + std::to_string(static_cast<int>(l.data_weight)) + ": " + std::to_string(l.updates) + " updates " +
+                      std::to_string(l.rms_mm).substr(0, 5) + " mm " + std::to_string(l.wall_time_s).substr(0, 4) + " s (model " + std::to_string(l.model_time_s).substr(0, 4) + ")";
+            if (res.nonrigid->gravity_change_mm_s2.norm() > 0) {
+              const Eigen::Vector3d gc = res.nonrigid->gravity_change_mm_s2 / 9810.0;
+              note += "; gravity change (g) " + std::to_string(gc.x()).substr(0, 6) + " " + std::to_string(gc.y()).substr(0, 6) + " " +
+                      std::to_string(gc.z()).substr(0, 6) + " in " + std::to_string(res.nonrigid->gravity_time_s).substr(0, 4) + " s";
+            }
+            note += "; contact search " + std::to_string(res.nonrigid->contact_time_s).substr(0, 5) + " s";
+          }
+          note += "; rigid rms " + std::to_string(res.nonrigid->rigid_rms_mm).substr(0, 5);
+          note += "; crossed " + std::to_string(res.nonrigid->crossed_vertices);
+          note += "; stop at " + std::to_string(res.nonrigid->discrepancy_mm).substr(0, 5) + " mm";
+          row(method == "loads" ? "nonrigid_loads" : "nonrigid", carry_to_intraop(reg, reg_targets, res), res.nonrigid->final_rms_mm, res.wall_time_s, note);
         }
-        note += "; crossed " + std::to_string(res.nonrigid->crossed_vertices) + ", contact search " + std::to_string(res.nonrigid->contact_time_s).substr(0, 5) + " s";
-        note += "; stop at " + std::to_string(res.nonrigid->discrepancy_mm).substr(0, 5) + " mm";
-        row("nonrigid", carry_to_intraop(reg, reg_targets, res), res.nonrigid->final_rms_mm, res.wall_time_s, note);
       }
     }
   }
@@ -455,7 +489,8 @@ void write_register_plots(const std::string& dir, const std::vector<RegisterBenc
   chart.reference_label = "goal 2.5 mm";
   const std::map<std::string, cv::Scalar> colours = {{"landmark_rigid", cv::Scalar(60, 60, 200)},
                                                      {"surface_rigid", cv::Scalar(200, 90, 20)},
-                                                     {"nonrigid", cv::Scalar(40, 160, 40)}};
+                                                     {"nonrigid", cv::Scalar(40, 160, 40)},
+                                                     {"nonrigid_loads", cv::Scalar(160, 40, 160)}};
   for (const auto& [method, colour] : colours) {
     calib::PlotSeries s;
     s.name = method;
@@ -476,13 +511,14 @@ void write_register_plots(const std::string& dir, const std::vector<RegisterBenc
   cov.y_label = "mean TRE (mm)";
   cov.reference_y = 2.5;
   cov.reference_label = "goal 2.5 mm";
-  for (const std::string method : {"optimal_rigid", "landmark_rigid", "surface_rigid", "nonrigid"}) {
+  for (const std::string method : {"optimal_rigid", "landmark_rigid", "surface_rigid", "nonrigid", "nonrigid_loads"}) {
     std::map<double, std::pair<double, int>> acc;
     for (const auto& r : rows)
       if (r.method == method) {
         acc[r.coverage].first += r.tre.mean;
         acc[r.coverage].second += 1;
       }
+    if (acc.empty()) continue;
     calib::PlotSeries s;
     s.name = method;
     s.color = method == "optimal_rigid" ? cv::Scalar(120, 120, 120) : colours.at(method);

@@ -19,8 +19,17 @@ struct RegisterBenchOptions {
   std::vector<double> coverages = {0.2, 0.3, 0.4, 0.6};
   std::vector<double> noises_mm = {0.0, 1.0, 2.0};      // per-axis Gaussian sigma
   int states = 3;                                       // deformed states
+  std::string scene_dir = "liver";                      // under data_dir (patients: "patients")
   std::string registration_scene = "liver_coarse.scene.yaml";
   std::string truth_scene = "liver.scene.yaml";
+  // Non-rigid methods to run: "energy" (rows "nonrigid", paper 002's energy minimisation)
+  // and "loads" (rows "nonrigid_loads", load basis with the pose, load_basis.hpp).
+  std::vector<std::string> methods = {"energy", "loads"};
+  int basis_patches = 0;                                // 0: the library default
+  int support_clusters = -1;                            // -1: the library default
+  bool no_gravity_modes = false;
+  bool loads_fixed_pose = false;                        // loads: keep the ICP pose (weights only)
+  bool prebuilt_basis = false;                          // loads: build the basis once per run (before surgery), not per case
   std::string model_kind;                               // registering model (empty: the scene's)
   std::vector<double> schedule;                         // data-weight schedule (empty: default)
   bool scene_boundary = false;
@@ -44,7 +53,7 @@ struct RegisterBenchRow {
   double coverage = 0, achieved_coverage = 0, noise_mm = 0;
   int points = 0, outliers = 0;
   double max_deformation_mm = 0;        // largest target displacement of the state (rigid part removed: optimal fit)
-  std::string method;                   // optimal_rigid, landmark_rigid, surface_rigid, nonrigid
+  std::string method;                   // optimal_rigid, landmark_rigid, surface_rigid, nonrigid, nonrigid_loads
   TreStats tre, tre_interior;
   // Diagnostic: mean TRE left after the best rigid correction of the prediction (the shape
   // error); the rest of tre.mean is pose error.

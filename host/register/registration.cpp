@@ -1,6 +1,7 @@
 #include "host/register/registration.hpp"
 
 #include <chrono>
+#include <stdexcept>
 
 #include "calibration/lib/point_registration.hpp"
 
@@ -31,7 +32,55 @@ RegistrationResult register_patient(const Scene& scene, const RegistrationReques
   } else {
     r.X_IntraopModel = r.icp.X_IntraopModel;
   }
-  if (!rq.rigid_only) {
+  if (!rq.rigid_only && rq.nonrigid_method == "loads") {
+    const Eigen::Matrix3Xd data_Model = r.X_IntraopModel.inverse() * rq.points_Intraop_mm;
+    if (rq.prebuilt_basis && rq.prebuilt_basis->dofs != 3 * scene.problem.mesh.num_vertices())
+      throw std::invalid_argument("the prebuilt load basis is for a mesh of " + std::to_string(rq.prebuilt_basis->dofs / 3) +
+                                  " vertices, the scene's has " + std::to_string(scene.problem.mesh.num_vertices()));
+    const std::shared_ptr<const LoadBasis> built = rq.prebuilt_basis ? nullptr : std::make_shared<const LoadBasis>(build_load_basis(scene, rq.basis));
+    const LoadBasis& basis = rq.prebuilt_basis ? *rq.prebuilt_basis : *built;
+    LoadFitOptions o = rq.loads;
+    o.noise_mm = rq.nonrigid.noise_mm;
+    o.keep_fraction = rq.nonrigid.keep_fraction;
+    o.max_distance_mm = rq.nonrigid.max_distance_mm;
+    o.min_improvement = rq.nonrigid.min_improvement;
+    LoadFitResult fit = fit_load_basis(scene, basis, data_Model, o);
+    r.basis_modes = basis.modes();
+    r.basis_time_s = rq.prebuilt_basis ? 0.0 : basis.build_time_s;
+    NonrigidResult nr;
+    nr.model = "linear elastic load basis (" + std::to_string(basis.patches) + " surface patches x 3, " + std::to_string(basis.gravity) +
+               " gravity, " + std::to_string(basis.support) + " support modes" + (basis.supported ? "" : "; no support declared") + ")";
+    nr.x_Model_mm = fit.x_Model_mm;
+    nr.accepted = fit.accepted;
+    nr.message = fit.message;
+    nr.rigid_rms_mm = fit.rigid_rms_mm;
+    nr.final_rms_mm = fit.final_rms_mm;
+    nr.discrepancy_mm = o.noise_mm;
+    nr.crossed_vertices = fit.crossed_vertices;
+    nr.wall_time_s = r.basis_time_s + fit.wall_time_s;
+    for (const LoadFitIteration& it : fit.iterations) {
+      NonrigidLevel l;
+      l.data_weight = it.lambda;
+      l.updates = 1;
+      l.elastic_energy = it.strain_energy;
+      l.rms_mm = it.rms_mm;
+      l.points_used = it.points_used;
+      l.points_trimmed = static_cast<int>(data_Model.cols()) - it.points_used;
+      l.termination = "predicted " + std::to_string(it.predicted_rms_mm) + " mm";
+      nr.levels.push_back(l);
+    }
+    if (fit.accepted) {
+      r.X_IntraopModel = r.X_IntraopModel * fit.D.inverse();
+      r.x_Model_mm = fit.x_Model_mm;
+      r.deformed = true;
+    }
+    r.notes.push_back("non-rigid (load basis, " + std::to_string(basis.modes()) + " modes, " +
+                      (rq.prebuilt_basis ? std::string("prebuilt") : "built in " + std::to_string(basis.build_time_s) + " s") + "): " + fit.message);
+    r.nonrigid = nr;
+    r.loads = std::move(fit);
+  } else if (!rq.rigid_only && rq.nonrigid_method != "energy") {
+    throw std::invalid_argument("unknown non-rigid method '" + rq.nonrigid_method + "' (use loads or energy)");
+  } else if (!rq.rigid_only) {
     const Eigen::Matrix3Xd data_Model = r.X_IntraopModel.inverse() * rq.points_Intraop_mm;
     std::vector<LandmarkPair> lm;
     for (const auto& l : rq.landmarks) lm.push_back({l.p_Model_mm, r.X_IntraopModel.inverse() * l.p_Intraop_mm});

@@ -6,10 +6,12 @@
 // Intraop. Units: mm.
 #include <Eigen/Geometry>
 
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "host/register/load_basis.hpp"
 #include "host/register/nonrigid_registration.hpp"
 #include "host/register/point_files.hpp"
 #include "host/register/rigid_registration.hpp"
@@ -25,7 +27,17 @@ struct RegistrationRequest {
   std::optional<Eigen::Isometry3d> X_IntraopModel_initial;  // wins over the landmark fit as ICP start
   bool rigid_only = false;
   IcpOptions icp;
+  // Non-rigid method: "loads" (load basis estimated jointly with the pose, load_basis.hpp)
+  // or "energy" (paper 002's energy minimisation with the scene's tissue model,
+  // nonrigid_registration.hpp). nonrigid.noise_mm, keep_fraction and max_distance_mm
+  // apply to both.
+  std::string nonrigid_method = "loads";
   NonrigidOptions nonrigid;
+  LoadBasisOptions basis;
+  // A basis built beforehand for this scene (build_load_basis: it depends only on the
+  // scene, so it can be made before surgery); null: built here (timed in basis_time_s).
+  std::shared_ptr<const LoadBasis> prebuilt_basis;
+  LoadFitOptions loads;                               // its noise/trimming are taken from nonrigid
 };
 
 struct RegistrationResult {
@@ -33,13 +45,17 @@ struct RegistrationResult {
   std::optional<LandmarkFit> landmarks;
   IcpResult icp;                                      // termination "no data" when skipped
   Eigen::Isometry3d X_IntraopModel = Eigen::Isometry3d::Identity();  // the rigid part
-  std::optional<NonrigidResult> nonrigid;             // absent with rigid_only
+  std::optional<NonrigidResult> nonrigid;             // absent with rigid_only (with "loads": the fit in its terms)
+  std::optional<LoadFitResult> loads;                 // the "loads" method's own result
+  int basis_modes = 0;                                // "loads": modes of the basis
+  double basis_time_s = 0.0;                          // "loads": time to build the basis (in nonrigid->wall_time_s; 0 when prebuilt)
   Eigen::Matrix3Xd x_Model_mm;                        // volume positions in Model (rest when rigid)
   bool deformed = false;                              // the non-rigid result was accepted
   double wall_time_s = 0.0;
   std::vector<std::string> notes;                     // what was decided and why
 };
 
+// Throws std::invalid_argument for an unknown method or model kind, or a basis that cannot be built.
 RegistrationResult register_patient(const Scene& scene, const RegistrationRequest& request);
 
 // Points given in Model at rest, embedded in the scene's volume, carried through the

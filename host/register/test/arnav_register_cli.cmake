@@ -34,7 +34,8 @@ foreach(f targets.csv registered_organ.obj X_IntraopModel.yaml summary.json repo
   endif()
 endforeach()
 file(READ ${OUT}/full/summary.json summary)
-foreach(key "\"stage\": \"landmarks\"" "\"stage\": \"surface_rigid\"" "\"stage\": \"nonrigid\"" "\"deformed\": true" "\"points_trimmed\"")
+foreach(key "\"stage\": \"landmarks\"" "\"stage\": \"surface_rigid\"" "\"stage\": \"nonrigid\"" "\"deformed\": true" "\"points_trimmed\""
+            "\"method\": \"loads\"" "\"basis_modes\"" "\"pose_correction_mm\"")
   if(NOT summary MATCHES "${key}")
     message(FATAL_ERROR "summary.json lacks ${key}: ${summary}")
   endif()
@@ -48,6 +49,14 @@ endif()
 file(READ ${OUT}/full/X_IntraopModel.yaml pose)
 if(NOT pose MATCHES "name: X_IntraopModel")
   message(FATAL_ERROR "X_IntraopModel.yaml: ${pose}")
+endif()
+
+# 1b. the energy method (paper 002) on the same case
+run(0 energy ${scene} --surface ${OUT}/case/surface.xyz --landmarks ${OUT}/case/landmarks.csv
+    --targets ${OUT}/case/targets.csv --out ${OUT}/energy --noise-mm 0.8 --method energy)
+file(READ ${OUT}/energy/summary.json summary)
+if(NOT summary MATCHES "\"method\": \"energy\"" OR NOT summary MATCHES "\"deformed\": true")
+  message(FATAL_ERROR "energy summary: ${summary}")
 endif()
 
 # 2. rigid only, started from the pose just written
@@ -81,3 +90,4 @@ file(WRITE ${OUT}/far.csv "name,x_mm,y_mm,z_mm\ninside,70,160,140\nfar,1000,0,0\
 expect_error("far.csv:3: target 'far' lies outside the organ" target_outside ${scene} --surface ${OUT}/case/surface.xyz --targets ${OUT}/far.csv --out ${OUT}/x)
 expect_error("cannot open" missing ${scene} --surface ${OUT}/nope.xyz --out ${OUT}/x)
 run(2 usage ${scene} --out ${OUT}/x)
+run(2 bad_method ${scene} --surface ${OUT}/case/surface.xyz --method magic --out ${OUT}/x)

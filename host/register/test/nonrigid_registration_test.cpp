@@ -120,7 +120,10 @@ double mean_tre(const Eigen::Matrix3Xd& predicted, const Eigen::Matrix3Xd& truth
 
 }  // namespace
 
-TEST(NonrigidRegistration, BeatsRigidOnInteriorTargets) {
+class NonrigidMethod : public ::testing::TestWithParam<std::string> {};
+INSTANTIATE_TEST_SUITE_P(Methods, NonrigidMethod, ::testing::Values("loads", "energy"));
+
+TEST_P(NonrigidMethod, BeatsRigidOnInteriorTargets) {
   const Scene& s = coarse_scene();
   const Case k = make_case(11);
   const double deformation = (k.deformed - s.problem.mesh.rest_positions_World_mm).colwise().norm().maxCoeff();
@@ -129,11 +132,12 @@ TEST(NonrigidRegistration, BeatsRigidOnInteriorTargets) {
   rq.points_Intraop_mm = k.data_Intraop;
   rq.landmarks = k.landmarks;
   rq.nonrigid.noise_mm = 0.4;
+  rq.nonrigid_method = GetParam();
   const RegistrationResult r = register_patient(s, rq);
   const Embedding e = embed_points(s.problem.mesh, k.targets_rest, 0.5, "target");
-  const double rigid = mean_tre(r.X_IntraopModel * k.targets_rest, k.targets_truth_Intraop);
+  const double rigid = mean_tre(r.icp.X_IntraopModel * k.targets_rest, k.targets_truth_Intraop);  // the surface-rigid result
   const double nonrigid = mean_tre(carry_to_intraop(s, e, r), k.targets_truth_Intraop);
-  std::cout << "max deformation " << deformation << " mm; mean TRE rigid " << rigid << " mm, non-rigid " << nonrigid << " mm, "
+  std::cout << GetParam() << ": max deformation " << deformation << " mm; mean TRE rigid " << rigid << " mm, non-rigid " << nonrigid << " mm, "
             << r.nonrigid->message << ", " << r.nonrigid->wall_time_s << " s\n";
   ASSERT_TRUE(r.nonrigid);
   EXPECT_TRUE(r.deformed) << r.nonrigid->message;
@@ -142,9 +146,14 @@ TEST(NonrigidRegistration, BeatsRigidOnInteriorTargets) {
   ASSERT_FALSE(r.nonrigid->levels.empty());
   EXPECT_GT(r.nonrigid->levels.front().points_trimmed, 0);  // the outliers
   EXPECT_LT(r.nonrigid->inverted_elements, s.problem.mesh.num_tets() / 200) << "inverted elements";  // under 0.5 %
+  if (GetParam() == "loads") {
+    ASSERT_TRUE(r.loads);
+    EXPECT_GT(r.basis_modes, 100);
+    EXPECT_FALSE(r.X_IntraopModel.isApprox(r.icp.X_IntraopModel));  // the pose was estimated with the loads
+  }
 }
 
-TEST(NonrigidRegistration, AllOutliersKeepTheRigidResult) {
+TEST_P(NonrigidMethod, AllOutliersKeepTheRigidResult) {
   const Scene& s = coarse_scene();
   const Case k = make_case(12);
   std::mt19937 rng(5);
@@ -157,6 +166,7 @@ TEST(NonrigidRegistration, AllOutliersKeepTheRigidResult) {
   RegistrationRequest rq;
   rq.points_Intraop_mm = k.X_true * junk;
   rq.landmarks = k.landmarks;
+  rq.nonrigid_method = GetParam();
   const RegistrationResult r = register_patient(s, rq);
   ASSERT_TRUE(r.nonrigid);
   EXPECT_FALSE(r.deformed);
@@ -164,20 +174,23 @@ TEST(NonrigidRegistration, AllOutliersKeepTheRigidResult) {
   EXPECT_TRUE(r.x_Model_mm.isApprox(s.problem.mesh.rest_positions_World_mm));
 }
 
-TEST(NonrigidRegistration, EmptyCloudKeepsTheLandmarkPose) {
+TEST_P(NonrigidMethod, EmptyCloudKeepsTheLandmarkPose) {
   const Scene& s = coarse_scene();
   const Case k = make_case(13);
   RegistrationRequest rq;
   rq.points_Intraop_mm = Eigen::Matrix3Xd(3, 0);
   rq.landmarks = k.landmarks;
+  rq.nonrigid_method = GetParam();
   const RegistrationResult r = register_patient(s, rq);
   EXPECT_FALSE(r.deformed);
   EXPECT_TRUE(r.X_IntraopModel.isApprox(r.landmarks->X_IntraopModel));
   EXPECT_NE(r.nonrigid->message.find("data does not support"), std::string::npos);
 }
 
-// Every model kind in this build runs the non-rigid stage; whatever it reaches, the
-// result is never worse than the rigid one on the data.
+// Every model kind in this build runs the energy method's non-rigid stage; whatever it
+// reaches, the result is never worse than the rigid one on the data. (The loads method
+// does not step a model: its basis is the linear elastic response of the scene's mesh
+// and materials, the same for every kind.)
 TEST(NonrigidRegistration, EveryModelKindNeverWorseThanRigid) {
   const Scene& s = coarse_scene();
   const Case k = make_case(14);
@@ -185,6 +198,7 @@ TEST(NonrigidRegistration, EveryModelKindNeverWorseThanRigid) {
     RegistrationRequest rq;
     rq.points_Intraop_mm = k.data_Intraop;
     rq.landmarks = k.landmarks;
+    rq.nonrigid_method = "energy";
     rq.nonrigid.model_kind = kind;
     rq.nonrigid.noise_mm = 0.4;
     rq.nonrigid.data_weight_schedule = {4, 64};
@@ -202,7 +216,16 @@ TEST(NonrigidRegistration, EveryModelKindNeverWorseThanRigid) {
       {
         RegistrationRequest rq;
         rq.points_Intraop_mm = k.data_Intraop;
+        rq.nonrigid_method = "energy";
         rq.nonrigid.model_kind = "rubber";
+        register_patient(s, rq);
+      },
+      std::invalid_argument);
+  EXPECT_THROW(
+      {
+        RegistrationRequest rq;
+        rq.points_Intraop_mm = k.data_Intraop;
+        rq.nonrigid_method = "magic";
         register_patient(s, rq);
       },
       std::invalid_argument);

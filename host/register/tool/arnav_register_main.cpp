@@ -123,7 +123,12 @@ static int main_body(int argc, char** argv) {
   app.add_option("--targets", in.targets_path, "CSV name,x_mm,y_mm,z_mm in the scene (Model) frame");
   app.add_flag("--rigid-only", in.rigid_only, "stop after the rigid registration");
   app.add_option("-o,--out", in.out_dir, "output folder")->required();
-  app.add_option("--model", rq.nonrigid.model_kind, "tissue model for the non-rigid stage (default: the scene's)");
+  app.add_option("--method", rq.nonrigid_method,
+                 "non-rigid method: loads (default: unseen loads estimated with the pose from a linear elastic load basis) or energy "
+                 "(paper 002: the tissue model pulled by the data, stiff to flexible)")
+      ->check(CLI::IsMember({"loads", "energy"}));
+  app.add_option("--patches", rq.basis.patches, "loads: surface patches of the load basis (3 force modes each; default 48)")->check(CLI::Range(1, 1000));
+  app.add_option("--model", rq.nonrigid.model_kind, "energy: tissue model for the non-rigid stage (default: the scene's)");
   app.add_option("--noise-mm", noise_mm, "expected point noise (mm): the non-rigid schedule stops at this residual")
       ->check(CLI::Range(0.0, 20.0));
   app.add_flag("--scene-boundary", scene_boundary, "hold the scene's fixed vertices at their rest positions during the non-rigid stage");
@@ -230,6 +235,10 @@ static int main_body(int argc, char** argv) {
     problems.push_back("surface rigid registration did not converge: " + r.icp.summary.termination);
     exit_code = 1;
   }
+  if (r.loads && r.loads->message.find("numerical failure") != std::string::npos) {
+    problems.push_back("non-rigid (loads): the fit failed numerically; the rigid result is kept");
+    exit_code = 1;
+  }
   if (r.nonrigid)
     for (const auto& l : r.nonrigid->levels)
       if (l.termination == "model unhealthy") {
@@ -329,6 +338,29 @@ static int main_body(int argc, char** argv) {
                          rq.nonrigid.self_contact ? json{{"term", "on"}, {"margin_mm", rq.nonrigid.contact_margin_mm}, {"crossed_vertices", nr.crossed_vertices}}
                                                   : json{{"term", "off"}, {"crossed_vertices", nr.crossed_vertices}}},
                         {"gravity_change_mm_s2", {nr.gravity_change_mm_s2.x(), nr.gravity_change_mm_s2.y(), nr.gravity_change_mm_s2.z()}}});
+      stages.back()["method"] = rq.nonrigid_method;
+      if (r.loads) {
+        const LoadFitResult& f = *r.loads;
+        json its = json::array();
+        for (const auto& it : f.iterations)
+          its.push_back({{"residual_rms_mm", it.rms_mm},
+                         {"predicted_rms_mm", it.predicted_rms_mm},
+                         {"lambda", it.lambda},
+                         {"pose_step_mm", it.step_pose_mm},
+                         {"shape_step_mm", it.step_shape_mm},
+                         {"points_used", it.points_used},
+                         {"strain_energy_mN_mm", it.strain_energy}});
+        stages.back()["loads"] = {{"basis_modes", r.basis_modes},
+                                  {"basis_time_s", r.basis_time_s},
+                                  {"fit_time_s", f.wall_time_s},
+                                  {"discrepancy_mm", nr.discrepancy_mm},
+                                  {"pose_correction_mm", f.D.translation().norm()},
+                                  {"pose_correction_deg", rotation_angle_deg(f.D)},
+                                  {"max_displacement_mm", f.max_displacement_mm},
+                                  {"strain_energy_mN_mm", f.strain_energy},
+                                  {"gravity_energy_share", f.gravity_fraction},
+                                  {"iterations", its}};
+      }
     }
     j["stages"] = stages;
     j["deformed"] = r.deformed;

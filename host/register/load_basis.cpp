@@ -1,0 +1,465 @@
+#include "host/register/load_basis.hpp"
+
+#include <Eigen/CholmodSupport>
+#include <Eigen/Dense>
+#include <Eigen/Sparse>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "host/register/self_contact.hpp"
+#include "host/register/surface_index.hpp"
+
+namespace arnav::host {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+// Farthest-point sampling of k seeds among pts (deterministic: starts at the first point),
+// then every point to its nearest seed. Returns the cluster index per point.
+std::vector<int> cluster_points(const Eigen::Matrix3Xd& pts, int k) {
+  const int n = static_cast<int>(pts.cols());
+  k = std::clamp(k, 1, n);
+  std::vector<int> seeds = {0};
+  Eigen::VectorXd d = (pts.colwise() - pts.col(0)).colwise().norm().transpose();
+  while (static_cast<int>(seeds.size()) < k) {
+    Eigen::Index far = 0;
+    d.maxCoeff(&far);
+    seeds.push_back(static_cast<int>(far));
+    d = d.cwiseMin((pts.colwise() - pts.col(far)).colwise().norm().transpose());
+  }
+  std::vector<int> label(static_cast<std::size_t>(n), 0);
+  for (int i = 0; i < n; ++i) {
+    double best = std::numeric_limits<double>::infinity();
+    for (int s = 0; s < k; ++s) {
+      const double dd = (pts.col(i) - pts.col(seeds[static_cast<std::size_t>(s)])).squaredNorm();
+      if (dd < best) {
+        best = dd;
+        label[static_cast<std::size_t>(i)] = s;
+      }
+    }
+  }
+  return label;
+}
+
+double kth_value(std::vector<double> v, double fraction) {
+  if (v.empty()) return 0.0;
+  const auto k = std::clamp(static_cast<std::ptrdiff_t>(std::ceil(fraction * static_cast<double>(v.size()))) - 1, std::ptrdiff_t{0},
+                            static_cast<std::ptrdiff_t>(v.size()) - 1);
+  std::nth_element(v.begin(), v.begin() + k, v.end());
+  return v[static_cast<std::size_t>(k)];
+}
+
+struct Pairs {
+  std::vector<SurfaceHit> hit;
+  std::vector<int> kept;  // indices of kept points
+  double rms = 0.0;       // over kept, point-to-surface distance
+};
+
+Pairs correspond(const SurfaceIndex& index, const Eigen::Matrix3Xd& q, double keep_fraction, double max_distance_mm) {
+  Pairs p;
+  const int n = static_cast<int>(q.cols());
+  p.hit.resize(static_cast<std::size_t>(n));
+  std::vector<double> dist(static_cast<std::size_t>(n));
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < n; ++i) {
+    p.hit[static_cast<std::size_t>(i)] = index.closest(q.col(i), max_distance_mm);
+    dist[static_cast<std::size_t>(i)] = p.hit[static_cast<std::size_t>(i)].distance_mm;
+  }
+  if (n == 0) return p;
+  const double d_keep = kth_value(dist, keep_fraction);
+  double ss = 0.0;
+  for (int i = 0; i < n; ++i) {
+    const double d = dist[static_cast<std::size_t>(i)];
+    if (p.hit[static_cast<std::size_t>(i)].tri >= 0 && d <= d_keep && d <= max_distance_mm) {
+      p.kept.push_back(i);
+      ss += d * d;
+    }
+  }
+  p.rms = p.kept.empty() ? 0.0 : std::sqrt(ss / static_cast<double>(p.kept.size()));
+  return p;
+}
+
+}  // namespace
+
+LoadBasis build_load_basis(const Scene& scene, const LoadBasisOptions& o) {
+  const auto t0 = Clock::now();
+  const TetMesh& mesh = scene.problem.mesh;
+  const int nv = mesh.num_vertices();
+  if (mesh.num_tets() == 0 || nv < 4) throw std::invalid_argument("load basis: the scene's volume has no tets");
+  const auto& mats = scene.problem.region_materials;
+  LoadBasis b;
+  b.dofs = 3 * nv;
+  // Linear elastic stiffness at rest and lumped masses.
+  std::vector<Eigen::Triplet<double>> trip;
+  trip.reserve(static_cast<std::size_t>(mesh.num_tets()) * 144);
+  Eigen::VectorXd mass = Eigen::VectorXd::Zero(nv);
+  const Eigen::Matrix3Xd& X = mesh.rest_positions_World_mm;
+  for (int t = 0; t < mesh.num_tets(); ++t) {
+    const auto& tet = mesh.tets[static_cast<std::size_t>(t)];
+    const int region = mesh.tet_region.empty() ? 0 : mesh.tet_region[static_cast<std::size_t>(t)];
+    if (region < 0 || region >= static_cast<int>(mats.size()))
+      throw std::invalid_argument("load basis: tet " + std::to_string(t) + " is in region " + std::to_string(region) + " without a material");
+    const Material& m = mats[static_cast<std::size_t>(region)];
+    Eigen::Matrix3d Dm;
+    for (int a = 0; a < 3; ++a) Dm.col(a) = X.col(tet[static_cast<std::size_t>(a + 1)]) - X.col(tet[0]);
+    const double det = Dm.determinant();
+    const double vol = std::abs(det) / 6.0;
+    if (!(vol > 1e-12)) throw std::invalid_argument("load basis: tet " + std::to_string(t) + " is degenerate (volume " + std::to_string(vol) + " mm^3)");
+    const Eigen::Matrix3d Gi = Dm.inverse();  // rows: gradients of the shape functions 1..3
+    Eigen::Matrix<double, 3, 4> g;
+    for (int a = 0; a < 3; ++a) g.col(a + 1) = Gi.row(a).transpose();
+    g.col(0) = -(g.col(1) + g.col(2) + g.col(3));
+    const double E = m.youngs_modulus_kPa, nu = m.poisson_ratio;
+    const double lam = E * nu / ((1 + nu) * (1 - 2 * nu)), mu = E / (2 * (1 + nu));
+    for (int a = 0; a < 4; ++a)
+      for (int c = 0; c < 4; ++c) {
+        const Eigen::Matrix3d k =
+            vol * (lam * g.col(a) * g.col(c).transpose() + mu * g.col(c) * g.col(a).transpose() + mu * g.col(a).dot(g.col(c)) * Eigen::Matrix3d::Identity());
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j) trip.emplace_back(3 * tet[static_cast<std::size_t>(a)] + i, 3 * tet[static_cast<std::size_t>(c)] + j, k(i, j));
+      }
+    for (int v : tet) mass[v] += m.density_kg_per_mm3 * vol / 4.0;
+  }
+  Eigen::SparseMatrix<double> K(b.dofs, b.dofs);
+  K.setFromTriplets(trip.begin(), trip.end());
+
+  // Free and supported dofs.
+  std::vector<char> fixed(static_cast<std::size_t>(nv), 0);
+  for (int v : scene.problem.fixed_vertices)
+    if (v >= 0 && v < nv) fixed[static_cast<std::size_t>(v)] = 1;
+  b.supported = std::any_of(fixed.begin(), fixed.end(), [](char c) { return c != 0; });
+  std::vector<int> free_index(static_cast<std::size_t>(b.dofs), -1);
+  std::vector<int> free_dofs;
+  for (int v = 0; v < nv; ++v)
+    if (!fixed[static_cast<std::size_t>(v)])
+      for (int i = 0; i < 3; ++i) {
+        free_index[static_cast<std::size_t>(3 * v + i)] = static_cast<int>(free_dofs.size());
+        free_dofs.push_back(3 * v + i);
+      }
+  const int nf = static_cast<int>(free_dofs.size());
+  std::vector<Eigen::Triplet<double>> tff;
+  Eigen::SparseMatrix<double> Kfs_full(nf, b.dofs);  // free rows, all columns (for prescribed support motion)
+  {
+    std::vector<Eigen::Triplet<double>> tfs;
+    for (int k = 0; k < K.outerSize(); ++k)
+      for (Eigen::SparseMatrix<double>::InnerIterator it(K, k); it; ++it) {
+        const int r = free_index[static_cast<std::size_t>(it.row())];
+        if (r < 0) continue;
+        const int c = free_index[static_cast<std::size_t>(it.col())];
+        if (c >= 0) tff.emplace_back(r, c, it.value());
+        else tfs.emplace_back(r, static_cast<int>(it.col()), it.value());
+      }
+    Kfs_full.setFromTriplets(tfs.begin(), tfs.end());
+  }
+  Eigen::SparseMatrix<double> Kff(nf, nf);
+  Kff.setFromTriplets(tff.begin(), tff.end());
+  if (!b.supported) {
+    // No support declared: hold the mesh weakly (springs to rest of 1e-6 of the mean
+    // diagonal) so the factor exists; the rigid part of every mode is removed below.
+    const double eps = 1e-6 * Kff.diagonal().mean();
+    for (int i = 0; i < nf; ++i) Kff.coeffRef(i, i) += eps;
+  }
+  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
+  llt.compute(Kff);
+  if (llt.info() != Eigen::Success) throw std::invalid_argument("load basis: the linear elastic stiffness could not be factorised (is the mesh connected and are the materials positive?)");
+
+  // Surface vertices outside the support, lumped areas.
+  Eigen::VectorXd area = Eigen::VectorXd::Zero(nv);
+  for (const auto& f : mesh.surface_tris) {
+    const double a = 0.5 * (X.col(f[1]) - X.col(f[0])).cross(X.col(f[2]) - X.col(f[0])).norm();
+    for (int v : f) area[v] += a / 3.0;
+  }
+  std::vector<int> surf;
+  for (int v = 0; v < nv; ++v)
+    if (area[v] > 0 && !fixed[static_cast<std::size_t>(v)]) surf.push_back(v);
+  if (surf.size() < 4) throw std::invalid_argument("load basis: fewer than 4 surface vertices outside the supported (fixed) region");
+  Eigen::Matrix3Xd sp(3, static_cast<Eigen::Index>(surf.size()));
+  for (std::size_t i = 0; i < surf.size(); ++i) sp.col(static_cast<Eigen::Index>(i)) = X.col(surf[i]);
+  const std::vector<int> patch = cluster_points(sp, o.patches);
+  b.patches = std::min<int>(std::max(o.patches, 1), static_cast<int>(surf.size()));
+  b.patch_of_vertex.assign(static_cast<std::size_t>(nv), -1);
+  std::vector<double> patch_area(static_cast<std::size_t>(b.patches), 0.0);
+  for (std::size_t i = 0; i < surf.size(); ++i) {
+    b.patch_of_vertex[static_cast<std::size_t>(surf[i])] = patch[i];
+    patch_area[static_cast<std::size_t>(patch[i])] += area[surf[i]];
+  }
+  // Right-hand sides (free dofs) and prescribed support motions (all dofs).
+  std::vector<int> support_vertices;
+  for (int v = 0; v < nv; ++v)
+    if (fixed[static_cast<std::size_t>(v)]) support_vertices.push_back(v);
+  const int nsc = b.supported && o.support_clusters > 0 ? std::min<int>(o.support_clusters, static_cast<int>(support_vertices.size())) : 0;
+  // Without a support a uniform body force only translates the body: no gravity modes.
+  b.gravity = o.gravity_modes && b.supported ? 3 : 0;
+  // Cluster 0 stays: moving all clusters alike is a rigid translation (the pose's, with no
+  // strain energy to regularise it).
+  b.support = nsc >= 2 ? 3 * (nsc - 1) : 0;
+  const int m = 3 * b.patches + b.gravity + b.support;
+  Eigen::MatrixXd F = Eigen::MatrixXd::Zero(nf, m);
+  Eigen::MatrixXd Us = Eigen::MatrixXd::Zero(b.dofs, m);  // prescribed support displacements
+  const char* axis = "xyz";
+  for (int p = 0; p < b.patches; ++p)
+    for (int i = 0; i < 3; ++i) b.mode_kind.push_back("patch " + std::to_string(p) + " " + axis[i]);
+  for (std::size_t s = 0; s < surf.size(); ++s) {
+    const int v = surf[s];
+    const int p = patch[s];
+    for (int i = 0; i < 3; ++i) F(free_index[static_cast<std::size_t>(3 * v + i)], 3 * p + i) = area[v] / patch_area[static_cast<std::size_t>(p)];
+  }
+  int col = 3 * b.patches;
+  if (b.gravity > 0) {
+    for (int i = 0; i < 3; ++i, ++col) {
+      b.mode_kind.push_back(std::string("gravity ") + axis[i]);
+      for (int v = 0; v < nv; ++v)
+        if (!fixed[static_cast<std::size_t>(v)]) F(free_index[static_cast<std::size_t>(3 * v + i)], col) = mass[v];
+    }
+  }
+  if (b.support > 0) {
+    Eigen::Matrix3Xd fp(3, static_cast<Eigen::Index>(support_vertices.size()));
+    for (std::size_t i = 0; i < support_vertices.size(); ++i) fp.col(static_cast<Eigen::Index>(i)) = X.col(support_vertices[i]);
+    const std::vector<int> cl = cluster_points(fp, nsc);
+    for (int c = 1; c < nsc; ++c)
+      for (int i = 0; i < 3; ++i, ++col) {
+        b.mode_kind.push_back("support " + std::to_string(c) + " " + axis[i]);
+        for (std::size_t k = 0; k < support_vertices.size(); ++k)
+          if (cl[k] == c) Us(3 * support_vertices[k] + i, col) = 1.0;
+      }
+  }
+  const Eigen::MatrixXd rhs = F - Kfs_full * Us;
+  const Eigen::MatrixXd uf = llt.solve(rhs);
+  b.U = Us;
+  for (int r = 0; r < nf; ++r) b.U.row(free_dofs[static_cast<std::size_t>(r)]) = uf.row(r);
+  if (!b.supported) {
+    // Remove each mode's best infinitesimal rigid motion (least squares over all vertices).
+    Eigen::MatrixXd R(b.dofs, 6);
+    const Eigen::Vector3d c = X.rowwise().mean();
+    for (int v = 0; v < nv; ++v) {
+      const Eigen::Vector3d p = X.col(v) - c;
+      Eigen::Matrix3d skew;
+      skew << 0, p.z(), -p.y(), -p.z(), 0, p.x(), p.y(), -p.x(), 0;  // omega x p = skew * omega
+      R.block(3 * v, 0, 3, 3) = skew;
+      R.block(3 * v, 3, 3, 3).setIdentity();
+    }
+    const Eigen::MatrixXd coef = R.colPivHouseholderQr().solve(b.U);
+    b.U -= R * coef;
+  }
+  // Scale every mode to a largest vertex displacement of 1 mm.
+  for (int j = 0; j < m; ++j) {
+    double mx = 0.0;
+    for (int v = 0; v < nv; ++v) mx = std::max(mx, b.U.block(3 * v, j, 3, 1).norm());
+    if (!(mx > 0) || !std::isfinite(mx)) throw std::invalid_argument("load basis: mode '" + b.mode_kind[static_cast<std::size_t>(j)] + "' has no response");
+    b.U.col(j) /= mx;
+  }
+  b.G = b.U.transpose() * (K * b.U);
+  b.G = 0.5 * (b.G + b.G.transpose());
+  b.build_time_s = seconds_since(t0);
+  return b;
+}
+
+LoadFitResult fit_load_basis(const Scene& scene, const LoadBasis& basis, const Eigen::Matrix3Xd& data, const LoadFitOptions& o) {
+  const auto t0 = Clock::now();
+  const TetMesh& mesh = scene.problem.mesh;
+  const Eigen::Matrix3Xd& rest = mesh.rest_positions_World_mm;
+  const int nv = mesh.num_vertices();
+  if (basis.U.rows() != 3 * nv) throw std::invalid_argument("load basis: built for another mesh (" + std::to_string(basis.U.rows() / 3) + " vertices, scene has " + std::to_string(nv) + ")");
+  const int m = basis.modes();
+  const int np = o.estimate_pose ? 6 : 0;
+  LoadFitResult res;
+  res.x_Model_mm = rest;
+  res.alpha = Eigen::VectorXd::Zero(m);
+  constexpr int kMinPoints = 20;
+  {
+    const SurfaceIndex idx(rest, mesh.surface_tris);
+    const Pairs p0 = correspond(idx, data, o.keep_fraction, o.max_distance_mm);
+    res.rigid_rms_mm = p0.rms;
+    res.final_rms_mm = p0.rms;
+    if (static_cast<int>(p0.kept.size()) < kMinPoints) {
+      res.message = "data does not support a non-rigid fit: " + std::to_string(p0.kept.size()) + " usable points (of " + std::to_string(data.cols()) +
+                    ") within " + std::to_string(o.max_distance_mm) + " mm of the rigidly registered model; the rigid result is kept";
+      res.wall_time_s = seconds_since(t0);
+      return res;
+    }
+    if (p0.rms <= o.discrepancy_factor * o.noise_mm) {
+      res.message = "the rigid fit already reaches the expected noise (" + std::to_string(p0.rms) + " mm RMS <= " + std::to_string(o.noise_mm) +
+                    " mm): no deformation needed; the rigid result is kept";
+      res.wall_time_s = seconds_since(t0);
+      return res;
+    }
+  }
+  const double gtrace = basis.G.trace();
+  Eigen::VectorXd alpha = Eigen::VectorXd::Zero(m);
+  Eigen::Isometry3d D = Eigen::Isometry3d::Identity();
+  Eigen::Matrix3Xd x = rest;
+  std::string stop = "schedule completed";
+  double hscale = -1.0;  // lambda's unit: trace of the data term's weight block over trace(G), fixed at the start
+  int total = 0;
+  // One Gauss-Newton iteration at regularisation weight lambda: correspondences at the
+  // current state, then the regularised step. Returns false when too few points remain.
+  Eigen::VectorXd prev_step;
+  double beta = 1.0;
+  auto iterate = [&](double lambda, LoadFitIteration& rec) -> bool {
+    const Eigen::Matrix3Xd q = D * data;
+    const SurfaceIndex idx(x, mesh.surface_tris);
+    const Pairs pr = correspond(idx, q, o.keep_fraction, o.max_distance_mm);
+    const int n = static_cast<int>(pr.kept.size());
+    if (n < kMinPoints) return false;
+    // Residuals, robust weights and the Jacobian [pose | weights].
+    Eigen::VectorXd r(n), w(n);
+    std::vector<double> absr(static_cast<std::size_t>(n));
+    for (int k = 0; k < n; ++k) {
+      const int i = pr.kept[static_cast<std::size_t>(k)];
+      const SurfaceHit& h = pr.hit[static_cast<std::size_t>(i)];
+      r[k] = h.normal.dot(q.col(i) - h.point);
+      absr[static_cast<std::size_t>(k)] = std::abs(r[k]);
+    }
+    const double sigma = std::max(o.min_sigma_mm, 1.4826 * kth_value(absr, 0.5));
+    const double hub = o.huber_sigmas * sigma;
+    for (int k = 0; k < n; ++k) w[k] = std::abs(r[k]) <= hub ? 1.0 : hub / std::abs(r[k]);
+    const Eigen::Vector3d centre = q.rowwise().mean();
+    Eigen::MatrixXd J(n, np + m);
+    for (int k = 0; k < n; ++k) {
+      const int i = pr.kept[static_cast<std::size_t>(k)];
+      const SurfaceHit& h = pr.hit[static_cast<std::size_t>(i)];
+      if (np) {
+        J.block<1, 3>(k, 0) = (q.col(i) - centre).cross(h.normal).transpose();
+        J.block<1, 3>(k, 3) = h.normal.transpose();
+      }
+      const auto& f = mesh.surface_tris[static_cast<std::size_t>(h.tri)];
+      Eigen::RowVectorXd row = Eigen::RowVectorXd::Zero(m);
+      for (int a = 0; a < 3; ++a) row.noalias() += h.barycentric[a] * (h.normal.transpose() * basis.U.middleRows(3 * f[static_cast<std::size_t>(a)], 3));
+      J.block(k, np, 1, m) = -row;
+    }
+    const Eigen::MatrixXd Jw = w.cwiseSqrt().asDiagonal() * J;
+    const Eigen::VectorXd rw = w.cwiseSqrt().cwiseProduct(r);
+    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(np + m, np + m);
+    H.selfadjointView<Eigen::Lower>().rankUpdate(Jw.transpose());
+    H.triangularView<Eigen::StrictlyUpper>() = H.transpose();
+    const Eigen::VectorXd g = Jw.transpose() * rw;
+    const double rr = rw.squaredNorm(), wsum = w.sum();
+    if (hscale < 0) hscale = H.bottomRightCorner(m, m).trace() / std::max(gtrace, 1e-300);
+    Eigen::MatrixXd A = H;
+    A.bottomRightCorner(m, m) += lambda * hscale * basis.G;
+    A.diagonal().array() += 1e-10 * A.diagonal().maxCoeff();
+    Eigen::VectorXd rhs = -g;
+    rhs.tail(m) -= lambda * hscale * (basis.G * alpha);
+    Eigen::VectorXd delta = A.ldlt().solve(rhs);
+    if (!delta.allFinite()) {
+      stop = "numerical failure";
+      return false;
+    }
+    rec.rms_mm = pr.rms;
+    rec.predicted_rms_mm = std::sqrt(std::max(0.0, rr + 2.0 * g.dot(delta) + delta.dot(H * delta)) / wsum);
+    rec.lambda = lambda;
+    rec.points_used = n;
+    // Damping: a weight step that reverses the previous one (in the energy metric) is an
+    // oscillation between two sets of correspondences: halve the step factor.
+    if (prev_step.size() == m && delta.tail(m).dot(basis.G * prev_step) < 0) beta = std::max(0.125, 0.5 * beta);
+    else beta = std::min(1.0, 2.0 * beta);
+    delta *= beta;
+    prev_step = delta.tail(m);
+    if (np) {
+      const Eigen::Vector3d om = delta.head<3>();
+      Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+      if (om.norm() > 0) step.linear() = Eigen::AngleAxisd(om.norm(), om.normalized()).toRotationMatrix();
+      step.translation() = centre - step.linear() * centre + delta.segment<3>(3);
+      D = step * D;
+      rec.step_pose_mm = ((step * q) - q).colwise().norm().maxCoeff();
+    }
+    const Eigen::VectorXd da = delta.tail(m);
+    alpha += da;
+    const Eigen::VectorXd du = basis.U * da;
+    rec.step_shape_mm = Eigen::Map<const Eigen::Matrix3Xd>(du.data(), 3, nv).colwise().norm().maxCoeff();
+    const Eigen::VectorXd u = basis.U * alpha;
+    x = rest + Eigen::Map<const Eigen::Matrix3Xd>(u.data(), 3, nv);
+    rec.strain_energy = 0.5 * alpha.dot(basis.G * alpha);
+    return true;
+  };
+  // Stiff to flexible: lambda falls level by level; each level iterates to convergence
+  // (correspondences recomputed every iteration). Discrepancy principle: the first level
+  // whose residual reaches the expected noise ends the schedule; a level that lowers the
+  // residual by less than min_improvement is a plateau (the basis explains no more of the
+  // data: model error, not noise) and the previous, stiffer level is kept.
+  double level_rms = res.rigid_rms_mm;
+  Eigen::VectorXd kept_alpha = alpha;
+  Eigen::Isometry3d kept_D = D;
+  Eigen::Matrix3Xd kept_x = x;
+  bool done = false, moved = false;
+  for (double lambda : o.lambda_schedule) {
+    if (done) break;
+    if (o.time_budget_s > 0 && seconds_since(t0) > o.time_budget_s) {
+      stop = "time budget reached";
+      break;
+    }
+    beta = 1.0;
+    prev_step.resize(0);
+    for (int it = 0; it < o.iterations_per_level && total < o.max_iterations; ++it, ++total) {
+      LoadFitIteration rec;
+      if (!iterate(lambda, rec)) {
+        if (stop != "numerical failure") stop = "too few points";
+        done = true;
+        break;
+      }
+      res.iterations.push_back(rec);
+      if (rec.step_pose_mm < o.converged_step_mm && rec.step_shape_mm < o.converged_step_mm) break;
+    }
+    if (done) break;
+    const SurfaceIndex idx(x, mesh.surface_tris);
+    const double rms = correspond(idx, D * data, o.keep_fraction, o.max_distance_mm).rms;
+    res.level_rms_mm.push_back(rms);
+    res.level_lambda.push_back(lambda);
+    const bool gain = rms <= level_rms * (1.0 - o.plateau_improvement);
+    if (!gain && moved) {
+      stop = "residual stopped improving (plateau above the noise: model error)";
+      break;  // keep the previous level
+    }
+    if (!gain) continue;  // still too stiff to move: next level
+    moved = true;
+    level_rms = rms;
+    kept_alpha = alpha;
+    kept_D = D;
+    kept_x = x;
+    res.lambda = lambda;
+    if (rms <= o.discrepancy_factor * o.noise_mm) {
+      stop = "reached the expected noise level";
+      break;
+    }
+    if (total >= o.max_iterations) {
+      stop = "max_iterations";
+      break;
+    }
+  }
+  alpha = kept_alpha;
+  D = kept_D;
+  x = kept_x;
+  const Eigen::Matrix3Xd q = D * data;
+  const SurfaceIndex idx(x, mesh.surface_tris);
+  const Pairs pf = correspond(idx, q, o.keep_fraction, o.max_distance_mm);
+  res.final_rms_mm = pf.rms;
+  res.wall_time_s = seconds_since(t0);
+  if (static_cast<int>(pf.kept.size()) >= kMinPoints && pf.rms < res.rigid_rms_mm * (1.0 - o.min_improvement) && x.allFinite()) {
+    res.accepted = true;
+    res.x_Model_mm = x;
+    res.D = D;
+    res.alpha = alpha;
+    res.max_displacement_mm = (x - rest).colwise().norm().maxCoeff();
+    res.strain_energy = 0.5 * alpha.dot(basis.G * alpha);
+    if (basis.gravity > 0 && res.strain_energy > 0) {
+      const int g0 = 3 * basis.patches;
+      const Eigen::VectorXd ag = alpha.segment(g0, basis.gravity);
+      res.gravity_fraction = 0.5 * ag.dot(basis.G.block(g0, g0, basis.gravity, basis.gravity) * ag) / res.strain_energy;
+    }
+    const SelfContactDetector check(rest, mesh.surface_tris);
+    res.crossed_vertices = check.count_crossed(x, 0.5 * check.exclusion_mm());
+    res.message = stop;
+  } else {
+    res.message = "data does not support a non-rigid fit (surface residual " + std::to_string(res.rigid_rms_mm) + " mm rigid, " +
+                  std::to_string(pf.rms) + " mm with the load basis; " + stop + "); the rigid result is kept";
+    res.final_rms_mm = res.rigid_rms_mm;
+  }
+  return res;
+}
+
+}  // namespace arnav::host

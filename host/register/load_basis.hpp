@@ -1,0 +1,112 @@
+#pragma once
+// Non-rigid registration by estimating the unseen loads jointly with the pose (after the
+// Sparse Data Challenge's best entries, BCF-FEM / LIBR of Heiselman & Miga): a basis of
+// displacement responses of the tissue, linear elastic about the rest shape (the scene's
+// tet mesh, materials and supported = fixed vertices), to GENERIC loads:
+//   - a unit force along x, y and z spread over each of `patches` surface patches that
+//     tile the WHOLE organ surface (farthest-point clustering of the volume's surface
+//     vertices; not the part the data cover, not where any tool acted);
+//   - a change of the body force (gravity) along x, y and z;
+//   - translations along x, y and z of `support_clusters` - 1 parts of the supported region
+//     relative to the first (the ligaments move a little with the diaphragm);
+// each response is one solve with the factorised stiffness (CHOLMOD). The registration
+// then solves, by Gauss-Newton over recomputed, trimmed, Huber-weighted point-to-plane
+// correspondences, for a rigid correction of the pose (6 numbers) and the basis weights
+// alpha, Tikhonov-regularised by the strain energy 1/2 alpha^T G alpha of the deformation
+// (G = U^T K U), the regularisation weight falling level by level (stiff to flexible) until
+// the residual reaches the expected noise (Morozov's discrepancy principle) or stops
+// improving (model error), so nothing is tuned per case. Frames: Model (the scene frame
+// World); the data are given in Model after the rigid stage, and the result adds a rigid
+// correction D of them.
+// Units: mm, mN, kPa (= mN/mm^2).
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <string>
+#include <vector>
+
+#include "host/scene/scene.hpp"
+
+namespace arnav::host {
+
+struct LoadBasisOptions {
+  int patches = 48;               // surface patches (3 force modes each), over the whole surface
+  bool gravity_modes = true;      // 3 body-force (gravity change) modes (only with a support: on a free body they are rigid)
+  int support_clusters = 4;       // parts of the fixed region; each but the first translated (3 modes each); < 2: none
+};
+
+struct LoadBasis {
+  // Mode j's displacement of vertex v is U.block(3 v, j, 3, 1) (mm). Each mode is scaled
+  // to a largest vertex displacement of 1 mm.
+  Eigen::MatrixXd U;
+  Eigen::MatrixXd G;                    // strain energy metric U^T K U (mN mm per mm^2 of weights)
+  std::vector<std::string> mode_kind;   // "patch 3 x", "gravity y", "support 1 z", ...
+  std::vector<int> patch_of_vertex;     // patch index per volume vertex (-1: not a surface vertex or fixed)
+  int patches = 0, gravity = 0, support = 0;
+  bool supported = false;               // false: the scene has no fixed vertices; the basis is taken about a
+                                        // weakly held mesh and the rigid part of every mode is removed
+  int dofs = 0;
+  double build_time_s = 0.0;
+  int modes() const { return static_cast<int>(U.cols()); }
+};
+
+// Throws std::invalid_argument when the basis cannot be built (no tets, a degenerate tet,
+// materials missing for a region, fewer than 4 surface vertices outside the support).
+LoadBasis build_load_basis(const Scene& scene, const LoadBasisOptions& options);
+
+struct LoadFitOptions {
+  double keep_fraction = 0.9;     // trimming (as the energy method)
+  double max_distance_mm = 15.0;
+  double huber_sigmas = 1.345;
+  double min_sigma_mm = 0.3;
+  double noise_mm = 1.0;          // expected RMS point-to-plane noise: the discrepancy target
+  // Regularisation weights, stiff to flexible (units: trace of the data term's normal
+  // matrix over trace(G), so they do not depend on the point count or the basis scale).
+  std::vector<double> lambda_schedule = {1.0, 0.1, 0.01, 1e-3, 1e-4, 1e-5, 1e-6};
+  int iterations_per_level = 4;   // Gauss-Newton iterations (correspondences recomputed) per level at most
+  int max_iterations = 28;        // over all levels
+  // Morozov's discrepancy principle: the schedule stops at the first level whose residual
+  // is at most discrepancy_factor * noise_mm (a factor > 1: the linear model and the
+  // volume's discretisation have errors of their own).
+  double discrepancy_factor = 1.1;
+  double plateau_improvement = 0.05;  // a level (10x less regularisation) lowering the residual by less is a plateau
+  double converged_step_mm = 0.05;  // a level ends when no point / vertex moves more than this in a step
+  double min_improvement = 0.02;  // a level must lower the residual by this fraction; the fit is accepted only
+                                  // if it lowers the rigid residual by it (never worse than rigid)
+  bool estimate_pose = true;      // false: only the loads (the pose of the rigid stage kept)
+  double time_budget_s = 0.0;     // 0: none
+};
+
+struct LoadFitIteration {
+  double rms_mm = 0.0;            // trimmed point-to-surface RMS before the step
+  double predicted_rms_mm = 0.0;  // weighted point-to-plane RMS the step predicts
+  double lambda = 0.0;            // chosen regularisation weight (relative to trace ratio)
+  double step_pose_mm = 0.0;      // largest data point motion by the pose step
+  double step_shape_mm = 0.0;     // largest vertex motion by the weights' step
+  int points_used = 0;
+  double strain_energy = 0.0;     // mN mm, 1/2 alpha^T G alpha after the step
+};
+
+struct LoadFitResult {
+  Eigen::Matrix3Xd x_Model_mm;    // volume positions in Model (rest when not accepted)
+  Eigen::Isometry3d D = Eigen::Isometry3d::Identity();  // correction: the data's Model positions are D * data
+  Eigen::VectorXd alpha;          // basis weights
+  bool accepted = false;
+  std::string message;
+  double rigid_rms_mm = 0.0;      // trimmed point-to-surface RMS at rest, input pose
+  double final_rms_mm = 0.0;
+  double max_displacement_mm = 0.0;
+  double strain_energy = 0.0;
+  double gravity_fraction = 0.0;  // share of the strain energy in the gravity modes (diagnostic)
+  int crossed_vertices = 0;       // surface vertices left inside another part of the organ
+  std::vector<LoadFitIteration> iterations;
+  std::vector<double> level_lambda, level_rms_mm;  // per level run: its lambda and converged residual
+  double lambda = 0.0;            // the level kept
+  double wall_time_s = 0.0;       // fit only (the basis is timed by build_time_s)
+};
+
+// data_Model_mm: the intraoperative points mapped into Model by the rigid result.
+LoadFitResult fit_load_basis(const Scene& scene, const LoadBasis& basis, const Eigen::Matrix3Xd& data_Model_mm,
+                             const LoadFitOptions& options);
+
+}  // namespace arnav::host
