@@ -19,11 +19,19 @@ constexpr int kFaces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
 // (no degenerate tets).
 constexpr double kMinSplitFraction = 1e-6;
 
-double sweep_distance(const std::vector<Triangle>& tris, const Eigen::Vector3d& p) {
+double sweep_distance(const std::vector<Triangle>& tris, const Eigen::Vector3d& p, int* nearest = nullptr) {
   double d = 1e300;
-  for (const auto& t : tris) d = std::min(d, point_triangle_distance(p, t));
+  for (std::size_t i = 0; i < tris.size(); ++i) {
+    const double di = point_triangle_distance(p, tris[i]);
+    if (di < d) {
+      d = di;
+      if (nearest) *nearest = static_cast<int>(i);
+    }
+  }
   return d;
 }
+
+Eigen::Vector3d unit_normal(const Triangle& t) { return (t.b - t.a).cross(t.c - t.a).normalized(); }
 }  // namespace
 
 TetCutter::EdgeKey TetCutter::edge_key(int a, int b) {
@@ -52,6 +60,7 @@ TetCutter::TetCutter(const TetMesh& mesh, const CutSettings& settings) : mesh_(m
   if (mesh_.tet_region.size() != mesh_.tets.size()) mesh_.tet_region.assign(mesh_.tets.size(), 0);
   on_cut_.assign(static_cast<std::size_t>(nv), 0);
   side_.assign(static_cast<std::size_t>(nv), 0);
+  cut_normal_.assign(static_cast<std::size_t>(nv), Eigen::Vector3d::Zero());
   tip_tet_.assign(mesh_.tets.size(), 0);
   flat_side_.assign(mesh_.tets.size(), 0);
   origin_.resize(mesh_.tets.size());
@@ -120,6 +129,24 @@ std::string TetCutter::describe_pending() const {
   return out;
 }
 
+int TetCutter::stroke_side(int w, const Eigen::Matrix3Xd& x) const {
+  // The nearest point of the whole stroke's swept surface (every frame's triangles, as swept):
+  // the side of its triangle's plane when w lies about across from it (within 45 degrees of
+  // the normal; near the surface's border, the blade's ends, it is not) and within one edge
+  // of a tet around w. A single frame's strip is not enough on a curved cut: a ring's first
+  // strip is across from vertices on the far side of the ring.
+  if (stroke_tris_.empty()) return 0;
+  int nearest = 0;
+  const double best = sweep_distance(stroke_tris_, x.col(w), &nearest);
+  const Triangle& near = stroke_tris_[static_cast<std::size_t>(nearest)];
+  const double d = unit_normal(near).dot(x.col(w) - near.a);
+  double reach2 = 0.0;
+  for (int tt : vertex_tets_[static_cast<std::size_t>(w)])
+    for (int u : mesh_.tets[static_cast<std::size_t>(tt)]) reach2 = std::max(reach2, (x.col(u) - x.col(w)).squaredNorm());
+  if (std::abs(d) > settings_.vertex_tolerance_mm && best * best <= 2.0 * d * d && best * best <= reach2) return d > 0 ? 1 : -1;
+  return 0;
+}
+
 CutStepReport TetCutter::finish_stroke(Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v) {
   finishing_ = true;
   SweptSurface none;
@@ -141,6 +168,8 @@ void TetCutter::update_surface() { mesh_.surface_tris = boundary_faces(mesh_); }
 void TetCutter::begin_stroke() {
   ++stroke_;
   pending_.clear();
+  pending_normal_.clear();
+  stroke_tris_.clear();
   for (int w : sided_) side_[static_cast<std::size_t>(w)] = 0;
   sided_.clear();
   std::fill(tip_tet_.begin(), tip_tet_.end(), 0);
@@ -271,6 +300,7 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
     r.max_completion_deviation_mm = std::max(r.max_completion_deviation_mm, std::abs(normal.dot(p - centre)));
     ++r.cut_points;
     pending_[edge_key(a, b)] = s;
+    pending_normal_.erase(edge_key(a, b));
   }
   return true;
 }
@@ -307,7 +337,10 @@ bool TetCutter::move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::
   // Crossings recorded on its edges referred to the old position.
   for (int tt : star) {
     for (int u : mesh_.tets[static_cast<std::size_t>(tt)])
-      if (u != w) pending_.erase(edge_key(w, u));
+      if (u != w) {
+        pending_.erase(edge_key(w, u));
+        pending_normal_.erase(edge_key(w, u));
+      }
     r.changed_tets.push_back(tt);
   }
   ++r.vertices_moved;
@@ -332,6 +365,7 @@ int TetCutter::add_vertex(const VertexOrigin& o, Eigen::Matrix3Xd& x, Eigen::Mat
   }
   vertex_tets_.emplace_back();
   on_cut_.push_back(o.b < 0 ? on_cut_[static_cast<std::size_t>(o.a)] : stroke_);
+  cut_normal_.push_back(o.b < 0 ? cut_normal_[static_cast<std::size_t>(o.a)] : Eigen::Vector3d::Zero());
   side_.push_back(o.b < 0 ? side_[static_cast<std::size_t>(o.a)] : 0);
   if (side_.back() != 0) sided_.push_back(id);
   r.new_vertices.push_back(o);
@@ -353,6 +387,20 @@ void TetCutter::split_edge(int a, int b, double t_ab, Eigen::Matrix3Xd& x, Eigen
   const std::vector<int> around = tets_with_edge(a, b);
   if (around.empty()) return;
   const int m = add_vertex({a, b, t_ab}, x, v, r);
+  {
+    // The cut's normal at the new point: the crossing's, or the ends' on the cut (an edge
+    // inside the cut split at its mid-point).
+    Eigen::Vector3d n = Eigen::Vector3d::Zero();
+    const auto in = pending_normal_.find(edge_key(a, b));
+    if (in != pending_normal_.end()) {
+      n = in->second;
+      pending_normal_.erase(in);
+    } else if (on_stroke(a) && on_stroke(b)) {
+      n = cut_normal_[static_cast<std::size_t>(a)] + cut_normal_[static_cast<std::size_t>(b)];
+      n = n.squaredNorm() > 1e-12 ? Eigen::Vector3d(n.normalized()) : Eigen::Vector3d::Zero();
+    }
+    cut_normal_[static_cast<std::size_t>(m)] = n;
+  }
   ++r.edges_split;
   for (int t : around) {
     // Child 1 keeps index t with b -> m; child 2 is t with a -> m. Both keep the orientation
@@ -447,8 +495,13 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
   if (x.cols() != mesh_.num_vertices()) throw std::invalid_argument("cut: positions do not match the mesh");
   if (v.cols() != 0 && v.cols() != mesh_.num_vertices()) throw std::invalid_argument("cut: velocities do not match the mesh");
   std::vector<Triangle> tris;
-  for (const auto& t : sweep.triangles())
-    if ((t.b - t.a).cross(t.c - t.a).norm() > 0.0) tris.push_back(t);
+  // Triangles of a blade moving (almost) along its own axis are (nearly) collinear: their
+  // normal is round-off and would give vertices arbitrary sides. Kept only when the area is
+  // not negligible against the longest edge (height > 1e-9 of it).
+  for (const auto& t : sweep.triangles()) {
+    const double longest2 = std::max({(t.b - t.a).squaredNorm(), (t.c - t.b).squaredNorm(), (t.a - t.c).squaredNorm()});
+    if ((t.b - t.a).cross(t.c - t.a).norm() > 1e-9 * longest2) tris.push_back(t);
+  }
   auto finish = [&]() {
     r.update_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     return r;
@@ -508,20 +561,33 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
     last_normal_ = (t0.b - t0.a).cross(t0.c - t0.a).normalized();
   }
 
+  stroke_tris_.insert(stroke_tris_.end(), tris.begin(), tris.end());
   // 1. Vertices on the swept surface.
   std::unordered_set<int> seen_vertices;
   for (int t : candidates)
     for (int w : mesh_.tets[static_cast<std::size_t>(t)])
       if (seen_vertices.insert(w).second && !on_stroke(w)) {
-        const double d = sweep_distance(tris, x.col(w));
+        int nearest = 0;
+        const double d = sweep_distance(tris, x.col(w), &nearest);
         if (d <= vtol) {
           on_cut_[static_cast<std::size_t>(w)] = stroke_;
+          cut_normal_[static_cast<std::size_t>(w)] = unit_normal(tris[static_cast<std::size_t>(nearest)]);
           ++r.vertices_snapped;
           ++r.cut_points;
           r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, d);
         }
       }
   // 2. Edge crossings: snapped to an end within f of it, recorded otherwise.
+  // An edge with one end already on this stroke's cut that the sweep crosses again farther
+  // along (a curved cut, a ring, on tets larger than its curvature) is split there below:
+  // its other end lies beyond the second crossing, and a side taken from the first one
+  // would be wrong.
+  struct SecondCrossing {
+    int on_cut, free;
+    double s;  // from on_cut to free
+    Triangle tri;
+  };
+  std::vector<SecondCrossing> second_crossings;
   std::unordered_set<EdgeKey> seen_edges;
   for (int t : candidates) {
     const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
@@ -529,11 +595,37 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       int a = tet[static_cast<std::size_t>(e[0])], b = tet[static_cast<std::size_t>(e[1])];
       if (a > b) std::swap(a, b);
       const EdgeKey key = edge_key(a, b);
-      if (!seen_edges.insert(key).second || on_stroke(a) || on_stroke(b) || pending_.count(key)) continue;
+      if (!seen_edges.insert(key).second || pending_.count(key) || (on_stroke(a) && on_stroke(b))) continue;
+      if (on_stroke(a) || on_stroke(b)) {
+        const int p = on_stroke(a) ? a : b, o = on_stroke(a) ? b : a;
+        const double len = (x.col(o) - x.col(p)).norm();
+        for (const auto& tri : tris) {
+          double s = 0.0;
+          // Crossings within path_tolerance_mm of the end on the cut are that end's own.
+          if (segment_triangle_intersection(x.col(p), x.col(o), tri, s) && s * len > settings_.path_tolerance_mm + vtol) {
+            second_crossings.push_back({p, o, s, tri});
+            break;
+          }
+        }
+        continue;
+      }
       for (const auto& tri : tris) {
         double s = 0.0;
         if (!segment_triangle_intersection(x.col(a), x.col(b), tri, s)) continue;
         const int w = s <= 0.5 ? a : b, o = s <= 0.5 ? b : a;
+        // The edge crosses the triangle's plane at the crossing: its ends lie on opposite
+        // sides of the cut there. These sides are local (within one edge of the cut) and come
+        // first; the nearest-triangle rule below only fills in vertices no crossing reached.
+        {
+          const Eigen::Vector3d n = unit_normal(tri);
+          for (int u : {a, b}) {
+            const double du = n.dot(x.col(u) - tri.a);
+            if (side_[static_cast<std::size_t>(u)] == 0 && !on_stroke(u) && std::abs(du) > vtol) {
+              side_[static_cast<std::size_t>(u)] = du > 0 ? 1 : -1;
+              sided_.push_back(u);
+            }
+          }
+        }
         const double t_w = s <= 0.5 ? s : 1.0 - s;
         const double off_mm = t_w * (x.col(b) - x.col(a)).norm();  // the vertex's distance along the edge from the crossing
         bool snapped = false;
@@ -553,12 +645,14 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
           }
           if (snapped) {
             on_cut_[static_cast<std::size_t>(w)] = stroke_;
+            cut_normal_[static_cast<std::size_t>(w)] = unit_normal(tri);
             ++r.vertices_snapped;
             ++r.cut_points;
           }
         }
         if (!snapped) {
           pending_[key] = s;
+          pending_normal_[key] = unit_normal(tri);
           ++r.edges_crossed;
           ++r.cut_points;
           // The recorded point, against the swept surface (round-off only).
@@ -569,28 +663,64 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       }
     }
   }
-  // 3. Sides: each vertex near the sweep and not on it gets the side of the plane of the
-  // nearest sweep triangle it lies on (kept for the stroke: a material property).
-
-  // Only vertices whose nearest point on the sweep lies about across from them get a side:
-  // the plane far beyond a triangle's edge (a chord of a curved cut, the blade's end) can put
-  // a vertex on the wrong side of the cut it will meet.
+  // 2b. Second crossings: the free end goes onto the cut when it is near (moved or snapped,
+  // as above), otherwise the edge is split at the crossing (every tet around it bisected:
+  // conforming, volumes exact) and the free end takes its side from the crossing.
+  for (const auto& c : second_crossings) {
+    if (on_stroke(c.free) || tets_with_edge(c.on_cut, c.free).empty()) continue;
+    const double len = (x.col(c.free) - x.col(c.on_cut)).norm();
+    const double t_free = 1.0 - c.s;
+    if (t_free <= f) {
+      bool snapped = false;
+      if (on_cut_[static_cast<std::size_t>(c.free)] == 0 && settings_.move_snapped_vertices && move_vertex(c.free, c.on_cut, t_free, x, v, r)) {
+        snapped = true;
+        r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, point_triangle_distance(x.col(c.free), c.tri));
+      } else if (t_free * len <= settings_.path_tolerance_mm || t_free < kMinSplitFraction) {
+        snapped = true;
+        r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, t_free * len);
+      }
+      if (snapped) {
+        on_cut_[static_cast<std::size_t>(c.free)] = stroke_;
+        cut_normal_[static_cast<std::size_t>(c.free)] = unit_normal(c.tri);
+        ++r.vertices_snapped;
+        ++r.cut_points;
+        continue;
+      }
+    }
+    const Eigen::Vector3d n = unit_normal(c.tri);
+    const double d_free = n.dot(x.col(c.free) - c.tri.a);
+    std::vector<int> touched;
+    split_edge(c.on_cut, c.free, std::clamp(c.s, kMinSplitFraction, 1.0 - kMinSplitFraction), x, v, r, touched);
+    const int m = mesh_.num_vertices() - 1;
+    cut_normal_[static_cast<std::size_t>(m)] = n;
+    ++r.cut_points;
+    r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, point_triangle_distance(x.col(m), c.tri));
+    if (side_[static_cast<std::size_t>(c.free)] == 0 && std::abs(d_free) > vtol) {
+      side_[static_cast<std::size_t>(c.free)] = d_free > 0 ? 1 : -1;
+      sided_.push_back(c.free);
+    }
+    r.changed_tets.insert(r.changed_tets.end(), touched.begin(), touched.end());
+    for (int tt : touched) candidates.push_back(tt);
+    for (int w : mesh_.tets[static_cast<std::size_t>(touched.empty() ? 0 : touched.back())]) seen_vertices.insert(w);
+  }
+  std::sort(candidates.begin(), candidates.end());
+  candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+  // 3. Sides of the vertices near the sweep that no crossing gave one (kept for the stroke:
+  // a material property): from the plane of the nearest sweep triangle of this frame, only
+  // when the vertex lies across from it (within 27 degrees of its normal) and within one
+  // edge of it: a plane far beyond a triangle's edge or through a far chord of a curved cut
+  // (the other side of a ring) says nothing about it. Vertices left without a side get one
+  // when a cut face needs it, from the whole stroke's surface (stroke_side).
   for (int w : seen_vertices) {
     if (on_stroke(w) || side_[static_cast<std::size_t>(w)] != 0) continue;
     int nearest = 0;
-    double best = 1e300;
-    for (std::size_t i = 0; i < tris.size(); ++i) {
-      const double dist = point_triangle_distance(x.col(w), tris[i]);
-      if (dist < best) {
-        best = dist;
-        nearest = static_cast<int>(i);
-      }
-    }
+    const double best = sweep_distance(tris, x.col(w), &nearest);
     const Triangle& near = tris[static_cast<std::size_t>(nearest)];
-    const double d = (near.b - near.a).cross(near.c - near.a).normalized().dot(x.col(w) - near.a);
-    // Within 45 degrees of the triangle's normal through its nearest point: the offset along
-    // the surface is at most the distance to it.
-    if (std::abs(d) > vtol && best * best <= 2.0 * d * d) {
+    const double d = unit_normal(near).dot(x.col(w) - near.a);
+    double reach2 = 0.0;
+    for (int tt : vertex_tets_[static_cast<std::size_t>(w)])
+      for (int u : mesh_.tets[static_cast<std::size_t>(tt)]) reach2 = std::max(reach2, (x.col(u) - x.col(w)).squaredNorm());
+    if (std::abs(d) > vtol && best * best <= 1.25 * d * d && best * best <= reach2) {
       side_[static_cast<std::size_t>(w)] = d > 0 ? 1 : -1;
       sided_.push_back(w);
     }
@@ -700,6 +830,14 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
     for (int w : mesh_.tets[static_cast<std::size_t>(t)]) {
       if (on_stroke(w)) continue;
       any_free = true;
+      if (side_[static_cast<std::size_t>(w)] == 0) {
+        // A vertex next to the cut that no sweep gave a side yet (its neighbours were put
+        // on the cut later): from the cut beside it.
+        if (const int sd = stroke_side(w, x); sd != 0) {
+          side_[static_cast<std::size_t>(w)] = static_cast<signed char>(sd);
+          sided_.push_back(w);
+        }
+      }
       const int sw = side_[static_cast<std::size_t>(w)];
       if (sw == 0 || (side != 0 && sw != side)) return 0;
       side = sw;

@@ -1,13 +1,21 @@
 // The ring cut on the bundled liver (issue 11, paper 000's lesion): the bundled ring path
-// round the tumour and its bottom cut, applied to the coarse liver volume at rest by the
-// cutter alone (no model): the geometry of the cut on a mesh it was not developed on.
+// round the tumour and its bottom cut, applied to the liver volume at rest by the cutter alone
+// (no model), on the coarse liver (4,768 tets, the cut scene) and on the paper-size liver
+// (26,054 tets): the geometry of the cut on meshes it was not developed on.
 // Checked: the cut mesh stays valid (closed, 2-manifold, oriented boundary, positive tets),
-// the volume is conserved, the cut points lie on the swept surface within the tolerance.
-// Known limit (docs/cut.md, "Not done yet"): the tumour's block is not yet freed on the
-// liver (holes remain in the ring's cylinder); ARNAV_RING_DEBUG=1 prints where the cut
-// surface is pierced. The freeing check runs with --gtest_also_run_disabled_tests.
+// the volume is conserved, the cut points lie on the swept surface within the tolerance, and
+// the tumour's block comes out: the tumour lies in one piece, that piece is a block round it
+// (a fraction of the organ, the volume of the cored cylinder to a few per cent) and not the
+// piece holding the rest of the liver.
+// The ring crosses the organ's top, where the ligament attachment of the scene holds the
+// capsule (12 of the coarse mesh's 68 fixed vertices lie inside the ring): the block is cut
+// free of the liver but still held there, so the bench's `tumours_freed` (tumour piece
+// without fixed vertices) stays 0 with this path; `tumours_separated` counts the block.
+// ARNAV_RING_DEBUG=1 prints the interior faces that still join the inside of the ring to
+// the outside (judged by the vertices not on a cut).
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <map>
 #include <set>
@@ -21,34 +29,36 @@ using namespace arnav::host;
 using namespace arnav::host::cut;
 
 namespace {
-void ring_on_the_liver(bool expect_freed) {
+// The ring of data/liver/scalpel_ring.csv: centre (71, 156) in x, y, radius 25 mm; bottom cut
+// at z = 106.
+constexpr double kRingX = 71, kRingY = 156, kRingR = 25, kBottomZ = 106;
+
+void ring_on_the_liver(const std::string& scene_file) {
   const std::string data = std::getenv("ARNAV_DATA_DIR") ? std::getenv("ARNAV_DATA_DIR") : "data";
-  const Scene scene = load_scene(data + "/liver/liver_coarse_cut.scene.yaml");
-  ASSERT_TRUE(scene.cutting.has_value());
+  const Scene scene = load_scene(data + "/liver/" + scene_file);
   ASSERT_FALSE(scene.tumours.empty());
   const ScalpelPath path = load_scalpel_csv(data + "/liver/scalpel_ring.csv");
-  CutSettings settings;
-  settings.snap_fraction = scene.cutting->snap_fraction;
-  settings.path_tolerance_mm = scene.cutting->path_tolerance_mm;
+  CutSettings settings;  // the defaults (docs/cut.md), or the scene's cutting section
+  if (scene.cutting) {
+    settings.snap_fraction = scene.cutting->snap_fraction;
+    settings.path_tolerance_mm = scene.cutting->path_tolerance_mm;
+  }
   TetCutter cutter(scene.problem.mesh, settings);
   Eigen::Matrix3Xd x = scene.problem.mesh.rest_positions_World_mm, v;
   const double volume = check_cut_mesh(scene.problem.mesh).total_volume_mm3;
-  // The path is written for the organ hanging under gravity; at rest the tissue sits up to
-  // 14 mm higher: the blade is lifted by the sag of the tumour centre (docs in the CSV).
-  const Eigen::Vector3d lift(0, 0, 0);
+  // The path is written for the organ hanging under gravity; the cutter runs it on the organ
+  // at rest (up to 14 mm higher): the ring still cores the tumour (z 130-150 at rest) and the
+  // bottom cut passes 14-24 mm under it.
   const int frames = static_cast<int>(path.samples.back().t_s / scene.time_step_s) + 1;
   bool previous_cutting = false;
   BladeSegment previous;
   double deviation = 0.0;
   for (int f = 1; f <= frames; ++f) {
     const ScalpelSample s = path.at(f * scene.time_step_s);
-    BladeSegment blade{s.blade.tip_World_mm + lift, s.blade.heel_World_mm + lift};
+    const BladeSegment blade{s.blade.tip_World_mm, s.blade.heel_World_mm};
     if (s.cutting && !previous_cutting) cutter.begin_stroke();
     if (s.cutting && previous_cutting) deviation = std::max(deviation, cutter.step({previous, blade, 8, {}}, x, v).max_path_deviation_mm);
-    if (!s.cutting && previous_cutting) {
-      cutter.finish_stroke(x, v);
-      if (std::getenv("ARNAV_RING_DEBUG")) std::cout << "stroke end: pending crossings " << cutter.pending_crossings() << "\n" << cutter.describe_pending().substr(0, 3000) << "\n";
-    }
+    if (!s.cutting && previous_cutting) cutter.finish_stroke(x, v);
     previous = blade;
     previous_cutting = s.cutting;
   }
@@ -69,14 +79,22 @@ void ring_on_the_liver(bool expect_freed) {
       tumour_pieces.insert(c.piece_of_tet[static_cast<std::size_t>(t)]);
     }
   }
-  std::cout << "[liver ring] pieces " << c.piece_volume_mm3.size() << ", tumour in " << tumour_pieces.size() << " piece(s), tets " << mesh.num_tets()
-            << ", path deviation " << deviation << " mm\n";
   if (std::getenv("ARNAV_RING_DEBUG")) {
-    // Interior faces joining a tet inside the ring's cylinder above the bottom cut to one outside.
+    std::vector<double> sizes = c.piece_volume_mm3;
+    std::sort(sizes.begin(), sizes.end());
+    std::cout << "piece volumes mm^3:";
+    for (double vol : sizes) std::cout << " " << vol;
+    std::cout << "\n";
+    // A tet is inside (1) or outside (0) the cored cylinder by its vertices not on a cut
+    // (2: none, or both kinds); faces between an inside and an outside tet are holes.
     auto inside = [&](int t) {
-      Eigen::Vector3d m = Eigen::Vector3d::Zero();
-      for (int w : mesh.tets[static_cast<std::size_t>(t)]) m += 0.25 * mesh.rest_positions_World_mm.col(w);
-      return std::hypot(m.x() - 71, m.y() - 156) < 25 && m.z() > 106;
+      int in = 0, out = 0;
+      for (int w : mesh.tets[static_cast<std::size_t>(t)]) {
+        if (cutter.on_cut(w)) continue;
+        const Eigen::Vector3d m = mesh.rest_positions_World_mm.col(w);
+        (std::hypot(m.x() - kRingX, m.y() - kRingY) < kRingR - 0.1 && m.z() > kBottomZ ? in : out) += 1;
+      }
+      return in > 0 && out == 0 ? 1 : (out > 0 && in == 0 ? 0 : 2);
     };
     std::map<std::array<int, 3>, int> faces;
     for (int t = 0; t < mesh.num_tets(); ++t) {
@@ -84,31 +102,47 @@ void ring_on_the_liver(bool expect_freed) {
       for (int k = 0; k < 4; ++k) {
         std::array<int, 3> f{q[static_cast<std::size_t>(k)], q[static_cast<std::size_t>((k + 1) % 4)], q[static_cast<std::size_t>((k + 2) % 4)]};
         std::sort(f.begin(), f.end());
-        auto it = faces.find(f);
-        if (it == faces.end()) { faces[f] = t; continue; }
-        if (inside(it->second) != inside(t)) {
+        const auto it = faces.find(f);
+        if (it == faces.end()) {
+          faces[f] = t;
+          continue;
+        }
+        const int a = inside(it->second), b = inside(t);
+        if (a < 2 && b < 2 && a != b) {
           Eigen::Vector3d m = Eigen::Vector3d::Zero();
           for (int w : f) m += mesh.rest_positions_World_mm.col(w) / 3.0;
-          std::cout << "bridge face at " << m.transpose() << " r " << std::hypot(m.x() - 71, m.y() - 156) << "\n";
+          std::cout << "hole: face " << f[0] << " " << f[1] << " " << f[2] << " at " << m.transpose() << " between tets " << it->second << " and " << t << "\n";
         }
       }
     }
   }
   ASSERT_EQ(tumour_pieces.size(), 1u) << c.summary();
-  if (!expect_freed) return;
   const int piece = *tumour_pieces.begin();
-  std::vector<char> fixed(static_cast<std::size_t>(mesh.num_vertices()), 0);
-  for (int w : scene.problem.fixed_vertices) fixed[static_cast<std::size_t>(w)] = 1;
-  bool holds_fixed = false;
+  const int largest = static_cast<int>(std::max_element(c.piece_volume_mm3.begin(), c.piece_volume_mm3.end()) - c.piece_volume_mm3.begin());
+  EXPECT_NE(piece, largest) << "the tumour's block is still joined to the liver";
+  // The cored cylinder: the ring's disk (the 48-gon of the path) times the organ's height
+  // inside it above the bottom cut, estimated from the input vertices inside the ring.
+  double top = kBottomZ;
+  for (int w = 0; w < scene.problem.mesh.num_vertices(); ++w) {
+    const Eigen::Vector3d q = scene.problem.mesh.rest_positions_World_mm.col(w);
+    if (std::hypot(q.x() - kRingX, q.y() - kRingY) < kRingR) top = std::max(top, q.z());
+  }
+  const double block = c.piece_volume_mm3[static_cast<std::size_t>(piece)];
+  EXPECT_LT(block, 0.2 * volume);
+  EXPECT_LT(block, M_PI * kRingR * kRingR * (top - kBottomZ));  // the top surface is not flat: less than the full prism
+  EXPECT_GT(block, 0.5 * M_PI * kRingR * kRingR * (top - kBottomZ));
+  int fixed_in_block = 0;
+  std::vector<char> in_block(static_cast<std::size_t>(mesh.num_vertices()), 0);
   for (int t = 0; t < mesh.num_tets(); ++t)
     if (c.piece_of_tet[static_cast<std::size_t>(t)] == piece)
-      for (int w : mesh.tets[static_cast<std::size_t>(t)]) holds_fixed = holds_fixed || (w < static_cast<int>(fixed.size()) && fixed[static_cast<std::size_t>(w)]);
-  EXPECT_FALSE(holds_fixed) << "the tumour's piece is still held";
-  // A block round the tumour, not the liver: well below the organ's volume.
-  EXPECT_LT(c.piece_volume_mm3[static_cast<std::size_t>(piece)], 0.2 * volume);
-  std::cout << "[liver ring] tumour block " << c.piece_volume_mm3[static_cast<std::size_t>(piece)] << " mm^3 of " << volume << " mm^3\n";
+      for (int w : mesh.tets[static_cast<std::size_t>(t)]) in_block[static_cast<std::size_t>(w)] = 1;
+  for (int w : scene.problem.fixed_vertices) fixed_in_block += in_block[static_cast<std::size_t>(w)];
+  std::cout << "[liver ring] " << scene_file << ": pieces " << c.piece_volume_mm3.size() << ", tets " << mesh.num_tets() << ", tumour block "
+            << block << " mm^3 of " << volume << " mm^3 (prism to the top " << M_PI * kRingR * kRingR * (top - kBottomZ) << "), fixed vertices in it "
+            << fixed_in_block << " of " << scene.problem.fixed_vertices.size() << ", path deviation " << deviation << " mm, min dihedral "
+            << c.min_dihedral_deg << " deg\n";
 }
 }  // namespace
 
-TEST(LiverRing, RingAndBottomCutKeepTheInvariants) { ring_on_the_liver(false); }
-TEST(LiverRing, DISABLED_RingAndBottomCutFreeTheTumourBlock) { ring_on_the_liver(true); }
+TEST(LiverRing, RingAndBottomCutSeparateTheTumourBlockOnTheCoarseLiver) { ring_on_the_liver("liver_coarse_cut.scene.yaml"); }
+TEST(LiverRing, RingAndBottomCutSeparateTheTumourBlockOnThePaperSizeLiver) { ring_on_the_liver("liver.scene.yaml"); }
