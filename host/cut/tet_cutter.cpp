@@ -851,11 +851,6 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       // The sides its vertices had before they were put on the cut, when they agree.
       int before = 0;
       for (int w : tet) before += side_[static_cast<std::size_t>(w)];
-      if (tris.empty()) {
-        if (before != 0) return before > 0 ? 1 : -1;
-        cached = static_cast<signed char>(neighbours_side(t));
-        return static_cast<int>(cached);
-      }
       Eigen::Vector3d c = Eigen::Vector3d::Zero();
       double longest = 0.0;
       for (int i = 0; i < 4; ++i) {
@@ -863,23 +858,21 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
         for (int j = i + 1; j < 4; ++j)
           longest = std::max(longest, (x.col(tet[static_cast<std::size_t>(i)]) - x.col(tet[static_cast<std::size_t>(j)])).norm());
       }
-      int nearest = 0;
-      double best = 1e300;
-      for (std::size_t i = 0; i < tris.size(); ++i) {
-        const double dist = point_triangle_distance(c, tris[i]);
-        if (dist < best) {
-          best = dist;
-          nearest = static_cast<int>(i);
+      // Against the whole stroke's surface (on a curved cut a tet spanning a chord lies on
+      // the inner side; one frame's strip can be far from it). A sliver lying in the surface
+      // (centroid within 1e-3 of its size) has no side of its own: it joins its neighbours
+      // (deciding it by the sign of round-off cut it out as a piece of its own).
+      if (!stroke_tris_.empty()) {
+        int nearest = 0;
+        const double best = sweep_distance(stroke_tris_, c, &nearest);
+        const double d = unit_normal(stroke_tris_[static_cast<std::size_t>(nearest)]).dot(c - stroke_tris_[static_cast<std::size_t>(nearest)].a);
+        if (best <= f * longest + vtol && std::abs(d) > 1e-3 * longest) {
+          cached = static_cast<signed char>(d > 0 ? 1 : -1);
+          return static_cast<int>(cached);
         }
       }
-      if (!(best <= f * longest + vtol)) {
-        if (before != 0) return before > 0 ? 1 : -1;
-        cached = static_cast<signed char>(neighbours_side(t));
-        return static_cast<int>(cached);
-      }
-      const Triangle& near = tris[static_cast<std::size_t>(nearest)];
-      const double d = (near.b - near.a).cross(near.c - near.a).normalized().dot(c - near.a);
-      cached = static_cast<signed char>(d > 0 ? 1 : (d < 0 ? -1 : 0));
+      if (before != 0) return before > 0 ? 1 : -1;
+      cached = static_cast<signed char>(neighbours_side(t));
       return static_cast<int>(cached);
     }
     return side;
@@ -907,6 +900,63 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       new_cut_faces.push_back(key);
     } else if (s0 == 0 || s1 == 0) {
       undecided_faces_.push_back(key);
+    }
+  }
+  // 4c. Slivers in the cut surface: a group of tets with every vertex on this stroke's cut
+  // (no material of their own beyond the discretised surface) that the new cut faces would
+  // wall off from every tet with a free vertex would come out as a fragment of its own (the
+  // sides of such slivers are decided by the sign of a distance near round-off). The group
+  // joins the side most of its walled-off neighbours are on: the faces to those are not cut.
+  {
+    auto all_on_cut = [&](int t) {
+      for (int w : mesh_.tets[static_cast<std::size_t>(t)])
+        if (!on_stroke(w)) return false;
+      return true;
+    };
+    constexpr std::size_t kMaxGroup = 64;
+    std::set<int> done;
+    for (const auto& key : new_cut_faces) {
+      int pair[2] = {-1, -1};
+      if (tets_with_face(key, pair) != 2) continue;
+      for (int start : pair) {
+        if (done.count(start) || !all_on_cut(start)) continue;
+        std::vector<int> group{start};
+        std::set<int> in_group{start};
+        std::vector<std::pair<std::array<int, 3>, int>> walls;  // cut face, tet beyond it
+        bool attached = false;
+        for (std::size_t i = 0; i < group.size() && !attached && group.size() <= kMaxGroup; ++i) {
+          const auto& tet = mesh_.tets[static_cast<std::size_t>(group[i])];
+          for (const auto& fc : kFaces) {
+            const auto f = face_key(tet[static_cast<std::size_t>(fc[0])], tet[static_cast<std::size_t>(fc[1])], tet[static_cast<std::size_t>(fc[2])]);
+            int across[2] = {-1, -1};
+            if (tets_with_face(f, across) != 2) continue;
+            const int other = across[0] == group[i] ? across[1] : across[0];
+            if (in_group.count(other)) continue;
+            if (cut_faces_.count(f)) {
+              walls.emplace_back(f, other);
+            } else if (all_on_cut(other)) {
+              group.push_back(other);
+              in_group.insert(other);
+            } else {
+              attached = true;
+              break;
+            }
+          }
+        }
+        done.insert(group.begin(), group.end());
+        if (attached || group.size() > kMaxGroup || walls.empty()) continue;
+        int sum = 0;
+        for (const auto& wall : walls) sum += free_side(wall.second);
+        const int join = sum > 0 ? 1 : (sum < 0 ? -1 : free_side(walls.front().second));
+        bool opened = false;
+        for (const auto& wall : walls) {
+          if (join != 0 && free_side(wall.second) != join) continue;
+          cut_faces_.erase(wall.first);
+          opened = true;
+        }
+        if (!opened) cut_faces_.erase(walls.front().first);
+        for (int t : group) flat_side_[static_cast<std::size_t>(t)] = static_cast<signed char>(join);
+      }
     }
   }
   // 5. Separate: duplicate each vertex of a cut face whose tets fall apart into groups.

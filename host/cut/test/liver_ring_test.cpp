@@ -6,7 +6,7 @@
 // the volume is conserved, the cut points lie on the swept surface within the tolerance, and
 // the tumour's block comes out: the tumour lies in one piece, that piece is a block round it
 // (a fraction of the organ, the volume of the cored cylinder to a few per cent) and not the
-// piece holding the rest of the liver.
+// piece holding the rest of the liver; there are exactly two pieces.
 // The ring crosses the organ's top, where the ligament attachment of the scene holds the
 // capsule (12 of the coarse mesh's 68 fixed vertices lie inside the ring): the block is cut
 // free of the liver but still held there, so the bench's `tumours_freed` (tumour piece
@@ -85,6 +85,22 @@ void ring_on_the_liver(const std::string& scene_file) {
     std::cout << "piece volumes mm^3:";
     for (double vol : sizes) std::cout << " " << vol;
     std::cout << "\n";
+    std::vector<Eigen::Vector3d> centre(c.piece_volume_mm3.size(), Eigen::Vector3d::Zero());
+    std::vector<int> count(c.piece_volume_mm3.size(), 0), free_vertices(c.piece_volume_mm3.size(), 0);
+    for (int t = 0; t < mesh.num_tets(); ++t) {
+      const int p = c.piece_of_tet[static_cast<std::size_t>(t)];
+      ++count[static_cast<std::size_t>(p)];
+      for (int w : mesh.tets[static_cast<std::size_t>(t)]) {
+        centre[static_cast<std::size_t>(p)] += mesh.rest_positions_World_mm.col(w) / 4.0;
+        free_vertices[static_cast<std::size_t>(p)] += cutter.on_cut(w) ? 0 : 1;
+      }
+    }
+    for (std::size_t p = 0; p < centre.size(); ++p) {
+      if (count[p] > 200) continue;
+      const Eigen::Vector3d m = centre[p] / count[p];
+      std::cout << "small piece " << p << ": " << count[p] << " tets, " << c.piece_volume_mm3[p] << " mm^3, free vertex uses " << free_vertices[p] << ", at r "
+                << std::hypot(m.x() - kRingX, m.y() - kRingY) << " z " << m.z() << " angle " << std::atan2(m.y() - kRingY, m.x() - kRingX) * 180 / M_PI << "\n";
+    }
     // A tet is inside (1) or outside (0) the cored cylinder by its vertices not on a cut
     // (2: none, or both kinds); faces between an inside and an outside tet are holes.
     auto inside = [&](int t) {
@@ -120,6 +136,8 @@ void ring_on_the_liver(const std::string& scene_file) {
   const int piece = *tumour_pieces.begin();
   const int largest = static_cast<int>(std::max_element(c.piece_volume_mm3.begin(), c.piece_volume_mm3.end()) - c.piece_volume_mm3.begin());
   EXPECT_NE(piece, largest) << "the tumour's block is still joined to the liver";
+  // Two pieces: the liver and the block (no fragments of slivers lying in the cut surface).
+  EXPECT_EQ(c.piece_volume_mm3.size(), 2u);
   // The cored cylinder: the ring's disk (the 48-gon of the path) times the organ's height
   // inside it above the bottom cut, estimated from the input vertices inside the ring.
   double top = kBottomZ;
