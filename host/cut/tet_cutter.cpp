@@ -18,6 +18,10 @@ constexpr int kFaces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
 // Smallest split parameter: a crossing closer to a vertex snaps whatever the tolerance
 // (no degenerate tets).
 constexpr double kMinSplitFraction = 1e-6;
+// Sides from the stroke's surface (stroke_side): the vertex's distance to the nearest triangle
+// at most this times its distance to the triangle's plane (27 and 45 degrees off the normal).
+constexpr double kEagerCone = 1.118;
+constexpr double kLazyCone = 1.415;
 
 double sweep_distance(const std::vector<Triangle>& tris, const Eigen::Vector3d& p, int* nearest = nullptr) {
   double d = 1e300;
@@ -129,21 +133,34 @@ std::string TetCutter::describe_pending() const {
   return out;
 }
 
-int TetCutter::stroke_side(int w, const Eigen::Matrix3Xd& x) const {
-  // The nearest point of the whole stroke's swept surface (every frame's triangles, as swept):
-  // the side of its triangle's plane when w lies about across from it (within 45 degrees of
-  // the normal; near the surface's border, the blade's ends, it is not) and within one edge
-  // of a tet around w. A single frame's strip is not enough on a curved cut: a ring's first
-  // strip is across from vertices on the far side of the ring.
+int TetCutter::stroke_side(int w, const Eigen::Matrix3Xd& x, double cone, bool within_reach) const {
+  // The nearest point of the whole stroke's swept surface so far (every frame's triangles, as
+  // swept; frames whose box is farther than the best distance found are skipped): the side of
+  // its triangle's plane when w lies about across from it (distance to the triangle at most
+  // `cone` times the distance to its plane; near the surface's border, the blade's ends or the
+  // sweep's front, it may not) and within one edge of a tet around w.
   if (stroke_tris_.empty()) return 0;
-  int nearest = 0;
-  const double best = sweep_distance(stroke_tris_, x.col(w), &nearest);
+  const Eigen::Vector3d p = x.col(w);
+  double best = 1e300;
+  int nearest = -1;
+  for (const auto& chunk : stroke_chunks_) {
+    const Eigen::Vector3d gap = (chunk.box.min - p).cwiseMax(p - chunk.box.max).cwiseMax(0.0);
+    if (gap.norm() >= best) continue;
+    for (int i = chunk.begin; i < chunk.end; ++i) {
+      const double d = point_triangle_distance(p, stroke_tris_[static_cast<std::size_t>(i)]);
+      if (d < best) {
+        best = d;
+        nearest = i;
+      }
+    }
+  }
+  if (nearest < 0) return 0;
   const Triangle& near = stroke_tris_[static_cast<std::size_t>(nearest)];
-  const double d = unit_normal(near).dot(x.col(w) - near.a);
+  const double d = unit_normal(near).dot(p - near.a);
   double reach2 = 0.0;
   for (int tt : vertex_tets_[static_cast<std::size_t>(w)])
-    for (int u : mesh_.tets[static_cast<std::size_t>(tt)]) reach2 = std::max(reach2, (x.col(u) - x.col(w)).squaredNorm());
-  if (std::abs(d) > settings_.vertex_tolerance_mm && best * best <= 2.0 * d * d && best * best <= reach2) return d > 0 ? 1 : -1;
+    for (int u : mesh_.tets[static_cast<std::size_t>(tt)]) reach2 = std::max(reach2, (x.col(u) - p).squaredNorm());
+  if (std::abs(d) > settings_.vertex_tolerance_mm && best <= cone * std::abs(d) && (!within_reach || best * best <= reach2)) return d > 0 ? 1 : -1;
   return 0;
 }
 
@@ -170,6 +187,7 @@ void TetCutter::begin_stroke() {
   pending_.clear();
   pending_normal_.clear();
   stroke_tris_.clear();
+  stroke_chunks_.clear();
   for (int w : sided_) side_[static_cast<std::size_t>(w)] = 0;
   sided_.clear();
   std::fill(tip_tet_.begin(), tip_tet_.end(), 0);
@@ -527,7 +545,7 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
     }
   });
   r.candidate_tets = static_cast<int>(candidates.size());
-  if (candidates.empty() && pending_.empty()) return finish();
+  if (candidates.empty() && pending_.empty() && undecided_faces_.empty()) return finish();
   const int old_tets = mesh_.num_tets();
   // Tets a blade end (tip or heel path) passes through hold the crack front.
   if (!tris.empty()) {
@@ -561,7 +579,18 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
     last_normal_ = (t0.b - t0.a).cross(t0.c - t0.a).normalized();
   }
 
-  stroke_tris_.insert(stroke_tris_.end(), tris.begin(), tris.end());
+  if (!tris.empty()) {
+    StrokeChunk chunk;
+    chunk.begin = static_cast<int>(stroke_tris_.size());
+    for (const auto& t : tris) {
+      chunk.box.extend(t.a);
+      chunk.box.extend(t.b);
+      chunk.box.extend(t.c);
+    }
+    stroke_tris_.insert(stroke_tris_.end(), tris.begin(), tris.end());
+    chunk.end = static_cast<int>(stroke_tris_.size());
+    stroke_chunks_.push_back(chunk);
+  }
   // 1. Vertices on the swept surface.
   std::unordered_set<int> seen_vertices;
   for (int t : candidates)
@@ -613,19 +642,6 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
         double s = 0.0;
         if (!segment_triangle_intersection(x.col(a), x.col(b), tri, s)) continue;
         const int w = s <= 0.5 ? a : b, o = s <= 0.5 ? b : a;
-        // The edge crosses the triangle's plane at the crossing: its ends lie on opposite
-        // sides of the cut there. These sides are local (within one edge of the cut) and come
-        // first; the nearest-triangle rule below only fills in vertices no crossing reached.
-        {
-          const Eigen::Vector3d n = unit_normal(tri);
-          for (int u : {a, b}) {
-            const double du = n.dot(x.col(u) - tri.a);
-            if (side_[static_cast<std::size_t>(u)] == 0 && !on_stroke(u) && std::abs(du) > vtol) {
-              side_[static_cast<std::size_t>(u)] = du > 0 ? 1 : -1;
-              sided_.push_back(u);
-            }
-          }
-        }
         const double t_w = s <= 0.5 ? s : 1.0 - s;
         const double off_mm = t_w * (x.col(b) - x.col(a)).norm();  // the vertex's distance along the edge from the crossing
         bool snapped = false;
@@ -665,7 +681,7 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
   }
   // 2b. Second crossings: the free end goes onto the cut when it is near (moved or snapped,
   // as above), otherwise the edge is split at the crossing (every tet around it bisected:
-  // conforming, volumes exact) and the free end takes its side from the crossing.
+  // conforming, volumes exact).
   for (const auto& c : second_crossings) {
     if (on_stroke(c.free) || tets_with_edge(c.on_cut, c.free).empty()) continue;
     const double len = (x.col(c.free) - x.col(c.on_cut)).norm();
@@ -688,40 +704,30 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       }
     }
     const Eigen::Vector3d n = unit_normal(c.tri);
-    const double d_free = n.dot(x.col(c.free) - c.tri.a);
     std::vector<int> touched;
     split_edge(c.on_cut, c.free, std::clamp(c.s, kMinSplitFraction, 1.0 - kMinSplitFraction), x, v, r, touched);
     const int m = mesh_.num_vertices() - 1;
     cut_normal_[static_cast<std::size_t>(m)] = n;
     ++r.cut_points;
     r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, point_triangle_distance(x.col(m), c.tri));
-    if (side_[static_cast<std::size_t>(c.free)] == 0 && std::abs(d_free) > vtol) {
-      side_[static_cast<std::size_t>(c.free)] = d_free > 0 ? 1 : -1;
-      sided_.push_back(c.free);
-    }
     r.changed_tets.insert(r.changed_tets.end(), touched.begin(), touched.end());
     for (int tt : touched) candidates.push_back(tt);
     for (int w : mesh_.tets[static_cast<std::size_t>(touched.empty() ? 0 : touched.back())]) seen_vertices.insert(w);
   }
   std::sort(candidates.begin(), candidates.end());
   candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
-  // 3. Sides of the vertices near the sweep that no crossing gave one (kept for the stroke:
-  // a material property): from the plane of the nearest sweep triangle of this frame, only
-  // when the vertex lies across from it (within 27 degrees of its normal) and within one
-  // edge of it: a plane far beyond a triangle's edge or through a far chord of a curved cut
-  // (the other side of a ring) says nothing about it. Vertices left without a side get one
-  // when a cut face needs it, from the whole stroke's surface (stroke_side).
+  // 3. Sides of the vertices near the sweep (kept for the stroke: a material property): from
+  // the nearest point of the stroke's whole swept surface so far (stroke_side). Neither a
+  // crossing of one of its edges nor this frame's strip alone is enough on a curved cut over
+  // tets larger than its curvature: an edge can cross a ring twice, and a ring's first strip
+  // lies across from vertices on its far side. Here, while the sweep passes, only a vertex
+  // right across from the surface (within 27 degrees of the normal: the sweep's front is
+  // oblique to vertices ahead of it) takes a side; a vertex a cut face needs later takes it
+  // then, from the surface swept by that time, within 45 degrees (tet_side below).
   for (int w : seen_vertices) {
     if (on_stroke(w) || side_[static_cast<std::size_t>(w)] != 0) continue;
-    int nearest = 0;
-    const double best = sweep_distance(tris, x.col(w), &nearest);
-    const Triangle& near = tris[static_cast<std::size_t>(nearest)];
-    const double d = unit_normal(near).dot(x.col(w) - near.a);
-    double reach2 = 0.0;
-    for (int tt : vertex_tets_[static_cast<std::size_t>(w)])
-      for (int u : mesh_.tets[static_cast<std::size_t>(tt)]) reach2 = std::max(reach2, (x.col(u) - x.col(w)).squaredNorm());
-    if (std::abs(d) > vtol && best * best <= 1.25 * d * d && best * best <= reach2) {
-      side_[static_cast<std::size_t>(w)] = d > 0 ? 1 : -1;
+    if (const int sd = stroke_side(w, x, kEagerCone); sd != 0) {
+      side_[static_cast<std::size_t>(w)] = static_cast<signed char>(sd);
       sided_.push_back(w);
     }
   }
@@ -818,7 +824,10 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       if (tets_with_face(face_key(tet[static_cast<std::size_t>(fc[0])], tet[static_cast<std::size_t>(fc[1])], tet[static_cast<std::size_t>(fc[2])]), pair) != 2)
         continue;
       const int other = pair[0] == t ? pair[1] : pair[0];
-      const int sd = free_side(other);
+      // A flat neighbour counts with the side it was given (a chain of flat tets in the cut
+      // takes its sides link by link).
+      int sd = free_side(other);
+      if (sd == 0 && other < static_cast<int>(flat_side_.size())) sd = flat_side_[static_cast<std::size_t>(other)];
       sum += sd;
       if (first == 0) first = sd;
     }
@@ -833,7 +842,10 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       if (side_[static_cast<std::size_t>(w)] == 0) {
         // A vertex next to the cut that no sweep gave a side yet (its neighbours were put
         // on the cut later): from the cut beside it.
-        if (const int sd = stroke_side(w, x); sd != 0) {
+        // At the stroke's end (finish_stroke) the surface is complete: the side of the plane
+        // of its nearest triangle, wherever that lies (a face left undecided would stay a
+        // hole in the cut).
+        if (const int sd = finishing_ ? stroke_side(w, x, 1e300, false) : stroke_side(w, x, kLazyCone); sd != 0) {
           side_[static_cast<std::size_t>(w)] = static_cast<signed char>(sd);
           sided_.push_back(w);
         }
@@ -889,18 +901,35 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
     for (const auto& fc : kFaces)
       faces.push_back(face_key(tet[static_cast<std::size_t>(fc[0])], tet[static_cast<std::size_t>(fc[1])], tet[static_cast<std::size_t>(fc[2])]));
   }
-  for (const auto& key : faces) {
-    if (!on_stroke(key[0]) || !on_stroke(key[1]) || !on_stroke(key[2])) continue;
-    if (cut_faces_.count(key) || !seen_faces.insert(key).second) continue;
-    int pair[2] = {-1, -1};
-    if (tets_with_face(key, pair) != 2) continue;
-    const int s0 = tet_side(pair[0]), s1 = tet_side(pair[1]);
-    if (s0 * s1 < 0) {
-      cut_faces_.insert(key);
-      new_cut_faces.push_back(key);
-    } else if (s0 == 0 || s1 == 0) {
-      undecided_faces_.push_back(key);
+  // At the stroke's end the faces still undecided are looked at again while that decides more
+  // (sides given to flat tets in one pass decide their neighbours in the next): a face left
+  // undecided would stay a hole in the cut.
+  for (int pass = 0; pass < (finishing_ ? 32 : 1); ++pass) {
+    if (pass > 0) {
+      faces = std::move(undecided_faces_);
+      undecided_faces_.clear();
+      seen_faces.clear();
     }
+    const std::size_t before = undecided_faces_.size() + faces.size();
+    int decided = 0;
+    for (const auto& key : faces) {
+      if (!on_stroke(key[0]) || !on_stroke(key[1]) || !on_stroke(key[2])) continue;
+      if (cut_faces_.count(key) || !seen_faces.insert(key).second) continue;
+      int pair[2] = {-1, -1};
+      if (tets_with_face(key, pair) != 2) continue;
+      const int s0 = tet_side(pair[0]), s1 = tet_side(pair[1]);
+      if (s0 * s1 < 0) {
+        cut_faces_.insert(key);
+        new_cut_faces.push_back(key);
+        ++decided;
+      } else if (s0 == 0 || s1 == 0) {
+        undecided_faces_.push_back(key);
+      } else {
+        ++decided;
+      }
+    }
+    (void)before;
+    if (decided == 0 || undecided_faces_.empty()) break;
   }
   // 4c. Slivers in the cut surface: a group of tets with every vertex on this stroke's cut
   // (no material of their own beyond the discretised surface) that the new cut faces would
