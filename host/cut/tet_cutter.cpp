@@ -630,8 +630,16 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
         const double len = (x.col(o) - x.col(p)).norm();
         for (const auto& tri : tris) {
           double s = 0.0;
-          // Crossings within path_tolerance_mm of the end on the cut are that end's own.
-          if (segment_triangle_intersection(x.col(p), x.col(o), tri, s) && s * len > settings_.path_tolerance_mm + vtol) {
+          // Crossings within snap_fraction of the edge or path_tolerance_mm of the end on the
+          // cut are that end's own (the sweep passing by it again, or by where the tissue
+          // carried it since).
+          // Nor are crossings where the sweep's normal is within 20 degrees of the cut's
+          // normal at the end on the cut, or grazing ones (the edge within 15 degrees of the
+          // sweep's plane): a cut bent a little by the tissue's motion between frames, not a
+          // curved cut coming back.
+          if (segment_triangle_intersection(x.col(p), x.col(o), tri, s) && s > f && s * len > settings_.path_tolerance_mm + vtol &&
+              std::abs(unit_normal(tri).dot(x.col(o) - x.col(p))) > 0.26 * len &&
+              cut_normal_[static_cast<std::size_t>(p)].squaredNorm() > 0.5 && cut_normal_[static_cast<std::size_t>(p)].dot(unit_normal(tri)) < 0.94) {
             second_crossings.push_back({p, o, s, tri});
             break;
           }
