@@ -734,6 +734,14 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
   // then, from the surface swept by that time, within 45 degrees (tet_side below).
   for (int w : seen_vertices) {
     if (on_stroke(w) || side_[static_cast<std::size_t>(w)] != 0) continue;
+    // Mostly this frame's triangles change the answer an earlier frame gave: when they lie
+    // farther than the vertex's reach they cannot be its nearest within reach, so the lookup
+    // is skipped (a vertex left without a side gets one when a cut face needs it).
+    double reach2 = 0.0;
+    for (int tt : vertex_tets_[static_cast<std::size_t>(w)])
+      for (int u : mesh_.tets[static_cast<std::size_t>(tt)]) reach2 = std::max(reach2, (x.col(u) - x.col(w)).squaredNorm());
+    const double d_frame = sweep_distance(tris, x.col(w));
+    if (d_frame * d_frame > reach2) continue;
     if (const int sd = stroke_side(w, x, kEagerCone); sd != 0) {
       side_[static_cast<std::size_t>(w)] = static_cast<signed char>(sd);
       sided_.push_back(w);
