@@ -233,7 +233,7 @@ static int main_body(int argc, char** argv) {
       std::cout << (i ? "," : "") << "{\"mesh\":\"" << r.mesh << "\",\"scenario\":\"" << r.scenario << "\",\"model\":\"" << r.label
                 << "\",\"background_rebuild\":" << (r.background ? "true" : "false") << ",\"frames\":" << r.frames << ",\"topology_p99_ms\":" << r.topology_p99_ms << ",\"frame_median_ms\":" << r.frame_median_ms
                 << ",\"frame_p99_ms\":" << r.frame_p99_ms << ",\"min_dihedral_deg\":" << r.min_dihedral_deg << ",\"volume_change_rel\":"
-                << r.volume_change_rel << ",\"path_fidelity_mm\":" << r.path_fidelity_mm << ",\"completion_deviation_mm\":" << r.completion_deviation_mm << ",\"pieces\":" << r.pieces << ",\"tumours_freed\":" << r.tumours_freed << ",\"local_updates\":" << r.local_updates << ",\"rebuilds\":" << r.rebuilds
+                << r.volume_change_rel << ",\"path_fidelity_mm\":" << r.path_fidelity_mm << ",\"completion_deviation_mm\":" << r.completion_deviation_mm << ",\"pieces\":" << r.pieces << ",\"tumours_freed\":" << r.tumours_freed << ",\"tumours_separated\":" << r.tumours_separated << ",\"local_updates\":" << r.local_updates << ",\"rebuilds\":" << r.rebuilds
                 << ",\"mesh_valid\":" << (r.mesh_valid ? "true" : "false") << ",\"healthy\":" << (r.healthy ? "true" : "false") << "}";
     }
     std::cout << "]}\n";

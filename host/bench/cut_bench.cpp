@@ -121,6 +121,8 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
           std::sort(pieces.begin(), pieces.end());
           pieces.erase(std::unique(pieces.begin(), pieces.end()), pieces.end());
           if (pieces.size() == 1 && !fixed_piece[static_cast<std::size_t>(pieces[0])]) ++row.tumours_freed;
+          const auto largest = std::max_element(after.piece_volume_mm3.begin(), after.piece_volume_mm3.end()) - after.piece_volume_mm3.begin();
+          if (pieces.size() == 1 && pieces[0] != static_cast<int>(largest)) ++row.tumours_separated;
         }
         row.local_updates = session.local_updates();
         row.rebuilds = session.rebuilds();
@@ -130,7 +132,7 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
         std::cerr << "arnav-bench cut: " << mesh_name << " " << scenario << " " << variant.label << (background ? " (background rebuild)" : "") << ": " << row.frames << " frames, frame "
                   << row.frame_median_ms << "/" << row.frame_p99_ms << " ms (median/p99), topology " << row.topology_median_ms << "/"
                   << row.topology_p99_ms << " ms, local update " << row.local_median_ms << "/" << row.local_p99_ms << " ms (" << row.local_updates
-                  << "), rebuild " << row.rebuild_median_ms << " ms (" << row.rebuilds << "), pieces " << row.pieces << ", tumours freed " << row.tumours_freed
+                  << "), rebuild " << row.rebuild_median_ms << " ms (" << row.rebuilds << "), pieces " << row.pieces << ", tumours freed " << row.tumours_freed << ", separated " << row.tumours_separated << ", min dihedral " << row.min_dihedral_deg
                   << (row.healthy ? "" : " UNHEALTHY: " + row.warning) << "\n";
         rows.push_back(row);
       }
@@ -144,7 +146,7 @@ void write_cut_csv(const std::string& path, const std::vector<CutBenchRow>& rows
   if (!out) throw std::runtime_error("cannot write " + path + ": check the folder");
   out << "mesh,scenario,model,background_rebuild,tets_before,tets_after,vertices_after,frames,topology_changes,new_tets,topology_median_ms,topology_p99_ms,"
          "topology_max_ms,frame_median_ms,frame_p99_ms,rebuild_median_ms,rebuild_p99_ms,min_dihedral_input_deg,min_dihedral_deg,"
-         "volume_change_rel,path_fidelity_mm,completion_deviation_mm,completed_tets,pieces,free_pieces,tumours_freed,local_updates,local_median_ms,local_p99_ms,rebuilds,events,mesh_valid,healthy,warning\n";
+         "volume_change_rel,path_fidelity_mm,completion_deviation_mm,completed_tets,pieces,free_pieces,tumours_freed,tumours_separated,local_updates,local_median_ms,local_p99_ms,rebuilds,events,mesh_valid,healthy,warning\n";
   for (const auto& r : rows) {
     std::string warning = r.warning;
     std::replace(warning.begin(), warning.end(), ',', ';');
@@ -152,7 +154,7 @@ void write_cut_csv(const std::string& path, const std::vector<CutBenchRow>& rows
         << r.frames << ',' << r.topology_changes << ',' << r.new_tets << ',' << r.topology_median_ms << ',' << r.topology_p99_ms << ','
         << r.topology_max_ms << ',' << r.frame_median_ms << ',' << r.frame_p99_ms << ',' << r.rebuild_median_ms << ',' << r.rebuild_p99_ms
         << ',' << r.min_dihedral_input_deg << ',' << r.min_dihedral_deg << ',' << r.volume_change_rel << ',' << r.path_fidelity_mm << ','
-        << r.completion_deviation_mm << ',' << r.completed_tets << ',' << r.pieces << ',' << r.free_pieces << ',' << r.tumours_freed << ',' << r.local_updates << ',' << r.local_median_ms << ',' << r.local_p99_ms << ',' << r.rebuilds << ',' << r.events << ',' << (r.mesh_valid ? 1 : 0) << ','
+        << r.completion_deviation_mm << ',' << r.completed_tets << ',' << r.pieces << ',' << r.free_pieces << ',' << r.tumours_freed << ',' << r.tumours_separated << ',' << r.local_updates << ',' << r.local_median_ms << ',' << r.local_p99_ms << ',' << r.rebuilds << ',' << r.events << ',' << (r.mesh_valid ? 1 : 0) << ','
         << (r.healthy ? 1 : 0) << ',' << warning << '\n';
   }
 }

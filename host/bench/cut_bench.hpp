@@ -33,6 +33,7 @@ struct CutBenchRow {
   int completed_tets = 0;                            // tets completed from vertex sides (tissue moved)
   int pieces = 1, free_pieces = 0, events = 0;
   int tumours_freed = 0;        // tumours lying entirely in one free piece (cut out)
+  int tumours_separated = 0;    // tumours lying entirely in one piece that is not the largest (cut out of the organ, maybe still held by a fixed vertex)
   int local_updates = 0, rebuilds = 0;  // model updated in place / rebuilt after a cut
   double local_median_ms = 0, local_p99_ms = 0;  // model update time of the local updates
   bool healthy = true, mesh_valid = true;

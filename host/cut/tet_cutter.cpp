@@ -18,12 +18,24 @@ constexpr int kFaces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
 // Smallest split parameter: a crossing closer to a vertex snaps whatever the tolerance
 // (no degenerate tets).
 constexpr double kMinSplitFraction = 1e-6;
+// Sides from the stroke's surface (stroke_side): the vertex's distance to the nearest triangle
+// at most this times its distance to the triangle's plane (27 and 45 degrees off the normal).
+constexpr double kEagerCone = 1.118;
+constexpr double kLazyCone = 1.415;
 
-double sweep_distance(const std::vector<Triangle>& tris, const Eigen::Vector3d& p) {
+double sweep_distance(const std::vector<Triangle>& tris, const Eigen::Vector3d& p, int* nearest = nullptr) {
   double d = 1e300;
-  for (const auto& t : tris) d = std::min(d, point_triangle_distance(p, t));
+  for (std::size_t i = 0; i < tris.size(); ++i) {
+    const double di = point_triangle_distance(p, tris[i]);
+    if (di < d) {
+      d = di;
+      if (nearest) *nearest = static_cast<int>(i);
+    }
+  }
   return d;
 }
+
+Eigen::Vector3d unit_normal(const Triangle& t) { return (t.b - t.a).cross(t.c - t.a).normalized(); }
 }  // namespace
 
 TetCutter::EdgeKey TetCutter::edge_key(int a, int b) {
@@ -52,6 +64,7 @@ TetCutter::TetCutter(const TetMesh& mesh, const CutSettings& settings) : mesh_(m
   if (mesh_.tet_region.size() != mesh_.tets.size()) mesh_.tet_region.assign(mesh_.tets.size(), 0);
   on_cut_.assign(static_cast<std::size_t>(nv), 0);
   side_.assign(static_cast<std::size_t>(nv), 0);
+  cut_normal_.assign(static_cast<std::size_t>(nv), Eigen::Vector3d::Zero());
   tip_tet_.assign(mesh_.tets.size(), 0);
   flat_side_.assign(mesh_.tets.size(), 0);
   origin_.resize(mesh_.tets.size());
@@ -120,6 +133,37 @@ std::string TetCutter::describe_pending() const {
   return out;
 }
 
+int TetCutter::stroke_side(int w, const Eigen::Matrix3Xd& x, double cone, bool within_reach) const {
+  // The nearest point of the whole stroke's swept surface so far (every frame's triangles, as
+  // swept; frames whose box is farther than the best distance found are skipped): the side of
+  // its triangle's plane when w lies about across from it (distance to the triangle at most
+  // `cone` times the distance to its plane; near the surface's border, the blade's ends or the
+  // sweep's front, it may not) and within one edge of a tet around w.
+  if (stroke_tris_.empty()) return 0;
+  const Eigen::Vector3d p = x.col(w);
+  double best = 1e300;
+  int nearest = -1;
+  for (const auto& chunk : stroke_chunks_) {
+    const Eigen::Vector3d gap = (chunk.box.min - p).cwiseMax(p - chunk.box.max).cwiseMax(0.0);
+    if (gap.norm() >= best) continue;
+    for (int i = chunk.begin; i < chunk.end; ++i) {
+      const double d = point_triangle_distance(p, stroke_tris_[static_cast<std::size_t>(i)]);
+      if (d < best) {
+        best = d;
+        nearest = i;
+      }
+    }
+  }
+  if (nearest < 0) return 0;
+  const Triangle& near = stroke_tris_[static_cast<std::size_t>(nearest)];
+  const double d = unit_normal(near).dot(p - near.a);
+  double reach2 = 0.0;
+  for (int tt : vertex_tets_[static_cast<std::size_t>(w)])
+    for (int u : mesh_.tets[static_cast<std::size_t>(tt)]) reach2 = std::max(reach2, (x.col(u) - p).squaredNorm());
+  if (std::abs(d) > settings_.vertex_tolerance_mm && best <= cone * std::abs(d) && (!within_reach || best * best <= reach2)) return d > 0 ? 1 : -1;
+  return 0;
+}
+
 CutStepReport TetCutter::finish_stroke(Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v) {
   finishing_ = true;
   SweptSurface none;
@@ -141,6 +185,9 @@ void TetCutter::update_surface() { mesh_.surface_tris = boundary_faces(mesh_); }
 void TetCutter::begin_stroke() {
   ++stroke_;
   pending_.clear();
+  pending_normal_.clear();
+  stroke_tris_.clear();
+  stroke_chunks_.clear();
   for (int w : sided_) side_[static_cast<std::size_t>(w)] = 0;
   sided_.clear();
   std::fill(tip_tet_.begin(), tip_tet_.end(), 0);
@@ -271,6 +318,7 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
     r.max_completion_deviation_mm = std::max(r.max_completion_deviation_mm, std::abs(normal.dot(p - centre)));
     ++r.cut_points;
     pending_[edge_key(a, b)] = s;
+    pending_normal_.erase(edge_key(a, b));
   }
   return true;
 }
@@ -307,7 +355,10 @@ bool TetCutter::move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::
   // Crossings recorded on its edges referred to the old position.
   for (int tt : star) {
     for (int u : mesh_.tets[static_cast<std::size_t>(tt)])
-      if (u != w) pending_.erase(edge_key(w, u));
+      if (u != w) {
+        pending_.erase(edge_key(w, u));
+        pending_normal_.erase(edge_key(w, u));
+      }
     r.changed_tets.push_back(tt);
   }
   ++r.vertices_moved;
@@ -332,6 +383,7 @@ int TetCutter::add_vertex(const VertexOrigin& o, Eigen::Matrix3Xd& x, Eigen::Mat
   }
   vertex_tets_.emplace_back();
   on_cut_.push_back(o.b < 0 ? on_cut_[static_cast<std::size_t>(o.a)] : stroke_);
+  cut_normal_.push_back(o.b < 0 ? cut_normal_[static_cast<std::size_t>(o.a)] : Eigen::Vector3d::Zero());
   side_.push_back(o.b < 0 ? side_[static_cast<std::size_t>(o.a)] : 0);
   if (side_.back() != 0) sided_.push_back(id);
   r.new_vertices.push_back(o);
@@ -353,6 +405,20 @@ void TetCutter::split_edge(int a, int b, double t_ab, Eigen::Matrix3Xd& x, Eigen
   const std::vector<int> around = tets_with_edge(a, b);
   if (around.empty()) return;
   const int m = add_vertex({a, b, t_ab}, x, v, r);
+  {
+    // The cut's normal at the new point: the crossing's, or the ends' on the cut (an edge
+    // inside the cut split at its mid-point).
+    Eigen::Vector3d n = Eigen::Vector3d::Zero();
+    const auto in = pending_normal_.find(edge_key(a, b));
+    if (in != pending_normal_.end()) {
+      n = in->second;
+      pending_normal_.erase(in);
+    } else if (on_stroke(a) && on_stroke(b)) {
+      n = cut_normal_[static_cast<std::size_t>(a)] + cut_normal_[static_cast<std::size_t>(b)];
+      n = n.squaredNorm() > 1e-12 ? Eigen::Vector3d(n.normalized()) : Eigen::Vector3d::Zero();
+    }
+    cut_normal_[static_cast<std::size_t>(m)] = n;
+  }
   ++r.edges_split;
   for (int t : around) {
     // Child 1 keeps index t with b -> m; child 2 is t with a -> m. Both keep the orientation
@@ -447,8 +513,13 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
   if (x.cols() != mesh_.num_vertices()) throw std::invalid_argument("cut: positions do not match the mesh");
   if (v.cols() != 0 && v.cols() != mesh_.num_vertices()) throw std::invalid_argument("cut: velocities do not match the mesh");
   std::vector<Triangle> tris;
-  for (const auto& t : sweep.triangles())
-    if ((t.b - t.a).cross(t.c - t.a).norm() > 0.0) tris.push_back(t);
+  // Triangles of a blade moving (almost) along its own axis are (nearly) collinear: their
+  // normal is round-off and would give vertices arbitrary sides. Kept only when the area is
+  // not negligible against the longest edge (height > 1e-9 of it).
+  for (const auto& t : sweep.triangles()) {
+    const double longest2 = std::max({(t.b - t.a).squaredNorm(), (t.c - t.b).squaredNorm(), (t.a - t.c).squaredNorm()});
+    if ((t.b - t.a).cross(t.c - t.a).norm() > 1e-9 * longest2) tris.push_back(t);
+  }
   auto finish = [&]() {
     r.update_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     return r;
@@ -474,7 +545,7 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
     }
   });
   r.candidate_tets = static_cast<int>(candidates.size());
-  if (candidates.empty() && pending_.empty()) return finish();
+  if (candidates.empty() && pending_.empty() && undecided_faces_.empty()) return finish();
   const int old_tets = mesh_.num_tets();
   // Tets a blade end (tip or heel path) passes through hold the crack front.
   if (!tris.empty()) {
@@ -508,20 +579,44 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
     last_normal_ = (t0.b - t0.a).cross(t0.c - t0.a).normalized();
   }
 
+  if (!tris.empty()) {
+    StrokeChunk chunk;
+    chunk.begin = static_cast<int>(stroke_tris_.size());
+    for (const auto& t : tris) {
+      chunk.box.extend(t.a);
+      chunk.box.extend(t.b);
+      chunk.box.extend(t.c);
+    }
+    stroke_tris_.insert(stroke_tris_.end(), tris.begin(), tris.end());
+    chunk.end = static_cast<int>(stroke_tris_.size());
+    stroke_chunks_.push_back(chunk);
+  }
   // 1. Vertices on the swept surface.
   std::unordered_set<int> seen_vertices;
   for (int t : candidates)
     for (int w : mesh_.tets[static_cast<std::size_t>(t)])
       if (seen_vertices.insert(w).second && !on_stroke(w)) {
-        const double d = sweep_distance(tris, x.col(w));
+        int nearest = 0;
+        const double d = sweep_distance(tris, x.col(w), &nearest);
         if (d <= vtol) {
           on_cut_[static_cast<std::size_t>(w)] = stroke_;
+          cut_normal_[static_cast<std::size_t>(w)] = unit_normal(tris[static_cast<std::size_t>(nearest)]);
           ++r.vertices_snapped;
           ++r.cut_points;
           r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, d);
         }
       }
   // 2. Edge crossings: snapped to an end within f of it, recorded otherwise.
+  // An edge with one end already on this stroke's cut that the sweep crosses again farther
+  // along (a curved cut, a ring, on tets larger than its curvature) is split there below:
+  // its other end lies beyond the second crossing, and a side taken from the first one
+  // would be wrong.
+  struct SecondCrossing {
+    int on_cut, free;
+    double s;  // from on_cut to free
+    Triangle tri;
+  };
+  std::vector<SecondCrossing> second_crossings;
   std::unordered_set<EdgeKey> seen_edges;
   for (int t : candidates) {
     const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
@@ -529,7 +624,28 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       int a = tet[static_cast<std::size_t>(e[0])], b = tet[static_cast<std::size_t>(e[1])];
       if (a > b) std::swap(a, b);
       const EdgeKey key = edge_key(a, b);
-      if (!seen_edges.insert(key).second || on_stroke(a) || on_stroke(b) || pending_.count(key)) continue;
+      if (!seen_edges.insert(key).second || pending_.count(key) || (on_stroke(a) && on_stroke(b))) continue;
+      if (on_stroke(a) || on_stroke(b)) {
+        const int p = on_stroke(a) ? a : b, o = on_stroke(a) ? b : a;
+        const double len = (x.col(o) - x.col(p)).norm();
+        for (const auto& tri : tris) {
+          double s = 0.0;
+          // Crossings within snap_fraction of the edge or path_tolerance_mm of the end on the
+          // cut are that end's own (the sweep passing by it again, or by where the tissue
+          // carried it since).
+          // Nor are crossings where the sweep's normal is within 20 degrees of the cut's
+          // normal at the end on the cut, or grazing ones (the edge within 15 degrees of the
+          // sweep's plane): a cut bent a little by the tissue's motion between frames, not a
+          // curved cut coming back.
+          if (segment_triangle_intersection(x.col(p), x.col(o), tri, s) && s > f && s * len > settings_.path_tolerance_mm + vtol &&
+              std::abs(unit_normal(tri).dot(x.col(o) - x.col(p))) > 0.26 * len &&
+              cut_normal_[static_cast<std::size_t>(p)].squaredNorm() > 0.5 && cut_normal_[static_cast<std::size_t>(p)].dot(unit_normal(tri)) < 0.94) {
+            second_crossings.push_back({p, o, s, tri});
+            break;
+          }
+        }
+        continue;
+      }
       for (const auto& tri : tris) {
         double s = 0.0;
         if (!segment_triangle_intersection(x.col(a), x.col(b), tri, s)) continue;
@@ -553,12 +669,14 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
           }
           if (snapped) {
             on_cut_[static_cast<std::size_t>(w)] = stroke_;
+            cut_normal_[static_cast<std::size_t>(w)] = unit_normal(tri);
             ++r.vertices_snapped;
             ++r.cut_points;
           }
         }
         if (!snapped) {
           pending_[key] = s;
+          pending_normal_[key] = unit_normal(tri);
           ++r.edges_crossed;
           ++r.cut_points;
           // The recorded point, against the swept surface (round-off only).
@@ -569,29 +687,63 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       }
     }
   }
-  // 3. Sides: each vertex near the sweep and not on it gets the side of the plane of the
-  // nearest sweep triangle it lies on (kept for the stroke: a material property).
-
-  // Only vertices whose nearest point on the sweep lies about across from them get a side:
-  // the plane far beyond a triangle's edge (a chord of a curved cut, the blade's end) can put
-  // a vertex on the wrong side of the cut it will meet.
-  for (int w : seen_vertices) {
-    if (on_stroke(w) || side_[static_cast<std::size_t>(w)] != 0) continue;
-    int nearest = 0;
-    double best = 1e300;
-    for (std::size_t i = 0; i < tris.size(); ++i) {
-      const double dist = point_triangle_distance(x.col(w), tris[i]);
-      if (dist < best) {
-        best = dist;
-        nearest = static_cast<int>(i);
+  // 2b. Second crossings: the free end goes onto the cut when it is near (moved or snapped,
+  // as above), otherwise the edge is split at the crossing (every tet around it bisected:
+  // conforming, volumes exact).
+  for (const auto& c : second_crossings) {
+    if (on_stroke(c.free) || tets_with_edge(c.on_cut, c.free).empty()) continue;
+    const double len = (x.col(c.free) - x.col(c.on_cut)).norm();
+    const double t_free = 1.0 - c.s;
+    if (t_free <= f) {
+      bool snapped = false;
+      if (on_cut_[static_cast<std::size_t>(c.free)] == 0 && settings_.move_snapped_vertices && move_vertex(c.free, c.on_cut, t_free, x, v, r)) {
+        snapped = true;
+        r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, point_triangle_distance(x.col(c.free), c.tri));
+      } else if (t_free * len <= settings_.path_tolerance_mm || t_free < kMinSplitFraction) {
+        snapped = true;
+        r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, t_free * len);
+      }
+      if (snapped) {
+        on_cut_[static_cast<std::size_t>(c.free)] = stroke_;
+        cut_normal_[static_cast<std::size_t>(c.free)] = unit_normal(c.tri);
+        ++r.vertices_snapped;
+        ++r.cut_points;
+        continue;
       }
     }
-    const Triangle& near = tris[static_cast<std::size_t>(nearest)];
-    const double d = (near.b - near.a).cross(near.c - near.a).normalized().dot(x.col(w) - near.a);
-    // Within 45 degrees of the triangle's normal through its nearest point: the offset along
-    // the surface is at most the distance to it.
-    if (std::abs(d) > vtol && best * best <= 2.0 * d * d) {
-      side_[static_cast<std::size_t>(w)] = d > 0 ? 1 : -1;
+    const Eigen::Vector3d n = unit_normal(c.tri);
+    std::vector<int> touched;
+    split_edge(c.on_cut, c.free, std::clamp(c.s, kMinSplitFraction, 1.0 - kMinSplitFraction), x, v, r, touched);
+    const int m = mesh_.num_vertices() - 1;
+    cut_normal_[static_cast<std::size_t>(m)] = n;
+    ++r.cut_points;
+    r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, point_triangle_distance(x.col(m), c.tri));
+    r.changed_tets.insert(r.changed_tets.end(), touched.begin(), touched.end());
+    for (int tt : touched) candidates.push_back(tt);
+    for (int w : mesh_.tets[static_cast<std::size_t>(touched.empty() ? 0 : touched.back())]) seen_vertices.insert(w);
+  }
+  std::sort(candidates.begin(), candidates.end());
+  candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+  // 3. Sides of the vertices near the sweep (kept for the stroke: a material property): from
+  // the nearest point of the stroke's whole swept surface so far (stroke_side). Neither a
+  // crossing of one of its edges nor this frame's strip alone is enough on a curved cut over
+  // tets larger than its curvature: an edge can cross a ring twice, and a ring's first strip
+  // lies across from vertices on its far side. Here, while the sweep passes, only a vertex
+  // right across from the surface (within 27 degrees of the normal: the sweep's front is
+  // oblique to vertices ahead of it) takes a side; a vertex a cut face needs later takes it
+  // then, from the surface swept by that time, within 45 degrees (tet_side below).
+  for (int w : seen_vertices) {
+    if (on_stroke(w) || side_[static_cast<std::size_t>(w)] != 0) continue;
+    // Mostly this frame's triangles change the answer an earlier frame gave: when they lie
+    // farther than the vertex's reach they cannot be its nearest within reach, so the lookup
+    // is skipped (a vertex left without a side gets one when a cut face needs it).
+    double reach2 = 0.0;
+    for (int tt : vertex_tets_[static_cast<std::size_t>(w)])
+      for (int u : mesh_.tets[static_cast<std::size_t>(tt)]) reach2 = std::max(reach2, (x.col(u) - x.col(w)).squaredNorm());
+    const double d_frame = sweep_distance(tris, x.col(w));
+    if (d_frame * d_frame > reach2) continue;
+    if (const int sd = stroke_side(w, x, kEagerCone); sd != 0) {
+      side_[static_cast<std::size_t>(w)] = static_cast<signed char>(sd);
       sided_.push_back(w);
     }
   }
@@ -688,7 +840,10 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       if (tets_with_face(face_key(tet[static_cast<std::size_t>(fc[0])], tet[static_cast<std::size_t>(fc[1])], tet[static_cast<std::size_t>(fc[2])]), pair) != 2)
         continue;
       const int other = pair[0] == t ? pair[1] : pair[0];
-      const int sd = free_side(other);
+      // A flat neighbour counts with the side it was given (a chain of flat tets in the cut
+      // takes its sides link by link).
+      int sd = free_side(other);
+      if (sd == 0 && other < static_cast<int>(flat_side_.size())) sd = flat_side_[static_cast<std::size_t>(other)];
       sum += sd;
       if (first == 0) first = sd;
     }
@@ -700,6 +855,17 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
     for (int w : mesh_.tets[static_cast<std::size_t>(t)]) {
       if (on_stroke(w)) continue;
       any_free = true;
+      if (side_[static_cast<std::size_t>(w)] == 0) {
+        // A vertex next to the cut that no sweep gave a side yet (its neighbours were put
+        // on the cut later): from the cut beside it.
+        // At the stroke's end (finish_stroke) the surface is complete: the side of the plane
+        // of its nearest triangle, wherever that lies (a face left undecided would stay a
+        // hole in the cut).
+        if (const int sd = finishing_ ? stroke_side(w, x, 1e300, false) : stroke_side(w, x, kLazyCone); sd != 0) {
+          side_[static_cast<std::size_t>(w)] = static_cast<signed char>(sd);
+          sided_.push_back(w);
+        }
+      }
       const int sw = side_[static_cast<std::size_t>(w)];
       if (sw == 0 || (side != 0 && sw != side)) return 0;
       side = sw;
@@ -713,11 +879,6 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       // The sides its vertices had before they were put on the cut, when they agree.
       int before = 0;
       for (int w : tet) before += side_[static_cast<std::size_t>(w)];
-      if (tris.empty()) {
-        if (before != 0) return before > 0 ? 1 : -1;
-        cached = static_cast<signed char>(neighbours_side(t));
-        return static_cast<int>(cached);
-      }
       Eigen::Vector3d c = Eigen::Vector3d::Zero();
       double longest = 0.0;
       for (int i = 0; i < 4; ++i) {
@@ -725,23 +886,21 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
         for (int j = i + 1; j < 4; ++j)
           longest = std::max(longest, (x.col(tet[static_cast<std::size_t>(i)]) - x.col(tet[static_cast<std::size_t>(j)])).norm());
       }
-      int nearest = 0;
-      double best = 1e300;
-      for (std::size_t i = 0; i < tris.size(); ++i) {
-        const double dist = point_triangle_distance(c, tris[i]);
-        if (dist < best) {
-          best = dist;
-          nearest = static_cast<int>(i);
+      // Against the whole stroke's surface (on a curved cut a tet spanning a chord lies on
+      // the inner side; one frame's strip can be far from it). A sliver lying in the surface
+      // (centroid within 1e-3 of its size) has no side of its own: it joins its neighbours
+      // (deciding it by the sign of round-off cut it out as a piece of its own).
+      if (!stroke_tris_.empty()) {
+        int nearest = 0;
+        const double best = sweep_distance(stroke_tris_, c, &nearest);
+        const double d = unit_normal(stroke_tris_[static_cast<std::size_t>(nearest)]).dot(c - stroke_tris_[static_cast<std::size_t>(nearest)].a);
+        if (best <= f * longest + vtol && std::abs(d) > 1e-3 * longest) {
+          cached = static_cast<signed char>(d > 0 ? 1 : -1);
+          return static_cast<int>(cached);
         }
       }
-      if (!(best <= f * longest + vtol)) {
-        if (before != 0) return before > 0 ? 1 : -1;
-        cached = static_cast<signed char>(neighbours_side(t));
-        return static_cast<int>(cached);
-      }
-      const Triangle& near = tris[static_cast<std::size_t>(nearest)];
-      const double d = (near.b - near.a).cross(near.c - near.a).normalized().dot(c - near.a);
-      cached = static_cast<signed char>(d > 0 ? 1 : (d < 0 ? -1 : 0));
+      if (before != 0) return before > 0 ? 1 : -1;
+      cached = static_cast<signed char>(neighbours_side(t));
       return static_cast<int>(cached);
     }
     return side;
@@ -758,17 +917,91 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
     for (const auto& fc : kFaces)
       faces.push_back(face_key(tet[static_cast<std::size_t>(fc[0])], tet[static_cast<std::size_t>(fc[1])], tet[static_cast<std::size_t>(fc[2])]));
   }
-  for (const auto& key : faces) {
-    if (!on_stroke(key[0]) || !on_stroke(key[1]) || !on_stroke(key[2])) continue;
-    if (cut_faces_.count(key) || !seen_faces.insert(key).second) continue;
-    int pair[2] = {-1, -1};
-    if (tets_with_face(key, pair) != 2) continue;
-    const int s0 = tet_side(pair[0]), s1 = tet_side(pair[1]);
-    if (s0 * s1 < 0) {
-      cut_faces_.insert(key);
-      new_cut_faces.push_back(key);
-    } else if (s0 == 0 || s1 == 0) {
-      undecided_faces_.push_back(key);
+  // At the stroke's end the faces still undecided are looked at again while that decides more
+  // (sides given to flat tets in one pass decide their neighbours in the next): a face left
+  // undecided would stay a hole in the cut.
+  for (int pass = 0; pass < (finishing_ ? 32 : 1); ++pass) {
+    if (pass > 0) {
+      faces = std::move(undecided_faces_);
+      undecided_faces_.clear();
+      seen_faces.clear();
+    }
+    const std::size_t before = undecided_faces_.size() + faces.size();
+    int decided = 0;
+    for (const auto& key : faces) {
+      if (!on_stroke(key[0]) || !on_stroke(key[1]) || !on_stroke(key[2])) continue;
+      if (cut_faces_.count(key) || !seen_faces.insert(key).second) continue;
+      int pair[2] = {-1, -1};
+      if (tets_with_face(key, pair) != 2) continue;
+      const int s0 = tet_side(pair[0]), s1 = tet_side(pair[1]);
+      if (s0 * s1 < 0) {
+        cut_faces_.insert(key);
+        new_cut_faces.push_back(key);
+        ++decided;
+      } else if (s0 == 0 || s1 == 0) {
+        undecided_faces_.push_back(key);
+      } else {
+        ++decided;
+      }
+    }
+    (void)before;
+    if (decided == 0 || undecided_faces_.empty()) break;
+  }
+  // 4c. Slivers in the cut surface: a group of tets with every vertex on this stroke's cut
+  // (no material of their own beyond the discretised surface) that the new cut faces would
+  // wall off from every tet with a free vertex would come out as a fragment of its own (the
+  // sides of such slivers are decided by the sign of a distance near round-off). The group
+  // joins the side most of its walled-off neighbours are on: the faces to those are not cut.
+  {
+    auto all_on_cut = [&](int t) {
+      for (int w : mesh_.tets[static_cast<std::size_t>(t)])
+        if (!on_stroke(w)) return false;
+      return true;
+    };
+    constexpr std::size_t kMaxGroup = 64;
+    std::set<int> done;
+    for (const auto& key : new_cut_faces) {
+      int pair[2] = {-1, -1};
+      if (tets_with_face(key, pair) != 2) continue;
+      for (int start : pair) {
+        if (done.count(start) || !all_on_cut(start)) continue;
+        std::vector<int> group{start};
+        std::set<int> in_group{start};
+        std::vector<std::pair<std::array<int, 3>, int>> walls;  // cut face, tet beyond it
+        bool attached = false;
+        for (std::size_t i = 0; i < group.size() && !attached && group.size() <= kMaxGroup; ++i) {
+          const auto& tet = mesh_.tets[static_cast<std::size_t>(group[i])];
+          for (const auto& fc : kFaces) {
+            const auto f = face_key(tet[static_cast<std::size_t>(fc[0])], tet[static_cast<std::size_t>(fc[1])], tet[static_cast<std::size_t>(fc[2])]);
+            int across[2] = {-1, -1};
+            if (tets_with_face(f, across) != 2) continue;
+            const int other = across[0] == group[i] ? across[1] : across[0];
+            if (in_group.count(other)) continue;
+            if (cut_faces_.count(f)) {
+              walls.emplace_back(f, other);
+            } else if (all_on_cut(other)) {
+              group.push_back(other);
+              in_group.insert(other);
+            } else {
+              attached = true;
+              break;
+            }
+          }
+        }
+        done.insert(group.begin(), group.end());
+        if (attached || group.size() > kMaxGroup || walls.empty()) continue;
+        int sum = 0;
+        for (const auto& wall : walls) sum += free_side(wall.second);
+        const int join = sum > 0 ? 1 : (sum < 0 ? -1 : free_side(walls.front().second));
+        bool opened = false;
+        for (const auto& wall : walls) {
+          if (join != 0 && free_side(wall.second) != join) continue;
+          cut_faces_.erase(wall.first);
+          opened = true;
+        }
+        if (!opened) cut_faces_.erase(walls.front().first);
+        for (int t : group) flat_side_[static_cast<std::size_t>(t)] = static_cast<signed char>(join);
+      }
     }
   }
   // 5. Separate: duplicate each vertex of a cut face whose tets fall apart into groups.

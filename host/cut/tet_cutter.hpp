@@ -153,6 +153,9 @@ class TetCutter {
   // Adds the crossings missing from the side pattern of tet t on the plane through the
   // recorded ones; false when the sides are unknown or nothing is missing.
   bool complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepReport& r);
+  // Side of free vertex w from the nearest point of this stroke's whole swept surface so far
+  // (0: not across from it, or farther than an edge of its tets).
+  int stroke_side(int w, const Eigen::Matrix3Xd& x, double cone, bool within_reach = true) const;
   bool move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   int add_vertex(const VertexOrigin& o, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   void split_edge(int a, int b, double t_ab, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r,
@@ -172,7 +175,15 @@ class TetCutter {
   bool finishing_ = false;
   std::vector<int> on_cut_;                      // per vertex: last stroke it was put on the cut by (0: none)
   std::unordered_map<EdgeKey, double> pending_;  // t from the smaller to the larger vertex id
+  std::unordered_map<EdgeKey, Eigen::Vector3d> pending_normal_;  // unit normal of the sweep at each pending crossing
   std::vector<signed char> side_;                // per vertex: side of this stroke's sweep (+1/-1, 0 unknown)
+  std::vector<Triangle> stroke_tris_;             // this stroke's swept triangles, as swept
+  struct StrokeChunk {
+    Aabb box;
+    int begin = 0, end = 0;
+  };
+  std::vector<StrokeChunk> stroke_chunks_;       // stroke_tris_ by frame, with their box
+  std::vector<Eigen::Vector3d> cut_normal_;      // per vertex on this stroke's cut: the sweep's unit normal there (0: unknown)
   std::vector<int> sided_;
   std::vector<std::array<int, 3>> undecided_faces_;  // on the cut, sides of their tets not known yet                       // vertices with a side (reset at the next stroke)
   FaceSet cut_faces_;                            // interior faces to separate
