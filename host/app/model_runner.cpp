@@ -176,6 +176,7 @@ void ModelRunner::step_once(std::int64_t now_us) {
         previous_blade_ = blade;
         blade_gap_ = false;
         for (const auto& e : cr.events) new_events.push_back({0, now_us, e});
+        if (cr.cut.vertices_snapped > 0) cut_marks_changed_ = true;
         if (cr.cut.topology_changed) {
           cut_record = CutStepRecord{};
           cut_record->cutter_path_error_mm = cr.cut.max_path_deviation_mm;
@@ -215,50 +216,56 @@ void ModelRunner::step_once(std::int64_t now_us) {
     snap->cutting = true;
     snap->organ.tris = surface;
     snap->organ.positions_World_mm = x;
+    if (cut_->surface_version() != cut_surface_version_ || cut_marks_changed_) {
+      // The boundary changed: its cut faces (all three vertices on a cut), the path error of
+      // the vertices new on them, and the rim (cut-face edges shared with an uncut face).
+      cut_surface_version_ = cut_->surface_version();
+      cut_marks_changed_ = false;
+      const auto& c = cut_->cutter();
+      cut_face_tris_.clear();
+      for (const auto& f : surface)
+        if (c.on_cut(f[0]) && c.on_cut(f[1]) && c.on_cut(f[2])) cut_face_tris_.push_back(f);
+      on_cut_face_.resize(static_cast<std::size_t>(x.cols()), 0);
+      double worst = -1.0;
+      int fresh = 0;
+      for (const auto& f : cut_face_tris_)
+        for (int v : f) {
+          if (on_cut_face_[static_cast<std::size_t>(v)]) continue;
+          on_cut_face_[static_cast<std::size_t>(v)] = 1;
+          ++fresh;
+          double best = 1e300;
+          const Eigen::Vector3d p = x.col(v);
+          for (auto it = sweeps_.rbegin(); it != sweeps_.rend(); ++it) {
+            if (it->box.exteriorDistance(p) >= best) continue;  // newest first: the bound tightens fast
+            for (const auto& t : it->tris) best = std::min(best, cut::point_triangle_distance(p, t));
+          }
+          if (best < 1e299) worst = std::max(worst, best);
+        }
+      if (fresh > 0 && worst >= 0.0) {
+        if (!cut_record) cut_record = CutStepRecord{};
+        cut_record->path_error_mm = worst;
+        cut_record->new_cut_vertices = fresh;
+      }
+      cut_rim_.clear();
+      if (!cut_face_tris_.empty()) {
+        std::set<std::pair<int, int>> outer;
+        const auto key = [](int a, int b) { return std::make_pair(std::min(a, b), std::max(a, b)); };
+        for (const auto& f : surface)
+          if (!(c.on_cut(f[0]) && c.on_cut(f[1]) && c.on_cut(f[2])))
+            for (int e = 0; e < 3; ++e) outer.insert(key(f[e], f[(e + 1) % 3]));
+        std::set<std::pair<int, int>> rim;
+        for (const auto& f : cut_face_tris_)
+          for (int e = 0; e < 3; ++e)
+            if (const auto k = key(f[e], f[(e + 1) % 3]); outer.count(k)) rim.insert(k);
+        cut_rim_.assign(rim.begin(), rim.end());
+      }
+    }
     TriMesh cut_faces;
     cut_faces.positions_World_mm = x;
+    cut_faces.tris = cut_face_tris_;
     double area2 = 0.0;
-    for (const auto& f : surface)
-      if (cut_->cutter().on_cut(f[0]) && cut_->cutter().on_cut(f[1]) && cut_->cutter().on_cut(f[2])) {
-        cut_faces.tris.push_back(f);
-        area2 += (x.col(f[1]) - x.col(f[0])).cross(x.col(f[2]) - x.col(f[0])).norm();
-      }
-    // Cut-path error of the vertices new on the cut faces: distance from the swept surface.
-    on_cut_face_.resize(static_cast<std::size_t>(x.cols()), 0);
-    double worst = -1.0;
-    int fresh = 0;
-    for (const auto& f : cut_faces.tris)
-      for (int v : f) {
-        if (on_cut_face_[static_cast<std::size_t>(v)]) continue;
-        on_cut_face_[static_cast<std::size_t>(v)] = 1;
-        ++fresh;
-        double best = 1e300;
-        const Eigen::Vector3d p = x.col(v);
-        for (auto it = sweeps_.rbegin(); it != sweeps_.rend(); ++it) {
-          if (it->box.exteriorDistance(p) >= best) continue;  // newest first: the bound tightens fast
-          for (const auto& t : it->tris) best = std::min(best, cut::point_triangle_distance(p, t));
-        }
-        if (best < 1e299) worst = std::max(worst, best);
-      }
-    if (fresh > 0 && worst >= 0.0) {
-      if (!cut_record) cut_record = CutStepRecord{};
-      cut_record->path_error_mm = worst;
-      cut_record->new_cut_vertices = fresh;
-    }
-    // The cut's rim on the organ surface: cut-face edges shared with an uncut boundary face.
-    if (!cut_faces.tris.empty()) {
-      std::set<std::pair<int, int>> outer;
-      const auto key = [](int a, int b) { return std::make_pair(std::min(a, b), std::max(a, b)); };
-      const auto& c = cut_->cutter();
-      for (const auto& f : surface)
-        if (!(c.on_cut(f[0]) && c.on_cut(f[1]) && c.on_cut(f[2])))
-          for (int e = 0; e < 3; ++e) outer.insert(key(f[e], f[(e + 1) % 3]));
-      std::set<std::pair<int, int>> rim;
-      for (const auto& f : cut_faces.tris)
-        for (int e = 0; e < 3; ++e)
-          if (const auto k = key(f[e], f[(e + 1) % 3]); outer.count(k)) rim.insert(k);
-      for (const auto& [a, b] : rim) snap->cut_rim_mm.push_back({x.col(a), x.col(b)});
-    }
+    for (const auto& f : cut_faces.tris) area2 += (x.col(f[1]) - x.col(f[0])).cross(x.col(f[2]) - x.col(f[0])).norm();
+    for (const auto& [a, b] : cut_rim_) snap->cut_rim_mm.push_back({x.col(a), x.col(b)});
     snap->cut_faces = static_cast<int>(cut_faces.tris.size());
     snap->cut_area_mm2 = 0.25 * area2;  // half of each face's |cross|, half of the faces (two sides)
     if (!cut_faces.tris.empty()) snap->cut_surface = std::move(cut_faces);

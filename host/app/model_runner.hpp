@@ -142,6 +142,12 @@ class ModelRunner {
   };
   std::deque<Sweep> sweeps_;                        // swept triangles of the cutting steps (last 10 min)
   std::vector<char> on_cut_face_;                   // vertex already seen on a cut face
+  // Cut faces and the cut's rim on the organ surface: found again only when the cut session's
+  // boundary changed or vertices were put on the cut (not every step).
+  int cut_surface_version_ = -1;
+  bool cut_marks_changed_ = false;
+  std::vector<std::array<int, 3>> cut_face_tris_;
+  std::vector<std::pair<int, int>> cut_rim_;
   mutable std::mutex mutex_;
   std::shared_ptr<const ModelSnapshot> snapshot_;
   std::optional<std::array<Eigen::Vector3d, 2>> scalpel_;

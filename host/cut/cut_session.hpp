@@ -24,6 +24,7 @@
 
 #include "host/cut/blade.hpp"
 #include "host/cut/bvh.hpp"
+#include "host/cut/surface_tracker.hpp"
 #include "host/cut/tet_cutter.hpp"
 #include "host/scene/embedding.hpp"
 #include "host/scene/scene.hpp"
@@ -101,8 +102,13 @@ class CutSession {
   const TetMesh& mesh() const { return cutter_.mesh(); }
   TetCutter& cutter() { return cutter_; }
   const std::vector<int>& fixed_vertices() const { return problem_.fixed_vertices; }
-  // Organ surface: boundary faces of the cut volume (closed, outward), cut faces included.
-  const std::vector<std::array<int, 3>>& surface_tris();
+  // Organ surface: boundary faces of the cut volume (closed, outward), cut faces included;
+  // kept up to date from the tets each cut changed (SurfaceTracker: O(changed tets)).
+  const std::vector<std::array<int, 3>>& surface_tris() { return surface_.tris(); }
+  // The same faces by slot, with their hierarchy (contact); surface_version() changes
+  // whenever the boundary does.
+  const SurfaceTracker& surface() const { return surface_; }
+  int surface_version() const { return surface_version_; }
   const std::vector<CarriedPoints>& tumours() const { return tumours_; }
   const std::optional<CarriedPoints>& vessels() const { return vessels_; }
   int frame() const { return frame_; }
@@ -133,8 +139,8 @@ class CutSession {
   std::optional<BladeSegment> previous_blade_;
   Eigen::Matrix3Xd x_at_blade_;  // positions when the previous blade was applied
   bool previous_cutting_ = false;
-  Bvh surface_bvh_;
-  bool surface_dirty_ = true;
+  SurfaceTracker surface_;
+  int surface_version_ = 0;
   std::optional<AttachmentId> push_;
   AttachmentSpec push_spec_;
   std::vector<AttachmentSpec> attachments_;        // session attachments
