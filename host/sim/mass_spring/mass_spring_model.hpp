@@ -26,7 +26,8 @@
 //  - "local_global": backward Euler solved by `iterations` local/global iterations with a
 //    constant matrix factored once by CHOLMOD (fast mass-spring, Liu et al. 2013; see
 //    local_global_step.cpp). Refactored only when h, the fixed set or the attachments
-//    change (lazily, at the next step).
+//    change (lazily, at the next step), and after a cut (apply_mesh_change: on a worker
+//    thread, truncated PCG on the old factor until it is ready).
 // Springs do not know orientation: an inverted tet whose edges have their rest length
 // feels no spring force, so the volume term carries an inversion barrier below J = 0.1
 // (volume_energy). Inverted tets are still counted every step and reported (a counted
