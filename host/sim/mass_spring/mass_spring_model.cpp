@@ -317,6 +317,11 @@ std::optional<MeshChangeStats> MassSpringModel::apply_mesh_change(const SimProbl
     ++stats.vertices_updated;
   }
   if (integrator_ == Integrator::kExplicit) update_omega_bound();  // the stability bound the small pieces lower
+  // As for a model rebuilt on the cut mesh (set_state): the energy balance restarts on the
+  // cut mesh (the cut changed the energy function: a split spring's pieces take their own
+  // rest lengths) and so does the inversion episode. O(mesh), one energy evaluation.
+  inversions_.reset_episode();
+  reset_ledger();
   if (integrator_ == Integrator::kLocalGlobal || laplacian_pc_) {
     // The prefactored system: new rows for the new free vertices (numbered after the old
     // ones, as a fresh numbering would), refactored in the background (local_global_step.cpp).
