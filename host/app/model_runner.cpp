@@ -285,6 +285,7 @@ void ModelRunner::step_once(std::int64_t now_us) {
         previous_blade_ = blade;
         blade_gap_ = false;
         for (const auto& e : cr.events) new_events.push_back({0, now_us, e});
+        if (cr.cut.vertices_snapped > 0) cut_marks_changed_ = true;
         if (cr.cut.topology_changed) {
           cut_record = CutStepRecord{};
           cut_record->cutter_path_error_mm = cr.cut.max_path_deviation_mm;
@@ -328,28 +329,36 @@ void ModelRunner::step_once(std::int64_t now_us) {
     snap->cutting = true;
     snap->organ.tris = surface;
     snap->organ.positions_World_mm = x;
+    if (cut_->surface_version() != cut_surface_version_ || cut_marks_changed_) {
+      // The boundary changed (or vertices were put on the cut): its cut faces (all three
+      // vertices on a cut) and the rim (cut-face edges shared with an uncut face), found
+      // again only then, not every step.
+      cut_surface_version_ = cut_->surface_version();
+      cut_marks_changed_ = false;
+      const auto& c = cut_->cutter();
+      cut_face_tris_.clear();
+      for (const auto& f : surface)
+        if (c.on_cut(f[0]) && c.on_cut(f[1]) && c.on_cut(f[2])) cut_face_tris_.push_back(f);
+      cut_rim_.clear();
+      if (!cut_face_tris_.empty()) {
+        std::set<std::pair<int, int>> outer;
+        const auto key = [](int a, int b) { return std::make_pair(std::min(a, b), std::max(a, b)); };
+        for (const auto& f : surface)
+          if (!(c.on_cut(f[0]) && c.on_cut(f[1]) && c.on_cut(f[2])))
+            for (int e = 0; e < 3; ++e) outer.insert(key(f[e], f[(e + 1) % 3]));
+        std::set<std::pair<int, int>> rim;
+        for (const auto& f : cut_face_tris_)
+          for (int e = 0; e < 3; ++e)
+            if (const auto k = key(f[e], f[(e + 1) % 3]); outer.count(k)) rim.insert(k);
+        cut_rim_.assign(rim.begin(), rim.end());
+      }
+    }
     TriMesh cut_faces;
     cut_faces.positions_World_mm = x;
+    cut_faces.tris = cut_face_tris_;
     double area2 = 0.0;
-    for (const auto& f : surface)
-      if (cut_->cutter().on_cut(f[0]) && cut_->cutter().on_cut(f[1]) && cut_->cutter().on_cut(f[2])) {
-        cut_faces.tris.push_back(f);
-        area2 += (x.col(f[1]) - x.col(f[0])).cross(x.col(f[2]) - x.col(f[0])).norm();
-      }
-    // The cut's rim on the organ surface: cut-face edges shared with an uncut boundary face.
-    if (!cut_faces.tris.empty()) {
-      std::set<std::pair<int, int>> outer;
-      const auto key = [](int a, int b) { return std::make_pair(std::min(a, b), std::max(a, b)); };
-      const auto& c = cut_->cutter();
-      for (const auto& f : surface)
-        if (!(c.on_cut(f[0]) && c.on_cut(f[1]) && c.on_cut(f[2])))
-          for (int e = 0; e < 3; ++e) outer.insert(key(f[e], f[(e + 1) % 3]));
-      std::set<std::pair<int, int>> rim;
-      for (const auto& f : cut_faces.tris)
-        for (int e = 0; e < 3; ++e)
-          if (const auto k = key(f[e], f[(e + 1) % 3]); outer.count(k)) rim.insert(k);
-      for (const auto& [a, b] : rim) snap->cut_rim_mm.push_back({x.col(a), x.col(b)});
-    }
+    for (const auto& f : cut_faces.tris) area2 += (x.col(f[1]) - x.col(f[0])).cross(x.col(f[2]) - x.col(f[0])).norm();
+    for (const auto& [a, b] : cut_rim_) snap->cut_rim_mm.push_back({x.col(a), x.col(b)});
     snap->cut_faces = static_cast<int>(cut_faces.tris.size());
     snap->cut_area_mm2 = 0.25 * area2;  // half of each face's |cross|, half of the faces (two sides)
     if (!cut_faces.tris.empty()) snap->cut_surface = std::move(cut_faces);

@@ -159,6 +159,12 @@ class ModelRunner {
   std::vector<std::pair<int, double>> cut_path_;    // this step: vertices new on the cut, their largest distance (mm)
   void record_material_sweep(const cut::SweptSurface& sweep);
   int measure_new_cut_vertices(double& worst_mm);
+  // Cut faces and the cut's rim on the organ surface: found again only when the cut session's
+  // boundary changed or vertices were put on the cut (not every step).
+  int cut_surface_version_ = -1;
+  bool cut_marks_changed_ = false;
+  std::vector<std::array<int, 3>> cut_face_tris_;
+  std::vector<std::pair<int, int>> cut_rim_;
   mutable std::mutex mutex_;
   std::shared_ptr<const ModelSnapshot> snapshot_;
   std::optional<std::array<Eigen::Vector3d, 2>> scalpel_;

@@ -96,13 +96,19 @@ std::vector<Aabb> triangle_boxes(const std::vector<std::array<int, 3>>& tris, co
 
 Contact blade_contact(const Bvh& bvh, const std::vector<std::array<int, 3>>& tris, const Eigen::Matrix3Xd& x,
                       const BladeSegment& blade) {
+  return blade_contact([&bvh](const Aabb& box, const std::function<void(int)>& visit) { bvh.query(box, visit); }, tris, x, blade);
+}
+
+Contact blade_contact(const TriangleQuery& query, const std::vector<std::array<int, 3>>& tris, const Eigen::Matrix3Xd& x,
+                      const BladeSegment& blade) {
   Contact c;
   Aabb box;
   box.extend(blade.tip_World_mm);
   box.extend(blade.heel_World_mm);
   std::vector<std::pair<double, int>> hits;  // parameter from the tip, triangle
-  bvh.query(box, [&](int i) {
+  query(box, [&](int i) {
     const auto& t = tris[static_cast<std::size_t>(i)];
+    if (t[0] < 0) return;
     const Triangle tri{x.col(t[0]), x.col(t[1]), x.col(t[2])};
     double s = 0;
     if (segment_triangle_intersection(blade.tip_World_mm, blade.heel_World_mm, tri, s)) hits.emplace_back(s, i);

@@ -71,6 +71,12 @@ struct Contact {
 Contact blade_contact(const Bvh& bvh, const std::vector<std::array<int, 3>>& tris, const Eigen::Matrix3Xd& x_World_mm,
                       const BladeSegment& blade);
 
+// The same over any search structure: query(box, visit) calls visit(i) for (at least) every
+// triangle i whose box overlaps box; tris[i] == {-1, -1, -1} is skipped.
+using TriangleQuery = std::function<void(const Aabb&, const std::function<void(int)>&)>;
+Contact blade_contact(const TriangleQuery& query, const std::vector<std::array<int, 3>>& tris, const Eigen::Matrix3Xd& x_World_mm,
+                      const BladeSegment& blade);
+
 // Boxes of triangles at positions x, for Bvh::build/refit.
 std::vector<Aabb> triangle_boxes(const std::vector<std::array<int, 3>>& tris, const Eigen::Matrix3Xd& x_World_mm);
 

@@ -120,21 +120,13 @@ CutSession::CutSession(const SimProblem& problem, const ModelConfig& config, con
   if (vessel_input_) vessel_region_ = near(vessel_input_->rest_World_mm);
   tumour_edges_cut_.assign(tumour_input_.size(), 0);
   model_ = make_tissue_model(problem_, config_);
+  surface_ = SurfaceTracker(problem_.mesh);
   n0_ = problem_.mesh.num_vertices();
   fixed_.assign(static_cast<std::size_t>(problem_.mesh.num_vertices()), 0);
   for (int v : problem_.fixed_vertices) fixed_[static_cast<std::size_t>(v)] = 1;
   in_margin_.assign(tumours_.size(), 0);
   tumour_cut_.assign(tumours_.size(), 0);
   vessel_segment_crossed_.assign(vessel_input_segments_.size(), 0);
-}
-
-const std::vector<std::array<int, 3>>& CutSession::surface_tris() {
-  if (surface_dirty_) {
-    cutter_.update_surface();
-    surface_bvh_.build(triangle_boxes(cutter_.mesh().surface_tris, positions_World_mm()));
-    surface_dirty_ = false;
-  }
-  return cutter_.mesh().surface_tris;
 }
 
 bool CutSession::sync_mesh(const CutStepReport& step) {
@@ -393,7 +385,8 @@ void CutSession::absorb(CutFrameReport& report, const Eigen::Matrix3Xd& x, const
   if (vessel_input_) reembed(*vessel_input_, report.cut, vessel_region_);
   split_structures(report.cut, report);
   report.reembed_ms = ms_since(t0);
-  surface_dirty_ = true;
+  surface_.update(cutter_.mesh(), report.cut.changed_tets);
+  ++surface_version_;
 }
 
 CutFrameReport CutSession::apply_blade(const BladeSegment& blade, bool cutting_enabled) {
@@ -401,10 +394,11 @@ CutFrameReport CutSession::apply_blade(const BladeSegment& blade, bool cutting_e
   CutFrameReport report;
   last_sweep_.reset();
   report.rebuild_ms = poll_build();
-  const auto& tris = surface_tris();
   const Eigen::Matrix3Xd x_now = positions_World_mm();
-  surface_bvh_.refit(triangle_boxes(tris, x_now));
-  report.contact = blade_contact(surface_bvh_, tris, x_now, blade);
+  surface_.refit(x_now);
+  report.contact = surface_.contact(x_now, blade);
+  const std::array<int, 3> entered = report.contact.triangle >= 0 ? surface_.slots()[static_cast<std::size_t>(report.contact.triangle)]
+                                                                  : std::array<int, 3>{{-1, -1, -1}};
   if (cutting_enabled) {
     if (push_) {
       model_->remove_attachment(*push_);
@@ -472,13 +466,10 @@ CutFrameReport CutSession::apply_blade(const BladeSegment& blade, bool cutting_e
     }
     // Contact: the blade pushes the surface point it entered towards its tip.
     bool pushable = false;  // the entered triangle's vertices exist in the model (a new one may still be building)
-    if (report.contact.triangle >= 0) {
-      const auto& entered = tris[static_cast<std::size_t>(report.contact.triangle)];
-      pushable = std::max({entered[0], entered[1], entered[2]}) < static_cast<int>(model_->positions_World_mm().cols());
-    }
+    if (entered[0] >= 0) pushable = std::max({entered[0], entered[1], entered[2]}) < static_cast<int>(model_->positions_World_mm().cols());
     if (report.contact.tip_inside && (push_ || pushable)) {
       if (!push_) {
-        const auto& t = tris[static_cast<std::size_t>(report.contact.triangle)];
+        const auto& t = entered;
         const Eigen::Matrix3Xd& x = x_now;
         const Eigen::Vector3d a = x.col(t[0]), b = x.col(t[1]), c = x.col(t[2]), p = report.contact.point_World_mm;
         const Eigen::Vector3d n = (b - a).cross(c - a);

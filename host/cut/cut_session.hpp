@@ -25,6 +25,7 @@
 #include "host/cut/blade.hpp"
 #include "host/cut/bvh.hpp"
 #include "host/cut/structure_split.hpp"
+#include "host/cut/surface_tracker.hpp"
 #include "host/cut/tet_cutter.hpp"
 #include "host/scene/embedding.hpp"
 #include "host/scene/scene.hpp"
@@ -108,8 +109,13 @@ class CutSession {
   const TetMesh& mesh() const { return cutter_.mesh(); }
   TetCutter& cutter() { return cutter_; }
   const std::vector<int>& fixed_vertices() const { return problem_.fixed_vertices; }
-  // Organ surface: boundary faces of the cut volume (closed, outward), cut faces included.
-  const std::vector<std::array<int, 3>>& surface_tris();
+  // Organ surface: boundary faces of the cut volume (closed, outward), cut faces included;
+  // kept up to date from the tets each cut changed (SurfaceTracker: O(changed tets)).
+  const std::vector<std::array<int, 3>>& surface_tris() { return surface_.tris(); }
+  // The same faces by slot, with their hierarchy (contact); surface_version() changes
+  // whenever the boundary does.
+  const SurfaceTracker& surface() const { return surface_; }
+  int surface_version() const { return surface_version_; }
   // Tumours and vessels split along the cut (structure_split.hpp): points (the input ones
   // first, then the crossings' copies and cap centres) with their embedding in mesh(), and
   // the split triangles (closed, outward) / segments. Unchanged until the cut crosses them.
@@ -164,8 +170,8 @@ class CutSession {
   std::optional<SweptSurface> last_sweep_;
   Eigen::Matrix3Xd x_at_blade_;  // positions when the previous blade was applied
   bool previous_cutting_ = false;
-  Bvh surface_bvh_;
-  bool surface_dirty_ = true;
+  SurfaceTracker surface_;
+  int surface_version_ = 0;
   std::optional<AttachmentId> push_;
   AttachmentSpec push_spec_;
   std::vector<std::optional<AttachmentSpec>> attachments_;  // session attachments (nullopt: removed)

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <numeric>
 #include <stdexcept>
 #include <string>
 
@@ -190,7 +191,6 @@ MassSpringModel::MassSpringModel(const SimProblem& problem, Integrator integrato
 
 std::optional<MeshChangeStats> MassSpringModel::apply_mesh_change(const SimProblem& problem, const std::vector<int>& changed_tets,
                                                                   const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v) {
-  if (integrator_ == Integrator::kLocalGlobal || laplacian_pc_) return std::nullopt;  // prefactored systems: rebuild
   static const int kEdges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
   const TetMesh& mesh = problem.mesh;
   const int n_old = static_cast<int>(x_.cols()), n = mesh.num_vertices();
@@ -239,10 +239,8 @@ std::optional<MeshChangeStats> MassSpringModel::apply_mesh_change(const SimProbl
   tet_lame_.resize(static_cast<std::size_t>(nt));
   volume_stiffness_.resize(static_cast<std::size_t>(nt));
   inv_6v0_.resize(static_cast<std::size_t>(nt));
-  if (integrator_ == Integrator::kSemiImplicit) {
-    vol_grad_.resize(static_cast<std::size_t>(nt));
-    vol_coef_.resize(static_cast<std::size_t>(nt));
-  }
+  vol_grad_.resize(static_cast<std::size_t>(nt));  // semi-implicit, also the fallback of the others
+  vol_coef_.resize(static_cast<std::size_t>(nt));
   for (int t : changed_tets) {
     if (t >= nt_old) continue;
     const Material& mat = problem.region_materials[static_cast<std::size_t>(mesh.tet_region[static_cast<std::size_t>(t)])];
@@ -305,11 +303,9 @@ std::optional<MeshChangeStats> MassSpringModel::apply_mesh_change(const SimProbl
       touched.push_back(w);
     }
   }
-  if (integrator_ == Integrator::kSemiImplicit) {
-    spring_dir_.resize(springs_.ends.size());
-    spring_s1_.resize(springs_.ends.size());
-    spring_s2_.resize(springs_.ends.size());
-  }
+  spring_dir_.resize(springs_.ends.size());
+  spring_s1_.resize(springs_.ends.size());
+  spring_s2_.resize(springs_.ends.size());
   std::sort(touched.begin(), touched.end());
   touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
   inv_mass_.conservativeResize(n);
@@ -321,6 +317,62 @@ std::optional<MeshChangeStats> MassSpringModel::apply_mesh_change(const SimProbl
     ++stats.vertices_updated;
   }
   if (integrator_ == Integrator::kExplicit) update_omega_bound();  // the stability bound the small pieces lower
+  // As for a model rebuilt on the cut mesh (set_state): the energy balance restarts on the
+  // cut mesh (the cut changed the energy function: a split spring's pieces take their own
+  // rest lengths) and so does the inversion episode. O(mesh), one energy evaluation.
+  inversions_.reset_episode();
+  reset_ledger();
+  if (integrator_ == Integrator::kLocalGlobal || laplacian_pc_) {
+    // The prefactored system: new rows for the new free vertices (numbered after the old
+    // ones, as a fresh numbering would), refactored in the background (local_global_step.cpp).
+    ++mesh_version_;
+    stale_ready_ = false;
+    base_valid_ = false;
+    if (static_cast<int>(free_index_.size()) == n_old) {
+      const std::vector<int> old_free_index = free_index_;
+      for (int i = n_old; i < n; ++i) free_index_.push_back(fixed_[static_cast<std::size_t>(i)] ? -1 : free_count_++);
+      lg_rhs_.resize(free_count_, 3);
+      lg_dx_.resize(free_count_, 3);
+      if (!system_dirty_ && system_.ready()) {
+        if (!factor_stale_) {
+          pc_free_index_ = old_free_index;  // the rows system_ was factored for
+          pc_alias_.resize(static_cast<std::size_t>(n_old));
+          std::iota(pc_alias_.begin(), pc_alias_.end(), 0);
+        }
+        // A vertex the cut made moves, in the preconditioner, with its nearest (rest)
+        // neighbour in the changed tets that existed before (aggregation).
+        pc_alias_.resize(static_cast<std::size_t>(n), -1);
+        for (int round = 0; round < 4; ++round) {
+          bool missing = false;
+          for (int t : changed_tets) {
+            const auto& tet = tets_[static_cast<std::size_t>(t)];
+            for (int w : tet) {
+              if (w < n_old || pc_alias_[static_cast<std::size_t>(w)] >= 0) continue;
+              double best = 1e300;
+              for (int u : tet)
+                if (u != w && pc_alias_[static_cast<std::size_t>(u)] >= 0 && (u < n_old || round > 0)) {
+                  const double d = (X.col(u) - X.col(w)).squaredNorm();
+                  if (d < best) {
+                    best = d;
+                    pc_alias_[static_cast<std::size_t>(w)] = pc_alias_[static_cast<std::size_t>(u)];
+                  }
+                }
+              missing = missing || pc_alias_[static_cast<std::size_t>(w)] < 0;
+            }
+          }
+          if (!missing) break;
+        }
+        factor_stale_ = true;
+        if (pending_factor_.valid()) {
+          refactor_again_ = true;
+        } else {
+          launch_background_factor();
+        }
+      }
+    } else {
+      system_dirty_ = true;  // never factored: the next step builds it
+    }
+  }
   return stats;
 }
 
@@ -602,12 +654,18 @@ double MassSpringModel::apply_system(const Eigen::Matrix3Xd& p, Eigen::Matrix3Xd
 void MassSpringModel::precondition_with_laplacian(const Eigen::Matrix3Xd& r, Eigen::Matrix3Xd& z, double h) {
   // The CG matrix is M + hC + h^2 K (velocity form) and the local/global matrix A bounds
   // M/h^2 + C/h + K from above (docs/sim.md), so z = A^-1 r / h^2 (fixed rows zero).
+  // After a cut, until the new factor is ready: the old factor and the diagonal instead.
   const int n = static_cast<int>(r.cols());
   for (int i = 0; i < n; ++i) {
     const int fi = free_index_[static_cast<std::size_t>(i)];
     if (fi >= 0) lg_rhs_.row(fi) = r.col(i).transpose();
   }
-  system_.solve(lg_rhs_, lg_dx_, threads_);
+  if (factor_stale_) {
+    prepare_stale_preconditioner(h);
+    stale_precondition(lg_rhs_, lg_dx_);
+  } else {
+    system_.solve(lg_rhs_, lg_dx_, threads_);
+  }
   const double inv_h2 = 1.0 / (h * h);
   for (int i = 0; i < n; ++i) {
     const int fi = free_index_[static_cast<std::size_t>(i)];
@@ -620,6 +678,7 @@ void MassSpringModel::precondition_with_laplacian(const Eigen::Matrix3Xd& r, Eig
 }
 
 StepSummary MassSpringModel::semi_implicit_substep(double h) {
+  if (laplacian_pc_) poll_background_factor(h, false);
   if (laplacian_pc_ && (system_dirty_ || h != system_h_)) {
     std::string error;
     StepSummary failed;

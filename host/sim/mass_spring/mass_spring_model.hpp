@@ -26,7 +26,8 @@
 //  - "local_global": backward Euler solved by `iterations` local/global iterations with a
 //    constant matrix factored once by CHOLMOD (fast mass-spring, Liu et al. 2013; see
 //    local_global_step.cpp). Refactored only when h, the fixed set or the attachments
-//    change (lazily, at the next step).
+//    change (lazily, at the next step), and after a cut (apply_mesh_change: on a worker
+//    thread, truncated PCG on the old factor until it is ready).
 // Springs do not know orientation: an inverted tet whose edges have their rest length
 // feels no spring force, so the volume term carries an inversion barrier below J = 0.1
 // (volume_energy). Inverted tets are still counted every step and reported (a counted
@@ -34,6 +35,8 @@
 #include <Eigen/Core>
 
 #include <cstdint>
+#include <future>
+#include <memory>
 #include <unordered_map>
 #include <vector>
 
@@ -72,11 +75,15 @@ class MassSpringModel final : public TissueModel {
   const Eigen::Matrix3Xd& velocities_World_mm_s() const override { return v_; }
   void set_state(const Eigen::Matrix3Xd& positions_World_mm, const Eigen::Matrix3Xd& velocities_World_mm_s) override;
   std::vector<ElementMeasure> element_measures() const override;
-  // In place after a cut (explicit and semi_implicit with the Jacobi preconditioner; the
-  // prefactored local/global and Laplacian systems are rebuilt: nothing): the changed tets'
-  // spring, volume and mass contributions out, the new ones in (springs found by edge),
-  // per-tet data replaced or appended. O(changed tets) plus, for explicit, the O(mesh)
-  // stability bound.
+  // In place after a cut, every integrator: the changed tets' spring, volume and mass
+  // contributions out, the new ones in (springs found by edge), per-tet data replaced or
+  // appended. O(changed tets) plus, for explicit, the O(mesh) stability bound. The
+  // prefactored system (local_global, semi_implicit with the laplacian preconditioner) is
+  // assembled and factored again on a worker thread; until that factor is ready the global
+  // step solves the new system by PCG preconditioned by the old factor (rows of the vertices
+  // it knew) and the diagonal (new vertices), to 1e-10 relative (local_global_step.cpp).
+  // A cut while a factorisation runs queues one more; attachments or fixed vertices changed
+  // meanwhile refactor inline at the next step, as before.
   std::optional<MeshChangeStats> apply_mesh_change(const SimProblem& problem, const std::vector<int>& changed_tets,
                                                    const Eigen::Matrix3Xd& x_World_mm, const Eigen::Matrix3Xd& v_World_mm_s) override;
 
@@ -87,6 +94,24 @@ class MassSpringModel final : public TissueModel {
   const SpringNetwork& springs() const { return springs_; }
   // local_global: numeric factorisations so far, and the last one's wall time (ms).
   int refactorizations() const { return refactorizations_; }
+  // After cuts: factorisations made on the worker thread and adopted, global solves run by
+  // PCG on an old factor while one was pending, and their PCG iterations.
+  int background_factorizations() const { return background_factorizations_; }
+  int stale_solves() const { return stale_solves_; }
+  int stale_pcg_iterations() const { return stale_pcg_iterations_; }
+  bool factor_pending() const { return pending_factor_.valid() || factor_stale_; }
+  // Blocks until the pending background factorisations (if any) are done and the current
+  // one adopted (tests).
+  void wait_for_factor();
+  // Tests: while held, a finished background factorisation is not adopted (the global step
+  // keeps solving by PCG on the old factor).
+  void hold_background_factor(bool hold) { hold_factor_ = hold; }
+  // PCG iterations per global solve on an old factor (default 2: about three times a step
+  // with a current factor) and its relative tolerance (default 1e-8).
+  void set_stale_pcg(int max_iterations, double relative_tolerance) {
+    stale_pcg_limit_ = max_iterations;
+    stale_pcg_tolerance_ = relative_tolerance;
+  }
   double last_factor_ms() const { return system_.last_factor_ms(); }
   // explicit / local_global: steps redone with the semi-implicit integrator after they
   // diverged (step() below; docs/sim.md).
@@ -165,6 +190,30 @@ class MassSpringModel final : public TissueModel {
   // built at the first one.
   std::unordered_map<std::uint64_t, int> spring_of_edge_;
   std::vector<int> spring_tets_;
+  // Background factorisation after a cut (local_global_step.cpp).
+  struct PendingFactor;
+  std::future<std::unique_ptr<PendingFactor>> pending_factor_;
+  int free_count_ = 0;             // rows of the current system
+  bool factor_stale_ = false;      // system_ factors an older matrix (pc_free_index_ rows)
+  bool refactor_again_ = false;    // the mesh changed while a factorisation ran
+  bool stale_ready_ = false;       // pc_row_, pc_diag_ match the current mesh
+  bool hold_factor_ = false;
+  int stale_pcg_limit_ = 2;
+  double stale_pcg_tolerance_ = 1e-8;
+  int mesh_version_ = 0;           // bumped by every cut and every inline factorisation
+  std::vector<int> pc_free_index_; // vertex -> row of system_ while stale (-1: fixed or unknown)
+  std::vector<int> pc_alias_;      // per vertex: the vertex it moves with in the preconditioner (itself, or a neighbour for a vertex made by a cut)
+  std::vector<int> pc_row_;        // row of the current system -> row of system_ (own or its alias's; -1: none)
+  std::vector<char> pc_own_;       // the row is the factor's own (else aliased: plus the diagonal)
+  Eigen::VectorXd pc_diag_;        // diagonal of the current matrix
+  Eigen::MatrixX3d pc_rhs_, pc_sol_, pcg_r_, pcg_z_, pcg_p_, pcg_q_;
+  int background_factorizations_ = 0, stale_solves_ = 0, stale_pcg_iterations_ = 0;
+  void launch_background_factor();
+  void poll_background_factor(double h, bool wait);
+  void prepare_stale_preconditioner(double h);
+  void stale_precondition(const Eigen::MatrixX3d& r, Eigen::MatrixX3d& z);
+  void apply_local_global_matrix(const Eigen::MatrixX3d& p, Eigen::MatrixX3d& out, double h) const;
+  int solve_with_stale_factor(const Eigen::MatrixX3d& b, Eigen::MatrixX3d& x, double h);
 };
 
 }  // namespace arnav::host
