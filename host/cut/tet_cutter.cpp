@@ -963,22 +963,22 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
     for (const auto& key : new_cut_faces) {
       int pair[2] = {-1, -1};
       if (tets_with_face(key, pair) != 2) continue;
-      for (int start : pair) {
-        if (done.count(start) || !all_on_cut(start)) continue;
-        std::vector<int> group{start};
-        std::set<int> in_group{start};
+      for (int seed : pair) {
+        if (done.count(seed) || !all_on_cut(seed)) continue;
+        std::vector<int> group{seed};
+        std::set<int> in_group{seed};
         std::vector<std::pair<std::array<int, 3>, int>> walls;  // cut face, tet beyond it
         bool attached = false;
         for (std::size_t i = 0; i < group.size() && !attached && group.size() <= kMaxGroup; ++i) {
           const auto& tet = mesh_.tets[static_cast<std::size_t>(group[i])];
           for (const auto& fc : kFaces) {
-            const auto f = face_key(tet[static_cast<std::size_t>(fc[0])], tet[static_cast<std::size_t>(fc[1])], tet[static_cast<std::size_t>(fc[2])]);
+            const auto face = face_key(tet[static_cast<std::size_t>(fc[0])], tet[static_cast<std::size_t>(fc[1])], tet[static_cast<std::size_t>(fc[2])]);
             int across[2] = {-1, -1};
-            if (tets_with_face(f, across) != 2) continue;
+            if (tets_with_face(face, across) != 2) continue;
             const int other = across[0] == group[i] ? across[1] : across[0];
             if (in_group.count(other)) continue;
-            if (cut_faces_.count(f)) {
-              walls.emplace_back(f, other);
+            if (cut_faces_.count(face)) {
+              walls.emplace_back(face, other);
             } else if (all_on_cut(other)) {
               group.push_back(other);
               in_group.insert(other);

@@ -239,8 +239,8 @@ void ring_on_the_liver(const std::string& scene_file, bool bundled_path) {
           std::cout << "hole: face " << f[0] << " " << f[1] << " " << f[2] << " at " << m.transpose() << " between tets " << it->second << " and " << t << ";";
           for (int tt : {it->second, t})
             for (int w : mesh.tets[static_cast<std::size_t>(tt)]) {
-              const Eigen::Vector3d q = mesh.rest_positions_World_mm.col(w);
-              std::cout << " " << w << (cutter.on_cut(w) ? "*" : "") << "(r " << std::hypot(q.x() - ring.x, q.y() - ring.y) << " z " << q.z() << ")";
+              const Eigen::Vector3d pw = mesh.rest_positions_World_mm.col(w);
+              std::cout << " " << w << (cutter.on_cut(w) ? "*" : "") << "(r " << std::hypot(pw.x() - ring.x, pw.y() - ring.y) << " z " << pw.z() << ")";
             }
           std::cout << "\n";
         }
