@@ -10,6 +10,7 @@
 #include "host/cut/bvh.hpp"
 #include "host/cut/scalpel_path.hpp"
 #include "host/scene/scene.hpp"
+#include "host/scene/surface_shapes.hpp"
 
 namespace arnav::host {
 
@@ -67,18 +68,6 @@ void one_way(const std::vector<cut::Triangle>& from, const std::vector<cut::Tria
 }
 
 }  // namespace
-
-Eigen::Vector3d closed_surface_centroid(const Eigen::Matrix3Xd& p, const std::vector<std::array<int, 3>>& tris) {
-  double volume = 0.0;
-  Eigen::Vector3d moment = Eigen::Vector3d::Zero();
-  for (const auto& t : tris) {
-    const Eigen::Vector3d a = p.col(t[0]), b = p.col(t[1]), c = p.col(t[2]);
-    const double v = a.dot(b.cross(c)) / 6.0;
-    volume += v;
-    moment += v * (a + b + c) / 4.0;
-  }
-  return moment / volume;
-}
 
 CutOutcome cut_outcome(cut::CutSession& session) {
   CutOutcome out;

@@ -41,9 +41,6 @@ struct SurfaceDistance {
 };
 SurfaceDistance surface_distance(const std::vector<cut::Triangle>& a, const std::vector<cut::Triangle>& b);
 
-// Volume centroid of a closed triangle surface (divergence theorem).
-Eigen::Vector3d closed_surface_centroid(const Eigen::Matrix3Xd& p_World_mm, const std::vector<std::array<int, 3>>& tris);
-
 // Reference runs, one per (scenario, model label, frames), made when first asked for.
 class CutReferences {
  public:

@@ -10,6 +10,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "host/register/robust_stats.hpp"
 #include "host/register/self_contact.hpp"
 #include "host/register/surface_index.hpp"
 
@@ -44,14 +45,6 @@ std::vector<int> cluster_points(const Eigen::Matrix3Xd& pts, int k) {
     }
   }
   return label;
-}
-
-double kth_value(std::vector<double> v, double fraction) {
-  if (v.empty()) return 0.0;
-  const auto k = std::clamp(static_cast<std::ptrdiff_t>(std::ceil(fraction * static_cast<double>(v.size()))) - 1, std::ptrdiff_t{0},
-                            static_cast<std::ptrdiff_t>(v.size()) - 1);
-  std::nth_element(v.begin(), v.begin() + k, v.end());
-  return v[static_cast<std::size_t>(k)];
 }
 
 struct Pairs {

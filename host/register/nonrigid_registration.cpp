@@ -11,6 +11,7 @@
 #include <set>
 #include <stdexcept>
 
+#include "host/register/robust_stats.hpp"
 #include "host/register/self_contact.hpp"
 #include "host/register/surface_index.hpp"
 #include "host/scene/embedding.hpp"
@@ -22,14 +23,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
-double kth_value(std::vector<double> v, double fraction) {
-  if (v.empty()) return 0.0;
-  const auto k = std::clamp(static_cast<std::ptrdiff_t>(std::ceil(fraction * static_cast<double>(v.size()))) - 1, std::ptrdiff_t{0},
-                            static_cast<std::ptrdiff_t>(v.size()) - 1);
-  std::nth_element(v.begin(), v.begin() + k, v.end());
-  return v[static_cast<std::size_t>(k)];
-}
 
 struct Correspondences {
   std::vector<SurfaceHit> hit;

@@ -57,4 +57,16 @@ double winding_number(const TriMesh& s, const Eigen::Vector3d& p) {
   return total / (4.0 * std::numbers::pi);
 }
 
+Eigen::Vector3d closed_surface_centroid(const Eigen::Matrix3Xd& p_mm, const std::vector<std::array<int, 3>>& tris) {
+  double volume = 0.0;
+  Eigen::Vector3d moment = Eigen::Vector3d::Zero();
+  for (const auto& t : tris) {
+    const Eigen::Vector3d a = p_mm.col(t[0]), b = p_mm.col(t[1]), c = p_mm.col(t[2]);
+    const double v = a.dot(b.cross(c)) / 6.0;
+    volume += v;
+    moment += v * (a + b + c) / 4.0;
+  }
+  return std::abs(volume) > 0 ? Eigen::Vector3d(moment / volume) : Eigen::Vector3d(p_mm.rowwise().mean());
+}
+
 }  // namespace arnav::host

@@ -14,4 +14,8 @@ TriMesh make_ellipsoid_surface(const Eigen::Vector3d& center_mm, const Eigen::Ve
 // outside (robust near small defects).
 double winding_number(const TriMesh& surface, const Eigen::Vector3d& p_mm);
 
+// Volume centroid of a closed triangle surface over positions p (divergence theorem), in
+// the frame of p; the mean of the positions when the enclosed volume is 0.
+Eigen::Vector3d closed_surface_centroid(const Eigen::Matrix3Xd& p_mm, const std::vector<std::array<int, 3>>& tris);
+
 }  // namespace arnav::host

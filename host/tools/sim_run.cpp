@@ -10,6 +10,7 @@
 #include "host/cut/cut_session.hpp"
 #include "host/cut/mesh_checks.hpp"
 #include "host/scene/mesh_io.hpp"
+#include "host/scene/surface_shapes.hpp"
 #include "host/sim/model_factory.hpp"
 
 namespace arnav::host {
@@ -37,19 +38,6 @@ void write_frame(const Scene& scene, const SimRunOptions& o, int frame, const Ei
       write_vtk_lines(numbered(o.out_dir, "vessels", frame, "vtk"), scene.vessels->embedding.apply(scene.problem.mesh, x),
                       scene.vessels->rest.segments, scene.vessels->rest.radius_mm);
   }
-}
-
-// Volume centroid of a closed triangle surface (divergence theorem).
-Eigen::Vector3d closed_surface_centroid(const Eigen::Matrix3Xd& p, const std::vector<std::array<int, 3>>& tris) {
-  double volume = 0.0;
-  Eigen::Vector3d moment = Eigen::Vector3d::Zero();
-  for (const auto& t : tris) {
-    const Eigen::Vector3d a = p.col(t[0]), b = p.col(t[1]), c = p.col(t[2]);
-    const double v = a.dot(b.cross(c)) / 6.0;
-    volume += v;
-    moment += v * (a + b + c) / 4.0;
-  }
-  return std::abs(volume) > 0 ? Eigen::Vector3d(moment / volume) : Eigen::Vector3d(p.rowwise().mean());
 }
 
 SimRunResult run_scene_with_scalpel(const Scene& scene, const SimRunOptions& o, std::ostream& csv) {

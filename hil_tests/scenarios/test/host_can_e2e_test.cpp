@@ -27,6 +27,7 @@
 #include "calibration/lib/rigid_transform_file.hpp"
 #include "hil_tests/bench/child_process.hpp"
 #include "hil_tests/scenarios/can_run.hpp"
+#include "hil_tests/scenarios/host_run.hpp"
 #include "protocol/channels.hpp"
 #include "protocol/clock.hpp"
 #include "protocol/pose_convert.hpp"
@@ -50,21 +51,6 @@ tool_pose_t ref_pose_msg(const std::string& tool, const Eigen::Isometry3d& X_Ref
   m.receive_time_mono_us = m.publish_time_mono_us = monotonic_us();
   m.sequence = k;
   return m;
-}
-
-// Starts arnav-host on DIR/session.yaml (summary JSON DIR/host.json, log DIR/host.log) and
-// waits up to 600 s for "session ready"; false when it exits or does not get there.
-bool start_host(const std::filesystem::path& dir, std::unique_ptr<ChildProcess>& host) {
-  host = std::make_unique<ChildProcess>(
-      std::vector<std::string>{arnav::testing::binary_path("host/app/arnav-host"), (dir / "session.yaml").string(), "--quiet",
-                               "--summary", "--summary-json", (dir / "host.json").string()},
-      std::vector<std::string>{}, (dir / "host.log").string(), true);
-  for (int i = 0; i < 600; ++i) {
-    const auto line = host->read_line(1.0);
-    if (line && line->find("session ready") != std::string::npos) return true;
-    if (!line && !host->running()) return false;
-  }
-  return false;
 }
 
 TEST(HostCanE2e, ThePedalHeldOnTheCanBusArmsCuttingInTheSession) {

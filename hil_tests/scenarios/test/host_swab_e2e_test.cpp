@@ -33,6 +33,7 @@
 #include "hil_tests/bench/child_process.hpp"
 #include "hil_tests/bench/namespaces.hpp"
 #include "hil_tests/scenarios/can_run.hpp"
+#include "hil_tests/scenarios/host_run.hpp"
 #include "host/scene/scene.hpp"
 #include "protocol/channels.hpp"
 #include "protocol/clock.hpp"
@@ -123,19 +124,6 @@ std::string matrix16(const Eigen::Isometry3d& X) {
       s += v;
     }
   return s + "]";
-}
-
-bool start_host(const std::filesystem::path& dir, std::unique_ptr<ChildProcess>& host) {
-  host = std::make_unique<ChildProcess>(
-      std::vector<std::string>{arnav::testing::binary_path("host/app/arnav-host"), (dir / "session.yaml").string(), "--quiet",
-                               "--summary", "--summary-json", (dir / "host.json").string()},
-      std::vector<std::string>{}, (dir / "host.log").string(), true);
-  for (int i = 0; i < 600; ++i) {
-    const auto line = host->read_line(1.0);
-    if (line && line->find("session ready") != std::string::npos) return true;
-    if (!line && !host->running()) return false;
-  }
-  return false;
 }
 
 Eigen::Isometry3d matrix_of(const nlohmann::json& m16) {
