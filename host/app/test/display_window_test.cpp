@@ -102,16 +102,7 @@ cv::Vec3b x_server_pixel(GLFWwindow* w, int u, int v) {
   return bgr;
 }
 
-class DisplayWindow : public ::testing::Test {
- protected:
-  static void SetUpTestSuite() { scene_ = new Scene(load_scene(data_dir() + "/liver/liver_coarse.scene.yaml")); }
-  static void TearDownTestSuite() {
-    delete scene_;
-    scene_ = nullptr;
-  }
-  static Scene* scene_;
-};
-Scene* DisplayWindow::scene_ = nullptr;
+class DisplayWindow : public CoarseLiverSuite {};
 
 TEST(DisplaySettings, ParsedAndChecked) {
   SessionFolder f("display_cfg");

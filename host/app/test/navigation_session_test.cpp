@@ -59,12 +59,8 @@ TEST(SessionConfig, ErrorsNameFileLineKeyAndFix) {
   EXPECT_DOUBLE_EQ(monitor.stale_after_ms, 300.0);
 }
 
-class SessionRun : public ::testing::Test {
+class SessionRun : public CoarseLiverSuite {
  protected:
-  static void SetUpTestSuite() { scene_ = new Scene(load_scene(data_dir() + "/liver/liver_coarse.scene.yaml")); }
-  static void TearDownTestSuite() { delete scene_; }
-  static Scene* scene_;
-
   std::unique_ptr<NavigationSession> make(const SessionFolder& f, const std::string& record_dir = "") {
     SessionOptions o;
     o.threaded = false;
@@ -88,7 +84,6 @@ class SessionRun : public ::testing::Test {
     return s.render_frame(frame_msg(k, t), t + 5000);
   }
 };
-Scene* SessionRun::scene_ = nullptr;
 
 TEST_F(SessionRun, TumourOverlayLiesWhereTheChainProjectsIt) {
   SessionFolder f("chain");

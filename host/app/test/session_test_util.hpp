@@ -2,6 +2,7 @@
 // Shared by the session tests: a temporary session folder (intrinsics, registration,
 // session file on the bundled coarse liver) and synthetic appliance messages.
 #include <Eigen/Geometry>
+#include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 
 #include <cstdint>
@@ -20,6 +21,7 @@
 #include "calibration/lib/camera_intrinsics.hpp"
 #include "calibration/lib/rigid_transform_file.hpp"
 #include "host/app/session_config.hpp"
+#include "host/scene/scene.hpp"
 #include "protocol/pose_convert.hpp"
 
 namespace arnav::host::test {
@@ -28,6 +30,17 @@ inline std::string data_dir() {
   const char* d = std::getenv("ARNAV_DATA_DIR");
   return d ? d : "data";
 }
+
+// A test suite on the bundled coarse liver: the scene is loaded once per suite (scene_).
+class CoarseLiverSuite : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() { scene_ = new Scene(load_scene(data_dir() + "/liver/liver_coarse.scene.yaml")); }
+  static void TearDownTestSuite() {
+    delete scene_;
+    scene_ = nullptr;
+  }
+  static inline Scene* scene_ = nullptr;
+};
 
 inline const Eigen::Vector3d kTumourCentre_Model(70, 160, 140);  // data/liver/*.scene.yaml
 

@@ -33,15 +33,8 @@ const std::vector<std::pair<std::string, Eigen::Vector3d>> kLandmarks = {
 // The error of each touch (mm, in Ref): the landmark fit is off by a few mm at the tumour.
 const std::vector<Eigen::Vector3d> kTouchError = {{3.0, -2.0, 2.0}, {-2.5, 2.5, -1.5}, {2.0, 2.5, 2.5}, {-2.5, -3.0, 1.0}};
 
-class SwabSession : public ::testing::Test {
+class SwabSession : public CoarseLiverSuite {
  protected:
-  static void SetUpTestSuite() { scene_ = new Scene(load_scene(data_dir() + "/liver/liver_coarse.scene.yaml")); }
-  static void TearDownTestSuite() {
-    delete scene_;
-    scene_ = nullptr;
-  }
-  static Scene* scene_;
-
   SwabSession() : f_("swab") {
     std::ofstream lm(f_.dir / "landmarks.csv");
     lm << "name,x_mm,y_mm,z_mm\n";
@@ -147,6 +140,16 @@ class SwabSession : public ::testing::Test {
   void send(NavigationSession& s, const Eigen::Matrix3Xd& p_Ref, const std::string& channel = "ARNAV_CLOUD_pointer") {
     for (const auto& b : messages(p_Ref, "Ref", t())) s.on_cloud(b.data(), b.size(), channel, t() + 2000);
   }
+  // A prior registration (FOLDER/prior.yaml): the truth carried by `off` (in Ref).
+  void write_prior(const Eigen::Isometry3d& off) const {
+    calib::RigidTransformRecord rec;
+    rec.parent_frame = "Ref";
+    rec.child_frame = "Model";
+    rec.X_ParentChild = off * X_true_;
+    rec.method = "test";
+    rec.date = "2026-11-26T00:00:00Z";
+    calib::write_transform(f_.dir / "prior.yaml", rec);
+  }
   double error_at_tumour(const Eigen::Isometry3d& X) const { return (X * kTumourCentre_Model - X_true_ * kTumourCentre_Model).norm(); }
   bool said(NavigationSession& s, const std::string& what) {
     for (const auto& m : s.messages())
@@ -159,7 +162,6 @@ class SwabSession : public ::testing::Test {
   std::mt19937 rng_{11};
   std::int64_t k_ = 0, seq_ = 0, cloud_seq_ = 0;
 };
-Scene* SwabSession::scene_ = nullptr;
 
 TEST_F(SwabSession, SwabRefinesTheLandmarkPoseTowardTheTruth) {
   auto s = make(text("{source: pointer, min_points: 150}"));
@@ -307,13 +309,7 @@ TEST_F(SwabSession, PriorPoseRefinedOffTheCallersThread) {
   Eigen::Isometry3d off = Eigen::Isometry3d::Identity();
   off.linear() = Eigen::AngleAxisd(3.0 * M_PI / 180.0, Eigen::Vector3d(0.2, 1, 0.3).normalized()).toRotationMatrix();
   off.translation() = Eigen::Vector3d(4, -3, 2);
-  calib::RigidTransformRecord rec;
-  rec.parent_frame = "Ref";
-  rec.child_frame = "Model";
-  rec.X_ParentChild = off * X_true_;
-  rec.method = "test";
-  rec.date = "2026-11-26T00:00:00Z";
-  calib::write_transform(f_.dir / "prior.yaml", rec);
+  write_prior(off);
   const std::string session = "arnav_session_version: 1\nlcm_url: \"memq://\"\nscene: " + data_dir() +
                               "/liver/liver_coarse.scene.yaml\n"
                               "registration:\n  live: {initial_pose: prior.yaml, swab: {source: pointer, accept: pedal_swab, min_points: 100}}\n"
@@ -483,13 +479,7 @@ TEST_F(SwabSession, ReplayOfALogRegistersTheSwabTheSameWay) {
   Eigen::Isometry3d off = Eigen::Isometry3d::Identity();
   off.linear() = Eigen::AngleAxisd(2.0 * M_PI / 180.0, Eigen::Vector3d(1, 0.3, 0).normalized()).toRotationMatrix();
   off.translation() = Eigen::Vector3d(-3, 2, 3);
-  calib::RigidTransformRecord rec;
-  rec.parent_frame = "Ref";
-  rec.child_frame = "Model";
-  rec.X_ParentChild = off * X_true_;
-  rec.method = "test";
-  rec.date = "2026-11-26T00:00:00Z";
-  calib::write_transform(f_.dir / "prior.yaml", rec);
+  write_prior(off);
   const std::string session = f_.write("replay.yaml", "arnav_session_version: 1\nscene: " + data_dir() +
                                                          "/liver/liver_coarse.scene.yaml\n"
                                                          "registration:\n  live: {initial_pose: prior.yaml, swab: {source: pointer, accept: pedal_swab}}\n"
