@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "host/overlay/egl_context.hpp"
+#include "host/overlay/gl_program.hpp"
 #include "host/overlay/overlay_geometry.hpp"
 
 namespace arnav::host::overlay {
@@ -51,20 +52,6 @@ void main() {
 }
 )";
 
-GLuint compile(GLenum kind, const char* source) {
-  const GLuint shader = glCreateShader(kind);
-  glShaderSource(shader, 1, &source, nullptr);
-  glCompileShader(shader);
-  GLint ok = 0;
-  glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
-  if (!ok) {
-    char log[1024] = {};
-    glGetShaderInfoLog(shader, sizeof log, nullptr, log);
-    throw OverlayError(std::string("overlay shader does not compile: ") + log);
-  }
-  return shader;
-}
-
 void check_gl(const char* step) {
   const GLenum e = glGetError();
   if (e != GL_NO_ERROR) {
@@ -104,16 +91,9 @@ struct OverlayRenderer::Impl {
     validate(camera);
     warp = DistortionWarp::make(camera);
     projection = gl_projection(camera.K, warp.canvas_width, warp.canvas_height, warp.offset_px, style.near_mm, style.far_mm);
-    program = glCreateProgram();
-    const GLuint vs = compile(GL_VERTEX_SHADER, kVertexShader), fs = compile(GL_FRAGMENT_SHADER, kFragmentShader);
-    glAttachShader(program, vs);
-    glAttachShader(program, fs);
-    glLinkProgram(program);
-    glDeleteShader(vs);
-    glDeleteShader(fs);
-    GLint ok = 0;
-    glGetProgramiv(program, GL_LINK_STATUS, &ok);
-    if (!ok) throw OverlayError("overlay shader program does not link");
+    std::string error;
+    program = make_gl_program(kVertexShader, kFragmentShader, error);
+    if (!program) throw OverlayError("overlay renderer: " + error);
     u_projection = glGetUniformLocation(program, "projection");
     u_colour = glGetUniformLocation(program, "colour");
     u_mode = glGetUniformLocation(program, "mode");

@@ -3,6 +3,8 @@
 #define GLFW_INCLUDE_ES3
 #include <GLFW/glfw3.h>
 
+#include "host/overlay/gl_program.hpp"
+
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -49,20 +51,6 @@ out vec4 colour;
 void main() { colour = vec4(texture(image, uv).bgr, 1.0); }
 )";
 
-unsigned compile(unsigned kind, const char* src) {
-  const GLuint s = glCreateShader(kind);
-  glShaderSource(s, 1, &src, nullptr);
-  glCompileShader(s);
-  GLint ok = 0;
-  glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
-  if (!ok) {
-    char log[512] = {};
-    glGetShaderInfoLog(s, sizeof log, nullptr, log);
-    throw DisplayError(std::string("overlay window: shader does not compile: ") + log);
-  }
-  return s;
-}
-
 }  // namespace
 
 OverlayWindow::OverlayWindow(int width, int height, const std::string& title) {
@@ -107,16 +95,9 @@ OverlayWindow::OverlayWindow(int width, int height, const std::string& title) {
          ": the display needs OpenGL (Mesa: libgl1-mesa-dri, libegl-mesa0; scripts/deps), or remove 'display: {window: true}' from the session");
   glfwMakeContextCurrent(window_);
   glfwSwapInterval(0);  // never wait for the monitor: the next camera frame must not be delayed
-  const GLuint vs = compile(GL_VERTEX_SHADER, kVertex), fs = compile(GL_FRAGMENT_SHADER, kFragment);
-  program_ = glCreateProgram();
-  glAttachShader(program_, vs);
-  glAttachShader(program_, fs);
-  glLinkProgram(program_);
-  glDeleteShader(vs);
-  glDeleteShader(fs);
-  GLint ok = 0;
-  glGetProgramiv(program_, GL_LINK_STATUS, &ok);
-  if (!ok) fail("overlay window: shader program does not link");
+  std::string error;
+  program_ = make_gl_program(kVertex, kFragment, error);
+  if (!program_) fail("overlay window: " + error);
   u_scale_ = glGetUniformLocation(program_, "scale");
   glGenVertexArrays(1, &vao_);
   glGenTextures(1, &texture_);
