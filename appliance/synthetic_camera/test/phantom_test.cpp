@@ -204,14 +204,14 @@ TEST(PhantomRender, BoardAndSurfaceComposeByDepth) {
   EXPECT_EQ(r.surface_mask.at<std::uint8_t>(cvRound(centre.y), cvRound(centre.x)), 255);
 }
 
-TEST(PhantomSource, GroundTruthHoldsDeformedTargetsProjectedLikeOpenCv) {
-  const auto dir = std::filesystem::temp_directory_path() / ("arnav_phsrc_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(dir);
+// A camera 400 mm from a one-tag board, the small recording's phantom placed on it; ground
+// truth written to dir/gt.csv.
+capture::SyntheticSettings phantom_settings(const std::filesystem::path& dir, double fps, bool realtime, int frame_count) {
   capture::SyntheticSettings s;
   s.camera = test_camera();
-  s.fps = 10;
-  s.realtime = false;
-  s.frame_count = 3;
+  s.fps = fps;
+  s.realtime = realtime;
+  s.frame_count = frame_count;
   s.ground_truth_csv = dir / "gt.csv";
   markers::TagBoard board = markers::single_tag_board("liver_marker", "tag36h11", 3, 40);
   Trajectory tr;
@@ -225,6 +225,14 @@ TEST(PhantomSource, GroundTruthHoldsDeformedTargetsProjectedLikeOpenCv) {
   ph.X_BoardModel.linear() = Eigen::AngleAxisd(std::numbers::pi, Eigen::Vector3d::UnitX()).toRotationMatrix();
   ph.X_BoardModel.translation() = Eigen::Vector3d(-120, 0, -20);
   s.phantom = ph;
+  return s;
+}
+
+TEST(PhantomSource, GroundTruthHoldsDeformedTargetsProjectedLikeOpenCv) {
+  const auto dir = std::filesystem::temp_directory_path() / ("arnav_phsrc_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  capture::SyntheticSettings s = phantom_settings(dir, 10, false, 3);
+  const capture::SyntheticPhantom ph = *s.phantom;
   capture::SyntheticSource src(s);
   src.open();
   for (int k = 0; k < 3; ++k) {
@@ -262,25 +270,9 @@ TEST(PhantomSource, GroundTruthHoldsDeformedTargetsProjectedLikeOpenCv) {
 TEST(PhantomSource, WorldClockEpochPicksThePhantomAtTheCaptureTime) {
   const auto dir = std::filesystem::temp_directory_path() / ("arnav_phepoch_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
-  capture::SyntheticSettings s;
-  s.camera = test_camera();
-  s.fps = 20;
-  s.realtime = true;
-  s.frame_count = 20;
-  s.ground_truth_csv = dir / "gt.csv";
-  markers::TagBoard board = markers::single_tag_board("liver_marker", "tag36h11", 3, 40);
-  Trajectory tr;
-  tr.amplitude_mm.setZero();
-  tr.tilt_deg = tr.spin_deg = 0;
-  tr.distance_mm = 400;
-  tr.image_offset_mm = Eigen::Vector2d(80, 0);
-  s.boards.push_back({board, tr});
-  capture::SyntheticPhantom ph;
-  ph.recording = std::make_shared<const PhantomRecording>(small_recording());
-  ph.X_BoardModel.linear() = Eigen::AngleAxisd(std::numbers::pi, Eigen::Vector3d::UnitX()).toRotationMatrix();
-  ph.X_BoardModel.translation() = Eigen::Vector3d(-120, 0, -20);
-  ph.epoch_mono_us = monotonic_us() - 400'000;  // the world started 0.4 s before the camera opens
-  s.phantom = ph;
+  capture::SyntheticSettings s = phantom_settings(dir, 20, true, 20);
+  s.phantom->epoch_mono_us = monotonic_us() - 400'000;  // the world started 0.4 s before the camera opens
+  const capture::SyntheticPhantom ph = *s.phantom;
   capture::SyntheticSource src(s);
   src.open();
   std::map<std::int64_t, std::int64_t> capture_us;
