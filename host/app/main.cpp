@@ -32,36 +32,29 @@ namespace {
 std::atomic<bool> g_stop{false};
 void on_signal(int) { g_stop.store(true); }
 
-struct Handler {
-  arnav::host::ToolFreshnessTracker& tracker;
+// Poses, health and events to whatever tracks them (the status table's tracker or the session).
+template <class Sink>
+struct StatusHandler {
+  Sink& sink;
   bool print_events;
-  void pose(const lcm::ReceiveBuffer*, const std::string&, const arnav::tool_pose_t* msg) { tracker.on_pose(*msg, arnav::monotonic_us()); }
+  void pose(const lcm::ReceiveBuffer*, const std::string&, const arnav::tool_pose_t* msg) { sink.on_pose(*msg, arnav::monotonic_us()); }
   void health(const lcm::ReceiveBuffer*, const std::string&, const arnav::device_health_t* msg) {
-    tracker.on_health(*msg, arnav::monotonic_us());
+    sink.on_health(*msg, arnav::monotonic_us());
   }
   void event(const lcm::ReceiveBuffer*, const std::string&, const arnav::appliance_event_t* msg) {
-    tracker.on_event(*msg);
+    sink.on_event(*msg);
     if (print_events) std::cout << "event " << msg->source << " " << msg->code << ": " << msg->text << std::endl;
   }
 };
+using Handler = StatusHandler<arnav::host::ToolFreshnessTracker>;
 
-struct SessionHandler {
-  arnav::host::NavigationSession& session;
-  bool print_events;
-  void pose(const lcm::ReceiveBuffer*, const std::string&, const arnav::tool_pose_t* msg) { session.on_pose(*msg, arnav::monotonic_us()); }
-  void health(const lcm::ReceiveBuffer*, const std::string&, const arnav::device_health_t* msg) {
-    session.on_health(*msg, arnav::monotonic_us());
-  }
-  void event(const lcm::ReceiveBuffer*, const std::string&, const arnav::appliance_event_t* msg) {
-    session.on_event(*msg);
-    if (print_events) std::cout << "event " << msg->source << " " << msg->code << ": " << msg->text << std::endl;
-  }
+struct SessionHandler : StatusHandler<arnav::host::NavigationSession> {
   void frame(const lcm::ReceiveBuffer*, const std::string&, const arnav::image_frame_t* msg) {
-    session.submit_frame(*msg, arnav::monotonic_us());
+    sink.submit_frame(*msg, arnav::monotonic_us());
   }
-  void input(const lcm::ReceiveBuffer*, const std::string&, const arnav::input_event_t* msg) { session.on_input(*msg, arnav::monotonic_us()); }
+  void input(const lcm::ReceiveBuffer*, const std::string&, const arnav::input_event_t* msg) { sink.on_input(*msg, arnav::monotonic_us()); }
   void cloud(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
-    session.on_cloud(rbuf->data, rbuf->data_size, channel, arnav::monotonic_us());
+    sink.on_cloud(rbuf->data, rbuf->data_size, channel, arnav::monotonic_us());
   }
 };
 
@@ -241,10 +234,11 @@ int run_session(const Cli& cli) {
               << "': check lcm_url (udpm needs a multicast route, e.g. 224.0.0.0/4 on the interface)\n";
     return 2;
   }
-  SessionHandler handler{*session, cli.events};
-  bus.subscribe(std::string(arnav::channels::kPoseRegex), &SessionHandler::pose, &handler);
-  bus.subscribe(std::string(arnav::channels::kHealthRegex), &SessionHandler::health, &handler);
-  bus.subscribe(std::string(arnav::channels::kEvents), &SessionHandler::event, &handler);
+  SessionHandler handler{{*session, cli.events}};
+  StatusHandler<arnav::host::NavigationSession>* status = &handler;
+  bus.subscribe(std::string(arnav::channels::kPoseRegex), &SessionHandler::pose, status);
+  bus.subscribe(std::string(arnav::channels::kHealthRegex), &SessionHandler::health, status);
+  bus.subscribe(std::string(arnav::channels::kEvents), &SessionHandler::event, status);
   if (config.camera) bus.subscribe(arnav::channels::frame(config.camera->name), &SessionHandler::frame, &handler);
   bus.subscribe(std::string(arnav::channels::kInput), &SessionHandler::input, &handler);
   bus.subscribe(std::string(arnav::channels::kInputState), &SessionHandler::input, &handler);
