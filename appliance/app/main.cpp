@@ -99,6 +99,17 @@ static int main_body(int argc, char** argv) {
   } catch (const can::CanConfigError& e) {
     return config_error(e);
   }
+  auto start_camera = [&]() -> bool {
+    if (!cam) return true;
+    try {
+      cam->start(cfg.lcm_url);
+    } catch (const camera::CameraConfigError& e) {
+      std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
+      return false;
+    }
+    std::cerr << "arnav-appliance: " << cam->summary() << "\n";
+    return true;
+  };
   auto start_can = [&]() -> bool {
     if (!can_bus) return true;
     try {
@@ -117,16 +128,7 @@ static int main_body(int argc, char** argv) {
       return 0;
     }
     install_signals();
-    if (cam) {
-      try {
-        cam->start(cfg.lcm_url);
-      } catch (const camera::CameraConfigError& e) {
-        std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
-        return 2;
-      }
-      std::cerr << "arnav-appliance: " << cam->summary() << "\n";
-    }
-    if (!start_can()) return 2;
+    if (!start_camera() || !start_can()) return 2;
     while (!g_stop && !(cam && cam->finished())) std::this_thread::sleep_for(std::chrono::milliseconds(20));
     if (cam) cam->stop();
     if (can_bus) can_bus->stop();
@@ -228,15 +230,7 @@ static int main_body(int argc, char** argv) {
     return 2;
   }
 
-  if (cam) {
-    try {
-      cam->start(cfg.lcm_url);
-    } catch (const camera::CameraConfigError& e) {
-      std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
-      return 2;
-    }
-    std::cerr << "arnav-appliance: " << cam->summary() << "\n";
-  }
+  if (!start_camera()) return 2;
   std::unique_ptr<app::SwabSampler> swab;
   if (swab_config) {
     swab = std::make_unique<app::SwabSampler>(lcm, *swab_config);

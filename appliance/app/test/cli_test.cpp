@@ -8,8 +8,6 @@
 
 #include "protocol/testing/child_process.hpp"
 
-#include "protocol/testing/child_process.hpp"
-
 namespace {
 
 using Result = arnav::testing::CommandResult;
@@ -20,7 +18,6 @@ std::string bin(const std::string& rel) { return arnav::testing::binary_path(rel
 std::filesystem::path temp_file(const std::string& name, const std::string& content) {
   return arnav::testing::write_temp_file("arnav_cli_test", name, content);
 }
-
 
 TEST(ApplianceCli, ConfigErrorExits2WithKeyAndLine) {
   const auto cfg = temp_file("bad.yaml", "port: sim\nbaud: 12345\ntools:\n  - name: p\n    rom: " + data_dir() +
