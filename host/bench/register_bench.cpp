@@ -343,6 +343,7 @@ std::vector<RegisterBenchRow> run_register_bench(const RegisterBenchOptions& o) 
         if (o.support_clusters >= 0) rq.basis.support_clusters = o.support_clusters;
         rq.basis.gravity_modes = !o.no_gravity_modes;
         rq.loads.estimate_pose = !o.loads_fixed_pose;
+        if (o.landmark_error_mm >= 0) rq.loads.landmark_error_mm = o.landmark_error_mm;
         rq.prebuilt_basis = basis;
         bool rigid_rows = false;
         for (const std::string& method : o.methods) {
@@ -365,6 +366,9 @@ std::vector<RegisterBenchRow> run_register_bench(const RegisterBenchOptions& o) 
             note += "; pose correction " + std::to_string(f.D.translation().norm()).substr(0, 5) + " mm / " +
                     std::to_string(corr.angle() * 180.0 / std::numbers::pi).substr(0, 5) + " deg; max displacement " +
                     std::to_string(f.max_displacement_mm).substr(0, 5) + " mm; gravity share " + std::to_string(f.gravity_fraction).substr(0, 4);
+            if (f.landmarks_used > 0)
+              note += "; landmarks " + std::to_string(f.landmarks_used) + " rms " + std::to_string(f.landmark_rigid_rms_mm).substr(0, 5) + " -> " +
+                      std::to_string(f.landmark_final_rms_mm).substr(0, 5) + " mm";
           } else {
             for (const auto& l : res.nonrigid->levels)
               note += "; w" + std::to_string(static_cast<int>(l.data_weight)) + ": " + std::to_string(l.updates) + " updates " +

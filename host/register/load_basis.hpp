@@ -25,6 +25,7 @@
 #include <string>
 #include <vector>
 
+#include "host/register/nonrigid_registration.hpp"
 #include "host/scene/scene.hpp"
 
 namespace arnav::host {
@@ -74,6 +75,12 @@ struct LoadFitOptions {
   double min_improvement = 0.02;  // a level must lower the residual by this fraction; the fit is accepted only
                                   // if it lowers the rigid residual by it (never worse than rigid)
   bool estimate_pose = true;      // false: only the loads (the pose of the rigid stage kept)
+  // Landmark term: each landmark pair (touched with the pointer) pulls the model point at
+  // its rest position (the closest point of the volume's surface, displaced with it)
+  // towards its measured position, weighted as a measurement of landmark_error_mm RMS
+  // (3-D) against the data's robust scale: weight (sigma_data / (landmark_error /
+  // sqrt 3))^2 per coordinate, Huber beyond 2 landmark errors. <= 0: landmarks not used.
+  double landmark_error_mm = 3.0;
   double time_budget_s = 0.0;     // 0: none
 };
 
@@ -97,6 +104,10 @@ struct LoadFitResult {
   double final_rms_mm = 0.0;
   double max_displacement_mm = 0.0;
   double strain_energy = 0.0;
+  // Landmarks used by the fit: RMS 3-D distance of the measured landmarks to their model
+  // points at the input pose and rest, and after the fit (0 when none).
+  int landmarks_used = 0;
+  double landmark_rigid_rms_mm = 0.0, landmark_final_rms_mm = 0.0;
   double gravity_fraction = 0.0;  // share of the strain energy in the gravity modes (diagnostic)
   int crossed_vertices = 0;       // surface vertices left inside another part of the organ
   std::vector<LoadFitIteration> iterations;
@@ -105,8 +116,15 @@ struct LoadFitResult {
   double wall_time_s = 0.0;       // fit only (the basis is timed by build_time_s)
 };
 
-// data_Model_mm: the intraoperative points mapped into Model by the rigid result.
+// data_Model_mm: the intraoperative points mapped into Model by the rigid result;
+// landmarks: p_Model_mm at rest, target_Model_mm measured and mapped into Model by the
+// rigid result (the correction D applies to them as to the points). Throws
+// std::invalid_argument for a basis of another mesh.
 LoadFitResult fit_load_basis(const Scene& scene, const LoadBasis& basis, const Eigen::Matrix3Xd& data_Model_mm,
-                             const LoadFitOptions& options);
+                             const std::vector<LandmarkPair>& landmarks, const LoadFitOptions& options);
+inline LoadFitResult fit_load_basis(const Scene& scene, const LoadBasis& basis, const Eigen::Matrix3Xd& data_Model_mm,
+                                    const LoadFitOptions& options) {
+  return fit_load_basis(scene, basis, data_Model_mm, {}, options);
+}
 
 }  // namespace arnav::host

@@ -231,3 +231,63 @@ TEST(LoadBasis, PrebuiltBasisOfAnotherMeshIsRefused) {
     EXPECT_NE(std::string(e.what()).find("prebuilt load basis"), std::string::npos) << e.what();
   }
 }
+
+// Landmarks pulling the fit: the stretched bar (pose fixed) seen through the part of its
+// top face up to x = 80 mm only. The stretch moves that face along itself, so the surface
+// data are explained by the rest shape and, alone, leave it ("no deformation needed").
+// Three landmarks touched on the loaded end (exact, landmark error 0.5 mm) show the tip
+// 5 mm further: the discrepancy principle on all measurements (points and landmarks) then
+// needs a deformation, and the fit must stretch the bar (errors against the exact uniform
+// stretch).
+TEST(LoadBasis, LandmarksPullTheFitTowardsTheTrueDeformation) {
+  const Scene s = bar(true);
+  const double delta = 5.0;
+  std::vector<Eigen::Vector3d> pts;
+  for (double x = 0.0; x <= 80.0; x += 5.0)
+    for (double y = 0.0; y <= 20.0; y += 5.0) pts.push_back(stretched(Eigen::Vector3d(x, y, 20.0), delta));
+  Eigen::Matrix3Xd data(3, static_cast<Eigen::Index>(pts.size()));
+  for (std::size_t i = 0; i < pts.size(); ++i) data.col(static_cast<Eigen::Index>(i)) = pts[i];
+  LoadBasisOptions bo;
+  bo.patches = 16;
+  bo.support_clusters = 0;
+  const LoadBasis b = build_load_basis(s, bo);
+  std::vector<LandmarkPair> lm;
+  for (const Eigen::Vector3d& p : {Eigen::Vector3d(100, 0, 20), Eigen::Vector3d(100, 20, 0), Eigen::Vector3d(100, 10, 10)})
+    lm.push_back({p, stretched(p, delta)});
+  auto run = [&](bool with_landmarks) {
+    LoadFitOptions fo;
+    fo.noise_mm = 0.1;
+    fo.estimate_pose = false;
+    fo.keep_fraction = 1.0;
+    fo.huber_sigmas = 1e9;
+    fo.landmark_error_mm = 0.5;
+    const LoadFitResult r = fit_load_basis(s, b, data, with_landmarks ? lm : std::vector<LandmarkPair>{}, fo);
+    double mean = 0.0, tip = 0.0;
+    for (int v = 0; v < s.problem.mesh.num_vertices(); ++v) {
+      const Eigen::Vector3d p = s.problem.mesh.rest_positions_World_mm.col(v);
+      const double e = (r.x_Model_mm.col(v) - stretched(p, delta)).norm();
+      mean += e / s.problem.mesh.num_vertices();
+      if (p.x() > 100.0 - 1e-9) tip = std::max(tip, e);
+    }
+    std::cout << (with_landmarks ? "with" : "without") << " landmarks: vertex error mean " << mean << " mm, at the tip at most " << tip
+              << " mm; landmarks " << r.landmarks_used << ", rms " << r.landmark_rigid_rms_mm << " -> " << r.landmark_final_rms_mm << " mm; surface rms "
+              << r.final_rms_mm << " mm; " << r.message << "\n";
+    EXPECT_EQ(r.landmarks_used, with_landmarks ? 3 : 0);
+    EXPECT_EQ(r.accepted, with_landmarks) << r.message;
+    if (with_landmarks) {
+      EXPECT_NEAR(r.landmark_rigid_rms_mm, delta, 1e-9);
+      // the pooled misfit at 1.1 would allow up to 0.29 * sqrt(1.21 * 94 / 3) = 1.78 mm
+      // with 85 points and 3 landmarks; measured 0.24 mm
+      EXPECT_LT(r.landmark_final_rms_mm, 0.5);
+      EXPECT_LT(r.final_rms_mm, 0.1 * 1.1 + 1e-9);  // the surface stays at its noise
+    }
+    return std::make_pair(mean, tip);
+  };
+  const auto [mean_free, tip_free] = run(false);
+  const auto [mean_lm, tip_lm] = run(true);
+  // (measured: without landmarks mean 2.5 / tip 5 mm, the rest shape; with them 0.087 / 0.64 mm)
+  EXPECT_NEAR(tip_free, delta, 1e-9);
+  EXPECT_NEAR(mean_free, 0.5 * delta, 1e-9);
+  EXPECT_LT(tip_lm, 0.2 * delta);
+  EXPECT_LT(mean_lm, 0.04 * delta);
+}
