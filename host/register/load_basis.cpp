@@ -118,6 +118,7 @@ LoadBasis build_load_basis(const Scene& scene, const LoadBasisOptions& o) {
           for (int j = 0; j < 3; ++j) trip.emplace_back(3 * tet[static_cast<std::size_t>(a)] + i, 3 * tet[static_cast<std::size_t>(c)] + j, k(i, j));
       }
     for (int v : tet) mass[v] += m.density_kg_per_mm3 * vol / 4.0;
+    b.stiffness_volume += E * vol;
   }
   Eigen::SparseMatrix<double> K(b.dofs, b.dofs);
   K.setFromTriplets(trip.begin(), trip.end());
@@ -466,8 +467,18 @@ LoadFitResult fit_load_basis(const Scene& scene, const LoadBasis& basis, const E
   Eigen::Isometry3d kept_D = D;
   Eigen::Matrix3Xd kept_x = x;
   bool done = false, moved = false;
-  for (double lambda : o.lambda_schedule) {
-    if (done) break;
+  // MAP prior: the absolute weight noise^2 / (sum(E V) strain^2); in relative units once
+  // the data term's scale is known (first iteration).
+  const bool map_prior = o.prior_strain > 0 && basis.stiffness_volume > 0;
+  const double prior_abs = map_prior ? noise * noise / (basis.stiffness_volume * o.prior_strain * o.prior_strain) : 0.0;
+  bool last_level = false;
+  for (double level_lambda : o.lambda_schedule) {
+    if (done || last_level) break;
+    double lambda = level_lambda;
+    if (map_prior && hscale > 0 && lambda <= prior_abs / hscale) {
+      lambda = prior_abs / hscale;  // the prior's level: the last
+      last_level = true;
+    }
     if (o.time_budget_s > 0 && seconds_since(t0) > o.time_budget_s) {
       stop = "time budget reached";
       break;
@@ -492,6 +503,22 @@ LoadFitResult fit_load_basis(const Scene& scene, const LoadBasis& basis, const E
     const double level = chi(pl, lm_level);
     res.level_rms_mm.push_back(rms);
     res.level_lambda.push_back(lambda);
+    if (map_prior) {
+      // the prior fixes the regularisation: every level is kept, the prior's is the last
+      moved = true;
+      level_chi = level;
+      kept_alpha = alpha;
+      kept_D = D;
+      kept_x = x;
+      res.lambda = lambda;
+      res.prior_lambda = prior_abs / hscale;
+      if (last_level) stop = "reached the prior's regularisation";
+      if (total >= o.max_iterations) {
+        stop = "max_iterations";
+        break;
+      }
+      continue;
+    }
     const bool gain = level <= level_chi * (1.0 - o.plateau_improvement);
     if (!gain && moved) {
       stop = "residual stopped improving (plateau above the noise: model error)";

@@ -47,6 +47,7 @@ struct LoadBasis {
   bool supported = false;               // false: the scene has no fixed vertices; the basis is taken about a
                                         // weakly held mesh and the rigid part of every mode is removed
   int dofs = 0;
+  double stiffness_volume = 0.0;        // sum over tets of E * volume (mN mm): the prior's energy scale
   double build_time_s = 0.0;
   int modes() const { return static_cast<int>(U.cols()); }
 };
@@ -70,6 +71,14 @@ struct LoadFitOptions {
   // is at most discrepancy_factor * noise_mm (a factor > 1: the linear model and the
   // volume's discretisation have errors of their own).
   double discrepancy_factor = 1.1;
+  // Prior on the deformation (MAP), > 0: instead of the discrepancy principle, the
+  // regularisation is that of a Gaussian prior whose expected strain energy is that of a
+  // uniform strain of prior_strain RMS over the organ, E0 = 1/2 sum(E V) prior_strain^2,
+  // against the data's noise: minimise sum r^2 / noise^2 + (strain energy) / E0, i.e.
+  // lambda = noise^2 / (sum(E V) prior_strain^2) on alpha^T G alpha. The stiff-to-flexible
+  // levels run down to that weight (continuation for the correspondences) and stop there.
+  // 0: the discrepancy principle (discrepancy_factor, plateau_improvement).
+  double prior_strain = 0.0;
   double plateau_improvement = 0.05;  // a level (10x less regularisation) lowering the residual by less is a plateau
   double converged_step_mm = 0.05;  // a level ends when no point / vertex moves more than this in a step
   double min_improvement = 0.02;  // a level must lower the residual by this fraction; the fit is accepted only
@@ -112,7 +121,8 @@ struct LoadFitResult {
   int crossed_vertices = 0;       // surface vertices left inside another part of the organ
   std::vector<LoadFitIteration> iterations;
   std::vector<double> level_lambda, level_rms_mm;  // per level run: its lambda and converged residual
-  double lambda = 0.0;            // the level kept
+  double lambda = 0.0;            // the level kept (relative units)
+  double prior_lambda = 0.0;      // with prior_strain: the MAP weight in relative units (0: discrepancy principle)
   double wall_time_s = 0.0;       // fit only (the basis is timed by build_time_s)
 };
 

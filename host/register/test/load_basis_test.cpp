@@ -291,3 +291,58 @@ TEST(LoadBasis, LandmarksPullTheFitTowardsTheTrueDeformation) {
   EXPECT_LT(tip_lm, 0.2 * delta);
   EXPECT_LT(mean_lm, 0.04 * delta);
 }
+
+// The MAP prior (prior_strain > 0): the regularisation is noise^2 / (sum(E V) strain^2)
+// instead of the discrepancy principle. The bar stretched by 5 mm (a uniform 5 % strain)
+// seen through its top face and loaded end (as above, 0.1 mm noise level), with priors of
+// 0.5, 0.05 and 0.005 % strain: the weight grows 100x per 10x smaller strain (exactly: the
+// data term's scale is the same), a weak prior lets the data recover the stretch, a strong
+// one holds the bar near its rest shape. The energy scale is sum(E V) of the bar,
+// 5 kPa x 40,000 mm^3.
+TEST(LoadBasis, PriorStrainSetsTheRegularisation) {
+  const Scene s = bar(true);
+  const double delta = 5.0;
+  std::vector<Eigen::Vector3d> pts;
+  for (double x = 0.0; x <= 100.0; x += 2.5)
+    for (double y = 0.0; y <= 20.0; y += 2.5) pts.push_back(stretched(Eigen::Vector3d(x, y, 20.0), delta));
+  for (double y = 0.0; y <= 20.0; y += 2.5)
+    for (double z = 0.0; z < 20.0; z += 2.5) pts.push_back(stretched(Eigen::Vector3d(100.0, y, z), delta));
+  Eigen::Matrix3Xd data(3, static_cast<Eigen::Index>(pts.size()));
+  for (std::size_t i = 0; i < pts.size(); ++i) data.col(static_cast<Eigen::Index>(i)) = pts[i];
+  LoadBasisOptions bo;
+  bo.patches = 16;
+  bo.support_clusters = 0;
+  const LoadBasis b = build_load_basis(s, bo);
+  EXPECT_NEAR(b.stiffness_volume, 5.0 * 100.0 * 20.0 * 20.0, 1e-6);
+  auto run = [&](double strain) {
+    LoadFitOptions fo;
+    fo.noise_mm = 0.1;
+    fo.prior_strain = strain;
+    fo.estimate_pose = false;
+    fo.keep_fraction = 1.0;
+    fo.huber_sigmas = 1e9;
+    const LoadFitResult r = fit_load_basis(s, b, data, fo);
+    double mean = 0.0;
+    for (int v = 0; v < s.problem.mesh.num_vertices(); ++v) {
+      const Eigen::Vector3d p = s.problem.mesh.rest_positions_World_mm.col(v);
+      mean += (r.x_Model_mm.col(v) - stretched(p, delta)).norm() / s.problem.mesh.num_vertices();
+    }
+    std::cout << "prior strain " << strain << ": lambda " << r.lambda << " (prior " << r.prior_lambda << "), vertex error mean " << mean
+              << " mm, strain energy " << r.strain_energy << " mN mm, rms " << r.final_rms_mm << " mm; " << r.message << "\n";
+    EXPECT_TRUE(r.accepted) << r.message;
+    EXPECT_GT(r.prior_lambda, 0.0);
+    EXPECT_DOUBLE_EQ(r.lambda, r.prior_lambda);  // the schedule ended at the prior's weight
+    return std::make_tuple(r.prior_lambda, mean, r.strain_energy);
+  };
+  const auto [l1, mean1, energy1] = run(0.005);
+  const auto [l2, mean2, energy2] = run(0.0005);
+  const auto [l3, mean3, energy3] = run(0.00005);
+  // lambda = noise^2 / (sum(E V) strain^2) in the data term's units: 100x per 10x strain
+  EXPECT_NEAR(l2 / l1, 100.0, 1e-6);
+  EXPECT_NEAR(l3 / l2, 100.0, 1e-6);
+  // a weak prior lets the data recover the stretch; a strong one holds the bar
+  EXPECT_LT(mean1, 0.05 * delta);
+  EXPECT_NEAR(energy1, 250.0, 0.2 * 250.0);
+  EXPECT_LT(energy3, 0.5 * energy1);
+  EXPECT_GT(mean3, 3.0 * mean1);
+}
