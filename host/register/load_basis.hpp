@@ -71,14 +71,16 @@ struct LoadFitOptions {
   // is at most discrepancy_factor * noise_mm (a factor > 1: the linear model and the
   // volume's discretisation have errors of their own).
   double discrepancy_factor = 1.1;
-  // Prior on the deformation (MAP), > 0: instead of the discrepancy principle, the
+  // Prior on the deformation (MAP, the default), > 0: instead of the discrepancy principle, the
   // regularisation is that of a Gaussian prior whose expected strain energy is that of a
   // uniform strain of prior_strain RMS over the organ, E0 = 1/2 sum(E V) prior_strain^2,
   // against the data's noise: minimise sum r^2 / noise^2 + (strain energy) / E0, i.e.
   // lambda = noise^2 / (sum(E V) prior_strain^2) on alpha^T G alpha. The stiff-to-flexible
   // levels run down to that weight (continuation for the correspondences) and stop there.
-  // 0: the discrepancy principle (discrepancy_factor, plateau_improvement).
-  double prior_strain = 0.0;
+  // 0: the discrepancy principle (discrepancy_factor, plateau_improvement). The default,
+  // 1 % RMS strain, is a round value inside the broad optimum (0.7-1 %) of both patients'
+  // livers on arnav-bench register (docs/benchmarks.md, "Registration, fourth round").
+  double prior_strain = 0.01;
   double plateau_improvement = 0.05;  // a level (10x less regularisation) lowering the residual by less is a plateau
   double converged_step_mm = 0.05;  // a level ends when no point / vertex moves more than this in a step
   double min_improvement = 0.02;  // a level must lower the residual by this fraction; the fit is accepted only

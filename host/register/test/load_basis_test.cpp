@@ -110,6 +110,7 @@ BarFit fit_bar(int patches, double delta) {
   const LoadBasis b = build_load_basis(s, bo);
   LoadFitOptions fo;
   fo.noise_mm = 0.02;       // noise-free data: fit to the discretisation level
+  fo.prior_strain = 0.0;    // the discrepancy principle (the MAP prior: PriorStrainSetsTheRegularisation)
   fo.estimate_pose = false; // a translation along x would look like the stretch from these faces
   fo.keep_fraction = 1.0;    // no outliers:
   fo.huber_sigmas = 1e9;     // no robust down-weighting (the end face is 5 mm off at the start, the top face not)
@@ -257,6 +258,7 @@ TEST(LoadBasis, LandmarksPullTheFitTowardsTheTrueDeformation) {
   auto run = [&](bool with_landmarks) {
     LoadFitOptions fo;
     fo.noise_mm = 0.1;
+    fo.prior_strain = 0.0;  // the discrepancy principle on points and landmarks
     fo.estimate_pose = false;
     fo.keep_fraction = 1.0;
     fo.huber_sigmas = 1e9;
