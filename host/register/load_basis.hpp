@@ -13,9 +13,12 @@
 // then solves, by Gauss-Newton over recomputed, trimmed, Huber-weighted point-to-plane
 // correspondences, for a rigid correction of the pose (6 numbers) and the basis weights
 // alpha, Tikhonov-regularised by the strain energy 1/2 alpha^T G alpha of the deformation
-// (G = U^T K U), the regularisation weight falling level by level (stiff to flexible) until
-// the residual reaches the expected noise (Morozov's discrepancy principle) or stops
-// improving (model error), so nothing is tuned per case. Frames: Model (the scene frame
+// (G = U^T K U), the regularisation weight falling level by level (stiff to flexible) down
+// to the weight of a Gaussian prior on the deformation (prior_strain: noise^2 / (sum(E V)
+// strain^2), the default) or, without a prior, until the misfit reaches the expected noise
+// (Morozov's discrepancy principle) or stops improving (model error), so nothing is tuned
+// per case. Landmark pairs, when given, pull their model points with the weight of their
+// error. Frames: Model (the scene frame
 // World); the data are given in Model after the rigid stage, and the result adds a rigid
 // correction D of them.
 // Units: mm, mN, kPa (= mN/mm^2).
