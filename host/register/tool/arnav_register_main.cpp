@@ -135,7 +135,7 @@ static int main_body(int argc, char** argv) {
                  "loads: RMS strain of the deformation prior (regularisation noise^2 / (sum(E V) strain^2)); 0: discrepancy principle")
       ->check(CLI::Range(0.0, 1.0));
   app.add_option("--model", rq.nonrigid.model_kind, "energy: tissue model for the non-rigid stage (default: the scene's)");
-  app.add_option("--noise-mm", noise_mm, "expected point noise (mm): the non-rigid schedule stops at this residual")
+  app.add_option("--noise-mm", noise_mm, "expected point noise (mm): sets the loads prior's regularisation (noise^2) and the residual the energy schedule stops at")
       ->check(CLI::Range(0.0, 20.0));
   app.add_flag("--scene-boundary", scene_boundary, "hold the scene's fixed vertices at their rest positions during the non-rigid stage");
   app.add_flag("--anchored-boundary", rq.nonrigid.anchored_boundary, "free fit, then the rigid part corrected by the fixed vertices' motion and a second fit holding them");
