@@ -69,6 +69,10 @@ static int main_body(int argc, char** argv) {
   reg->add_option("--support-clusters", reg_options.support_clusters, "loads: parts of the fixed region translated (0: none)")->check(CLI::NonNegativeNumber);
   reg->add_flag("--no-gravity-modes", reg_options.no_gravity_modes, "loads: no gravity-change modes");
   reg->add_flag("--fixed-pose", reg_options.loads_fixed_pose, "loads: keep the ICP pose, fit the weights only");
+  reg->add_option("--landmark-error", reg_options.landmark_error_mm, "loads: landmark error (mm RMS) weighting the landmark term; 0: landmarks not used by the fit")
+      ->check(CLI::NonNegativeNumber);
+  reg->add_option("--prior-strain", reg_options.prior_strain, "loads: RMS strain of the deformation prior (MAP regularisation); 0: discrepancy principle")
+      ->check(CLI::NonNegativeNumber);
   reg->add_flag("--prebuilt-basis", reg_options.prebuilt_basis, "loads: build the basis once per run (as before surgery); case times exclude it");
   reg->add_flag("--scene-boundary", reg_options.scene_boundary, "hold the scene's fixed vertices during the non-rigid stage");
   reg->add_flag("--gravity-change", reg_options.gravity_change, "with a held boundary, fit a change of gravity (3 numbers) first");

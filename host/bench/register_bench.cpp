@@ -343,6 +343,8 @@ std::vector<RegisterBenchRow> run_register_bench(const RegisterBenchOptions& o) 
         if (o.support_clusters >= 0) rq.basis.support_clusters = o.support_clusters;
         rq.basis.gravity_modes = !o.no_gravity_modes;
         rq.loads.estimate_pose = !o.loads_fixed_pose;
+        if (o.landmark_error_mm >= 0) rq.loads.landmark_error_mm = o.landmark_error_mm;
+        if (o.prior_strain >= 0) rq.loads.prior_strain = o.prior_strain;
         rq.prebuilt_basis = basis;
         bool rigid_rows = false;
         for (const std::string& method : o.methods) {
@@ -360,11 +362,14 @@ std::vector<RegisterBenchRow> run_register_bench(const RegisterBenchOptions& o) 
             note += "; " + std::to_string(res.basis_modes) + " modes " + (basis ? std::string("prebuilt") : "built in " + std::to_string(res.basis_time_s).substr(0, 5) + " s") + "; " +
                     std::to_string(f.iterations.size()) + " iterations in " + std::to_string(f.wall_time_s).substr(0, 5) + " s";
             if (!f.iterations.empty())
-              note += "; lambda " + std::to_string(f.iterations.back().lambda) + "; predicted " + std::to_string(f.iterations.back().predicted_rms_mm).substr(0, 5) + " mm";
+              note += "; lambda " + std::to_string(f.iterations.back().lambda) + (f.prior_lambda > 0 ? " (prior " + std::to_string(f.prior_lambda) + ")" : std::string()) + "; predicted " + std::to_string(f.iterations.back().predicted_rms_mm).substr(0, 5) + " mm";
             const Eigen::AngleAxisd corr(f.D.linear());
             note += "; pose correction " + std::to_string(f.D.translation().norm()).substr(0, 5) + " mm / " +
                     std::to_string(corr.angle() * 180.0 / std::numbers::pi).substr(0, 5) + " deg; max displacement " +
                     std::to_string(f.max_displacement_mm).substr(0, 5) + " mm; gravity share " + std::to_string(f.gravity_fraction).substr(0, 4);
+            if (f.landmarks_used > 0)
+              note += "; landmarks " + std::to_string(f.landmarks_used) + " rms " + std::to_string(f.landmark_rigid_rms_mm).substr(0, 5) + " -> " +
+                      std::to_string(f.landmark_final_rms_mm).substr(0, 5) + " mm";
           } else {
             for (const auto& l : res.nonrigid->levels)
               note += "; w" + std::to_string(static_cast<int>(l.data_weight)) + ": " + std::to_string(l.updates) + " updates " +

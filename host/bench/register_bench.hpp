@@ -29,6 +29,8 @@ struct RegisterBenchOptions {
   int support_clusters = -1;                            // -1: the library default
   bool no_gravity_modes = false;
   bool loads_fixed_pose = false;                        // loads: keep the ICP pose (weights only)
+  double prior_strain = -1.0;                           // loads: MAP prior strain (0: discrepancy principle; < 0: the library default)
+  double landmark_error_mm = -1.0;                      // loads: landmark term's error (0: off; < 0: the library default)
   bool prebuilt_basis = false;                          // loads: build the basis once per run (before surgery), not per case
   std::string model_kind;                               // registering model (empty: the scene's)
   std::vector<double> schedule;                         // data-weight schedule (empty: default)

@@ -13,9 +13,12 @@
 // then solves, by Gauss-Newton over recomputed, trimmed, Huber-weighted point-to-plane
 // correspondences, for a rigid correction of the pose (6 numbers) and the basis weights
 // alpha, Tikhonov-regularised by the strain energy 1/2 alpha^T G alpha of the deformation
-// (G = U^T K U), the regularisation weight falling level by level (stiff to flexible) until
-// the residual reaches the expected noise (Morozov's discrepancy principle) or stops
-// improving (model error), so nothing is tuned per case. Frames: Model (the scene frame
+// (G = U^T K U), the regularisation weight falling level by level (stiff to flexible) down
+// to the weight of a Gaussian prior on the deformation (prior_strain: noise^2 / (sum(E V)
+// strain^2), the default) or, without a prior, until the misfit reaches the expected noise
+// (Morozov's discrepancy principle) or stops improving (model error), so nothing is tuned
+// per case. Landmark pairs, when given, pull their model points with the weight of their
+// error. Frames: Model (the scene frame
 // World); the data are given in Model after the rigid stage, and the result adds a rigid
 // correction D of them.
 // Units: mm, mN, kPa (= mN/mm^2).
@@ -25,6 +28,7 @@
 #include <string>
 #include <vector>
 
+#include "host/register/nonrigid_registration.hpp"
 #include "host/scene/scene.hpp"
 
 namespace arnav::host {
@@ -46,6 +50,7 @@ struct LoadBasis {
   bool supported = false;               // false: the scene has no fixed vertices; the basis is taken about a
                                         // weakly held mesh and the rigid part of every mode is removed
   int dofs = 0;
+  double stiffness_volume = 0.0;        // sum over tets of E * volume (mN mm): the prior's energy scale
   double build_time_s = 0.0;
   int modes() const { return static_cast<int>(U.cols()); }
 };
@@ -69,11 +74,27 @@ struct LoadFitOptions {
   // is at most discrepancy_factor * noise_mm (a factor > 1: the linear model and the
   // volume's discretisation have errors of their own).
   double discrepancy_factor = 1.1;
+  // Prior on the deformation (MAP, the default), > 0: instead of the discrepancy principle, the
+  // regularisation is that of a Gaussian prior whose expected strain energy is that of a
+  // uniform strain of prior_strain RMS over the organ, E0 = 1/2 sum(E V) prior_strain^2,
+  // against the data's noise: minimise sum r^2 / noise^2 + (strain energy) / E0, i.e.
+  // lambda = noise^2 / (sum(E V) prior_strain^2) on alpha^T G alpha. The stiff-to-flexible
+  // levels run down to that weight (continuation for the correspondences) and stop there.
+  // 0: the discrepancy principle (discrepancy_factor, plateau_improvement). The default,
+  // 1 % RMS strain, is a round value inside the broad optimum (0.7-1 %) of both patients'
+  // livers on arnav-bench register (docs/benchmarks.md, "Registration, fourth round").
+  double prior_strain = 0.01;
   double plateau_improvement = 0.05;  // a level (10x less regularisation) lowering the residual by less is a plateau
   double converged_step_mm = 0.05;  // a level ends when no point / vertex moves more than this in a step
   double min_improvement = 0.02;  // a level must lower the residual by this fraction; the fit is accepted only
                                   // if it lowers the rigid residual by it (never worse than rigid)
   bool estimate_pose = true;      // false: only the loads (the pose of the rigid stage kept)
+  // Landmark term: each landmark pair (touched with the pointer) pulls the model point at
+  // its rest position (the closest point of the volume's surface, displaced with it)
+  // towards its measured position, weighted as a measurement of landmark_error_mm RMS
+  // (3-D) against the data's robust scale: weight (sigma_data / (landmark_error /
+  // sqrt 3))^2 per coordinate, Huber beyond 2 landmark errors. <= 0: landmarks not used.
+  double landmark_error_mm = 3.0;
   double time_budget_s = 0.0;     // 0: none
 };
 
@@ -97,16 +118,28 @@ struct LoadFitResult {
   double final_rms_mm = 0.0;
   double max_displacement_mm = 0.0;
   double strain_energy = 0.0;
+  // Landmarks used by the fit: RMS 3-D distance of the measured landmarks to their model
+  // points at the input pose and rest, and after the fit (0 when none).
+  int landmarks_used = 0;
+  double landmark_rigid_rms_mm = 0.0, landmark_final_rms_mm = 0.0;
   double gravity_fraction = 0.0;  // share of the strain energy in the gravity modes (diagnostic)
   int crossed_vertices = 0;       // surface vertices left inside another part of the organ
   std::vector<LoadFitIteration> iterations;
   std::vector<double> level_lambda, level_rms_mm;  // per level run: its lambda and converged residual
-  double lambda = 0.0;            // the level kept
+  double lambda = 0.0;            // the level kept (relative units)
+  double prior_lambda = 0.0;      // with prior_strain: the MAP weight in relative units (0: discrepancy principle)
   double wall_time_s = 0.0;       // fit only (the basis is timed by build_time_s)
 };
 
-// data_Model_mm: the intraoperative points mapped into Model by the rigid result.
+// data_Model_mm: the intraoperative points mapped into Model by the rigid result;
+// landmarks: p_Model_mm at rest, target_Model_mm measured and mapped into Model by the
+// rigid result (the correction D applies to them as to the points). Throws
+// std::invalid_argument for a basis of another mesh.
 LoadFitResult fit_load_basis(const Scene& scene, const LoadBasis& basis, const Eigen::Matrix3Xd& data_Model_mm,
-                             const LoadFitOptions& options);
+                             const std::vector<LandmarkPair>& landmarks, const LoadFitOptions& options);
+inline LoadFitResult fit_load_basis(const Scene& scene, const LoadBasis& basis, const Eigen::Matrix3Xd& data_Model_mm,
+                                    const LoadFitOptions& options) {
+  return fit_load_basis(scene, basis, data_Model_mm, {}, options);
+}
 
 }  // namespace arnav::host

@@ -44,7 +44,9 @@ RegistrationResult register_patient(const Scene& scene, const RegistrationReques
     o.keep_fraction = rq.nonrigid.keep_fraction;
     o.max_distance_mm = rq.nonrigid.max_distance_mm;
     o.min_improvement = rq.nonrigid.min_improvement;
-    LoadFitResult fit = fit_load_basis(scene, basis, data_Model, o);
+    std::vector<LandmarkPair> lm;
+    for (const auto& l : rq.landmarks) lm.push_back({l.p_Model_mm, r.X_IntraopModel.inverse() * l.p_Intraop_mm});
+    LoadFitResult fit = fit_load_basis(scene, basis, data_Model, lm, o);
     r.basis_modes = basis.modes();
     r.basis_time_s = rq.prebuilt_basis ? 0.0 : basis.build_time_s;
     NonrigidResult nr;

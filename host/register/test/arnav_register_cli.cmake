@@ -35,7 +35,7 @@ foreach(f targets.csv registered_organ.obj X_IntraopModel.yaml summary.json repo
 endforeach()
 file(READ ${OUT}/full/summary.json summary)
 foreach(key "\"stage\": \"landmarks\"" "\"stage\": \"surface_rigid\"" "\"stage\": \"nonrigid\"" "\"deformed\": true" "\"points_trimmed\""
-            "\"method\": \"loads\"" "\"basis_modes\"" "\"pose_correction_mm\"")
+            "\"method\": \"loads\"" "\"basis_modes\"" "\"pose_correction_mm\"" "\"landmarks_used\": 3" "\"regularisation\"")
   if(NOT summary MATCHES "${key}")
     message(FATAL_ERROR "summary.json lacks ${key}: ${summary}")
   endif()

@@ -110,6 +110,7 @@ BarFit fit_bar(int patches, double delta) {
   const LoadBasis b = build_load_basis(s, bo);
   LoadFitOptions fo;
   fo.noise_mm = 0.02;       // noise-free data: fit to the discretisation level
+  fo.prior_strain = 0.0;    // the discrepancy principle (the MAP prior: PriorStrainSetsTheRegularisation)
   fo.estimate_pose = false; // a translation along x would look like the stretch from these faces
   fo.keep_fraction = 1.0;    // no outliers:
   fo.huber_sigmas = 1e9;     // no robust down-weighting (the end face is 5 mm off at the start, the top face not)
@@ -230,4 +231,120 @@ TEST(LoadBasis, PrebuiltBasisOfAnotherMeshIsRefused) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("prebuilt load basis"), std::string::npos) << e.what();
   }
+}
+
+// Landmarks pulling the fit: the stretched bar (pose fixed) seen through the part of its
+// top face up to x = 80 mm only. The stretch moves that face along itself, so the surface
+// data are explained by the rest shape and, alone, leave it ("no deformation needed").
+// Three landmarks touched on the loaded end (exact, landmark error 0.5 mm) show the tip
+// 5 mm further: the discrepancy principle on all measurements (points and landmarks) then
+// needs a deformation, and the fit must stretch the bar (errors against the exact uniform
+// stretch).
+TEST(LoadBasis, LandmarksPullTheFitTowardsTheTrueDeformation) {
+  const Scene s = bar(true);
+  const double delta = 5.0;
+  std::vector<Eigen::Vector3d> pts;
+  for (double x = 0.0; x <= 80.0; x += 5.0)
+    for (double y = 0.0; y <= 20.0; y += 5.0) pts.push_back(stretched(Eigen::Vector3d(x, y, 20.0), delta));
+  Eigen::Matrix3Xd data(3, static_cast<Eigen::Index>(pts.size()));
+  for (std::size_t i = 0; i < pts.size(); ++i) data.col(static_cast<Eigen::Index>(i)) = pts[i];
+  LoadBasisOptions bo;
+  bo.patches = 16;
+  bo.support_clusters = 0;
+  const LoadBasis b = build_load_basis(s, bo);
+  std::vector<LandmarkPair> lm;
+  for (const Eigen::Vector3d& p : {Eigen::Vector3d(100, 0, 20), Eigen::Vector3d(100, 20, 0), Eigen::Vector3d(100, 10, 10)})
+    lm.push_back({p, stretched(p, delta)});
+  auto run = [&](bool with_landmarks) {
+    LoadFitOptions fo;
+    fo.noise_mm = 0.1;
+    fo.prior_strain = 0.0;  // the discrepancy principle on points and landmarks
+    fo.estimate_pose = false;
+    fo.keep_fraction = 1.0;
+    fo.huber_sigmas = 1e9;
+    fo.landmark_error_mm = 0.5;
+    const LoadFitResult r = fit_load_basis(s, b, data, with_landmarks ? lm : std::vector<LandmarkPair>{}, fo);
+    double mean = 0.0, tip = 0.0;
+    for (int v = 0; v < s.problem.mesh.num_vertices(); ++v) {
+      const Eigen::Vector3d p = s.problem.mesh.rest_positions_World_mm.col(v);
+      const double e = (r.x_Model_mm.col(v) - stretched(p, delta)).norm();
+      mean += e / s.problem.mesh.num_vertices();
+      if (p.x() > 100.0 - 1e-9) tip = std::max(tip, e);
+    }
+    std::cout << (with_landmarks ? "with" : "without") << " landmarks: vertex error mean " << mean << " mm, at the tip at most " << tip
+              << " mm; landmarks " << r.landmarks_used << ", rms " << r.landmark_rigid_rms_mm << " -> " << r.landmark_final_rms_mm << " mm; surface rms "
+              << r.final_rms_mm << " mm; " << r.message << "\n";
+    EXPECT_EQ(r.landmarks_used, with_landmarks ? 3 : 0);
+    EXPECT_EQ(r.accepted, with_landmarks) << r.message;
+    if (with_landmarks) {
+      EXPECT_NEAR(r.landmark_rigid_rms_mm, delta, 1e-9);
+      // the pooled misfit at 1.1 would allow up to 0.29 * sqrt(1.21 * 94 / 3) = 1.78 mm
+      // with 85 points and 3 landmarks; measured 0.24 mm
+      EXPECT_LT(r.landmark_final_rms_mm, 0.5);
+      EXPECT_LT(r.final_rms_mm, 0.1 * 1.1 + 1e-9);  // the surface stays at its noise
+    }
+    return std::make_pair(mean, tip);
+  };
+  const auto [mean_free, tip_free] = run(false);
+  const auto [mean_lm, tip_lm] = run(true);
+  // (measured: without landmarks mean 2.5 / tip 5 mm, the rest shape; with them 0.087 / 0.64 mm)
+  EXPECT_NEAR(tip_free, delta, 1e-9);
+  EXPECT_NEAR(mean_free, 0.5 * delta, 1e-9);
+  EXPECT_LT(tip_lm, 0.2 * delta);
+  EXPECT_LT(mean_lm, 0.04 * delta);
+}
+
+// The MAP prior (prior_strain > 0): the regularisation is noise^2 / (sum(E V) strain^2)
+// instead of the discrepancy principle. The bar stretched by 5 mm (a uniform 5 % strain)
+// seen through its top face and loaded end (as above, 0.1 mm noise level), with priors of
+// 0.5, 0.05 and 0.005 % strain: the weight grows 100x per 10x smaller strain (exactly: the
+// data term's scale is the same), a weak prior lets the data recover the stretch, a strong
+// one holds the bar near its rest shape. The energy scale is sum(E V) of the bar,
+// 5 kPa x 40,000 mm^3.
+TEST(LoadBasis, PriorStrainSetsTheRegularisation) {
+  const Scene s = bar(true);
+  const double delta = 5.0;
+  std::vector<Eigen::Vector3d> pts;
+  for (double x = 0.0; x <= 100.0; x += 2.5)
+    for (double y = 0.0; y <= 20.0; y += 2.5) pts.push_back(stretched(Eigen::Vector3d(x, y, 20.0), delta));
+  for (double y = 0.0; y <= 20.0; y += 2.5)
+    for (double z = 0.0; z < 20.0; z += 2.5) pts.push_back(stretched(Eigen::Vector3d(100.0, y, z), delta));
+  Eigen::Matrix3Xd data(3, static_cast<Eigen::Index>(pts.size()));
+  for (std::size_t i = 0; i < pts.size(); ++i) data.col(static_cast<Eigen::Index>(i)) = pts[i];
+  LoadBasisOptions bo;
+  bo.patches = 16;
+  bo.support_clusters = 0;
+  const LoadBasis b = build_load_basis(s, bo);
+  EXPECT_NEAR(b.stiffness_volume, 5.0 * 100.0 * 20.0 * 20.0, 1e-6);
+  auto run = [&](double strain) {
+    LoadFitOptions fo;
+    fo.noise_mm = 0.1;
+    fo.prior_strain = strain;
+    fo.estimate_pose = false;
+    fo.keep_fraction = 1.0;
+    fo.huber_sigmas = 1e9;
+    const LoadFitResult r = fit_load_basis(s, b, data, fo);
+    double mean = 0.0;
+    for (int v = 0; v < s.problem.mesh.num_vertices(); ++v) {
+      const Eigen::Vector3d p = s.problem.mesh.rest_positions_World_mm.col(v);
+      mean += (r.x_Model_mm.col(v) - stretched(p, delta)).norm() / s.problem.mesh.num_vertices();
+    }
+    std::cout << "prior strain " << strain << ": lambda " << r.lambda << " (prior " << r.prior_lambda << "), vertex error mean " << mean
+              << " mm, strain energy " << r.strain_energy << " mN mm, rms " << r.final_rms_mm << " mm; " << r.message << "\n";
+    EXPECT_TRUE(r.accepted) << r.message;
+    EXPECT_GT(r.prior_lambda, 0.0);
+    EXPECT_DOUBLE_EQ(r.lambda, r.prior_lambda);  // the schedule ended at the prior's weight
+    return std::make_tuple(r.prior_lambda, mean, r.strain_energy);
+  };
+  const auto [l1, mean1, energy1] = run(0.005);
+  const auto [l2, mean2, energy2] = run(0.0005);
+  const auto [l3, mean3, energy3] = run(0.00005);
+  // lambda = noise^2 / (sum(E V) strain^2) in the data term's units: 100x per 10x strain
+  EXPECT_NEAR(l2 / l1, 100.0, 1e-6);
+  EXPECT_NEAR(l3 / l2, 100.0, 1e-6);
+  // a weak prior lets the data recover the stretch; a strong one holds the bar
+  EXPECT_LT(mean1, 0.05 * delta);
+  EXPECT_NEAR(energy1, 250.0, 0.2 * 250.0);
+  EXPECT_LT(energy3, 0.5 * energy1);
+  EXPECT_GT(mean3, 3.0 * mean1);
 }

@@ -128,8 +128,14 @@ static int main_body(int argc, char** argv) {
                  "(paper 002: the tissue model pulled by the data, stiff to flexible)")
       ->check(CLI::IsMember({"loads", "energy"}));
   app.add_option("--patches", rq.basis.patches, "loads: surface patches of the load basis (3 force modes each; default 48)")->check(CLI::Range(1, 1000));
+  app.add_option("--landmark-error-mm", rq.loads.landmark_error_mm,
+                 "loads: RMS error (mm) of the touched landmarks; the landmarks then pull the fit with that weight (default 3; 0: not used by the fit)")
+      ->check(CLI::Range(0.0, 50.0));
+  app.add_option("--prior-strain", rq.loads.prior_strain,
+                 "loads: RMS strain of the deformation prior (regularisation noise^2 / (sum(E V) strain^2)); 0: discrepancy principle")
+      ->check(CLI::Range(0.0, 1.0));
   app.add_option("--model", rq.nonrigid.model_kind, "energy: tissue model for the non-rigid stage (default: the scene's)");
-  app.add_option("--noise-mm", noise_mm, "expected point noise (mm): the non-rigid schedule stops at this residual")
+  app.add_option("--noise-mm", noise_mm, "expected point noise (mm): sets the loads prior's regularisation (noise^2) and the residual the energy schedule stops at")
       ->check(CLI::Range(0.0, 20.0));
   app.add_flag("--scene-boundary", scene_boundary, "hold the scene's fixed vertices at their rest positions during the non-rigid stage");
   app.add_flag("--anchored-boundary", rq.nonrigid.anchored_boundary, "free fit, then the rigid part corrected by the fixed vertices' motion and a second fit holding them");
@@ -359,6 +365,12 @@ static int main_body(int argc, char** argv) {
                                   {"max_displacement_mm", f.max_displacement_mm},
                                   {"strain_energy_mN_mm", f.strain_energy},
                                   {"gravity_energy_share", f.gravity_fraction},
+                                  {"regularisation", f.prior_lambda > 0 ? "prior" : "discrepancy"},
+                                  {"lambda", f.lambda},
+                                  {"prior_strain", rq.loads.prior_strain},
+                                  {"landmarks_used", f.landmarks_used},
+                                  {"landmark_rms_rigid_mm", f.landmark_rigid_rms_mm},
+                                  {"landmark_rms_final_mm", f.landmark_final_rms_mm},
                                   {"iterations", its}};
       }
     }
