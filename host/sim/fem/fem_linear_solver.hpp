@@ -69,6 +69,17 @@ class FemLinearSolver {
   // factor must not survive (fixed set, time step).
   void pattern_changed();
   void force_refactor();
+  // PcgFactor after a cut (CorotationalFem::apply_mesh_change): the matrix gained entries
+  // and possibly DOFs (appended at the end). The factor in use stays the preconditioner
+  // of the DOFs it has (a factor of the matrix before the cut), a 3x3 block-diagonal
+  // (Jacobi) one takes the appended DOFs, and a factor of the new pattern (symbolic
+  // analysis included) is made on a worker thread from the matrix of the next solve, whether
+  // refactor_in_background is on or not; it replaces the old one at the first solve after
+  // it is done. A cut while that job runs: its factor (closer to the new matrix) is taken
+  // when done and another job follows for the newest pattern. Other kinds: pattern_changed().
+  void pattern_extended();
+  // True while the factor in use belongs to an older pattern (a cut's factor is pending).
+  bool factor_pending() const { return have_factor_ && factor_version_ != pattern_version_; }
 
   // Solves A x = b; x holds the warm start on entry (iterative kinds). Residuals are
   // relative to max(||b||, load_scale): near equilibrium b vanishes, and a criterion
@@ -113,6 +124,11 @@ class FemLinearSolver {
   long factor_stamp_ = 0;           // solves_ when the active factor's matrix was taken
   long started_stamp_ = 0;          // solves_ when the last background job was started
   long pending_stamp_ = 0;          // solves_ of the running job's snapshot
+  // Pattern versions (pattern_extended): of the current matrix, of the factor in use and of
+  // the pending factor (its symbolic analysis); the DOFs each factor covers.
+  long pattern_version_ = 0, factor_version_ = 0, pending_version_ = 0;
+  Eigen::Index factor_dofs_ = 0, pending_dofs_ = 0;
+  void prepare_padding(const SparseMatrixLower& A);
   std::future<int> job_;            // the running background job (JobResult in the .cpp)
   struct Factors;
   std::unique_ptr<Factors> f_;

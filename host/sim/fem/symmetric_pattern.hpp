@@ -31,7 +31,16 @@ class SymmetricPattern {
   // Index of the diagonal entry of each DOF.
   const std::vector<int>& diagonal() const { return diagonal_; }
 
+  // After a cut (CorotationalFem::apply_mesh_change): this pattern grown to num_vertices
+  // (>= the current count; the new vertices' DOFs appended) with the pairs of `groups`
+  // added. Every entry of this pattern stays (entries no element couples any more hold
+  // zeros). remap[k] is the new index of this pattern's entry k. One pass over the entries
+  // (a merge, no search or sort of the old ones); the same layout as a pattern built from
+  // all groups at once.
+  SymmetricPattern extended(int num_vertices, const std::vector<std::vector<int>>& groups, std::vector<int>& remap) const;
+
  private:
+  SymmetricPattern() = default;
   SparseMatrixLower matrix_;
   std::vector<int> diagonal_;
 };
