@@ -601,6 +601,9 @@ TEST(FemAfterCut, StepsLikeAModelRebuiltOnTheCutMesh) {
         ASSERT_TRUE(b.healthy) << b.warning;
         EXPECT_EQ(a.termination, "converged");
         padded = padded || (!local.last_linear_solve().factorized && local.factor_pending());
+        if (k == 0)
+          std::cout << "  first step: PCG iterations to 1e-12 " << local.last_linear_solve().iterations << " (rebuilt model: "
+                    << rebuilt.last_linear_solve().iterations << "), factor pending " << local.factor_pending() << "\n";
         matrix_diff = std::max(matrix_diff, matrix_difference(local.system_matrix(), rebuilt.system_matrix()));
       }
       scale = (local.positions_World_mm() - x0).cwiseAbs().maxCoeff();

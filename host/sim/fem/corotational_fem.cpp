@@ -322,13 +322,42 @@ std::optional<MeshChangeStats> CorotationalFem::apply_mesh_change(const SimProbl
     stored_changed[i] = s;
     ++stats.elements_updated;
   }
-  grow_pattern(stored_changed);
+  grow_pattern(stored_changed, n_old);
   update_partition(stored_changed, nt_old);
   inversions_.reset_episode();  // as for a model rebuilt on the cut mesh (set_state)
   return stats;
 }
 
-void CorotationalFem::grow_pattern(const std::vector<int>& stored_changed) {
+std::vector<int> CorotationalFem::preconditioner_aliases(const std::vector<int>& stored_changed, int n_old) const {
+  const int n = static_cast<int>(X_.cols());
+  std::vector<int> alias(static_cast<std::size_t>(n - n_old), -1);
+  std::vector<double> best(alias.size(), 1e300);
+  for (int round = 0; round < 4; ++round) {
+    bool missing = false;
+    for (int s : stored_changed) {
+      const auto& tet = tets_[static_cast<std::size_t>(s)].v;
+      for (int w : tet) {
+        if (w < n_old || fixed_[static_cast<std::size_t>(w)] || (round > 0 && alias[static_cast<std::size_t>(w - n_old)] >= 0)) continue;
+        for (int u : tet) {
+          // Round 0: older free neighbours; later rounds: new neighbours aggregated already.
+          const int target = u < n_old ? (round == 0 && !fixed_[static_cast<std::size_t>(u)] ? u : -1)
+                                       : (round > 0 ? alias[static_cast<std::size_t>(u - n_old)] : -1);
+          if (u == w || target < 0) continue;
+          const double d = (X_.col(u) - X_.col(w)).squaredNorm();
+          if (d < best[static_cast<std::size_t>(w - n_old)]) {
+            best[static_cast<std::size_t>(w - n_old)] = d;
+            alias[static_cast<std::size_t>(w - n_old)] = target;
+          }
+        }
+        missing = missing || alias[static_cast<std::size_t>(w - n_old)] < 0;
+      }
+    }
+    if (!missing) break;
+  }
+  return alias;
+}
+
+void CorotationalFem::grow_pattern(const std::vector<int>& stored_changed, int old_vertices) {
   const int n = static_cast<int>(X_.cols());
   std::vector<std::vector<int>> groups;
   groups.reserve(stored_changed.size());
@@ -356,7 +385,7 @@ void CorotationalFem::grow_pattern(const std::vector<int>& stored_changed) {
   update_fixed_entries();
   // pcg: PCG on the old factor (padded) while the new pattern is factorised on a worker;
   // the direct kinds refactorise (analysis included) at the next solve.
-  solver_.pattern_extended();
+  solver_.pattern_extended(old_vertices, preconditioner_aliases(stored_changed, old_vertices));
 }
 
 void CorotationalFem::update_partition(const std::vector<int>& stored_changed, int num_tets_before) {

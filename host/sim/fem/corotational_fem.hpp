@@ -125,7 +125,11 @@ class CorotationalFem final : public TissueModel {
   // apply_mesh_change, in parts (an element-exclusion flag would be honoured in
   // make_element and in the pattern groups of grow_pattern).
   Tet make_element(const SimProblem& problem, int mesh_tet, double& quarter_mass, double& quarter_alpha) const;
-  void grow_pattern(const std::vector<int>& stored_changed);
+  void grow_pattern(const std::vector<int>& stored_changed, int old_vertices);
+  // For each vertex from old_vertices on: the nearest (rest) free older vertex it shares a
+  // changed tet with (through other new vertices if need be), -1 for fixed or isolated ones
+  // (FemLinearSolver::pattern_extended aggregates them in the old factor).
+  std::vector<int> preconditioner_aliases(const std::vector<int>& stored_changed, int old_vertices) const;
   void update_partition(const std::vector<int>& stored_changed, int num_tets_before);
   struct AssemblyStats {
     double energy = 0;

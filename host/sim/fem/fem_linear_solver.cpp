@@ -80,6 +80,7 @@ struct FemLinearSolver::Factors {
   // After a cut (pattern_extended): inverses of the 3x3 diagonal blocks of the DOFs the
   // factor in use does not have.
   std::vector<Eigen::Matrix3d> tail_inv;
+  std::vector<int> tail_alias;  // their aggregation vertex in the factor (-1: none)
 };
 
 FemLinearSolver::Kind FemLinearSolver::parse(const std::string& name) {
@@ -137,11 +138,18 @@ void FemLinearSolver::pattern_changed() {
   f_->snapshot = SparseMatrixLower();
 }
 
-void FemLinearSolver::pattern_extended() {
+void FemLinearSolver::pattern_extended(int old_vertices, const std::vector<int>& alias) {
   if (kind_ != Kind::PcgFactor || !have_factor_) {
     pattern_changed();
     return;
   }
+  const int known = static_cast<int>(alias_.size());
+  if (known < old_vertices) {  // identity for the vertices before (once, and after a rebuild of the pattern)
+    alias_.resize(static_cast<std::size_t>(old_vertices));
+    for (int v = known; v < old_vertices; ++v) alias_[static_cast<std::size_t>(v)] = v;
+  }
+  alias_.resize(static_cast<std::size_t>(old_vertices));
+  for (int a : alias) alias_.push_back(a);
   // The factor in use stays (padded for the new DOFs: prepare_padding); a running job
   // finishes on its snapshot and is taken if it is newer (poll_background).
   ++pattern_version_;
@@ -153,6 +161,13 @@ void FemLinearSolver::pattern_extended() {
 void FemLinearSolver::prepare_padding(const SparseMatrixLower& A) {
   const Eigen::Index nf = factor_dofs_, n = A.rows();
   f_->tail_inv.resize(static_cast<std::size_t>((n - nf) / 3));
+  f_->tail_alias.assign(f_->tail_inv.size(), -1);
+  for (std::size_t i = 0; i < f_->tail_alias.size(); ++i) {
+    int a = static_cast<int>(nf / 3) + static_cast<int>(i);
+    while (a >= nf / 3 && static_cast<std::size_t>(a) < alias_.size() && alias_[static_cast<std::size_t>(a)] >= 0 && alias_[static_cast<std::size_t>(a)] < a)
+      a = alias_[static_cast<std::size_t>(a)];
+    f_->tail_alias[i] = a < nf / 3 ? a : -1;
+  }
   const int* outer = A.outerIndexPtr();
   const int* inner = A.innerIndexPtr();
   const double* values = A.valuePtr();
@@ -276,7 +291,11 @@ void FemLinearSolver::apply_factor(const Eigen::VectorXd& r, Eigen::VectorXd& z)
         // A factor from before a cut (pattern_extended): its DOFs by it, the appended ones
         // by their diagonal blocks; symmetric positive definite, so PCG stays valid.
         const Eigen::Index nf = factor_dofs_;
-        const Eigen::VectorXd head = r.head(nf);
+        Eigen::VectorXd head = r.head(nf);
+        for (std::size_t i = 0; i < f_->tail_inv.size(); ++i) {
+          const int a = f_->tail_alias[i];
+          if (a >= 0) head.segment<3>(3 * a) += r.segment<3>(nf + 3 * static_cast<Eigen::Index>(i));
+        }
         Eigen::VectorXd zh;
         if (single_precision_ && kind_ == Kind::PcgFactor && !f_->single.empty()) {
           f_->single.solve(head, zh);
@@ -287,7 +306,9 @@ void FemLinearSolver::apply_factor(const Eigen::VectorXd& r, Eigen::VectorXd& z)
         z.head(nf) = zh;
         for (std::size_t i = 0; i < f_->tail_inv.size(); ++i) {
           const Eigen::Index k = nf + 3 * static_cast<Eigen::Index>(i);
+          const int a = f_->tail_alias[i];
           z.segment<3>(k) = f_->tail_inv[i] * r.segment<3>(k);
+          if (a >= 0) z.segment<3>(k) += zh.segment<3>(3 * a);
         }
       } else if (single_precision_ && kind_ == Kind::PcgFactor && !f_->single.empty()) {
         f_->single.solve(r, z);
