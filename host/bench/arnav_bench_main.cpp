@@ -102,6 +102,8 @@ static int main_body(int argc, char** argv) {
   cut->add_option("--frames", cut_options.max_frames, "cap the frames per run")->check(CLI::PositiveNumber);
   std::string rebuild = "inline";
   std::string local_updates = "on";
+  cut->add_flag("--fem-background-refactor", cut_options.fem_background_refactor,
+                "run the co-rotational FEM with refactor_in_background (the recommended real-time setting; label +background_refactor)");
   cut->add_option("--local-updates", local_updates,
                   "update the models in place after a cut where they can (on), rebuild them always (off), or both: each local run is then compared with the rebuilt one frame by frame (state difference)")
       ->check(CLI::IsMember({"on", "off", "both"}));

@@ -57,8 +57,13 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
       int frames = static_cast<int>(path.samples.back().t_s / scene.time_step_s) + 1;
       if (o.quick) frames = std::min(frames, 150);
       if (o.max_frames > 0) frames = std::min(frames, o.max_frames);
-      for (const auto& variant : model_variants())
+      for (ModelVariant variant : model_variants())
       for (const bool background : o.background) {
+      if (o.fem_background_refactor && !variant.config.refactor_in_background && variant.config.kind == "corotational_fem" &&
+          variant.config.material_model != "stable_neo_hookean") {
+        variant.config.refactor_in_background = true;
+        variant.label += "+background_refactor";
+      }
       std::vector<Eigen::Matrix3Xd> rebuilt_states;  // per frame, of the rebuilt run (local_updates both)
       std::vector<bool> local_modes = o.local_updates;
       std::stable_sort(local_modes.begin(), local_modes.end());  // rebuilt run first

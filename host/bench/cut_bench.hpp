@@ -21,6 +21,10 @@ struct CutBenchOptions {
   // after a cut) or {false, true}: then each local run is compared, frame by frame, with the
   // rebuilt run of the same model (state difference: the accuracy cost of the local update).
   std::vector<bool> local_updates = {true};
+  // The co-rotational FEM (linear material) with refactor_in_background (the recommended
+  // real-time setting, docs/sim-fem.md) instead of model_variants()' inline refactorisation;
+  // its label gains "+background_refactor".
+  bool fem_background_refactor = false;
 };
 
 struct CutBenchRow {

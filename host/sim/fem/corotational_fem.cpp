@@ -383,9 +383,14 @@ void CorotationalFem::grow_pattern(const std::vector<int>& stored_changed, int o
     compact_block_map(tets_[static_cast<std::size_t>(s)].v, full, tet_map_.data() + 30 * static_cast<std::ptrdiff_t>(s));
   }
   update_fixed_entries();
-  // pcg: PCG on the old factor (padded) while the new pattern is factorised on a worker;
-  // the direct kinds refactorise (analysis included) at the next solve.
-  solver_.pattern_extended(old_vertices, preconditioner_aliases(stored_changed, old_vertices));
+  // As for the lagged refactorisation: with refactor_in_background, PCG on the old factor
+  // (padded) while the new pattern is factorised on a worker; otherwise (deterministic) and
+  // for the direct kinds, the new pattern is factorised (analysis included) at the next solve.
+  if (solver_.background_refactor()) {
+    solver_.pattern_extended(old_vertices, preconditioner_aliases(stored_changed, old_vertices));
+  } else {
+    solver_.pattern_changed();
+  }
 }
 
 void CorotationalFem::update_partition(const std::vector<int>& stored_changed, int num_tets_before) {

@@ -69,11 +69,12 @@ class CorotationalFem final : public TissueModel {
   // Lame parameters, quarter masses, warm-start rotation) of the changed and appended tets
   // only, lumped masses and state of their vertices and of the appended ones (fixed ones
   // among them held), the sparse pattern grown by the new vertex pairs (one merge pass
-  // over the entries, the unchanged tets' maps remapped, not recomputed). linear_solver
-  // pcg keeps preconditioning with the factor from before the cut (a 3x3 block-diagonal
-  // one for the appended DOFs) while the factor of the new pattern is made on a worker
-  // thread (FemLinearSolver::pattern_extended); the direct kinds refactorise at the next
-  // step. Returns nothing (the caller rebuilds) when a vessel beam is embedded in a
+  // over the entries, the unchanged tets' maps remapped, not recomputed). As for the
+  // lagged refactorisation: with refactor_in_background (pcg), PCG keeps preconditioning
+  // with the factor from before the cut (appended vertices aggregated with an older
+  // neighbour, plus their 3x3 diagonal blocks) while the factor of the new pattern is made
+  // on a worker thread (FemLinearSolver::pattern_extended); otherwise (deterministic) the
+  // new pattern is analysed and factorised at the next step. Returns nothing (the caller rebuilds) when a vessel beam is embedded in a
   // changed tet or holds one of its vertices. Throws std::invalid_argument, before
   // changing anything, for a changed tet of non-positive rest volume or a vertex left
   // without mass.
