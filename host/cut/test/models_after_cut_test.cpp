@@ -618,6 +618,7 @@ TEST(FemAfterCut, StepsLikeAModelRebuiltOnTheCutMesh) {
       // agree to about that (a stale map, mass or Dirichlet row would differ by O(1)), the
       // positions to it relative to the motion over the compared steps.
       EXPECT_LT(matrix_diff, 1e-8) << stage;
+      EXPECT_EQ(local.system_matrix().nonZeros(), rebuilt.system_matrix().nonZeros()) << stage;  // the same pattern
       EXPECT_LT(diff, 1e-8 * std::max(scale, 1.0)) << stage;
     };
     // A slit 12 mm deep from the top at x = 45.3, across the bar.
@@ -730,6 +731,8 @@ TEST(FemAfterCut, RandomSweepsKeepTheModelConsistent) {
               << session.mesh().num_tets() << " tets, system matrix difference " << mdiff << ", positions " << diff << " mm (moved "
               << scale << " mm in 3 steps)\n";
     EXPECT_LT(mdiff, 1e-8) << when;  // rotations to 1e-9 rad (StepsLikeAModelRebuiltOnTheCutMesh)
+    // The same pattern: pairs the cuts uncoupled left it, new ones came in.
+    EXPECT_EQ(fem->system_matrix().nonZeros(), rebuilt.system_matrix().nonZeros()) << when;
     EXPECT_LT(diff, 1e-8 * std::max(scale, 1.0)) << when;
   };
   int frame = 0;

@@ -299,6 +299,9 @@ std::optional<MeshChangeStats> CorotationalFem::apply_mesh_change(const SimProbl
   }
 
   // Element records: changed tets in their slots, appended ones at the end.
+  std::vector<std::array<int, 4>> old_tets;
+  for (int t : changed)
+    if (t < nt_old) old_tets.push_back(tets_[static_cast<std::size_t>(stored_of_mesh_[static_cast<std::size_t>(t)])].v);
   std::vector<int> stored_changed(changed.size());
   for (std::size_t i = 0; i < changed.size(); ++i) {
     const int t = changed[i];
@@ -322,7 +325,7 @@ std::optional<MeshChangeStats> CorotationalFem::apply_mesh_change(const SimProbl
     stored_changed[i] = s;
     ++stats.elements_updated;
   }
-  grow_pattern(stored_changed, n_old);
+  grow_pattern(stored_changed, n_old, old_tets);
   update_partition(stored_changed, nt_old);
   inversions_.reset_episode();  // as for a model rebuilt on the cut mesh (set_state)
   return stats;
@@ -357,14 +360,53 @@ std::vector<int> CorotationalFem::preconditioner_aliases(const std::vector<int>&
   return alias;
 }
 
-void CorotationalFem::grow_pattern(const std::vector<int>& stored_changed, int old_vertices) {
+void CorotationalFem::grow_pattern(const std::vector<int>& stored_changed, int old_vertices,
+                                   const std::vector<std::array<int, 4>>& old_tets) {
   const int n = static_cast<int>(X_.cols());
   std::vector<std::vector<int>> groups;
   groups.reserve(stored_changed.size());
   for (int s : stored_changed) groups.emplace_back(tets_[static_cast<std::size_t>(s)].v.begin(), tets_[static_cast<std::size_t>(s)].v.end());
+  // Vertex pairs no tet couples any more (their entries leave the pattern, as in a model
+  // built on the cut mesh), unless an attachment or beam couples them.
+  const auto key = [](int a, int b) {  // a > b
+    return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) | static_cast<std::uint32_t>(b);
+  };
+  const auto count_pairs = [&](const std::array<int, 4>& v, int delta, std::vector<std::pair<int, int>>* emptied) {
+    for (int a : v)
+      for (int b : v)
+        if (a > b) {
+          auto it = pair_tets_.try_emplace(key(a, b), 0).first;
+          it->second += delta;
+          if (emptied && it->second == 0) emptied->emplace_back(b, a);
+        }
+  };
+  if (pair_tets_.empty()) {  // once: O(tets); the changed tets are in tets_ with their new vertices already
+    for (std::size_t s = 0; s < tets_.size(); ++s) count_pairs(tets_[s].v, 1, nullptr);
+    for (const auto& v : old_tets) count_pairs(v, 1, nullptr);
+    for (int s : stored_changed) count_pairs(tets_[static_cast<std::size_t>(s)].v, -1, nullptr);
+  }
+  std::vector<std::pair<int, int>> emptied, drop;
+  for (const auto& v : old_tets) count_pairs(v, -1, &emptied);
+  for (int s : stored_changed) count_pairs(tets_[static_cast<std::size_t>(s)].v, 1, nullptr);
+  if (!emptied.empty()) {
+    std::vector<std::vector<int>> kept;  // attachments (removed ones keep their entries) and beams
+    attachments_.append_groups(kept);
+    for (const Beam& b : beams_) kept.push_back(b.v);
+    for (const auto& [b, a] : emptied) {
+      const auto it = pair_tets_.find(key(a, b));
+      if (it == pair_tets_.end() || it->second != 0) continue;  // coupled again (or listed twice)
+      pair_tets_.erase(it);
+      const bool held = std::any_of(kept.begin(), kept.end(), [&](const std::vector<int>& g) {
+        return std::find(g.begin(), g.end(), a) != g.end() && std::find(g.begin(), g.end(), b) != g.end();
+      });
+      if (!held) drop.emplace_back(b, a);
+    }
+    std::sort(drop.begin(), drop.end());
+  }
   std::vector<int> remap;
-  auto grown = std::make_unique<SymmetricPattern>(pattern_->extended(n, groups, remap));
-  const bool same = grown->matrix().nonZeros() == pattern_->matrix().nonZeros() && grown->matrix().rows() == pattern_->matrix().rows();
+  auto grown = std::make_unique<SymmetricPattern>(pattern_->extended(n, groups, remap, drop));
+  const bool same = drop.empty() && grown->matrix().nonZeros() == pattern_->matrix().nonZeros() &&
+                    grown->matrix().rows() == pattern_->matrix().rows();
   if (!same) {
     // Unchanged tets keep their entries, which only move: their maps are remapped (a vertex's
     // three rows stay consecutive, so the compact run starts stay runs).

@@ -20,7 +20,10 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <array>
+#include <cstdint>
 #include <memory>
+#include <unordered_map>
 #include <optional>
 #include <vector>
 
@@ -126,7 +129,9 @@ class CorotationalFem final : public TissueModel {
   // apply_mesh_change, in parts (an element-exclusion flag would be honoured in
   // make_element and in the pattern groups of grow_pattern).
   Tet make_element(const SimProblem& problem, int mesh_tet, double& quarter_mass, double& quarter_alpha) const;
-  void grow_pattern(const std::vector<int>& stored_changed, int old_vertices);
+  // old_tets: the changed tets' vertices before the cut (their pairs leave the pattern when
+  // no tet or attachment couples them any more).
+  void grow_pattern(const std::vector<int>& stored_changed, int old_vertices, const std::vector<std::array<int, 4>>& old_tets);
   // For each vertex from old_vertices on: the nearest (rest) free older vertex it shares a
   // changed tet with (through other new vertices if need be), -1 for fixed or isolated ones
   // (FemLinearSolver::pattern_extended aggregates them in the old factor).
@@ -155,6 +160,7 @@ class CorotationalFem final : public TissueModel {
   std::vector<int> tet_order_;             // stored tet i is mesh tet tet_order_[i]
   std::vector<int> stored_of_mesh_;        // inverse of tet_order_ (made at the first apply_mesh_change)
   std::vector<double> quarter_mass_, quarter_alpha_;  // per stored tet: its share of each vertex's m and alpha m
+  std::unordered_map<std::uint64_t, int> pair_tets_;  // vertex pair (a > b) -> tets coupling it (made at the first apply_mesh_change)
   std::vector<Beam> beams_;
   std::optional<VesselEmbedding> embedding_;
   std::vector<Eigen::Quaterniond> q_;      // per-tet rotation (warm start)

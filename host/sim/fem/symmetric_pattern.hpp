@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 
+#include <utility>
 #include <vector>
 
 namespace arnav::host {
@@ -33,11 +34,12 @@ class SymmetricPattern {
 
   // After a cut (CorotationalFem::apply_mesh_change): this pattern grown to num_vertices
   // (>= the current count; the new vertices' DOFs appended) with the pairs of `groups`
-  // added. Every entry of this pattern stays (entries no element couples any more hold
-  // zeros). remap[k] is the new index of this pattern's entry k. One pass over the entries
-  // (a merge, no search or sort of the old ones); the same layout as a pattern built from
-  // all groups at once.
-  SymmetricPattern extended(int num_vertices, const std::vector<std::vector<int>>& groups, std::vector<int>& remap) const;
+  // added and the vertex pairs `drop` ({column vertex b, row vertex a}, a > b, sorted;
+  // pairs no element couples any more) removed. remap[k] is the new index of this
+  // pattern's entry k (-1: dropped). One pass over the entries (a merge, no search or sort
+  // of the old ones); the same layout as a pattern built from the remaining groups at once.
+  SymmetricPattern extended(int num_vertices, const std::vector<std::vector<int>>& groups, std::vector<int>& remap,
+                            const std::vector<std::pair<int, int>>& drop = {}) const;
 
  private:
   SymmetricPattern() = default;
