@@ -392,7 +392,8 @@ void CorotationalFem::grow_pattern(const std::vector<int>& stored_changed, int o
     std::vector<std::vector<int>> kept;  // attachments (removed ones keep their entries) and beams
     attachments_.append_groups(kept);
     for (const Beam& b : beams_) kept.push_back(b.v);
-    for (const auto& [b, a] : emptied) {
+    for (const auto& pair : emptied) {
+      const int b = pair.first, a = pair.second;  // (clang: no lambda capture of structured bindings)
       const auto it = pair_tets_.find(key(a, b));
       if (it == pair_tets_.end() || it->second != 0) continue;  // coupled again (or listed twice)
       pair_tets_.erase(it);
