@@ -311,7 +311,7 @@ LocalRun cut_bar_locally(const ModelConfig& config, double length, bool local) {
 
 }  // namespace
 
-// Models that update in place after a cut (XPBD, mass-spring explicit/semi-implicit): the
+// Models that update in place after a cut (XPBD, every mass-spring integrator, the linear co-rotational FEM): the
 // work (elements removed, added, refreshed) is the same on a bar 4 times longer (the same
 // cut), bounded by a constant times the changed tets, and the motion matches a model
 // rebuilt after every cut.
