@@ -105,6 +105,12 @@ static int main_body(int argc, char** argv) {
       ->check(CLI::IsMember({"coarse", "paper"}));
   cut->add_option("--frames", cut_options.max_frames, "cap the frames per run")->check(CLI::PositiveNumber);
   std::string rebuild = "inline";
+  std::string local_updates = "on";
+  cut->add_flag("--fem-background-refactor", cut_options.fem_background_refactor,
+                "run the co-rotational FEM with refactor_in_background (the recommended real-time setting; label +background_refactor)");
+  cut->add_option("--local-updates", local_updates,
+                  "update the models in place after a cut where they can (on), rebuild them always (off), or both: each local run is then compared with the rebuilt one frame by frame (state difference)")
+      ->check(CLI::IsMember({"on", "off", "both"}));
   cut->add_option("--rebuild", rebuild, "model rebuild after a cut: inline, background or both")->check(CLI::IsMember({"inline", "background", "both"}));
   try {
     app.parse(argc, argv);
@@ -217,6 +223,7 @@ static int main_body(int argc, char** argv) {
   }
 
   if (cut->parsed()) {
+    cut_options.local_updates = local_updates == "on" ? std::vector<bool>{true} : local_updates == "off" ? std::vector<bool>{false} : std::vector<bool>{false, true};
     cut_options.background = rebuild == "inline" ? std::vector<bool>{false} : rebuild == "background" ? std::vector<bool>{true} : std::vector<bool>{false, true};
     std::vector<CutBenchRow> rows;
     try {
@@ -238,6 +245,9 @@ static int main_body(int argc, char** argv) {
                 << "\",\"background_rebuild\":" << (r.background ? "true" : "false") << ",\"frames\":" << r.frames << ",\"topology_p99_ms\":" << r.topology_p99_ms << ",\"frame_median_ms\":" << r.frame_median_ms
                 << ",\"frame_p99_ms\":" << r.frame_p99_ms << ",\"min_dihedral_deg\":" << r.min_dihedral_deg << ",\"volume_change_rel\":"
                 << r.volume_change_rel << ",\"path_fidelity_mm\":" << r.path_fidelity_mm << ",\"completion_deviation_mm\":" << r.completion_deviation_mm << ",\"pieces\":" << r.pieces << ",\"tumours_freed\":" << r.tumours_freed << ",\"tumours_separated\":" << r.tumours_separated << ",\"local_updates\":" << r.local_updates << ",\"rebuilds\":" << r.rebuilds
+                << ",\"local_updates_enabled\":" << (r.local_updates_enabled ? "true" : "false") << ",\"local_median_ms\":" << r.local_median_ms
+                << ",\"local_p99_ms\":" << r.local_p99_ms << ",\"rebuild_median_ms\":" << r.rebuild_median_ms << ",\"rebuild_p99_ms\":" << r.rebuild_p99_ms
+                << ",\"state_diff_max_mm\":" << r.state_diff_max_mm << ",\"state_diff_final_mm\":" << r.state_diff_final_mm
                 << ",\"mesh_valid\":" << (r.mesh_valid ? "true" : "false") << ",\"healthy\":" << (r.healthy ? "true" : "false") << "}";
     }
     std::cout << "]}\n";

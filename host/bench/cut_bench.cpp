@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <ctime>
 #include <fstream>
 #include <iostream>
 #include <stdexcept>
@@ -22,6 +23,12 @@ double percentile(std::vector<double> v, double q) {
   std::sort(v.begin(), v.end());
   const std::size_t i = std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5));
   return v[i];
+}
+
+double thread_cpu_ms() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) * 1e3 + static_cast<double>(t.tv_nsec) * 1e-6;
 }
 
 bool selected(const std::string& label, const std::vector<std::string>& prefixes) {
@@ -50,11 +57,21 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
       int frames = static_cast<int>(path.samples.back().t_s / scene.time_step_s) + 1;
       if (o.quick) frames = std::min(frames, 150);
       if (o.max_frames > 0) frames = std::min(frames, o.max_frames);
-      for (const auto& variant : model_variants())
+      for (ModelVariant variant : model_variants())
       for (const bool background : o.background) {
+      if (o.fem_background_refactor && !variant.config.refactor_in_background && variant.config.kind == "corotational_fem" &&
+          variant.config.material_model != "stable_neo_hookean") {
+        variant.config.refactor_in_background = true;
+        variant.label += "+background_refactor";
+      }
+      std::vector<Eigen::Matrix3Xd> rebuilt_states;  // per frame, of the rebuilt run (local_updates both)
+      std::vector<bool> local_modes = o.local_updates;
+      std::stable_sort(local_modes.begin(), local_modes.end());  // rebuilt run first
+      for (const bool local_updates : local_modes) {
         if (!selected(variant.label, prefixes)) continue;
         CutSessionSettings settings;  // docs/cut.md defaults (the scene's cutting section on the coarse mesh)
         settings.rebuild_in_background = background;
+        settings.local_updates = local_updates;
         if (scene.cutting) {
           settings.cut.snap_fraction = scene.cutting->snap_fraction;
           settings.cut.path_tolerance_mm = scene.cutting->path_tolerance_mm;
@@ -68,15 +85,33 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
         row.scenario = scenario;
         row.label = variant.label;
         row.background = background;
+        row.local_updates_enabled = local_updates;
+        const bool record = !local_updates && local_modes.back();
+        const bool compare = local_updates && !rebuilt_states.empty();
+        bool parted = false;
         row.tets_before = scene.problem.mesh.num_tets();
         row.min_dihedral_input_deg = input.min_dihedral_deg;
-        std::vector<double> topology, frame, rebuild, local;
+        std::vector<double> topology, frame, rebuild, local, frame_cpu;
         for (int f = 1; f <= frames; ++f) {
           const ScalpelSample s = path.at(f * scene.time_step_s);
           const auto t0 = std::chrono::steady_clock::now();
+          const double cpu0 = thread_cpu_ms();
           const CutFrameReport cr = session.apply_blade(s.blade, s.cutting);
           const StepSummary step = session.step(scene.time_step_s);
           frame.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+          frame_cpu.push_back(thread_cpu_ms() - cpu0);
+          if (record) rebuilt_states.push_back(session.positions_World_mm());
+          if (compare && !parted && static_cast<std::size_t>(f) <= rebuilt_states.size()) {
+            const Eigen::Matrix3Xd x = session.positions_World_mm();
+            const Eigen::Matrix3Xd& y = rebuilt_states[static_cast<std::size_t>(f) - 1];
+            parted = x.cols() != y.cols();  // the cuts differ from here on: not comparable
+            if (!parted) {
+              const double d = (x - y).colwise().norm().maxCoeff();
+              row.state_diff_max_mm = std::max(row.state_diff_max_mm, d);
+              row.state_diff_final_mm = d;
+              ++row.state_compared_frames;
+            }
+          }
           topology.push_back(cr.cut.update_ms);
           row.frames = f;
           row.events += static_cast<int>(cr.events.size());
@@ -102,6 +137,8 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
         row.topology_max_ms = percentile(topology, 1.0);
         row.frame_median_ms = percentile(frame, 0.5);
         row.frame_p99_ms = percentile(frame, 0.99);
+        row.frame_thread_cpu_median_ms = percentile(frame_cpu, 0.5);
+        row.frame_thread_cpu_p99_ms = percentile(frame_cpu, 0.99);
         row.rebuild_median_ms = percentile(rebuild, 0.5);
         row.rebuild_p99_ms = percentile(rebuild, 0.99);
         row.min_dihedral_deg = after.min_dihedral_deg;
@@ -130,11 +167,16 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
         row.local_p99_ms = percentile(local, 0.99);
         if (!o.reference_mesh.empty()) add_reference_errors(references, scenario, variant, settings, session, row);
         std::cerr << "arnav-bench cut: " << mesh_name << " " << scenario << " " << variant.label << (background ? " (background rebuild)" : "") << ": " << row.frames << " frames, frame "
-                  << row.frame_median_ms << "/" << row.frame_p99_ms << " ms (median/p99), topology " << row.topology_median_ms << "/"
+                  << row.frame_median_ms << "/" << row.frame_p99_ms << " ms (median/p99; stepping thread CPU " << row.frame_thread_cpu_median_ms << "/"
+                  << row.frame_thread_cpu_p99_ms << " ms), topology " << row.topology_median_ms << "/"
                   << row.topology_p99_ms << " ms, local update " << row.local_median_ms << "/" << row.local_p99_ms << " ms (" << row.local_updates
                   << "), rebuild " << row.rebuild_median_ms << " ms (" << row.rebuilds << "), pieces " << row.pieces << ", tumours freed " << row.tumours_freed << ", separated " << row.tumours_separated << ", min dihedral " << row.min_dihedral_deg
                   << (row.healthy ? "" : " UNHEALTHY: " + row.warning) << "\n";
+        if (compare)
+          std::cerr << "arnav-bench cut:   against the rebuilt run: state difference " << row.state_diff_max_mm << " mm at most, "
+                    << row.state_diff_final_mm << " mm at the end (" << row.state_compared_frames << " frames compared)\n";
         rows.push_back(row);
+      }
       }
     }
   }
@@ -146,7 +188,8 @@ void write_cut_csv(const std::string& path, const std::vector<CutBenchRow>& rows
   if (!out) throw std::runtime_error("cannot write " + path + ": check the folder");
   out << "mesh,scenario,model,background_rebuild,tets_before,tets_after,vertices_after,frames,topology_changes,new_tets,topology_median_ms,topology_p99_ms,"
          "topology_max_ms,frame_median_ms,frame_p99_ms,rebuild_median_ms,rebuild_p99_ms,min_dihedral_input_deg,min_dihedral_deg,"
-         "volume_change_rel,path_fidelity_mm,completion_deviation_mm,completed_tets,pieces,free_pieces,tumours_freed,tumours_separated,local_updates,local_median_ms,local_p99_ms,rebuilds,events,mesh_valid,healthy,warning\n";
+         "volume_change_rel,path_fidelity_mm,completion_deviation_mm,completed_tets,pieces,free_pieces,tumours_freed,tumours_separated,local_updates,local_median_ms,local_p99_ms,rebuilds,events,mesh_valid,healthy,warning,"
+         "local_updates_enabled,state_diff_max_mm,state_diff_final_mm,state_compared_frames,frame_thread_cpu_median_ms,frame_thread_cpu_p99_ms\n";
   for (const auto& r : rows) {
     std::string warning = r.warning;
     std::replace(warning.begin(), warning.end(), ',', ';');
@@ -155,7 +198,8 @@ void write_cut_csv(const std::string& path, const std::vector<CutBenchRow>& rows
         << r.topology_max_ms << ',' << r.frame_median_ms << ',' << r.frame_p99_ms << ',' << r.rebuild_median_ms << ',' << r.rebuild_p99_ms
         << ',' << r.min_dihedral_input_deg << ',' << r.min_dihedral_deg << ',' << r.volume_change_rel << ',' << r.path_fidelity_mm << ','
         << r.completion_deviation_mm << ',' << r.completed_tets << ',' << r.pieces << ',' << r.free_pieces << ',' << r.tumours_freed << ',' << r.tumours_separated << ',' << r.local_updates << ',' << r.local_median_ms << ',' << r.local_p99_ms << ',' << r.rebuilds << ',' << r.events << ',' << (r.mesh_valid ? 1 : 0) << ','
-        << (r.healthy ? 1 : 0) << ',' << warning << '\n';
+        << (r.healthy ? 1 : 0) << ',' << warning << ',' << (r.local_updates_enabled ? 1 : 0) << ',' << r.state_diff_max_mm << ','
+        << r.state_diff_final_mm << ',' << r.state_compared_frames << ',' << r.frame_thread_cpu_median_ms << ',' << r.frame_thread_cpu_p99_ms << '\n';
   }
 }
 

@@ -17,14 +17,30 @@ struct CutBenchOptions {
   int max_frames = 0;                                          // cap per run (0: the whole path)
   std::vector<bool> background = {false};                      // rebuild the model inline and/or in the background
   std::string reference_mesh;                                  // coarse/paper: compare each run with the same path cut on it (cut_reference.hpp); empty: none
+  // CutSessionSettings::local_updates per run: {true} (default), {false} (every model rebuilt
+  // after a cut) or {false, true}: then each local run is compared, frame by frame, with the
+  // rebuilt run of the same model (state difference: the accuracy cost of the local update).
+  std::vector<bool> local_updates = {true};
+  // The co-rotational FEM (linear material) with refactor_in_background (the recommended
+  // real-time setting, docs/sim-fem.md) instead of model_variants()' inline refactorisation;
+  // its label gains "+background_refactor".
+  bool fem_background_refactor = false;
 };
 
 struct CutBenchRow {
   std::string mesh, scenario, label;
   bool background = false;  // model rebuilt on a worker thread
+  bool local_updates_enabled = true;  // CutSessionSettings::local_updates
+  // Local runs with a rebuilt run of the same model (CutBenchOptions::local_updates both):
+  // largest vertex position difference from it over the frames until the two meshes first
+  // differ in vertex count (the cut follows the tissue: once the states differ, the cuts
+  // can too, and the runs are no longer comparable), and at the last of them; -1: not compared.
+  double state_diff_max_mm = -1, state_diff_final_mm = -1;
+  int state_compared_frames = 0;
   int tets_before = 0, tets_after = 0, vertices_after = 0, frames = 0, topology_changes = 0, new_tets = 0;
   double topology_median_ms = 0, topology_p99_ms = 0, topology_max_ms = 0;
   double frame_median_ms = 0, frame_p99_ms = 0;
+  double frame_thread_cpu_median_ms = 0, frame_thread_cpu_p99_ms = 0;  // CPU time of the stepping thread per frame (workers not counted)
   double rebuild_median_ms = 0, rebuild_p99_ms = 0;  // over frames with a topology change
   double min_dihedral_input_deg = 0, min_dihedral_deg = 0;
   double volume_change_rel = 0;                      // rest volume after / before - 1

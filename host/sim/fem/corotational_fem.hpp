@@ -20,7 +20,10 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <array>
+#include <cstdint>
 #include <memory>
+#include <unordered_map>
 #include <optional>
 #include <vector>
 
@@ -65,6 +68,23 @@ class CorotationalFem final : public TissueModel {
   const Eigen::Matrix3Xd& velocities_World_mm_s() const override { return v_; }
   void set_state(const Eigen::Matrix3Xd& positions_World_mm, const Eigen::Matrix3Xd& velocities_World_mm_s) override;
   std::vector<ElementMeasure> element_measures() const override;
+  // In place after a cut (docs/sim-fem.md "After a cut"): per-element data (rest shape,
+  // Lame parameters, quarter masses, warm-start rotation) of the changed and appended tets
+  // only, lumped masses and state of their vertices and of the appended ones (fixed ones
+  // among them held), the sparse pattern grown by the new vertex pairs (one merge pass
+  // over the entries, the unchanged tets' maps remapped, not recomputed). As for the
+  // lagged refactorisation: with refactor_in_background (pcg), PCG keeps preconditioning
+  // with the factor from before the cut (appended vertices aggregated with an older
+  // neighbour, plus their 3x3 diagonal blocks) while the factor of the new pattern is made
+  // on a worker thread (FemLinearSolver::pattern_extended); otherwise (deterministic) the
+  // new pattern is analysed and factorised at the next step. Returns nothing (the caller rebuilds) when a vessel beam is embedded in a
+  // changed tet or holds one of its vertices. Throws std::invalid_argument, before
+  // changing anything, for a changed tet of non-positive rest volume or a vertex left
+  // without mass.
+  std::optional<MeshChangeStats> apply_mesh_change(const SimProblem& problem, const std::vector<int>& changed_tets,
+                                                   const Eigen::Matrix3Xd& x_World_mm, const Eigen::Matrix3Xd& v_World_mm_s) override;
+  // After a cut: the factor of the new pattern is still being made (PCG runs on the old one).
+  bool factor_pending() const { return solver_.factor_pending(); }
 
   // Introspection for tests and benchmarks.
   int num_beam_elements() const { return static_cast<int>(beams_.size()); }
@@ -106,6 +126,17 @@ class CorotationalFem final : public TissueModel {
 
   void build_pattern();
   void update_fixed_entries();
+  // apply_mesh_change, in parts (an element-exclusion flag would be honoured in
+  // make_element and in the pattern groups of grow_pattern).
+  Tet make_element(const SimProblem& problem, int mesh_tet, double& quarter_mass, double& quarter_alpha) const;
+  // old_tets: the changed tets' vertices before the cut (their pairs leave the pattern when
+  // no tet or attachment couples them any more).
+  void grow_pattern(const std::vector<int>& stored_changed, int old_vertices, const std::vector<std::array<int, 4>>& old_tets);
+  // For each vertex from old_vertices on: the nearest (rest) free older vertex it shares a
+  // changed tet with (through other new vertices if need be), -1 for fixed or isolated ones
+  // (FemLinearSolver::pattern_extended aggregates them in the old factor).
+  std::vector<int> preconditioner_aliases(const std::vector<int>& stored_changed, int old_vertices) const;
+  void update_partition(const std::vector<int>& stored_changed, int num_tets_before);
   struct AssemblyStats {
     double energy = 0;
     int inverted = 0;
@@ -127,6 +158,9 @@ class CorotationalFem final : public TissueModel {
   Eigen::VectorXd mass_, mass_alpha_, mass_damped_;  // lumped m, alpha m, m + dt alpha m
   std::vector<Tet> tets_;                  // in tet_order_ (spatial order), not mesh order
   std::vector<int> tet_order_;             // stored tet i is mesh tet tet_order_[i]
+  std::vector<int> stored_of_mesh_;        // inverse of tet_order_ (made at the first apply_mesh_change)
+  std::vector<double> quarter_mass_, quarter_alpha_;  // per stored tet: its share of each vertex's m and alpha m
+  std::unordered_map<std::uint64_t, int> pair_tets_;  // vertex pair (a > b) -> tets coupling it (made at the first apply_mesh_change)
   std::vector<Beam> beams_;
   std::optional<VesselEmbedding> embedding_;
   std::vector<Eigen::Quaterniond> q_;      // per-tet rotation (warm start)

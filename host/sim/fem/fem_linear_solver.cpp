@@ -3,6 +3,7 @@
 #include <cholmod.h>
 
 #include <Eigen/CholmodSupport>
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/SparseCholesky>
 #include <omp.h>
@@ -75,8 +76,11 @@ struct FemLinearSolver::Factors {
   // Background refactorisation: the worker owns `pending` and `snapshot` while a job runs.
   std::unique_ptr<Cholmod> pending;
   SinglePrecisionFactor single_pending;
-  bool pending_analyzed = false;
   SparseMatrixLower snapshot;
+  // After a cut (pattern_extended): inverses of the 3x3 diagonal blocks of the DOFs the
+  // factor in use does not have.
+  std::vector<Eigen::Matrix3d> tail_inv;
+  std::vector<int> tail_alias;  // their aggregation vertex in the factor (-1: none)
 };
 
 FemLinearSolver::Kind FemLinearSolver::parse(const std::string& name) {
@@ -127,10 +131,64 @@ void FemLinearSolver::discard_background() {
 
 void FemLinearSolver::pattern_changed() {
   discard_background();  // its snapshot has the old pattern
+  ++pattern_version_;
   analyzed_ = false;
   have_factor_ = false;
-  f_->pending_analyzed = false;
+  pending_version_ = -1;
   f_->snapshot = SparseMatrixLower();
+}
+
+void FemLinearSolver::pattern_extended(int old_vertices, const std::vector<int>& alias) {
+  if (kind_ != Kind::PcgFactor || !have_factor_) {
+    pattern_changed();
+    return;
+  }
+  const int known = static_cast<int>(alias_.size());
+  if (known < old_vertices) {  // identity for the vertices before (once, and after a rebuild of the pattern)
+    alias_.resize(static_cast<std::size_t>(old_vertices));
+    for (int v = known; v < old_vertices; ++v) alias_[static_cast<std::size_t>(v)] = v;
+  }
+  alias_.resize(static_cast<std::size_t>(old_vertices));
+  for (int a : alias) alias_.push_back(a);
+  // The factor in use stays (padded for the new DOFs: prepare_padding); a running job
+  // finishes on its snapshot and is taken if it is newer (poll_background).
+  ++pattern_version_;
+  analyzed_ = false;
+  if (!f_->pending) f_->pending = make_cholmod();
+  refresh_requested_ = true;
+}
+
+void FemLinearSolver::prepare_padding(const SparseMatrixLower& A) {
+  const Eigen::Index nf = factor_dofs_, n = A.rows();
+  f_->tail_inv.resize(static_cast<std::size_t>((n - nf) / 3));
+  f_->tail_alias.assign(f_->tail_inv.size(), -1);
+  for (std::size_t i = 0; i < f_->tail_alias.size(); ++i) {
+    int a = static_cast<int>(nf / 3) + static_cast<int>(i);
+    while (a >= nf / 3 && static_cast<std::size_t>(a) < alias_.size() && alias_[static_cast<std::size_t>(a)] >= 0 && alias_[static_cast<std::size_t>(a)] < a)
+      a = alias_[static_cast<std::size_t>(a)];
+    f_->tail_alias[i] = a < nf / 3 ? a : -1;
+  }
+  const int* outer = A.outerIndexPtr();
+  const int* inner = A.innerIndexPtr();
+  const double* values = A.valuePtr();
+  for (Eigen::Index v = 0; v < (n - nf) / 3; ++v) {
+    Eigen::Matrix3d B;
+    for (int c = 0; c < 3; ++c) {
+      const Eigen::Index col = nf + 3 * v + c;
+      const int k0 = outer[col];
+      // Lower triangle, rows sorted: the column's first entries are its diagonal block's.
+      for (int r = c; r < 3; ++r) {
+        const double value = (k0 + r - c < outer[col + 1] && inner[k0 + r - c] == col + r - c) ? values[k0 + r - c] : 0.0;
+        B(r, c) = B(c, r) = value;
+      }
+    }
+    const Eigen::LLT<Eigen::Matrix3d> llt(B);
+    if (llt.info() == Eigen::Success) {
+      f_->tail_inv[static_cast<std::size_t>(v)] = llt.solve(Eigen::Matrix3d::Identity());
+    } else {  // not positive definite (PCG will say so): the diagonal, kept positive
+      f_->tail_inv[static_cast<std::size_t>(v)] = B.diagonal().cwiseAbs().cwiseMax(1e-300).cwiseInverse().asDiagonal();
+    }
+  }
 }
 
 void FemLinearSolver::force_refactor() {
@@ -153,8 +211,11 @@ void FemLinearSolver::poll_background(LinearSolveSummary& s) {
   if (have_factor_ && pending_stamp_ > factor_stamp_) {
     std::swap(f_->cholmod, f_->pending);
     std::swap(f_->single, f_->single_pending);
-    std::swap(analyzed_, f_->pending_analyzed);
+    std::swap(factor_version_, pending_version_);
+    std::swap(factor_dofs_, pending_dofs_);
+    analyzed_ = factor_version_ == pattern_version_;
     factor_stamp_ = pending_stamp_;
+    steps_since_factor_ = 0;
     s.background_swapped = true;
   }
 }
@@ -168,8 +229,9 @@ void FemLinearSolver::start_background(const SparseMatrixLower& A, LinearSolveSu
   pending_stamp_ = started_stamp_ = solves_;
   refresh_requested_ = false;
   s.background_started = true;
-  const bool analyze = !f_->pending_analyzed;
-  f_->pending_analyzed = true;
+  const bool analyze = pending_version_ != pattern_version_;  // a new pattern (or never analysed)
+  pending_version_ = pattern_version_;
+  pending_dofs_ = A.rows();
   Cholmod* L = f_->pending.get();
   SinglePrecisionFactor* single = single_precision_ ? &f_->single_pending : nullptr;
   const SparseMatrixLower* M = &f_->snapshot;
@@ -205,6 +267,8 @@ bool FemLinearSolver::factorize(const SparseMatrixLower& A, LinearSolveSummary& 
     if (ok && single_precision_ && kind_ == Kind::PcgFactor) f_->single.assign(f_->cholmod->factor());
   }
   analyzed_ = true;
+  factor_version_ = pattern_version_;
+  factor_dofs_ = A.rows();
   factor_stamp_ = started_stamp_ = solves_;
   s.factorized = true;
   s.factor_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
@@ -223,7 +287,30 @@ void FemLinearSolver::apply_factor(const Eigen::VectorXd& r, Eigen::VectorXd& z)
     case Kind::EigenLdlt: z = f_->ldlt.solve(r); break;
     case Kind::PcgJacobi: z = f_->inv_diag.cwiseProduct(r); break;
     default:
-      if (single_precision_ && kind_ == Kind::PcgFactor && !f_->single.empty()) {
+      if (factor_dofs_ < r.size()) {
+        // A factor from before a cut (pattern_extended): its DOFs by it, the appended ones
+        // by their diagonal blocks; symmetric positive definite, so PCG stays valid.
+        const Eigen::Index nf = factor_dofs_;
+        Eigen::VectorXd head = r.head(nf);
+        for (std::size_t i = 0; i < f_->tail_inv.size(); ++i) {
+          const int a = f_->tail_alias[i];
+          if (a >= 0) head.segment<3>(3 * a) += r.segment<3>(nf + 3 * static_cast<Eigen::Index>(i));
+        }
+        Eigen::VectorXd zh;
+        if (single_precision_ && kind_ == Kind::PcgFactor && !f_->single.empty()) {
+          f_->single.solve(head, zh);
+        } else {
+          zh = f_->cholmod->solve(head);
+        }
+        z.resize(r.size());
+        z.head(nf) = zh;
+        for (std::size_t i = 0; i < f_->tail_inv.size(); ++i) {
+          const Eigen::Index k = nf + 3 * static_cast<Eigen::Index>(i);
+          const int a = f_->tail_alias[i];
+          z.segment<3>(k) = f_->tail_inv[i] * r.segment<3>(k);
+          if (a >= 0) z.segment<3>(k) += zh.segment<3>(3 * a);
+        }
+      } else if (single_precision_ && kind_ == Kind::PcgFactor && !f_->single.empty()) {
         f_->single.solve(r, z);
       } else {
         z = f_->cholmod->solve(r);
@@ -236,8 +323,13 @@ LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eige
                                           double load_scale) {
   LinearSolveSummary s;
   ++solves_;
-  if (background_) {
-    poll_background(s);
+  if (background_ || job_.valid()) poll_background(s);
+  if (!background_ && kind_ == Kind::PcgFactor && factor_pending()) {
+    // After a cut (pattern_extended): PCG on the old factor while the new one is made on the
+    // worker (started here, from the matrix of this solve); no inline refactorisation.
+    if (!job_.valid()) start_background(A, s);
+    if (!s.factorized) ++steps_since_factor_;
+  } else if (background_) {
     if (!have_factor_) {
       if (!factorize(A, s)) return s;  // nothing to precondition with yet: inline
       // The spare factor starts as a copy of this one (~5 ms for the liver's 30 MB, instead
@@ -245,7 +337,8 @@ LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eige
       // refactorisation can start at the next solve and is numeric only.
       if (!job_.valid()) {
         f_->pending->copy_from(*f_->cholmod);
-        f_->pending_analyzed = f_->pending->info() == Eigen::Success;
+        pending_version_ = f_->pending->info() == Eigen::Success ? factor_version_ : -1;
+        pending_dofs_ = factor_dofs_;
       }
     } else if (!job_.valid() && (refresh_requested_ || (refactor_every_ > 0 && solves_ - started_stamp_ >= refactor_every_))) {
       start_background(A, s);
@@ -280,6 +373,8 @@ LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eige
     return s;
   }
   // Preconditioned conjugate gradients, warm started from x.
+  if (kind_ == Kind::PcgFactor && factor_dofs_ < A.rows()) prepare_padding(A);
+  const bool worker = background_ || job_.valid();  // a fresher factor can come from the worker
   Eigen::VectorXd r = b - Asym * x;
   s.initial_residual = r.norm() / b_norm;
   Eigen::VectorXd z, p, q;
@@ -299,6 +394,7 @@ LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eige
   };
   auto refresh = [&](const std::string& why) {
     if (!factorize(A, s)) return false;
+    if (kind_ == Kind::PcgFactor && factor_dofs_ < A.rows()) prepare_padding(A);
     s.message = "preconditioner refreshed after " + std::to_string(it) + " iterations: " + why;
     restart();
     return true;
@@ -310,7 +406,7 @@ LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eige
       // Cap reached far from the solution with a lagged factor: refresh it and give CG
       // another `iterations`.
       if (kind_ != Kind::PcgFactor || s.factorized || res <= refresh_residual_) break;
-      if (background_ && !extended) {
+      if (worker && !extended) {
         // Background mode: a fresher factor is on its way; another `iterations` with this
         // one cost far less than refactorising inline (which stays the last resort).
         extended = true;
@@ -318,12 +414,13 @@ LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eige
         s.message = "PCG extended after " + std::to_string(it) + " iterations at residual " + std::to_string(res);
         continue;
       }
-      if (background_ && job_.valid() && !waited) {
+      if (job_.valid() && !waited) {
         // A factorisation is under way: waiting for its rest costs less than a new one.
         waited = true;
         job_.wait();
         poll_background(s);
         if (s.background_swapped) {
+          if (factor_dofs_ < A.rows()) prepare_padding(A);
           s.message = "waited for the background factor after " + std::to_string(it) + " iterations at residual " +
                       std::to_string(res);
           restart();

@@ -16,6 +16,7 @@
 #include <future>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "host/sim/fem/symmetric_pattern.hpp"
 
@@ -69,6 +70,20 @@ class FemLinearSolver {
   // factor must not survive (fixed set, time step).
   void pattern_changed();
   void force_refactor();
+  // PcgFactor after a cut (CorotationalFem::apply_mesh_change): the matrix gained entries
+  // and possibly DOFs (appended at the end: old_vertices.. old_vertices + alias.size() - 1).
+  // The factor in use stays the preconditioner of the DOFs it has (a factor of the matrix
+  // before the cut); an appended vertex w is aggregated with the older vertex alias[w -
+  // old_vertices] (free, nearby; -1: none, e.g. fixed): z = R^T L^-T L^-1 R r + D^-1 r on
+  // the appended DOFs, R adding each appended vertex's residual to its alias', D the
+  // appended vertices' 3x3 diagonal blocks (symmetric positive definite). A factor of the new pattern (symbolic
+  // analysis included) is made on a worker thread from the matrix of the next solve, whether
+  // refactor_in_background is on or not; it replaces the old one at the first solve after
+  // it is done. A cut while that job runs: its factor (closer to the new matrix) is taken
+  // when done and another job follows for the newest pattern. Other kinds: pattern_changed().
+  void pattern_extended(int old_vertices, const std::vector<int>& alias);
+  // True while the factor in use belongs to an older pattern (a cut's factor is pending).
+  bool factor_pending() const { return have_factor_ && factor_version_ != pattern_version_; }
 
   // Solves A x = b; x holds the warm start on entry (iterative kinds). Residuals are
   // relative to max(||b||, load_scale): near equilibrium b vanishes, and a criterion
@@ -113,6 +128,12 @@ class FemLinearSolver {
   long factor_stamp_ = 0;           // solves_ when the active factor's matrix was taken
   long started_stamp_ = 0;          // solves_ when the last background job was started
   long pending_stamp_ = 0;          // solves_ of the running job's snapshot
+  // Pattern versions (pattern_extended): of the current matrix, of the factor in use and of
+  // the pending factor (its symbolic analysis); the DOFs each factor covers.
+  long pattern_version_ = 0, factor_version_ = 0, pending_version_ = 0;
+  Eigen::Index factor_dofs_ = 0, pending_dofs_ = 0;
+  std::vector<int> alias_;  // per vertex: the older vertex an appended one is aggregated with (identity before the first cut)
+  void prepare_padding(const SparseMatrixLower& A);
   std::future<int> job_;            // the running background job (JobResult in the .cpp)
   struct Factors;
   std::unique_ptr<Factors> f_;

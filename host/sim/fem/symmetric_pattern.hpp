@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 
+#include <utility>
 #include <vector>
 
 namespace arnav::host {
@@ -31,7 +32,17 @@ class SymmetricPattern {
   // Index of the diagonal entry of each DOF.
   const std::vector<int>& diagonal() const { return diagonal_; }
 
+  // After a cut (CorotationalFem::apply_mesh_change): this pattern grown to num_vertices
+  // (>= the current count; the new vertices' DOFs appended) with the pairs of `groups`
+  // added and the vertex pairs `drop` ({column vertex b, row vertex a}, a > b, sorted;
+  // pairs no element couples any more) removed. remap[k] is the new index of this
+  // pattern's entry k (-1: dropped). One pass over the entries (a merge, no search or sort
+  // of the old ones); the same layout as a pattern built from the remaining groups at once.
+  SymmetricPattern extended(int num_vertices, const std::vector<std::vector<int>>& groups, std::vector<int>& remap,
+                            const std::vector<std::pair<int, int>>& drop = {}) const;
+
  private:
+  SymmetricPattern() = default;
   SparseMatrixLower matrix_;
   std::vector<int> diagonal_;
 };

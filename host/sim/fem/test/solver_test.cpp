@@ -6,6 +6,11 @@
 
 #include "host/sim/fem/test/fem_test_util.hpp"
 #include "host/sim/tet_geometry.hpp"
+#include "host/sim/fem/symmetric_pattern.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <random>
 
 namespace arnav::host {
 namespace {
@@ -23,6 +28,122 @@ Eigen::Matrix3Xd run(const SimProblem& problem, const ModelConfig& config, int s
     if (log) log->push_back(s);
   }
   return model.positions_World_mm();
+}
+
+// Random vertex groups (tets, attachments) on `n` vertices.
+std::vector<std::vector<int>> random_groups(int count, int n, std::mt19937& rng) {
+  std::uniform_int_distribution<int> pick(0, n - 1);
+  std::vector<std::vector<int>> groups;
+  for (int g = 0; g < count; ++g) {
+    std::vector<int> v;
+    while (v.size() < 4) {
+      const int w = pick(rng);
+      if (std::find(v.begin(), v.end(), w) == v.end()) v.push_back(w);
+    }
+    groups.push_back(v);
+  }
+  return groups;
+}
+
+// A symmetric positive definite matrix on the pattern: identity plus a graph Laplacian of the groups.
+SparseMatrixLower spd_on(const SymmetricPattern& pattern, const std::vector<std::vector<int>>& groups) {
+  SparseMatrixLower A = pattern.matrix();
+  for (int d = 0; d < A.rows(); ++d) A.valuePtr()[pattern.diagonal()[static_cast<std::size_t>(d)]] += 1.0;
+  for (const auto& g : groups)
+    for (int a : g)
+      for (int b : g)
+        for (int k = 0; k < 3; ++k) {
+          if (a == b) A.valuePtr()[pattern.index(3 * a + k, 3 * a + k)] += static_cast<double>(g.size() - 1);
+          if (a > b) A.valuePtr()[pattern.index(3 * a + k, 3 * b + k)] -= 1.0;
+        }
+  return A;
+}
+
+// After a cut the pattern grows by a merge (SymmetricPattern::extended): the result is the
+// pattern built from the remaining and added groups at once, and every old entry is
+// remapped to itself (or to -1: a pair no group couples any more).
+TEST(SymmetricPatternExtended, EqualsThePatternOfAllGroupsAndRemapsEveryEntry) {
+  std::mt19937 rng(5);
+  for (int trial = 0; trial < 20; ++trial) {
+    const int n_old = 12 + trial, n = n_old + trial % 5;
+    const auto before = random_groups(2 * n_old, n_old, rng);
+    const auto added = random_groups(3 + trial, n, rng);
+    const SymmetricPattern old_pattern(n_old, before);
+    // Some groups leave (tets a cut replaced): pairs no remaining or added group couples go.
+    auto all = before;
+    all.erase(all.begin(), all.begin() + trial % 7);
+    all.insert(all.end(), added.begin(), added.end());
+    std::vector<std::pair<int, int>> drop;
+    for (const auto& g : before)
+      for (int a : g)
+        for (int b : g)
+          if (a > b && std::none_of(all.begin(), all.end(), [&](const std::vector<int>& h) {
+                return std::find(h.begin(), h.end(), a) != h.end() && std::find(h.begin(), h.end(), b) != h.end();
+              }))
+            drop.emplace_back(b, a);
+    std::sort(drop.begin(), drop.end());
+    drop.erase(std::unique(drop.begin(), drop.end()), drop.end());
+    std::vector<int> remap;
+    const SymmetricPattern grown = old_pattern.extended(n, added, remap, drop);
+    const SymmetricPattern direct(n, all);
+    ASSERT_EQ(grown.matrix().nonZeros(), direct.matrix().nonZeros());
+    ASSERT_EQ(grown.matrix().rows(), direct.matrix().rows());
+    for (Eigen::Index c = 0; c <= grown.matrix().cols(); ++c)
+      ASSERT_EQ(grown.matrix().outerIndexPtr()[c], direct.matrix().outerIndexPtr()[c]);
+    for (Eigen::Index k = 0; k < grown.matrix().nonZeros(); ++k)
+      ASSERT_EQ(grown.matrix().innerIndexPtr()[k], direct.matrix().innerIndexPtr()[k]);
+    EXPECT_EQ(grown.diagonal(), direct.diagonal());
+    ASSERT_EQ(remap.size(), static_cast<std::size_t>(old_pattern.matrix().nonZeros()));
+    const SparseMatrixLower& m = old_pattern.matrix();
+    for (Eigen::Index c = 0; c < m.cols(); ++c)
+      for (int k = m.outerIndexPtr()[c]; k < m.outerIndexPtr()[c + 1]; ++k)
+        ASSERT_EQ(remap[static_cast<std::size_t>(k)], grown.index(m.innerIndexPtr()[k], static_cast<int>(c)));  // -1: dropped
+  }
+  const SymmetricPattern p(3, {{0, 1, 2}});
+  std::vector<int> remap;
+  EXPECT_THROW(p.extended(2, {}, remap), std::invalid_argument);
+  EXPECT_THROW(p.extended(4, {{0, 7}}, remap), std::invalid_argument);
+}
+
+// PCG after a cut (FemLinearSolver::pattern_extended): the factor of the matrix before,
+// padded for the appended DOFs, preconditions the grown matrix; PCG still converges to it,
+// and the factor of the new pattern made on the worker replaces the old one.
+TEST(FemSolvers, PaddedOldFactorPreconditionsTheGrownSystem) {
+  std::mt19937 rng(3);
+  const int n_old = 40, n = 46;
+  const auto before = random_groups(60, n_old, rng);
+  const SymmetricPattern old_pattern(n_old, before);
+  FemLinearSolver solver(FemLinearSolver::Kind::PcgFactor, 0, 500, 1e-12);
+  const SparseMatrixLower A_old = spd_on(old_pattern, before);
+  Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(3 * n_old, -1.0, 2.0), x = Eigen::VectorXd::Zero(3 * n_old);
+  ASSERT_TRUE(solver.solve(A_old, b, x).ok);
+  const auto added = random_groups(10, n, rng);
+  std::vector<int> remap;
+  const SymmetricPattern grown = old_pattern.extended(n, added, remap);
+  auto all = before;
+  all.insert(all.end(), added.begin(), added.end());
+  const SparseMatrixLower A = spd_on(grown, all);
+  std::vector<int> alias(n - n_old);
+  for (int i = 0; i < n - n_old; ++i) alias[static_cast<std::size_t>(i)] = i % 2 ? i : -1;  // some aggregated, some not
+  solver.pattern_extended(n_old, alias);
+  EXPECT_TRUE(solver.factor_pending());
+  b = Eigen::VectorXd::LinSpaced(3 * n, 1.0, -3.0);
+  x.setZero(3 * n);
+  const LinearSolveSummary s = solver.solve(A, b, x);
+  ASSERT_TRUE(s.ok) << s.message;
+  EXPECT_FALSE(s.factorized);
+  EXPECT_TRUE(s.background_started);
+  EXPECT_EQ(s.termination, "converged");
+  const SparseMatrixLower full = SparseMatrixLower(A.selfadjointView<Eigen::Lower>());
+  const Eigen::VectorXd exact = Eigen::MatrixXd(full).ldlt().solve(b);
+  EXPECT_LT((x - exact).norm(), 1e-9 * exact.norm());
+  solver.wait_for_background();
+  x.setZero(3 * n);
+  const LinearSolveSummary fresh = solver.solve(A, b, x);
+  EXPECT_TRUE(fresh.background_swapped);
+  EXPECT_FALSE(solver.factor_pending());
+  EXPECT_LE(fresh.iterations, 2);  // the factor of this very matrix
+  EXPECT_LT((x - exact).norm(), 1e-9 * exact.norm());
 }
 
 TEST(FemSolvers, AllLinearSolversGiveTheSameImplicitEulerTrajectory) {
