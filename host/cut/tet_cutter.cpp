@@ -193,6 +193,8 @@ void TetCutter::begin_stroke() {
   std::fill(tip_tet_.begin(), tip_tet_.end(), 0);
   std::fill(flat_side_.begin(), flat_side_.end(), 0);
   undecided_faces_.clear();
+  for (int t : watch_) watched_[static_cast<std::size_t>(t)] = 0;
+  watch_.clear();
 }
 
 std::vector<Aabb> TetCutter::family_boxes(const Eigen::Matrix3Xd& x) const {
@@ -299,7 +301,28 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();
   for (const auto& p : points) centre += p;
   centre /= static_cast<double>(points.size());
-  Eigen::Vector3d normal = last_normal_;
+  // The plane's normal: fitted through three or more points; otherwise the cut's normal at
+  // the tet's vertices on the cut (or the sweep's at its recorded crossings), else the
+  // stroke's surface nearest to the points (a curved cut: the last sweep's normal can be far).
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+  for (int w : tet)
+    if (on_stroke(w) && cut_normal_[static_cast<std::size_t>(w)].squaredNorm() > 0.5)
+      normal += normal.dot(cut_normal_[static_cast<std::size_t>(w)]) < 0 ? Eigen::Vector3d(-cut_normal_[static_cast<std::size_t>(w)]) : cut_normal_[static_cast<std::size_t>(w)];
+  for (const auto& e : kEdges) {
+    const auto it = pending_normal_.find(edge_key(tet[static_cast<std::size_t>(e[0])], tet[static_cast<std::size_t>(e[1])]));
+    if (it != pending_normal_.end()) normal += normal.dot(it->second) < 0 ? Eigen::Vector3d(-it->second) : it->second;
+  }
+  if (normal.squaredNorm() > 1e-12) {
+    normal.normalize();
+  } else if (!stroke_tris_.empty()) {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (const auto& p : points) c += p / static_cast<double>(points.size());
+    int nearest = 0;
+    sweep_distance(stroke_tris_, c, &nearest);
+    normal = unit_normal(stroke_tris_[static_cast<std::size_t>(nearest)]);
+  } else {
+    normal = last_normal_;
+  }
   if (points.size() >= 3) {
     Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
     for (const auto& p : points) cov += (p - centre) * (p - centre).transpose();
@@ -797,11 +820,58 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       for (int t : tets_with_edge(static_cast<int>(key >> 32), static_cast<int>(key & 0xffffffffu)))
         if (!near[static_cast<std::size_t>(t)] && !tip_tet_[static_cast<std::size_t>(t)]) stale.push_back(t);
     }
+    // Tets the cut has reached (a vertex on this stroke's cut) are watched until the blade has
+    // left them: one whose free vertices lie on both sides of the stroke's surface with no
+    // crossing recorded on the edge between them is completed the same way. The tissue moves
+    // between frames, so the strip of one frame (started from the previous blade carried with
+    // the tissue: a polyline through strips + 1 carried points) and the strip of the last one
+    // (straight between the points as they were) leave slivers of material between them that
+    // neither swept: an edge crossing the cut there has no crossing (docs/cut.md, "The ring in
+    // the running simulation").
+    {
+      auto watch = [&](int t) {
+        if (static_cast<std::size_t>(t) >= watched_.size()) watched_.resize(mesh_.tets.size(), 0);
+        if (watched_[static_cast<std::size_t>(t)]) return;
+        for (int w : mesh_.tets[static_cast<std::size_t>(t)])
+          if (on_stroke(w)) {
+            watched_[static_cast<std::size_t>(t)] = 1;
+            watch_.push_back(t);
+            return;
+          }
+      };
+      for (int t : candidates) watch(t);
+      for (int t : r.changed_tets) watch(t);
+      std::vector<int> keep;
+      for (int t : watch_) {
+        if (near[static_cast<std::size_t>(t)] || tip_tet_[static_cast<std::size_t>(t)]) {
+          keep.push_back(t);
+          continue;
+        }
+        if (side_pattern(t) != 0 || complete_pattern(t) != 0) {
+          stale.push_back(t);
+          watched_[static_cast<std::size_t>(t)] = 0;
+          continue;
+        }
+        bool unknown = false;
+        for (int w : mesh_.tets[static_cast<std::size_t>(t)]) unknown |= !on_stroke(w) && side_[static_cast<std::size_t>(w)] == 0;
+        if (unknown && !finishing_) {
+          keep.push_back(t);
+        } else {
+          watched_[static_cast<std::size_t>(t)] = 0;
+        }
+      }
+      watch_ = std::move(keep);
+    }
     std::sort(stale.begin(), stale.end());
     stale.erase(std::unique(stale.begin(), stale.end()), stale.end());
     std::vector<int> completed;
-    for (int t : stale)
-      if (complete_pattern(t) == 0 && complete_from_sides(t, x, r)) completed.push_back(t);
+    for (int t : stale) {
+      if (complete_pattern(t) != 0) {
+        completed.push_back(t);  // complete since (a neighbour's completion): split
+      } else if (complete_from_sides(t, x, r)) {
+        completed.push_back(t);
+      }
+    }
     r.tets_completed = static_cast<int>(completed.size());
     split_completed(completed);
   }

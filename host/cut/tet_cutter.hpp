@@ -189,6 +189,8 @@ class TetCutter {
   FaceSet cut_faces_;                            // interior faces to separate
   std::vector<signed char> flat_side_;           // per tet with all vertices on the cut: its side (this stroke)
   std::vector<char> tip_tet_;                    // per tet: a blade end passed through it this stroke
+  std::vector<int> watch_;                       // tets with a vertex on this stroke's cut, until the blade has left them
+  std::vector<char> watched_;                    // per tet: in watch_
   Eigen::Vector3d last_normal_ = Eigen::Vector3d::UnitZ();  // of the last sweep
   std::vector<int> origin_;                      // per tet: tet of the input mesh
   std::vector<std::vector<int>> family_;         // per input tet: its current pieces
