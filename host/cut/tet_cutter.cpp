@@ -278,10 +278,22 @@ int TetCutter::side_pattern(int t) const {
   return pattern;
 }
 
+double TetCutter::stroke_distance(const Eigen::Vector3d& p) const {
+  double best = 1e300;
+  for (const auto& chunk : stroke_chunks_) {
+    const Eigen::Vector3d gap = (chunk.box.min - p).cwiseMax(p - chunk.box.max).cwiseMax(0.0);
+    if (gap.norm() >= best) continue;
+    for (int i = chunk.begin; i < chunk.end; ++i) best = std::min(best, point_triangle_distance(p, stroke_tris_[static_cast<std::size_t>(i)]));
+  }
+  return best;
+}
+
 bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepReport& r) {
   const int pattern = side_pattern(t);
   if (pattern == 0) return false;
   const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+  bool recorded = false;
+  for (int e = 0; e < 6; ++e) recorded |= pending_.count(edge_key(tet[static_cast<std::size_t>(kEdges[e][0])], tet[static_cast<std::size_t>(kEdges[e][1])])) > 0;
   std::vector<Eigen::Vector3d> points;
   for (int w : tet)
     if (on_stroke(w)) points.push_back(x.col(w));
@@ -329,6 +341,19 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
     if (eig.eigenvalues()[1] > 1e-12 * std::max(1e-300, eig.eigenvalues()[2])) normal = eig.eigenvectors().col(0);
   }
+  // A tet with no crossing recorded (its vertices on the cut and sides only: a crossing
+  // missed between two frames' strips) is completed only where the stroke really swept: each
+  // new point within the tissue's motion since (the distance of the tet's vertices on the
+  // cut from the stroke's surface as swept) plus path_tolerance_mm of that surface. A crack
+  // front (the blade's end inside the tissue) is not extended.
+  double reach = -1.0;
+  if (!recorded) {
+    reach = 0.0;
+    for (int w : tet)
+      if (on_stroke(w)) reach = std::max(reach, stroke_distance(x.col(w)));
+    reach = 2.0 * reach + settings_.path_tolerance_mm + settings_.vertex_tolerance_mm;
+  }
+  std::vector<std::pair<EdgeKey, double>> added;
   for (int e : missing) {
     const int a = std::min(tet[static_cast<std::size_t>(kEdges[e][0])], tet[static_cast<std::size_t>(kEdges[e][1])]);
     const int b = std::max(tet[static_cast<std::size_t>(kEdges[e][0])], tet[static_cast<std::size_t>(kEdges[e][1])]);
@@ -337,6 +362,15 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
     // edge to an end; a plane that misses the edge (the sides say it is crossed) gives the
     // point of the edge nearest to it (the deviation is measured below).
     const double s = d0 != d1 ? std::clamp(d0 / (d0 - d1), 0.01, 0.99) : 0.5;
+    const Eigen::Vector3d p = (1 - s) * x.col(a) + s * x.col(b);
+    if (reach >= 0.0 && stroke_distance(p) > reach) return false;
+    added.emplace_back(edge_key(a, b), s);
+  }
+  for (std::size_t i = 0; i < missing.size(); ++i) {
+    const int e = missing[i];
+    const int a = std::min(tet[static_cast<std::size_t>(kEdges[e][0])], tet[static_cast<std::size_t>(kEdges[e][1])]);
+    const int b = std::max(tet[static_cast<std::size_t>(kEdges[e][0])], tet[static_cast<std::size_t>(kEdges[e][1])]);
+    const double s = added[i].second;
     const Eigen::Vector3d p = (1 - s) * x.col(a) + s * x.col(b);
     r.max_completion_deviation_mm = std::max(r.max_completion_deviation_mm, std::abs(normal.dot(p - centre)));
     ++r.cut_points;

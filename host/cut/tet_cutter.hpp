@@ -156,6 +156,8 @@ class TetCutter {
   // Side of free vertex w from the nearest point of this stroke's whole swept surface so far
   // (0: not across from it, or farther than an edge of its tets).
   int stroke_side(int w, const Eigen::Matrix3Xd& x, double cone, bool within_reach = true) const;
+  // Distance of p from this stroke's whole swept surface (as swept).
+  double stroke_distance(const Eigen::Vector3d& p) const;
   bool move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   int add_vertex(const VertexOrigin& o, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   void split_edge(int a, int b, double t_ab, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r,
