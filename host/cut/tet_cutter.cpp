@@ -4,6 +4,8 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
+#include <cstdlib>
 #include <numeric>
 #include <set>
 #include <stdexcept>
@@ -156,11 +158,34 @@ int TetCutter::stroke_side(int w, const Eigen::Matrix3Xd& x, double cone, bool w
   }
   if (nearest < 0) return 0;
   const Triangle& near = stroke_tris_[static_cast<std::size_t>(nearest)];
-  const double d = unit_normal(near).dot(p - near.a);
+  // The plane: through the nearest point, normal to the stroke's surface averaged (by area,
+  // as oriented) over the triangles within max(distance, 1 mm) of that point. One frame's
+  // strip can be far from the surface's direction: when the tissue moves across the blade
+  // about as fast as the blade (a swaying organ) the strip between the carried previous
+  // blade and the new one turns by up to 90 degrees, or reverses; a vertex 10 mm away took
+  // its side from such a strip's plane (a hole in the liver ring with XPBD).
+  Eigen::Vector3d q;
+  point_triangle_distance(p, near, &q);
+  const double radius = std::max(best, 1.0);
+  Eigen::Vector3d n_sum = Eigen::Vector3d::Zero();
+  for (const auto& chunk : stroke_chunks_) {
+    const Eigen::Vector3d gap = (chunk.box.min - q).cwiseMax(q - chunk.box.max).cwiseMax(0.0);
+    if (gap.norm() > radius) continue;
+    for (int i = chunk.begin; i < chunk.end; ++i) {
+      const Triangle& tri = stroke_tris_[static_cast<std::size_t>(i)];
+      if (point_triangle_distance(q, tri) <= radius) n_sum += 0.5 * (tri.b - tri.a).cross(tri.c - tri.a);
+    }
+  }
+  const Eigen::Vector3d normal = n_sum.squaredNorm() > 0.0 ? Eigen::Vector3d(n_sum.normalized()) : unit_normal(near);
+  const double d = normal.dot(p - q);
   double reach2 = 0.0;
   for (int tt : vertex_tets_[static_cast<std::size_t>(w)])
     for (int u : mesh_.tets[static_cast<std::size_t>(tt)]) reach2 = std::max(reach2, (x.col(u) - p).squaredNorm());
-  if (std::abs(d) > settings_.vertex_tolerance_mm && best <= cone * std::abs(d) && (!within_reach || best * best <= reach2)) return d > 0 ? 1 : -1;
+  if (std::abs(d) > settings_.vertex_tolerance_mm && best <= cone * std::abs(d) && (!within_reach || best * best <= reach2)) {
+    static const int dbg = std::getenv("ARNAV_CUT_DEBUG_VERTEX") ? std::atoi(std::getenv("ARNAV_CUT_DEBUG_VERTEX")) : -1;
+    if (w == dbg) std::fprintf(stderr, "side of %d: %d from tri %d of %zu (%.2f %.2f %.2f | %.2f %.2f %.2f | %.2f %.2f %.2f) p %.2f %.2f %.2f d %.3f best %.3f cone %.3f\n", w, d > 0 ? 1 : -1, nearest, stroke_tris_.size(), near.a.x(), near.a.y(), near.a.z(), near.b.x(), near.b.y(), near.b.z(), near.c.x(), near.c.y(), near.c.z(), p.x(), p.y(), p.z(), d, best, cone);
+    return d > 0 ? 1 : -1;
+  }
   return 0;
 }
 
@@ -361,9 +386,32 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
     // On the plane (the recorded points lie on the swept surface), no closer than 1 % of the
     // edge to an end; a plane that misses the edge (the sides say it is crossed) gives the
     // point of the edge nearest to it (the deviation is measured below).
-    const double s = d0 != d1 ? std::clamp(d0 / (d0 - d1), 0.01, 0.99) : 0.5;
-    const Eigen::Vector3d p = (1 - s) * x.col(a) + s * x.col(b);
-    if (reach >= 0.0 && stroke_distance(p) > reach) return false;
+    double s = d0 != d1 ? std::clamp(d0 / (d0 - d1), 0.01, 0.99) : 0.5;
+    if (reach >= 0.0) {
+      // Where the edge crosses the stroke's surface (as swept), when it does (a long edge
+      // across a curved cut: the plane through the tet's points on the cut is a chord);
+      // otherwise on the plane, near enough to the surface.
+      const Aabb edge_box = [&] {
+        Aabb b_box;
+        b_box.extend(Eigen::Vector3d(x.col(a)));
+        b_box.extend(Eigen::Vector3d(x.col(b)));
+        return b_box;
+      }();
+      double best_s = -1.0;
+      for (const auto& chunk : stroke_chunks_) {
+        if (!chunk.box.overlaps(edge_box)) continue;
+        for (int i = chunk.begin; i < chunk.end; ++i) {
+          double u = 0.0;
+          if (segment_triangle_intersection(x.col(a), x.col(b), stroke_tris_[static_cast<std::size_t>(i)], u) && (best_s < 0 || std::abs(u - s) < std::abs(best_s - s)))
+            best_s = u;
+        }
+      }
+      if (best_s >= 0.0) {
+        s = std::clamp(best_s, 0.01, 0.99);
+      } else if (stroke_distance((1 - s) * x.col(a) + s * x.col(b)) > reach) {
+        return false;
+      }
+    }
     added.emplace_back(edge_key(a, b), s);
   }
   for (std::size_t i = 0; i < missing.size(); ++i) {

@@ -152,7 +152,7 @@ TEST(RingSessionDiag, Run) {
       }
     }
     if (s.cutting && !prev) ++strokes;
-    if (std::getenv("RING_TRACK") && strokes == 1 && s.cutting) {
+    if (std::getenv("RING_TRACK") && strokes == (std::getenv("RING_STROKE") ? std::atoi(std::getenv("RING_STROKE")) : 1) && s.cutting) {
       const Eigen::Vector3d b = s.blade.tip_World_mm;
       const double ba = std::atan2(b.y() - ring.y, b.x() - ring.x) * 180 / M_PI;
       const Eigen::Matrix3Xd x = session->positions_World_mm();
@@ -168,7 +168,7 @@ TEST(RingSessionDiag, Run) {
           double u = 0;
           if (segment_triangle_intersection(x.col(a), x.col(c), tris[i], u)) std::cout << "frame " << f << " sweep crosses the edge at " << u << " tri " << i << "\n";
         }
-        if (f == 488) {
+        if (f == -1) {
           std::cout << "  a " << x.col(a).transpose() << " c " << x.col(c).transpose() << "\n";
           for (const auto& t : tris) std::cout << "  tri " << t.a.transpose() << " | " << t.b.transpose() << " | " << t.c.transpose() << "\n";
         }
@@ -179,7 +179,11 @@ TEST(RingSessionDiag, Run) {
           std::cout << "\n  to: " << session->last_sweep()->to.tip_World_mm.transpose() << " / " << session->last_sweep()->to.heel_World_mm.transpose() << "\n";
         }
       }
-      if (std::abs(ba - std::atan2(x(1, a) - ring.y, x(0, a) - ring.x) * 180 / M_PI) < 25) {
+      static int last_sa = 9, last_sc = 9;
+      const bool changed = session->cutter().side(a) != last_sa || session->cutter().side(c) != last_sc;
+      last_sa = session->cutter().side(a);
+      last_sc = session->cutter().side(c);
+      if (changed || std::abs(ba - std::atan2(x(1, a) - ring.y, x(0, a) - ring.x) * 180 / M_PI) < 3) {
         std::cout << "frame " << f << " blade angle " << ba << " r " << std::hypot(b.x() - ring.x, b.y() - ring.y) << " tets " << session->mesh().num_tets();
         pr(a);
         pr(c);
@@ -207,6 +211,23 @@ TEST(RingSessionDiag, Run) {
           if (in && out && strokes == 1) {
             ++straddling;
             std::cout << "straddling tet " << t << " (origin " << cutter.origin_tet(t) << "):";
+            for (int w : mesh.tets[static_cast<std::size_t>(t)]) {
+              const Eigen::Vector3d pw = x.col(w);
+              std::cout << " " << w << (cutter.on_cut(w) ? "*" : "") << "[s" << cutter.side(w) << "](r " << std::hypot(pw.x() - ring.x, pw.y() - ring.y) << " z " << pw.z()
+                        << " a " << std::atan2(pw.y() - ring.y, pw.x() - ring.x) * 180 / M_PI << ")";
+            }
+            std::cout << "\n";
+          }
+        }
+        if (const char* list = std::getenv("RING_TETS")) {
+          std::string l = list;
+          std::size_t pos = 0;
+          while (pos < l.size()) {
+            const std::size_t comma = l.find(',', pos);
+            const int t = std::atoi(l.substr(pos, comma - pos).c_str());
+            pos = comma == std::string::npos ? l.size() : comma + 1;
+            if (t >= mesh.num_tets()) continue;
+            std::cout << "tet " << t << " (origin " << cutter.origin_tet(t) << "):";
             for (int w : mesh.tets[static_cast<std::size_t>(t)]) {
               const Eigen::Vector3d pw = x.col(w);
               std::cout << " " << w << (cutter.on_cut(w) ? "*" : "") << "[s" << cutter.side(w) << "](r " << std::hypot(pw.x() - ring.x, pw.y() - ring.y) << " z " << pw.z()
