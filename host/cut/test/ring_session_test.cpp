@@ -188,6 +188,10 @@ RingOutcome ring_in_session(const std::string& scene_file, const std::string& mo
   std::sort(pieces.begin(), pieces.end());
   pieces.erase(std::unique(pieces.begin(), pieces.end()), pieces.end());
   const auto largest = std::max_element(c.piece_volume_mm3.begin(), c.piece_volume_mm3.end()) - c.piece_volume_mm3.begin();
+  std::cout << "[ring session] pieces (mm^3):";
+  for (std::size_t p = 0; p < c.piece_volume_mm3.size(); ++p)
+    std::cout << " " << c.piece_volume_mm3[p] << (std::find(pieces.begin(), pieces.end(), static_cast<int>(p)) != pieces.end() ? " (tumour)" : "");
+  std::cout << "\n";
   if (pieces.size() == 1 && pieces[0] != static_cast<int>(largest)) {
     std::vector<char> fixed(static_cast<std::size_t>(mesh.num_vertices()), 0);
     for (int v : session->fixed_vertices()) fixed[static_cast<std::size_t>(v)] = 1;
