@@ -47,9 +47,9 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
     const Scene scene = load_scene(o.data_dir + (mesh_name == "coarse" ? "/liver/liver_coarse_cut.scene.yaml" : "/liver/liver.scene.yaml"));
     const CutMeshCheck input = check_cut_mesh(scene.problem.mesh);
     for (const auto& scenario : scenarios) {
-      if (scenario != "right_lobe" && scenario != "ring" && scenario != "ring_csv") throw std::invalid_argument("cut bench: unknown scenario '" + scenario + "' (right_lobe, ring, ring_csv)");
-      const bool derived = scenario == "ring";  // made from the scene after the organ settled (cut/ring_path.hpp)
-      const ScalpelPath csv_path = derived ? ScalpelPath{} : load_scalpel_csv(o.data_dir + "/liver/scalpel_" + (scenario == "ring_csv" ? std::string("ring") : scenario) + ".csv");
+      if (scenario != "right_lobe" && scenario != "ring" && scenario != "ring_scene") throw std::invalid_argument("cut bench: unknown scenario '" + scenario + "' (right_lobe, ring, ring_scene)");
+      const bool derived = scenario == "ring_scene";  // made from the scene after the organ settled (cut/ring_path.hpp)
+      const ScalpelPath csv_path = derived ? ScalpelPath{} : load_scalpel_csv(o.data_dir + "/liver/scalpel_" + scenario + ".csv");
       for (const auto& variant : model_variants())
       for (const bool background : o.background) {
         if (!selected(variant.label, prefixes)) continue;

@@ -113,7 +113,7 @@ const CutOutcome& CutReferences::get(const std::string& scenario, const ModelVar
   if (const auto it = done_.find(key); it != done_.end()) return it->second;
   const auto t0 = std::chrono::steady_clock::now();
   const Scene scene = load_scene(scene_of(options_.data_dir, options_.reference_mesh));
-  const cut::ScalpelPath path = cut::load_scalpel_csv(options_.data_dir + "/liver/scalpel_" + (scenario == "ring_csv" ? std::string("ring") : scenario) + ".csv");
+  const cut::ScalpelPath path = cut::load_scalpel_csv(options_.data_dir + "/liver/scalpel_" + scenario + ".csv");
   cut::CutSessionSettings s = settings;
   s.rebuild_in_background = false;  // the reference: deterministic, the model takes every cut at once
   const std::unique_ptr<cut::CutSession> session = cut::make_cut_session(scene, variant.config, s);

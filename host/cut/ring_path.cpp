@@ -77,6 +77,24 @@ RingPath make_ring_path(const TetMesh& mesh, const Eigen::Matrix3Xd& x, const st
                                 "): the tumour lies against the attachment, no ring frees it");
   const Eigen::Vector3d d = best.axis;
   const Eigen::Vector3d e1 = d.unitOrthogonal(), e2 = d.cross(e1);
+  // The crack front (where a blade's end stops inside the tissue) lags up to a tet behind
+  // the blade's end: the ring's wall reaches below the bottom cut, and the bottom cut beyond
+  // the ring, by at least the longest edge of the tets round the ring's foot, so that the
+  // two cuts meet in the mesh (not only in space).
+  double lag = 0.0;
+  for (const auto& tet : mesh.tets) {
+    bool near = false;
+    for (int v : tet) {
+      const Eigen::Vector3d p = x.col(v) - c;
+      const double a = p.dot(d);
+      near |= std::abs(a + best.bottom_mm) <= best.radius_mm && std::abs((p - a * d).norm() - best.radius_mm) <= best.radius_mm;
+    }
+    if (!near) continue;
+    for (int i = 0; i < 4; ++i)
+      for (int j = i + 1; j < 4; ++j) lag = std::max(lag, (x.col(tet[static_cast<std::size_t>(i)]) - x.col(tet[static_cast<std::size_t>(j)])).norm());
+  }
+  best.overshoot_mm = std::max(o.bottom_overshoot_mm, lag);
+  best.extension_mm = std::max(o.bottom_extension_mm, lag);
   const double r = best.radius_mm, outside = best.surface_mm + o.outside_mm;
   auto point = [&](double axial, double radial, double angle) {
     return Eigen::Vector3d(c + axial * d + radial * (std::cos(angle) * e1 + std::sin(angle) * e2));
@@ -88,7 +106,7 @@ RingPath make_ring_path(const TetMesh& mesh, const Eigen::Matrix3Xd& x, const st
     samples.push_back({t, {tip, heel}, cutting});
   };
   // Ring: the blade along the axis, tip past the bottom cut, heel outside the organ.
-  const double tip_axial = -best.bottom_mm - o.bottom_overshoot_mm, length = outside - tip_axial;
+  const double tip_axial = -best.bottom_mm - best.overshoot_mm, length = outside - tip_axial;
   samples.push_back({0.0, {point(outside, r, 0.0), point(outside + length, r, 0.0)}, false});
   add(o.wait_s, point(outside, r, 0.0), point(outside + length, r, 0.0), true);
   add(length / o.plunge_speed_mm_s, point(tip_axial, r, 0.0), point(outside, r, 0.0), true);
@@ -100,18 +118,37 @@ RingPath make_ring_path(const TetMesh& mesh, const Eigen::Matrix3Xd& x, const st
   }
   add(length / o.plunge_speed_mm_s, point(outside, r, ring_angle), point(outside + length, r, ring_angle), false);  // lifted out along itself
   best.ring_end_s = t;
-  // Bottom cut: the blade across the axis, from 2 mm past the axis to beyond the ring; from
-  // outside the organ (moved there in one frame) down the axis, then once round it.
-  const double reach = r + o.bottom_extension_mm;
-  add(1e-3, point(outside, -2.0, 0.0), point(outside, reach, 0.0), false);
-  add(o.wait_s, point(outside, -2.0, 0.0), point(outside, reach, 0.0), true);
-  add((outside + best.bottom_mm) / o.plunge_speed_mm_s, point(-best.bottom_mm, -2.0, 0.0), point(-best.bottom_mm, reach, 0.0), true);
-  const double bottom_angle = 2.0 * M_PI + o.overlap_deg * M_PI / 180.0;
-  const int bottom_steps = static_cast<int>(std::ceil(bottom_angle / step));
-  for (int i = 1; i <= bottom_steps; ++i) {
-    const double a = bottom_angle * i / bottom_steps;
-    add(reach * bottom_angle / bottom_steps / o.bottom_speed_mm_s, point(-best.bottom_mm, -2.0, a), point(-best.bottom_mm, reach, a), i < bottom_steps);
+  // Bottom cut: a straight blade across the axis in the plane bottom_mm beyond the tumour,
+  // spanning the ring and extension_mm beyond it on both sides, swept across the ring from
+  // outside the organ on the side where the organ's edge is nearest (the shortest slit
+  // through healthy tissue) to extension_mm past the ring's far side.
+  const double half = r + best.extension_mm, plane = -best.bottom_mm;
+  double best_edge = 1e300, best_angle = 0.0;
+  for (int k = 0; k < 16; ++k) {
+    const double a = 2.0 * M_PI * k / 16;
+    const Eigen::Vector3d along = std::cos(a) * e1 + std::sin(a) * e2, across = d.cross(along);
+    double edge = r;
+    for (int v = 0; v < x.cols(); ++v) {
+      const Eigen::Vector3d p = x.col(v) - c;
+      if (std::abs(p.dot(d) - plane) > 10.0 || std::abs(p.dot(across)) > half + 10.0) continue;
+      edge = std::max(edge, p.dot(along));
+    }
+    if (edge < best_edge) {
+      best_edge = edge;
+      best_angle = a;
+    }
   }
+  const Eigen::Vector3d along = std::cos(best_angle) * e1 + std::sin(best_angle) * e2, across = d.cross(along);
+  auto bottom_blade = [&](double s) {
+    const Eigen::Vector3d m = c + plane * d + s * along;
+    return std::make_pair(Eigen::Vector3d(m - half * across), Eigen::Vector3d(m + half * across));
+  };
+  const double s_start = best_edge + o.outside_mm, s_end = -half;
+  const auto [tip0, heel0] = bottom_blade(s_start);
+  const auto [tip1, heel1] = bottom_blade(s_end);
+  add(1e-3, tip0, heel0, false);  // moved outside the organ in one frame
+  add(o.wait_s, tip0, heel0, true);
+  add((s_start - s_end) / o.bottom_speed_mm_s, tip1, heel1, false);
   best.cut_end_s = t;
   // Out of the organ in one frame (cutting off: no contact on the way), then the block falls.
   const Eigen::Vector3d away = c + (outside + length) * d;

@@ -4,8 +4,6 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <chrono>
-#include <cstdio>
-#include <cstdlib>
 #include <numeric>
 #include <set>
 #include <stdexcept>
@@ -142,10 +140,8 @@ int TetCutter::stroke_side(int w, const Eigen::Matrix3Xd& x, double cone, bool w
   // its triangle's plane when w lies about across from it (distance to the triangle at most
   // `cone` times the distance to its plane; near the surface's border, the blade's ends or the
   // sweep's front, it may not) and within one edge of a tet around w.
-  (void)x;  // the stroke's surface and the vertex in the rest configuration
   if (stroke_tris_.empty()) return 0;
-  const Eigen::Matrix3Xd& X = mesh_.rest_positions_World_mm;
-  const Eigen::Vector3d p = X.col(w);
+  const Eigen::Vector3d p = x.col(w);
   double best = 1e300;
   int nearest = -1;
   for (const auto& chunk : stroke_chunks_) {
@@ -183,12 +179,10 @@ int TetCutter::stroke_side(int w, const Eigen::Matrix3Xd& x, double cone, bool w
   const double d = normal.dot(p - q);
   double reach2 = 0.0;
   for (int tt : vertex_tets_[static_cast<std::size_t>(w)])
-    for (int u : mesh_.tets[static_cast<std::size_t>(tt)]) reach2 = std::max(reach2, (X.col(u) - p).squaredNorm());
-  if (std::abs(d) > settings_.vertex_tolerance_mm && best <= cone * std::abs(d) && (!within_reach || (best * best <= reach2 && best <= settings_.side_distance_mm))) {
-    static const int dbg = std::getenv("ARNAV_CUT_DEBUG_VERTEX") ? std::atoi(std::getenv("ARNAV_CUT_DEBUG_VERTEX")) : -1;
-    if (w == dbg) std::fprintf(stderr, "side of %d: %d from tri %d of %zu (%.2f %.2f %.2f | %.2f %.2f %.2f | %.2f %.2f %.2f) p %.2f %.2f %.2f d %.3f best %.3f cone %.3f\n", w, d > 0 ? 1 : -1, nearest, stroke_tris_.size(), near.a.x(), near.a.y(), near.a.z(), near.b.x(), near.b.y(), near.b.z(), near.c.x(), near.c.y(), near.c.z(), p.x(), p.y(), p.z(), d, best, cone);
+    for (int u : mesh_.tets[static_cast<std::size_t>(tt)]) reach2 = std::max(reach2, (x.col(u) - p).squaredNorm());
+  if (std::abs(d) > settings_.vertex_tolerance_mm && best <= cone * std::abs(d) &&
+      (!within_reach || (best * best <= reach2 && (cone > kEagerCone || best <= settings_.side_distance_mm))))
     return d > 0 ? 1 : -1;
-  }
   return 0;
 }
 
@@ -378,7 +372,7 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
   if (!recorded) {
     reach = 0.0;
     for (int w : tet)
-      if (on_stroke(w)) reach = std::max(reach, stroke_distance(mesh_.rest_positions_World_mm.col(w)));
+      if (on_stroke(w)) reach = std::max(reach, stroke_distance(x.col(w)));
     reach = 2.0 * reach + settings_.path_tolerance_mm + settings_.vertex_tolerance_mm;
   }
   std::vector<std::pair<EdgeKey, double>> added;
@@ -394,11 +388,10 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
       // Where the edge crosses the stroke's surface (as swept), when it does (a long edge
       // across a curved cut: the plane through the tet's points on the cut is a chord);
       // otherwise on the plane, near enough to the surface.
-      const auto& X = mesh_.rest_positions_World_mm;
       const Aabb edge_box = [&] {
         Aabb b_box;
-        b_box.extend(Eigen::Vector3d(X.col(a)));
-        b_box.extend(Eigen::Vector3d(X.col(b)));
+        b_box.extend(Eigen::Vector3d(x.col(a)));
+        b_box.extend(Eigen::Vector3d(x.col(b)));
         return b_box;
       }();
       double best_s = -1.0;
@@ -406,13 +399,13 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
         if (!chunk.box.overlaps(edge_box)) continue;
         for (int i = chunk.begin; i < chunk.end; ++i) {
           double u = 0.0;
-          if (segment_triangle_intersection(X.col(a), X.col(b), stroke_tris_[static_cast<std::size_t>(i)], u) && (best_s < 0 || std::abs(u - s) < std::abs(best_s - s)))
+          if (segment_triangle_intersection(x.col(a), x.col(b), stroke_tris_[static_cast<std::size_t>(i)], u) && (best_s < 0 || std::abs(u - s) < std::abs(best_s - s)))
             best_s = u;
         }
       }
       if (best_s >= 0.0) {
         s = std::clamp(best_s, 0.01, 0.99);
-      } else if (stroke_distance((1 - s) * X.col(a) + s * X.col(b)) > reach) {
+      } else if (stroke_distance((1 - s) * x.col(a) + s * x.col(b)) > reach) {
         return false;
       }
     }
@@ -689,42 +682,14 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
   }
 
   if (!tris.empty()) {
-    // The stroke's surface is kept in the rest configuration (material: the sides taken
-    // from it and the completions checked against it do not drift as the tissue moves on
-    // during the stroke; docs/cut.md, "The ring in the running simulation"). Each corner
-    // goes through the affine map of the tet holding it now; a corner outside the organ
-    // moves with the nearest corner of this frame inside it.
-    std::vector<Eigen::Vector3d> corners;
-    for (const auto& t : tris) corners.insert(corners.end(), {t.a, t.b, t.c});
-    std::vector<Eigen::Vector3d> rest(corners.size());
-    std::vector<char> mapped(corners.size(), 0);
-    const auto& X = mesh_.rest_positions_World_mm;
-    for (std::size_t i = 0; i < corners.size(); ++i) {
-      Eigen::Vector4d w;
-      const int t = locate(corners[i], x, w, false);
-      if (t < 0 || w.minCoeff() < -1e-9) continue;
-      rest[i].setZero();
-      for (int k = 0; k < 4; ++k) rest[i] += w[k] * X.col(mesh_.tets[static_cast<std::size_t>(t)][static_cast<std::size_t>(k)]);
-      mapped[i] = 1;
-    }
-    for (std::size_t i = 0; i < corners.size(); ++i) {
-      if (mapped[i]) continue;
-      int nearest = -1;
-      for (std::size_t j = 0; j < corners.size(); ++j)
-        if (mapped[j] && (nearest < 0 || (corners[j] - corners[i]).squaredNorm() < (corners[static_cast<std::size_t>(nearest)] - corners[i]).squaredNorm()))
-          nearest = static_cast<int>(j);
-      rest[i] = nearest < 0 ? corners[i] : Eigen::Vector3d(corners[i] + rest[static_cast<std::size_t>(nearest)] - corners[static_cast<std::size_t>(nearest)]);
-    }
     StrokeChunk chunk;
     chunk.begin = static_cast<int>(stroke_tris_.size());
-    for (std::size_t i = 0; i < rest.size(); i += 3) {
-      const Triangle t{rest[i], rest[i + 1], rest[i + 2]};
-      if ((t.b - t.a).cross(t.c - t.a).squaredNorm() <= 0.0) continue;
+    for (const auto& t : tris) {
       chunk.box.extend(t.a);
       chunk.box.extend(t.b);
       chunk.box.extend(t.c);
-      stroke_tris_.push_back(t);
     }
+    stroke_tris_.insert(stroke_tris_.end(), tris.begin(), tris.end());
     chunk.end = static_cast<int>(stroke_tris_.size());
     stroke_chunks_.push_back(chunk);
   }
@@ -967,23 +932,8 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
           continue;
         }
         bool unknown = false;
-        for (int w : mesh_.tets[static_cast<std::size_t>(t)]) {
-          if (on_stroke(w) || side_[static_cast<std::size_t>(w)] != 0) continue;
-          // At the stroke's end the surface is complete: the side of the plane of the nearest
-          // part, wherever it lies.
-          if (finishing_) {
-            if (const int sd = stroke_side(w, x, 1e300, false); sd != 0) {
-              side_[static_cast<std::size_t>(w)] = static_cast<signed char>(sd);
-              sided_.push_back(w);
-              continue;
-            }
-          }
-          unknown = true;
-        }
-        if (!unknown && side_pattern(t) != 0) {
-          stale.push_back(t);
-          watched_[static_cast<std::size_t>(t)] = 0;
-        } else if (unknown && !finishing_) {
+        for (int w : mesh_.tets[static_cast<std::size_t>(t)]) unknown |= !on_stroke(w) && side_[static_cast<std::size_t>(w)] == 0;
+        if (unknown && !finishing_) {
           keep.push_back(t);
         } else {
           watched_[static_cast<std::size_t>(t)] = 0;
@@ -1078,14 +1028,12 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       // The sides its vertices had before they were put on the cut, when they agree.
       int before = 0;
       for (int w : tet) before += side_[static_cast<std::size_t>(w)];
-      // (rest configuration, as the stroke's surface is kept)
-      const auto& X = mesh_.rest_positions_World_mm;
       Eigen::Vector3d c = Eigen::Vector3d::Zero();
       double longest = 0.0;
       for (int i = 0; i < 4; ++i) {
-        c += X.col(tet[static_cast<std::size_t>(i)]) / 4.0;
+        c += x.col(tet[static_cast<std::size_t>(i)]) / 4.0;
         for (int j = i + 1; j < 4; ++j)
-          longest = std::max(longest, (X.col(tet[static_cast<std::size_t>(i)]) - X.col(tet[static_cast<std::size_t>(j)])).norm());
+          longest = std::max(longest, (x.col(tet[static_cast<std::size_t>(i)]) - x.col(tet[static_cast<std::size_t>(j)])).norm());
       }
       // Against the whole stroke's surface (on a curved cut a tet spanning a chord lies on
       // the inner side; one frame's strip can be far from it). A sliver lying in the surface

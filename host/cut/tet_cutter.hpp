@@ -49,13 +49,15 @@ struct CutSettings {
   // current position along its edge) when every tet around keeps a quarter of its volume:
   // the cut stays on the path and the star's total volume is unchanged.
   bool move_snapped_vertices = true;
-  // While the stroke goes on, a vertex takes its side of the cut only from a part of the
+  // While the blade passes, a vertex takes its side of the cut only from a part of the
   // surface swept so far within this distance (and within one edge of its tets); farther
-  // vertices get it at the stroke's end from the complete surface. On a curved cut a far
-  // vertex can lie across from a part swept early while the part nearest to it is not swept
-  // yet (a vertex 7 mm outside a 21 mm ring took the inside's side from the strip across the
-  // ring's diameter, 42 mm away). About half the cut's smallest radius of curvature.
-  double side_distance_mm = 10.0;
+  // vertices get it when a cut face needs it, or at the stroke's end from the complete
+  // surface. On a curved cut a far vertex can lie across from a part swept early while the
+  // part nearest to it is not swept yet (a vertex 7 mm outside a 21 mm ring took the
+  // inside's side from the strip across the ring's diameter, 42 mm away). About the cut's
+  // smallest radius of curvature (10 mm left the bundled 25 mm ring unseparated: vertices
+  // needed their side before the stroke's end).
+  double side_distance_mm = 20.0;
 };
 
 // Where a vertex created by a cut step came from: the edge point (1-t) a + t b, or a copy of
