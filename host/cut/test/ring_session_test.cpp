@@ -1,20 +1,23 @@
 // The liver ring in the running simulation (issue 11: "a ring cut around the bundled tumour
 // with a bottom cut (paper 000's lesion) separating it"; "a piece that loses all fixed
-// vertices becomes a free body"): the organ hangs under gravity, the tissue model runs, the
-// sweeps start from the blade carried with the tissue (CutSession). The ring and its bottom
-// cut are made from the scene (cut/ring_path.hpp: round the tumour with a 10 mm margin, from
-// the access side that keeps the ligament attachment out of the block) after the organ
-// settled for 2 s. Checked: the cut mesh is valid and the volume exact, the tumour lies in one
-// piece that holds no fixed vertex (a free body), about the cored block's volume, and during
-// the second after the cut its centroid falls while the organ's largest piece stays put and
-// the model healthy.
-// ARNAV_RING_DEBUG=1 prints, after each stroke, the tets left straddling the ring (free
-// vertices inside and outside it) and the shortest face path from the tumour's tets to a tet
-// clearly outside the block, with each vertex's ring coordinates and side: what still
-// connects the block when it does not come out (docs/cut.md, "The ring in the running
-// simulation").
-// Short run (label unit): coarse bundled liver with XPBD. Long (label long): mass-spring,
-// XPBD and co-rotational FEM on the coarse bundled liver and a second patient's liver.
+// vertices becomes a free body"), CutSession: the organ hangs under gravity, the tissue model
+// runs, the sweeps start from the blade carried with the tissue.
+//  - The bundled ring and bottom cut (data/liver/scalpel_ring.csv) while the organ moves: the
+//    tumour's block is cut out (one piece, not the organ's; it keeps the ligament vertices
+//    inside the ring), the mesh valid, the volume exact, the model healthy.
+//  - The ring made from the scene (cut/ring_path.hpp: round the tumour with a 10 mm margin,
+//    from the access side that keeps the fixed vertices out of the block) after 2 s of
+//    settling, cut with the organ held still (the model not stepped while the blade cuts),
+//    then released: the block is a free piece without fixed vertices, most of the cored
+//    prism, and falls under gravity while the model stays healthy. (In the running
+//    simulation the block swings out of the World-fixed path: docs/cut.md.)
+// ARNAV_RING_DEBUG=1 prints, after each stroke, the tets left with free vertices inside and
+// outside the ring and the shortest face path from the tumour's tets to a tet clearly outside
+// the block (ring coordinates, on-cut flag and side of each vertex), and the tumour's
+// centroid in ring coordinates every second; ARNAV_RING_FROZEN=1 holds the organ for the
+// bundled path too. Label unit: XPBD on the coarse liver and the path checks; label long
+// (cut_ring_session_long_test): the co-rotational FEM, and the scene ring on a second
+// patient's liver.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -25,6 +28,7 @@
 #include "host/cut/cut_session.hpp"
 #include "host/cut/mesh_checks.hpp"
 #include "host/cut/ring_path.hpp"
+#include "host/cut/scalpel_path.hpp"
 #include "host/scene/scene.hpp"
 #include "host/sim/model_factory.hpp"
 
@@ -275,3 +279,41 @@ TEST(RingInSessionLong, BundledRingSeparatesTheBlockWhileTheOrganMovesFem) { exp
 TEST(RingInSessionLong, SceneRingFreesTheBlockFem) { expect_freed("liver/liver_coarse_cut.scene.yaml", "corotational_fem/implicit"); }
 TEST(RingInSessionLong, SceneRingFreesTheBlockOnASecondPatientXpbd) { expect_freed("patients/sksurgery_liver_coarse.scene.yaml", "xpbd"); }
 TEST(RingInSessionLong, SceneRingFreesTheBlockOnASecondPatientFem) { expect_freed("patients/sksurgery_liver_coarse.scene.yaml", "corotational_fem/implicit"); }
+
+// The path itself (no model): keeps every fixed vertex out of the cored block, reads back as
+// an arnav-sim --scalpel file, and refuses a tumour that every access would core through the
+// attachment.
+TEST(RingPath, KeepsTheFixedVerticesOutOfTheBlockAndWritesAScalpelFile) {
+  const Scene scene = load_scene(kData + "/liver/liver_coarse_cut.scene.yaml");
+  const TetMesh& mesh = scene.problem.mesh;
+  const Eigen::Matrix3Xd& x = mesh.rest_positions_World_mm;
+  const Eigen::Matrix3Xd& tumour = scene.tumours.front().rest.positions_World_mm;
+  const RingPath ring = make_ring_path(mesh, x, scene.problem.fixed_vertices, tumour);
+  EXPECT_NEAR(ring.axis.norm(), 1.0, 1e-12);
+  for (int v : scene.problem.fixed_vertices) {
+    const Eigen::Vector3d p = x.col(v) - ring.centre_World_mm;
+    const double a = p.dot(ring.axis);
+    EXPECT_TRUE(a < -ring.bottom_mm || (p - a * ring.axis).norm() > ring.radius_mm) << "fixed vertex " << v << " inside the block";
+  }
+  // The ring clears the tumour by the margin across the axis, the bottom cut beyond it.
+  for (int i = 0; i < tumour.cols(); ++i) {
+    const Eigen::Vector3d p = tumour.col(i) - ring.centre_World_mm;
+    const double a = p.dot(ring.axis);
+    EXPECT_LE((p - a * ring.axis).norm(), ring.radius_mm - 10.0 + 1e-9);
+    EXPECT_GE(a, -ring.bottom_mm + 10.0 - 1e-9);
+  }
+  EXPECT_GE(ring.overshoot_mm, 5.0);
+  EXPECT_GT(ring.cut_end_s, ring.ring_end_s);
+  const ScalpelPath back = parse_scalpel_csv(ring.csv(), "ring.csv");
+  ASSERT_EQ(back.samples.size(), ring.path.samples.size());
+  for (std::size_t i = 0; i < back.samples.size(); ++i) {
+    EXPECT_NEAR(back.samples[i].t_s, ring.path.samples[i].t_s, 1e-6);
+    EXPECT_LT((back.samples[i].blade.tip_World_mm - ring.path.samples[i].blade.tip_World_mm).norm(), 1e-6);
+    EXPECT_EQ(back.samples[i].cutting, ring.path.samples[i].cutting);
+  }
+  // Every vertex fixed: no access frees the tumour.
+  std::vector<int> all(static_cast<std::size_t>(mesh.num_vertices()));
+  for (int v = 0; v < mesh.num_vertices(); ++v) all[static_cast<std::size_t>(v)] = v;
+  EXPECT_THROW(make_ring_path(mesh, x, all, tumour), std::invalid_argument);
+  EXPECT_THROW(make_ring_path(mesh, x, {}, Eigen::Matrix3Xd(3, 0)), std::invalid_argument);
+}
