@@ -55,6 +55,9 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
         if (!selected(variant.label, prefixes)) continue;
         CutSessionSettings settings;  // docs/cut.md defaults (the scene's cutting section on the coarse mesh)
         settings.rebuild_in_background = background;
+        // The ring made from the scene (about 21 mm in radius): sides within 20 mm while the
+        // blade passes (CutSettings::side_distance_mm, docs/cut.md).
+        if (derived) settings.cut.side_distance_mm = 20.0;
         if (scene.cutting) {
           settings.cut.snap_fraction = scene.cutting->snap_fraction;
           settings.cut.path_tolerance_mm = scene.cutting->path_tolerance_mm;

@@ -148,6 +148,9 @@ RingOutcome ring_in_session(const std::string& scene_file, const std::string& mo
     settings.cut.path_tolerance_mm = scene.cutting->path_tolerance_mm;
     settings.sweep_strips = scene.cutting->sweep_strips;
   }
+  // The ring made from the scene is about 21 mm in radius: sides from the surface within
+  // 20 mm while the blade passes (CutSettings::side_distance_mm, docs/cut.md).
+  if (!bundled) settings.cut.side_distance_mm = 20.0;
   const auto session = make_cut_session(scene, config, settings);
   const double dt = scene.time_step_s, volume = check_cut_mesh(scene.problem.mesh).total_volume_mm3;
   RingOutcome out;
