@@ -99,7 +99,8 @@ static int main_body(int argc, char** argv) {
   cut->add_option("-o,--out", out_dir, "output folder for cut.csv");
   cut->add_option("--data", cut_options.data_dir, "data folder with liver/*.scene.yaml and liver/scalpel_*.csv");
   cut->add_option("--mesh", cut_options.meshes, "meshes (coarse: 4,768 tets; paper: 26,054 tets)")->check(CLI::IsMember({"coarse", "paper"}));
-  cut->add_option("--scenario", cut_options.scenarios, "scenarios (right_lobe, ring)")->check(CLI::IsMember({"right_lobe", "ring"}));
+  cut->add_option("--scenario", cut_options.scenarios, "scenarios (right_lobe, ring: data/liver/scalpel_*.csv; ring_scene: ring and bottom cut made from the scene round the tumour, clear of the fixed vertices, docs/cut.md)")
+      ->check(CLI::IsMember({"right_lobe", "ring", "ring_scene"}));
   cut->add_option("--setting", cut_options.setting_prefixes, "run only the models whose label starts with this (repeatable)");
   cut->add_option("--reference", cut_options.reference_mesh, "also cut each run's path on this mesh with the same model: tumour-centroid and cut-surface error (cut_reference.csv, cut_reference.png)")
       ->check(CLI::IsMember({"coarse", "paper"}));
@@ -244,7 +245,7 @@ static int main_body(int argc, char** argv) {
       std::cout << (i ? "," : "") << "{\"mesh\":\"" << r.mesh << "\",\"scenario\":\"" << r.scenario << "\",\"model\":\"" << r.label
                 << "\",\"background_rebuild\":" << (r.background ? "true" : "false") << ",\"frames\":" << r.frames << ",\"topology_p99_ms\":" << r.topology_p99_ms << ",\"frame_median_ms\":" << r.frame_median_ms
                 << ",\"frame_p99_ms\":" << r.frame_p99_ms << ",\"min_dihedral_deg\":" << r.min_dihedral_deg << ",\"volume_change_rel\":"
-                << r.volume_change_rel << ",\"path_fidelity_mm\":" << r.path_fidelity_mm << ",\"completion_deviation_mm\":" << r.completion_deviation_mm << ",\"pieces\":" << r.pieces << ",\"tumours_freed\":" << r.tumours_freed << ",\"tumours_separated\":" << r.tumours_separated << ",\"local_updates\":" << r.local_updates << ",\"rebuilds\":" << r.rebuilds
+                << r.volume_change_rel << ",\"path_fidelity_mm\":" << r.path_fidelity_mm << ",\"completion_deviation_mm\":" << r.completion_deviation_mm << ",\"pieces\":" << r.pieces << ",\"tumours_freed\":" << r.tumours_freed << ",\"tumours_separated\":" << r.tumours_separated << ",\"freed_drop_mm\":" << r.freed_drop_mm << ",\"organ_drift_mm\":" << r.organ_drift_mm << ",\"local_updates\":" << r.local_updates << ",\"rebuilds\":" << r.rebuilds
                 << ",\"local_updates_enabled\":" << (r.local_updates_enabled ? "true" : "false") << ",\"local_median_ms\":" << r.local_median_ms
                 << ",\"local_p99_ms\":" << r.local_p99_ms << ",\"rebuild_median_ms\":" << r.rebuild_median_ms << ",\"rebuild_p99_ms\":" << r.rebuild_p99_ms
                 << ",\"state_diff_max_mm\":" << r.state_diff_max_mm << ",\"state_diff_final_mm\":" << r.state_diff_final_mm

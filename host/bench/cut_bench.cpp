@@ -1,6 +1,7 @@
 #include "host/bench/cut_bench.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <chrono>
 #include <ctime>
 #include <fstream>
@@ -10,6 +11,7 @@
 #include "host/bench/cut_reference.hpp"
 #include "host/cut/cut_session.hpp"
 #include "host/cut/mesh_checks.hpp"
+#include "host/cut/ring_path.hpp"
 #include "host/cut/scalpel_path.hpp"
 #include "host/scene/scene.hpp"
 #include "host/sim/model_factory.hpp"
@@ -52,11 +54,9 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
     const Scene scene = load_scene(o.data_dir + (mesh_name == "coarse" ? "/liver/liver_coarse_cut.scene.yaml" : "/liver/liver.scene.yaml"));
     const CutMeshCheck input = check_cut_mesh(scene.problem.mesh);
     for (const auto& scenario : scenarios) {
-      if (scenario != "right_lobe" && scenario != "ring") throw std::invalid_argument("cut bench: unknown scenario '" + scenario + "' (right_lobe, ring)");
-      const ScalpelPath path = load_scalpel_csv(o.data_dir + "/liver/scalpel_" + scenario + ".csv");
-      int frames = static_cast<int>(path.samples.back().t_s / scene.time_step_s) + 1;
-      if (o.quick) frames = std::min(frames, 150);
-      if (o.max_frames > 0) frames = std::min(frames, o.max_frames);
+      if (scenario != "right_lobe" && scenario != "ring" && scenario != "ring_scene") throw std::invalid_argument("cut bench: unknown scenario '" + scenario + "' (right_lobe, ring, ring_scene)");
+      const bool derived = scenario == "ring_scene";  // made from the scene after the organ settled (cut/ring_path.hpp)
+      const ScalpelPath csv_path = derived ? ScalpelPath{} : load_scalpel_csv(o.data_dir + "/liver/scalpel_" + scenario + ".csv");
       for (ModelVariant variant : model_variants())
       for (const bool background : o.background) {
       if (o.fem_background_refactor && !variant.config.refactor_in_background && variant.config.kind == "corotational_fem" &&
@@ -72,6 +72,9 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
         CutSessionSettings settings;  // docs/cut.md defaults (the scene's cutting section on the coarse mesh)
         settings.rebuild_in_background = background;
         settings.local_updates = local_updates;
+        // The ring made from the scene (about 21 mm in radius): sides within 20 mm while the
+        // blade passes (CutSettings::side_distance_mm, docs/cut.md).
+        if (derived) settings.cut.side_distance_mm = 20.0;
         if (scene.cutting) {
           settings.cut.snap_fraction = scene.cutting->snap_fraction;
           settings.cut.path_tolerance_mm = scene.cutting->path_tolerance_mm;
@@ -92,7 +95,38 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
         row.tets_before = scene.problem.mesh.num_tets();
         row.min_dihedral_input_deg = input.min_dihedral_deg;
         std::vector<double> topology, frame, rebuild, local, frame_cpu;
-        for (int f = 1; f <= frames; ++f) {
+        ScalpelPath path = csv_path;
+        int first = 1;  // frames before it: the organ settling under gravity (derived ring)
+        RingPath ring;
+        if (derived) {
+          // The organ hangs 2 s with the blade away, then the ring is made round the tumour as
+          // it hangs (the access direction that keeps the ligaments out of the block).
+          const int settle = static_cast<int>(std::lround(2.0 / scene.time_step_s));
+          const Eigen::Vector3d far = session.positions_World_mm().rowwise().mean() + Eigen::Vector3d(0, 0, 1e4);
+          for (int f = 1; f <= settle && row.healthy; ++f) {
+            session.apply_blade({far, far + Eigen::Vector3d(0, 0, 1)}, false);
+            const StepSummary step = session.step(scene.time_step_s);
+            if (!step.healthy) {
+              row.healthy = false;
+              row.warning = "before the cut: " + step.warning;
+            }
+          }
+          const Eigen::Matrix3Xd x = session.positions_World_mm();
+          ring = make_ring_path(session.mesh(), x, session.fixed_vertices(), session.tumours().front().embedding.apply(session.mesh(), x));
+          for (auto& sample : ring.path.samples) sample.t_s += settle * scene.time_step_s;
+          ring.ring_end_s += settle * scene.time_step_s;
+          ring.cut_end_s += settle * scene.time_step_s;
+          path = ring.path;
+          first = settle + 1;
+          row.ring_radius_mm = ring.radius_mm;
+          row.ring_axis = ring.axis;
+        }
+        int frames = static_cast<int>(path.samples.back().t_s / scene.time_step_s) + 1;
+        if (o.quick) frames = std::min(frames, 150);
+        if (o.max_frames > 0) frames = std::min(frames, o.max_frames);
+        Eigen::Vector3d tumour_at_cut_end = Eigen::Vector3d::Zero();
+        Eigen::Matrix3Xd x_at_cut_end;
+        for (int f = first; f <= frames && row.healthy; ++f) {
           const ScalpelSample s = path.at(f * scene.time_step_s);
           const auto t0 = std::chrono::steady_clock::now();
           const double cpu0 = thread_cpu_ms();
@@ -101,9 +135,9 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
           frame.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
           frame_cpu.push_back(thread_cpu_ms() - cpu0);
           if (record) rebuilt_states.push_back(session.positions_World_mm());
-          if (compare && !parted && static_cast<std::size_t>(f) <= rebuilt_states.size()) {
+          if (compare && !parted && static_cast<std::size_t>(f - first) < rebuilt_states.size()) {
             const Eigen::Matrix3Xd x = session.positions_World_mm();
-            const Eigen::Matrix3Xd& y = rebuilt_states[static_cast<std::size_t>(f) - 1];
+            const Eigen::Matrix3Xd& y = rebuilt_states[static_cast<std::size_t>(f - first)];
             parted = x.cols() != y.cols();  // the cuts differ from here on: not comparable
             if (!parted) {
               const double d = (x - y).colwise().norm().maxCoeff();
@@ -126,6 +160,10 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
             row.healthy = false;
             row.warning = step.warning;
             break;
+          }
+          if (derived && x_at_cut_end.cols() == 0 && f * scene.time_step_s >= ring.cut_end_s) {
+            x_at_cut_end = session.positions_World_mm();
+            tumour_at_cut_end = session.tumours().front().embedding.apply(session.mesh(), x_at_cut_end).rowwise().mean();
           }
         }
         const CutMeshCheck after = check_cut_mesh(session.mesh());
@@ -161,16 +199,26 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
           const auto largest = std::max_element(after.piece_volume_mm3.begin(), after.piece_volume_mm3.end()) - after.piece_volume_mm3.begin();
           if (pieces.size() == 1 && pieces[0] != static_cast<int>(largest)) ++row.tumours_separated;
         }
+        if (derived && x_at_cut_end.cols() > 0 && row.healthy) {
+          const Eigen::Matrix3Xd x = session.positions_World_mm();
+          row.freed_drop_mm = (session.tumours().front().embedding.apply(session.mesh(), x).rowwise().mean() - tumour_at_cut_end).norm();
+          const auto largest = std::max_element(after.piece_volume_mm3.begin(), after.piece_volume_mm3.end()) - after.piece_volume_mm3.begin();
+          row.organ_drift_mm = 0.0;
+          for (int t = 0; t < session.mesh().num_tets(); ++t)
+            if (after.piece_of_tet[static_cast<std::size_t>(t)] == static_cast<int>(largest))
+              for (int v : session.mesh().tets[static_cast<std::size_t>(t)])
+                if (v < x_at_cut_end.cols()) row.organ_drift_mm = std::max(row.organ_drift_mm, (x.col(v) - x_at_cut_end.col(v)).norm());
+        }
         row.local_updates = session.local_updates();
         row.rebuilds = session.rebuilds();
         row.local_median_ms = percentile(local, 0.5);
         row.local_p99_ms = percentile(local, 0.99);
-        if (!o.reference_mesh.empty()) add_reference_errors(references, scenario, variant, settings, session, row);
+        if (!o.reference_mesh.empty() && !derived) add_reference_errors(references, scenario, variant, settings, session, row);
         std::cerr << "arnav-bench cut: " << mesh_name << " " << scenario << " " << variant.label << (background ? " (background rebuild)" : "") << ": " << row.frames << " frames, frame "
                   << row.frame_median_ms << "/" << row.frame_p99_ms << " ms (median/p99; stepping thread CPU " << row.frame_thread_cpu_median_ms << "/"
                   << row.frame_thread_cpu_p99_ms << " ms), topology " << row.topology_median_ms << "/"
                   << row.topology_p99_ms << " ms, local update " << row.local_median_ms << "/" << row.local_p99_ms << " ms (" << row.local_updates
-                  << "), rebuild " << row.rebuild_median_ms << " ms (" << row.rebuilds << "), pieces " << row.pieces << ", tumours freed " << row.tumours_freed << ", separated " << row.tumours_separated << ", min dihedral " << row.min_dihedral_deg
+                  << "), rebuild " << row.rebuild_median_ms << " ms (" << row.rebuilds << "), pieces " << row.pieces << ", tumours freed " << row.tumours_freed << ", separated " << row.tumours_separated << (derived ? ", freed block dropped " + std::to_string(row.freed_drop_mm) + " mm, organ drift " + std::to_string(row.organ_drift_mm) + " mm" : std::string()) << ", min dihedral " << row.min_dihedral_deg
                   << (row.healthy ? "" : " UNHEALTHY: " + row.warning) << "\n";
         if (compare)
           std::cerr << "arnav-bench cut:   against the rebuilt run: state difference " << row.state_diff_max_mm << " mm at most, "
@@ -188,7 +236,7 @@ void write_cut_csv(const std::string& path, const std::vector<CutBenchRow>& rows
   if (!out) throw std::runtime_error("cannot write " + path + ": check the folder");
   out << "mesh,scenario,model,background_rebuild,tets_before,tets_after,vertices_after,frames,topology_changes,new_tets,topology_median_ms,topology_p99_ms,"
          "topology_max_ms,frame_median_ms,frame_p99_ms,rebuild_median_ms,rebuild_p99_ms,min_dihedral_input_deg,min_dihedral_deg,"
-         "volume_change_rel,path_fidelity_mm,completion_deviation_mm,completed_tets,pieces,free_pieces,tumours_freed,tumours_separated,local_updates,local_median_ms,local_p99_ms,rebuilds,events,mesh_valid,healthy,warning,"
+         "volume_change_rel,path_fidelity_mm,completion_deviation_mm,completed_tets,pieces,free_pieces,tumours_freed,tumours_separated,freed_drop_mm,organ_drift_mm,ring_radius_mm,local_updates,local_median_ms,local_p99_ms,rebuilds,events,mesh_valid,healthy,warning,"
          "local_updates_enabled,state_diff_max_mm,state_diff_final_mm,state_compared_frames,frame_thread_cpu_median_ms,frame_thread_cpu_p99_ms\n";
   for (const auto& r : rows) {
     std::string warning = r.warning;
@@ -197,7 +245,7 @@ void write_cut_csv(const std::string& path, const std::vector<CutBenchRow>& rows
         << r.frames << ',' << r.topology_changes << ',' << r.new_tets << ',' << r.topology_median_ms << ',' << r.topology_p99_ms << ','
         << r.topology_max_ms << ',' << r.frame_median_ms << ',' << r.frame_p99_ms << ',' << r.rebuild_median_ms << ',' << r.rebuild_p99_ms
         << ',' << r.min_dihedral_input_deg << ',' << r.min_dihedral_deg << ',' << r.volume_change_rel << ',' << r.path_fidelity_mm << ','
-        << r.completion_deviation_mm << ',' << r.completed_tets << ',' << r.pieces << ',' << r.free_pieces << ',' << r.tumours_freed << ',' << r.tumours_separated << ',' << r.local_updates << ',' << r.local_median_ms << ',' << r.local_p99_ms << ',' << r.rebuilds << ',' << r.events << ',' << (r.mesh_valid ? 1 : 0) << ','
+        << r.completion_deviation_mm << ',' << r.completed_tets << ',' << r.pieces << ',' << r.free_pieces << ',' << r.tumours_freed << ',' << r.tumours_separated << ',' << r.freed_drop_mm << ',' << r.organ_drift_mm << ',' << r.ring_radius_mm << ',' << r.local_updates << ',' << r.local_median_ms << ',' << r.local_p99_ms << ',' << r.rebuilds << ',' << r.events << ',' << (r.mesh_valid ? 1 : 0) << ','
         << (r.healthy ? 1 : 0) << ',' << warning << ',' << (r.local_updates_enabled ? 1 : 0) << ',' << r.state_diff_max_mm << ','
         << r.state_diff_final_mm << ',' << r.state_compared_frames << ',' << r.frame_thread_cpu_median_ms << ',' << r.frame_thread_cpu_p99_ms << '\n';
   }

@@ -3,6 +3,8 @@
 // (docs/cut.md, docs/benchmarks.md). Per run: topology-update and whole-frame time (median,
 // p99), model rebuild time, new elements, smallest dihedral angle, volume change, path
 // fidelity, pieces and events.
+#include <Eigen/Core>
+
 #include <string>
 #include <vector>
 
@@ -12,7 +14,7 @@ struct CutBenchOptions {
   std::string data_dir;                                        // folder with liver/*.scene.yaml and the scalpel paths
   bool quick = false;                                          // CI smoke run: coarse mesh, XPBD, 150 frames
   std::vector<std::string> meshes = {"coarse"};                // coarse (4,768 tets) and/or paper (26,054 tets)
-  std::vector<std::string> scenarios = {"right_lobe", "ring"};
+  std::vector<std::string> scenarios = {"right_lobe", "ring"};  // ring: data/liver/scalpel_ring.csv; ring_scene: made from the scene (cut/ring_path.hpp)
   std::vector<std::string> setting_prefixes;                   // model labels to run (prefix match; empty: all)
   int max_frames = 0;                                          // cap per run (0: the whole path)
   std::vector<bool> background = {false};                      // rebuild the model inline and/or in the background
@@ -50,6 +52,12 @@ struct CutBenchRow {
   int pieces = 1, free_pieces = 0, events = 0;
   int tumours_freed = 0;        // tumours lying entirely in one free piece (cut out)
   int tumours_separated = 0;    // tumours lying entirely in one piece that is not the largest (cut out of the organ, maybe still held by a fixed vertex)
+  // ring_scene (made from the scene): over the hold after the bottom cut, the freed
+  // tumour's centroid displacement (it falls as a free body) and the largest displacement of
+  // a vertex of the organ's largest piece (it stays hanging); -1: not measured.
+  double freed_drop_mm = -1, organ_drift_mm = -1;
+  double ring_radius_mm = 0;                     // ring derived from the scene: radius and access axis
+  Eigen::Vector3d ring_axis = Eigen::Vector3d::Zero();
   int local_updates = 0, rebuilds = 0;  // model updated in place / rebuilt after a cut
   double local_median_ms = 0, local_p99_ms = 0;  // model update time of the local updates
   bool healthy = true, mesh_valid = true;

@@ -437,19 +437,27 @@ CutFrameReport CutSession::apply_blade(const BladeSegment& blade, bool cutting_e
         sweep.from_points = moved;
       }
       // A blade that moves along itself (plunging in, lifting out) sweeps no area: the strip
-      // between its carried previous position and the new one would only be noise.
-      double moved = 0.0;
+      // between its carried previous position and the new one would only be noise. So is a
+      // plunge while the tissue moves a little across the blade: that strip's normal is set
+      // by the tissue's motion, and the vertices around would take their side of the cut
+      // from it (a vertex 13 mm outside the liver ring took the inside's side from the XPBD
+      // organ swaying during the plunge: a hole in the ring). A sweep counts when the motion
+      // across the blade exceeds min_sweep_mm and a quarter of the motion along it.
+      double moved = 0.0, along = 0.0;
       const Eigen::Vector3d dir = (blade.heel_World_mm - blade.tip_World_mm).normalized();
       for (std::size_t i = 0; i < sweep.from_points.size(); ++i) {
         const double u = static_cast<double>(i) / settings_.sweep_strips;
         const Eigen::Vector3d d = sweep.from_points[i] - ((1 - u) * blade.tip_World_mm + u * blade.heel_World_mm);
         moved = std::max(moved, (d - d.dot(dir) * dir).norm());
+        along = std::max(along, std::abs(d.dot(dir)));
       }
       if (sweep.from_points.empty()) {
-        for (const auto& d : {Eigen::Vector3d(previous_blade_->tip_World_mm - blade.tip_World_mm), Eigen::Vector3d(previous_blade_->heel_World_mm - blade.heel_World_mm)})
+        for (const auto& d : {Eigen::Vector3d(previous_blade_->tip_World_mm - blade.tip_World_mm), Eigen::Vector3d(previous_blade_->heel_World_mm - blade.heel_World_mm)}) {
           moved = std::max(moved, (d - d.dot(dir) * dir).norm());
+          along = std::max(along, std::abs(d.dot(dir)));
+        }
       }
-      if (moved > settings_.min_sweep_mm) {
+      if (moved > settings_.min_sweep_mm && moved > 0.25 * along) {
         last_sweep_ = sweep;
         report.cut = cutter_.step(sweep, x, v);
         absorb(report, x, v);

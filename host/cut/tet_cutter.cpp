@@ -6,6 +6,7 @@
 #include <chrono>
 #include <numeric>
 #include <set>
+#include <sstream>
 #include <stdexcept>
 
 #include "host/scene/box_mesh.hpp"
@@ -54,6 +55,7 @@ TetCutter::TetCutter(const TetMesh& mesh, const CutSettings& settings) : mesh_(m
     throw std::invalid_argument("cut settings: snap_fraction must lie in (0, 0.5)");
   }
   if (!(settings_.vertex_tolerance_mm >= 0.0)) throw std::invalid_argument("cut settings: vertex_tolerance_mm must be >= 0");
+  if (!(settings_.side_distance_mm > 0.0)) throw std::invalid_argument("cut settings: side_distance_mm must be > 0");
   const int nv = mesh_.num_vertices();
   vertex_tets_.assign(static_cast<std::size_t>(nv), {});
   for (int t = 0; t < mesh_.num_tets(); ++t)
@@ -98,19 +100,18 @@ int TetCutter::locate(const Eigen::Vector3d& p, const Eigen::Matrix3Xd& x, Eigen
 }
 
 std::string TetCutter::describe_pending() const {
-  std::string out;
+  std::ostringstream out;
   for (int t = 0; t < mesh_.num_tets(); ++t) {
     const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
-    std::string edges;
+    std::ostringstream edges;
     for (const auto& e : kEdges) {
       const auto it = pending_.find(edge_key(tet[static_cast<std::size_t>(e[0])], tet[static_cast<std::size_t>(e[1])]));
-      if (it != pending_.end()) edges += " " + std::to_string(e[0]) + std::to_string(e[1]) + "@" + std::to_string(it->second);
+      if (it != pending_.end()) edges << ' ' << e[0] << e[1] << '@' << it->second;
     }
-    if (edges.empty() || complete_pattern(t) != 0) continue;
-    out += "tet " + std::to_string(t) + (tip_tet_[static_cast<std::size_t>(t)] ? " [tip]" : "") + " vertices";
-    for (int w : tet)
-      out += " " + std::to_string(w) + (on_stroke(w) ? "[cut]" : "") + "(side " + std::to_string(side_[static_cast<std::size_t>(w)]) + ")";
-    out += " crossings" + edges + "\n";
+    if (edges.tellp() == 0 || complete_pattern(t) != 0) continue;
+    out << "tet " << t << (tip_tet_[static_cast<std::size_t>(t)] ? " [tip]" : "") << " vertices";
+    for (int w : tet) out << ' ' << w << (on_stroke(w) ? "[cut]" : "") << "(side " << side_[static_cast<std::size_t>(w)] << ')';
+    out << " crossings" << edges.str() << '\n';
   }
   // Interior faces with all three vertices on this stroke that are not cut.
   for (int t = 0; t < mesh_.num_tets(); ++t) {
@@ -120,17 +121,17 @@ std::string TetCutter::describe_pending() const {
       if (!on_stroke(key[0]) || !on_stroke(key[1]) || !on_stroke(key[2])) continue;
       int pair[2] = {-1, -1};
       if (tets_with_face(key, pair) != 2 || pair[0] != t) continue;
-      out += "face " + std::to_string(key[0]) + " " + std::to_string(key[1]) + " " + std::to_string(key[2]) + (cut_faces_.count(key) ? " [cut]" : "") + " between";
+      out << "face " << key[0] << ' ' << key[1] << ' ' << key[2] << (cut_faces_.count(key) ? " [cut]" : "") << " between";
       for (int k = 0; k < 2; ++k) {
-        out += " tet " + std::to_string(pair[k]) + " (";
+        out << " tet " << pair[k] << " (";
         for (int w : mesh_.tets[static_cast<std::size_t>(pair[k])])
-          out += " " + std::to_string(w) + (on_stroke(w) ? "*" : "") + ":" + std::to_string(side_[static_cast<std::size_t>(w)]);
-        out += ")";
+          out << ' ' << w << (on_stroke(w) ? "*" : "") << ':' << side_[static_cast<std::size_t>(w)];
+        out << ')';
       }
-      out += "\n";
+      out << '\n';
     }
   }
-  return out;
+  return out.str();
 }
 
 int TetCutter::stroke_side(int w, const Eigen::Matrix3Xd& x, double cone, bool within_reach) const {
@@ -156,11 +157,32 @@ int TetCutter::stroke_side(int w, const Eigen::Matrix3Xd& x, double cone, bool w
   }
   if (nearest < 0) return 0;
   const Triangle& near = stroke_tris_[static_cast<std::size_t>(nearest)];
-  const double d = unit_normal(near).dot(p - near.a);
+  // The plane: through the nearest point, normal to the stroke's surface averaged (by area,
+  // as oriented) over the triangles within max(distance, 1 mm) of that point. One frame's
+  // strip can be far from the surface's direction: when the tissue moves across the blade
+  // about as fast as the blade (a swaying organ) the strip between the carried previous
+  // blade and the new one turns by up to 90 degrees, or reverses; a vertex 10 mm away took
+  // its side from such a strip's plane (a hole in the liver ring with XPBD).
+  Eigen::Vector3d q;
+  point_triangle_distance(p, near, &q);
+  const double radius = std::max(best, 1.0);
+  Eigen::Vector3d n_sum = Eigen::Vector3d::Zero();
+  for (const auto& chunk : stroke_chunks_) {
+    const Eigen::Vector3d gap = (chunk.box.min - q).cwiseMax(q - chunk.box.max).cwiseMax(0.0);
+    if (gap.norm() > radius) continue;
+    for (int i = chunk.begin; i < chunk.end; ++i) {
+      const Triangle& tri = stroke_tris_[static_cast<std::size_t>(i)];
+      if (point_triangle_distance(q, tri) <= radius) n_sum += 0.5 * (tri.b - tri.a).cross(tri.c - tri.a);
+    }
+  }
+  const Eigen::Vector3d normal = n_sum.squaredNorm() > 0.0 ? Eigen::Vector3d(n_sum.normalized()) : unit_normal(near);
+  const double d = normal.dot(p - q);
   double reach2 = 0.0;
   for (int tt : vertex_tets_[static_cast<std::size_t>(w)])
     for (int u : mesh_.tets[static_cast<std::size_t>(tt)]) reach2 = std::max(reach2, (x.col(u) - p).squaredNorm());
-  if (std::abs(d) > settings_.vertex_tolerance_mm && best <= cone * std::abs(d) && (!within_reach || best * best <= reach2)) return d > 0 ? 1 : -1;
+  if (std::abs(d) > settings_.vertex_tolerance_mm && best <= cone * std::abs(d) &&
+      (!within_reach || (best * best <= reach2 && (cone > kEagerCone || best <= settings_.side_distance_mm))))
+    return d > 0 ? 1 : -1;
   return 0;
 }
 
@@ -193,6 +215,8 @@ void TetCutter::begin_stroke() {
   std::fill(tip_tet_.begin(), tip_tet_.end(), 0);
   std::fill(flat_side_.begin(), flat_side_.end(), 0);
   undecided_faces_.clear();
+  for (int t : watch_) watched_[static_cast<std::size_t>(t)] = 0;
+  watch_.clear();
 }
 
 std::vector<Aabb> TetCutter::family_boxes(const Eigen::Matrix3Xd& x) const {
@@ -276,10 +300,22 @@ int TetCutter::side_pattern(int t) const {
   return pattern;
 }
 
+double TetCutter::stroke_distance(const Eigen::Vector3d& p) const {
+  double best = 1e300;
+  for (const auto& chunk : stroke_chunks_) {
+    const Eigen::Vector3d gap = (chunk.box.min - p).cwiseMax(p - chunk.box.max).cwiseMax(0.0);
+    if (gap.norm() >= best) continue;
+    for (int i = chunk.begin; i < chunk.end; ++i) best = std::min(best, point_triangle_distance(p, stroke_tris_[static_cast<std::size_t>(i)]));
+  }
+  return best;
+}
+
 bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepReport& r) {
   const int pattern = side_pattern(t);
   if (pattern == 0) return false;
   const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+  bool recorded = false;
+  for (int e = 0; e < 6; ++e) recorded |= pending_.count(edge_key(tet[static_cast<std::size_t>(kEdges[e][0])], tet[static_cast<std::size_t>(kEdges[e][1])])) > 0;
   std::vector<Eigen::Vector3d> points;
   for (int w : tet)
     if (on_stroke(w)) points.push_back(x.col(w));
@@ -299,13 +335,47 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();
   for (const auto& p : points) centre += p;
   centre /= static_cast<double>(points.size());
-  Eigen::Vector3d normal = last_normal_;
+  // The plane's normal: fitted through three or more points; otherwise the cut's normal at
+  // the tet's vertices on the cut (or the sweep's at its recorded crossings), else the
+  // stroke's surface nearest to the points (a curved cut: the last sweep's normal can be far).
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+  for (int w : tet)
+    if (on_stroke(w) && cut_normal_[static_cast<std::size_t>(w)].squaredNorm() > 0.5)
+      normal += normal.dot(cut_normal_[static_cast<std::size_t>(w)]) < 0 ? Eigen::Vector3d(-cut_normal_[static_cast<std::size_t>(w)]) : cut_normal_[static_cast<std::size_t>(w)];
+  for (const auto& e : kEdges) {
+    const auto it = pending_normal_.find(edge_key(tet[static_cast<std::size_t>(e[0])], tet[static_cast<std::size_t>(e[1])]));
+    if (it != pending_normal_.end()) normal += normal.dot(it->second) < 0 ? Eigen::Vector3d(-it->second) : it->second;
+  }
+  if (normal.squaredNorm() > 1e-12) {
+    normal.normalize();
+  } else if (!stroke_tris_.empty()) {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (const auto& p : points) c += p / static_cast<double>(points.size());
+    int nearest = 0;
+    sweep_distance(stroke_tris_, c, &nearest);
+    normal = unit_normal(stroke_tris_[static_cast<std::size_t>(nearest)]);
+  } else {
+    normal = last_normal_;
+  }
   if (points.size() >= 3) {
     Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
     for (const auto& p : points) cov += (p - centre) * (p - centre).transpose();
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
     if (eig.eigenvalues()[1] > 1e-12 * std::max(1e-300, eig.eigenvalues()[2])) normal = eig.eigenvectors().col(0);
   }
+  // A tet with no crossing recorded (its vertices on the cut and sides only: a crossing
+  // missed between two frames' strips) is completed only where the stroke really swept: each
+  // new point within the tissue's motion since (the distance of the tet's vertices on the
+  // cut from the stroke's surface as swept) plus path_tolerance_mm of that surface. A crack
+  // front (the blade's end inside the tissue) is not extended.
+  double reach = -1.0;
+  if (!recorded) {
+    reach = 0.0;
+    for (int w : tet)
+      if (on_stroke(w)) reach = std::max(reach, stroke_distance(x.col(w)));
+    reach = 2.0 * reach + settings_.path_tolerance_mm + settings_.vertex_tolerance_mm;
+  }
+  std::vector<std::pair<EdgeKey, double>> added;
   for (int e : missing) {
     const int a = std::min(tet[static_cast<std::size_t>(kEdges[e][0])], tet[static_cast<std::size_t>(kEdges[e][1])]);
     const int b = std::max(tet[static_cast<std::size_t>(kEdges[e][0])], tet[static_cast<std::size_t>(kEdges[e][1])]);
@@ -313,7 +383,39 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
     // On the plane (the recorded points lie on the swept surface), no closer than 1 % of the
     // edge to an end; a plane that misses the edge (the sides say it is crossed) gives the
     // point of the edge nearest to it (the deviation is measured below).
-    const double s = d0 != d1 ? std::clamp(d0 / (d0 - d1), 0.01, 0.99) : 0.5;
+    double s = d0 != d1 ? std::clamp(d0 / (d0 - d1), 0.01, 0.99) : 0.5;
+    if (reach >= 0.0) {
+      // Where the edge crosses the stroke's surface (as swept), when it does (a long edge
+      // across a curved cut: the plane through the tet's points on the cut is a chord);
+      // otherwise on the plane, near enough to the surface.
+      const Aabb edge_box = [&] {
+        Aabb b_box;
+        b_box.extend(Eigen::Vector3d(x.col(a)));
+        b_box.extend(Eigen::Vector3d(x.col(b)));
+        return b_box;
+      }();
+      double best_s = -1.0;
+      for (const auto& chunk : stroke_chunks_) {
+        if (!chunk.box.overlaps(edge_box)) continue;
+        for (int i = chunk.begin; i < chunk.end; ++i) {
+          double u = 0.0;
+          if (segment_triangle_intersection(x.col(a), x.col(b), stroke_tris_[static_cast<std::size_t>(i)], u) && (best_s < 0 || std::abs(u - s) < std::abs(best_s - s)))
+            best_s = u;
+        }
+      }
+      if (best_s >= 0.0) {
+        s = std::clamp(best_s, 0.01, 0.99);
+      } else if (stroke_distance((1 - s) * x.col(a) + s * x.col(b)) > reach) {
+        return false;
+      }
+    }
+    added.emplace_back(edge_key(a, b), s);
+  }
+  for (std::size_t i = 0; i < missing.size(); ++i) {
+    const int e = missing[i];
+    const int a = std::min(tet[static_cast<std::size_t>(kEdges[e][0])], tet[static_cast<std::size_t>(kEdges[e][1])]);
+    const int b = std::max(tet[static_cast<std::size_t>(kEdges[e][0])], tet[static_cast<std::size_t>(kEdges[e][1])]);
+    const double s = added[i].second;
     const Eigen::Vector3d p = (1 - s) * x.col(a) + s * x.col(b);
     r.max_completion_deviation_mm = std::max(r.max_completion_deviation_mm, std::abs(normal.dot(p - centre)));
     ++r.cut_points;
@@ -797,11 +899,58 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       for (int t : tets_with_edge(static_cast<int>(key >> 32), static_cast<int>(key & 0xffffffffu)))
         if (!near[static_cast<std::size_t>(t)] && !tip_tet_[static_cast<std::size_t>(t)]) stale.push_back(t);
     }
+    // Tets the cut has reached (a vertex on this stroke's cut) are watched until the blade has
+    // left them: one whose free vertices lie on both sides of the stroke's surface with no
+    // crossing recorded on the edge between them is completed the same way. The tissue moves
+    // between frames, so the strip of one frame (started from the previous blade carried with
+    // the tissue: a polyline through strips + 1 carried points) and the strip of the last one
+    // (straight between the points as they were) leave slivers of material between them that
+    // neither swept: an edge crossing the cut there has no crossing (docs/cut.md, "The ring in
+    // the running simulation").
+    {
+      auto watch = [&](int t) {
+        if (static_cast<std::size_t>(t) >= watched_.size()) watched_.resize(mesh_.tets.size(), 0);
+        if (watched_[static_cast<std::size_t>(t)]) return;
+        for (int w : mesh_.tets[static_cast<std::size_t>(t)])
+          if (on_stroke(w)) {
+            watched_[static_cast<std::size_t>(t)] = 1;
+            watch_.push_back(t);
+            return;
+          }
+      };
+      for (int t : candidates) watch(t);
+      for (int t : r.changed_tets) watch(t);
+      std::vector<int> keep;
+      for (int t : watch_) {
+        if (near[static_cast<std::size_t>(t)] || tip_tet_[static_cast<std::size_t>(t)]) {
+          keep.push_back(t);
+          continue;
+        }
+        if (side_pattern(t) != 0 || complete_pattern(t) != 0) {
+          stale.push_back(t);
+          watched_[static_cast<std::size_t>(t)] = 0;
+          continue;
+        }
+        bool unknown = false;
+        for (int w : mesh_.tets[static_cast<std::size_t>(t)]) unknown |= !on_stroke(w) && side_[static_cast<std::size_t>(w)] == 0;
+        if (unknown && !finishing_) {
+          keep.push_back(t);
+        } else {
+          watched_[static_cast<std::size_t>(t)] = 0;
+        }
+      }
+      watch_ = std::move(keep);
+    }
     std::sort(stale.begin(), stale.end());
     stale.erase(std::unique(stale.begin(), stale.end()), stale.end());
     std::vector<int> completed;
-    for (int t : stale)
-      if (complete_pattern(t) == 0 && complete_from_sides(t, x, r)) completed.push_back(t);
+    for (int t : stale) {
+      if (complete_pattern(t) != 0) {
+        completed.push_back(t);  // complete since (a neighbour's completion): split
+      } else if (complete_from_sides(t, x, r)) {
+        completed.push_back(t);
+      }
+    }
     r.tets_completed = static_cast<int>(completed.size());
     split_completed(completed);
   }

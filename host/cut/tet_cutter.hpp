@@ -49,6 +49,16 @@ struct CutSettings {
   // current position along its edge) when every tet around keeps a quarter of its volume:
   // the cut stays on the path and the star's total volume is unchanged.
   bool move_snapped_vertices = true;
+  // While the blade passes, a vertex takes its side of the cut only from a part of the
+  // surface swept so far within this distance (and within one edge of its tets); farther
+  // vertices get it when a cut face needs it, or at the stroke's end from the complete
+  // surface. On a curved cut a far vertex can lie across from a part swept early while the
+  // part nearest to it is not swept yet (a vertex 7 mm outside a 21 mm ring took the
+  // inside's side from the strip across the ring's diameter, 42 mm away). About the cut's
+  // smallest radius of curvature; sensitive on the coarse liver (docs/cut.md): the bundled
+  // 25 mm ring needs >= 30 in the running simulation, the 21 mm ring made from the scene
+  // <= 20 (ring_path.hpp users set it so).
+  double side_distance_mm = 30.0;
 };
 
 // Where a vertex created by a cut step came from: the edge point (1-t) a + t b, or a copy of
@@ -156,6 +166,8 @@ class TetCutter {
   // Side of free vertex w from the nearest point of this stroke's whole swept surface so far
   // (0: not across from it, or farther than an edge of its tets).
   int stroke_side(int w, const Eigen::Matrix3Xd& x, double cone, bool within_reach = true) const;
+  // Distance of p from this stroke's whole swept surface (as swept).
+  double stroke_distance(const Eigen::Vector3d& p) const;
   bool move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   int add_vertex(const VertexOrigin& o, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   void split_edge(int a, int b, double t_ab, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r,
@@ -189,6 +201,8 @@ class TetCutter {
   FaceSet cut_faces_;                            // interior faces to separate
   std::vector<signed char> flat_side_;           // per tet with all vertices on the cut: its side (this stroke)
   std::vector<char> tip_tet_;                    // per tet: a blade end passed through it this stroke
+  std::vector<int> watch_;                       // tets with a vertex on this stroke's cut, until the blade has left them
+  std::vector<char> watched_;                    // per tet: in watch_
   Eigen::Vector3d last_normal_ = Eigen::Vector3d::UnitZ();  // of the last sweep
   std::vector<int> origin_;                      // per tet: tet of the input mesh
   std::vector<std::vector<int>> family_;         // per input tet: its current pieces
