@@ -232,7 +232,8 @@ static int main_body(int argc, char** argv) {
       const auto& r = rows[i];
       std::cout << (i ? "," : "") << "{\"mesh\":\"" << r.mesh << "\",\"scenario\":\"" << r.scenario << "\",\"model\":\"" << r.label
                 << "\",\"background_rebuild\":" << (r.background ? "true" : "false") << ",\"frames\":" << r.frames << ",\"topology_p99_ms\":" << r.topology_p99_ms << ",\"frame_median_ms\":" << r.frame_median_ms
-                << ",\"frame_p99_ms\":" << r.frame_p99_ms << ",\"min_dihedral_deg\":" << r.min_dihedral_deg << ",\"volume_change_rel\":"
+                << ",\"frame_p99_ms\":" << r.frame_p99_ms << ",\"min_dihedral_deg\":" << r.min_dihedral_deg << ",\"min_dihedral_active_deg\":" << r.min_dihedral_active_deg
+                << ",\"embedded_tets\":" << r.embedded_tets << ",\"embedded_volume_fraction\":" << r.embedded_volume_fraction << ",\"volume_change_rel\":"
                 << r.volume_change_rel << ",\"path_fidelity_mm\":" << r.path_fidelity_mm << ",\"completion_deviation_mm\":" << r.completion_deviation_mm << ",\"pieces\":" << r.pieces << ",\"tumours_freed\":" << r.tumours_freed << ",\"tumours_separated\":" << r.tumours_separated << ",\"local_updates\":" << r.local_updates << ",\"rebuilds\":" << r.rebuilds
                 << ",\"mesh_valid\":" << (r.mesh_valid ? "true" : "false") << ",\"healthy\":" << (r.healthy ? "true" : "false") << "}";
     }

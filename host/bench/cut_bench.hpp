@@ -26,7 +26,13 @@ struct CutBenchRow {
   double topology_median_ms = 0, topology_p99_ms = 0, topology_max_ms = 0;
   double frame_median_ms = 0, frame_p99_ms = 0;
   double rebuild_median_ms = 0, rebuild_p99_ms = 0;  // over frames with a topology change
-  double min_dihedral_input_deg = 0, min_dihedral_deg = 0;
+  double min_dihedral_input_deg = 0, min_dihedral_deg = 0;  // every tet (raw)
+  // Quality bound (docs/cut.md "Element quality"): the bound, the smallest dihedral angle of
+  // the elastic (active) tets, and the tets below it (embedded: no elastic term) with their
+  // share of the volume, the vertices they drive and the rigid pieces.
+  double min_dihedral_bound_deg = 0, min_dihedral_active_deg = 0;
+  int embedded_tets = 0, driven_vertices = 0, rigid_groups = 0;
+  double embedded_volume_fraction = 0;
   double volume_change_rel = 0;                      // rest volume after / before - 1
   double path_fidelity_mm = 0;                       // largest distance of a cut point from the swept surface (same instant)
   double completion_deviation_mm = 0;                // completed tets: largest distance of a point from their recorded points' plane

@@ -136,11 +136,14 @@ CorotationalFem::CorotationalFem(const SimProblem& problem, const ModelConfig& c
     e.lambda = lame.lambda_kPa;
     e.beta = m.damping_stiffness_s;
     e.volume = signed_volume_mm3(X_, e.v);
+    e.passive = problem.embedded.is_passive(t);
     e.Dm_inv = edge_matrix(X_, e.v).inverse();
     for (int k = 0; k < 3; ++k) e.g[k + 1] = e.Dm_inv.row(k).transpose();
     e.g[0] = -(e.g[1] + e.g[2] + e.g[3]);
     for (int v : e.v) mass_alpha[v] += 0.25 * e.volume * m.density_kg_per_mm3 * m.damping_mass_per_s;
   }
+  apply_embedding(problem, mass_alpha);
+  mass_damped_ = mass_;
   mass_alpha_ = mass_alpha;
   q_.assign(tets_.size(), Eigen::Quaterniond::Identity());
 
@@ -163,8 +166,9 @@ CorotationalFem::CorotationalFem(const SimProblem& problem, const ModelConfig& c
     R_beam_.assign(beams_.size(), Eigen::Matrix3d::Identity());
   }
   check_vertex_indices(problem.fixed_vertices, nv, "corotational_fem: fixed vertices");
-  fixed_.assign(nv, 0);
-  for (int v : problem.fixed_vertices) fixed_[v] = 1;
+  user_fixed_.assign(nv, 0);
+  for (int v : problem.fixed_vertices) user_fixed_[v] = 1;
+  merge_fixed_with_embedding();
   solver_.set_refresh_residual(options_.refresh_residual);
   solver_.set_background_refactor(config.refactor_in_background);
   if (options_.background_nice < 0 || options_.background_nice > 19)
@@ -184,6 +188,17 @@ CorotationalFem::CorotationalFem(const SimProblem& problem, const ModelConfig& c
 }
 
 CorotationalFem::~CorotationalFem() = default;
+
+void CorotationalFem::apply_embedding(const SimProblem& problem, Eigen::VectorXd& mass_alpha) {
+  std::vector<int> touched;
+  embedded_.reset(problem.embedded, X_, x_, v_);
+  embedded_.move_mass({&mass_, &mass_alpha}, touched);
+}
+
+void CorotationalFem::merge_fixed_with_embedding() {
+  fixed_.assign(user_fixed_.size(), 0);
+  for (std::size_t i = 0; i < fixed_.size(); ++i) fixed_[i] = user_fixed_[i] || embedded_.held(static_cast<int>(i)) ? 1 : 0;
+}
 
 void CorotationalFem::build_pattern() {
   const int nv = static_cast<int>(X_.cols());
@@ -270,6 +285,7 @@ void CorotationalFem::assemble_element(int id, double dt_s, bool dynamic, double
   const int num_tets = static_cast<int>(tets_.size());
   if (id < num_tets) {
     const Tet& e = tets_[id];
+    if (e.passive) return;  // below the quality bound: no elastic term (its block stays zero)
     Eigen::Matrix3d Ds;
     for (int k = 0; k < 3; ++k) Ds.col(k) = x_.col(e.v[k + 1]) - x_.col(e.v[0]);
     const Eigen::Matrix3d F = Ds * e.Dm_inv;
@@ -359,7 +375,9 @@ double CorotationalFem::potential_energy(const Eigen::Matrix3Xd& x) {
 
 StepSummary CorotationalFem::step(double dt_s) {
   check_dt(dt_s);
-  return run_substeps(substeps_, dt_s, [this](double h) { return substep(h); });
+  StepSummary s = run_substeps(substeps_, dt_s, [this](double h) { return substep(h); });
+  embedded_.drive(x_, v_, dt_s, gravity_);  // embedded vertices follow their drivers / rigid groups
+  return s;
 }
 
 StepSummary CorotationalFem::substep(double dt_s) {
@@ -541,9 +559,9 @@ void CorotationalFem::remove_attachment(AttachmentId id) {
 void CorotationalFem::set_fixed_vertices(const std::vector<int>& vertices) {
   const int nv = static_cast<int>(X_.cols());
   check_vertex_indices(vertices, nv, "corotational_fem: set_fixed_vertices");
-  std::vector<char> fixed(nv, 0);
-  for (int v : vertices) fixed[v] = 1;
-  fixed_ = std::move(fixed);
+  user_fixed_.assign(nv, 0);
+  for (int v : vertices) user_fixed_[v] = 1;
+  merge_fixed_with_embedding();
   for (int i = 0; i < nv; ++i)
     if (fixed_[i]) v_.col(i).setZero();
   update_fixed_entries();
@@ -554,6 +572,7 @@ void CorotationalFem::set_state(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
   check_state_shape(x, v, static_cast<int>(X_.cols()));
   x_ = x;
   v_ = v;
+  embedded_.restart(x_, v_);  // rigid groups start from the given state
   last_dx_.setZero(x_.size());
   inversions_.reset_episode();
   // The warm-start rotations belong to the old state: restart them in closed form.
