@@ -100,6 +100,9 @@ static int main_body(int argc, char** argv) {
   cut->add_option("--reference", cut_options.reference_mesh, "also cut each run's path on this mesh with the same model: tumour-centroid and cut-surface error (cut_reference.csv, cut_reference.png)")
       ->check(CLI::IsMember({"coarse", "paper"}));
   cut->add_option("--frames", cut_options.max_frames, "cap the frames per run")->check(CLI::PositiveNumber);
+  cut->add_option("--min-dihedral", cut_options.min_dihedral_deg,
+                  "quality bound in degrees, overriding the scene's cutting.min_dihedral_deg (0: no embedded treatment, the elements as cut)")
+      ->check(CLI::Range(0.0, 30.0));
   std::string rebuild = "inline";
   cut->add_option("--rebuild", rebuild, "model rebuild after a cut: inline, background or both")->check(CLI::IsMember({"inline", "background", "both"}));
   try {

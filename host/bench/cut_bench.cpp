@@ -62,6 +62,7 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
           settings.sweep_strips = scene.cutting->sweep_strips;
           settings.tumour_margin_mm = scene.cutting->tumour_margin_mm;
         }
+        if (o.min_dihedral_deg >= 0) settings.min_dihedral_deg = o.min_dihedral_deg;
         const std::unique_ptr<CutSession> session_ptr = make_cut_session(scene, variant.config, settings);
         CutSession& session = *session_ptr;
         CutBenchRow row;

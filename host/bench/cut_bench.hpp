@@ -17,6 +17,7 @@ struct CutBenchOptions {
   int max_frames = 0;                                          // cap per run (0: the whole path)
   std::vector<bool> background = {false};                      // rebuild the model inline and/or in the background
   std::string reference_mesh;                                  // coarse/paper: compare each run with the same path cut on it (cut_reference.hpp); empty: none
+  double min_dihedral_deg = -1;                                // >= 0: overrides the scene's cutting.min_dihedral_deg (0: treatment off)
 };
 
 struct CutBenchRow {
