@@ -59,11 +59,19 @@ void EmbeddedElementTracker::build(const TetMesh& mesh, const std::vector<int>& 
     if (f >= 0 && f < n) fixed_[static_cast<std::size_t>(f)] = 1;
   if (min_deg_ <= 0.0) return;  // off: every tet elastic, nothing kept
   out.passive.assign(static_cast<std::size_t>(nt), 0);
+  below_.assign(static_cast<std::size_t>(nt), 0);
   for (int t = 0; t < nt; ++t) {
     for (int w : tets_[static_cast<std::size_t>(t)]) vertex_tets_[static_cast<std::size_t>(w)].push_back(t);
-    out.passive[static_cast<std::size_t>(t)] = tet_min_dihedral_deg(mesh.rest_positions_World_mm, tets_[static_cast<std::size_t>(t)]) < min_deg_ ? 1 : 0;
+    below_[static_cast<std::size_t>(t)] = tet_min_dihedral_deg(mesh.rest_positions_World_mm, tets_[static_cast<std::size_t>(t)]) < min_deg_ ? 1 : 0;
+    out.passive[static_cast<std::size_t>(t)] = below_[static_cast<std::size_t>(t)];
   }
   std::vector<int> candidates;
+  {
+    std::vector<int> seeds;
+    for (int t = 0; t < nt; ++t)
+      if (!below_[static_cast<std::size_t>(t)]) seeds.push_back(t);
+    settle_islands(seeds, out, candidates);
+  }
   for (int t = 0; t < nt; ++t)
     if (out.passive[static_cast<std::size_t>(t)])
       for (int w : tets_[static_cast<std::size_t>(t)]) candidates.push_back(w);
@@ -80,6 +88,7 @@ void EmbeddedElementTracker::update(const TetMesh& mesh, const std::vector<int>&
   for (auto it = fixed_vertices.rbegin(); it != fixed_vertices.rend() && *it >= n_old; ++it)
     if (*it < n) fixed_[static_cast<std::size_t>(*it)] = 1;
   out.passive.resize(static_cast<std::size_t>(nt), 0);
+  below_.resize(static_cast<std::size_t>(nt), 0);
   std::vector<int> candidates;
   const std::size_t nt_old = tets_.size();
   tets_.resize(static_cast<std::size_t>(nt), {{-1, -1, -1, -1}});
@@ -96,7 +105,18 @@ void EmbeddedElementTracker::update(const TetMesh& mesh, const std::vector<int>&
       vertex_tets_[static_cast<std::size_t>(w)].push_back(t);
       candidates.push_back(w);
     }
-    out.passive[static_cast<std::size_t>(t)] = tet_min_dihedral_deg(mesh.rest_positions_World_mm, tet) < min_deg_ ? 1 : 0;
+    below_[static_cast<std::size_t>(t)] = tet_min_dihedral_deg(mesh.rest_positions_World_mm, tet) < min_deg_ ? 1 : 0;
+    out.passive[static_cast<std::size_t>(t)] = below_[static_cast<std::size_t>(t)];
+  }
+  {  // islands among the changed tets and their face neighbours
+    std::vector<int> seeds, nb;
+    for (int t : changed_tets) {
+      seeds.push_back(t);
+      face_neighbours(t, nb);
+      seeds.insert(seeds.end(), nb.begin(), nb.end());
+    }
+    std::erase_if(seeds, [&](int t) { return below_[static_cast<std::size_t>(t)] != 0; });
+    settle_islands(seeds, out, candidates);
   }
   // Every driven vertex and rigid group is looked at again (few, each a local search): a cut
   // may have separated a driven vertex from its driver's piece without touching the driver.
@@ -105,6 +125,47 @@ void EmbeddedElementTracker::update(const TetMesh& mesh, const std::vector<int>&
   out.driven.clear();
   out.rigid_groups.clear();
   resolve(mesh, std::move(candidates), out);
+}
+
+void EmbeddedElementTracker::face_neighbours(int t, std::vector<int>& out) const {
+  out.clear();
+  const auto& tet = tets_[static_cast<std::size_t>(t)];
+  for (int skip = 0; skip < 4; ++skip) {
+    const int a = tet[static_cast<std::size_t>((skip + 1) % 4)], b = tet[static_cast<std::size_t>((skip + 2) % 4)],
+              c = tet[static_cast<std::size_t>((skip + 3) % 4)];
+    for (int u : vertex_tets_[static_cast<std::size_t>(a)]) {
+      if (u == t) continue;
+      const auto& o = tets_[static_cast<std::size_t>(u)];
+      const bool has_b = std::find(o.begin(), o.end(), b) != o.end(), has_c = std::find(o.begin(), o.end(), c) != o.end();
+      if (has_b && has_c) out.push_back(u);
+    }
+  }
+}
+
+void EmbeddedElementTracker::settle_islands(const std::vector<int>& seeds, EmbeddedElements& out, std::vector<int>& candidates) {
+  std::unordered_set<int> settled;
+  std::vector<int> component, nb;
+  for (int seed : seeds) {
+    if (settled.count(seed)) continue;
+    // Breadth-first through face neighbours that are not below the bound, up to one more
+    // than an island may hold.
+    component.assign(1, seed);
+    std::unordered_set<int> seen{seed};
+    for (std::size_t k = 0; k < component.size() && static_cast<int>(component.size()) <= kMaxIslandTets; ++k) {
+      face_neighbours(component[k], nb);
+      for (int u : nb)
+        if (!below_[static_cast<std::size_t>(u)] && seen.insert(u).second) component.push_back(u);
+    }
+    const bool island = static_cast<int>(component.size()) <= kMaxIslandTets;
+    for (int t : component) {
+      settled.insert(t);  // all in one component: an island, or part of one larger than an island
+      const std::uint8_t flag = island || below_[static_cast<std::size_t>(t)] ? 1 : 0;
+      if (out.passive[static_cast<std::size_t>(t)] != flag) {
+        out.passive[static_cast<std::size_t>(t)] = flag;
+        for (int w : tets_[static_cast<std::size_t>(t)]) candidates.push_back(w);
+      }
+    }
+  }
 }
 
 void EmbeddedElementTracker::resolve(const TetMesh& mesh, std::vector<int> candidates, EmbeddedElements& out) {
@@ -125,25 +186,32 @@ void EmbeddedElementTracker::resolve(const TetMesh& mesh, std::vector<int> candi
   std::vector<int> frontier, next, found;
   for (int v : candidates) {
     if (fixed_[static_cast<std::size_t>(v)] || grouped.count(v) || vertex_tets_[static_cast<std::size_t>(v)].empty() || has_active(v)) continue;
-    // Breadth-first over passive tets sharing a vertex (pieces share no vertex: a cut
-    // duplicates them), up to the first layer that reaches active tets.
+    // Breadth-first over tets sharing a vertex (pieces share no vertex: a cut duplicates
+    // them), so the driver is always in the vertex's piece.
     visited.clear();
     frontier = vertex_tets_[static_cast<std::size_t>(v)];
     for (int t : frontier) visited.insert(t);
     found.clear();
-    while (!frontier.empty() && found.empty() && static_cast<int>(visited.size()) <= kMaxEmbeddingSearch) {
+    // The driver: among the active tets near the vertex (from the first layer that reaches
+    // active tets on, one layer further through active tets too), those that hold it with
+    // little extrapolation (every barycentric weight >= kAcceptableWeight: a driver much
+    // smaller than its distance would amplify its motion) and of them the largest (it takes
+    // the vertex's mass: a tiny tet would carry far more than its own). None acceptable:
+    // up to kMoreLayers further layers, then the least extrapolating one.
+    constexpr double kAcceptableWeight = -0.25;
+    constexpr int kMoreLayers = 3;
+    DrivenVertex best, best_any;
+    double best_volume = -1.0, best_score = -1e300;
+    int layers = -1;
+    while (!frontier.empty() && static_cast<int>(visited.size()) <= kMaxEmbeddingSearch) {
       next.clear();
+      found.clear();
       for (int t : frontier)
         for (int u : tets_[static_cast<std::size_t>(t)])
           for (int t2 : vertex_tets_[static_cast<std::size_t>(u)]) {
             if (!visited.insert(t2).second) continue;
             (passive(t2) ? next : found).push_back(t2);
           }
-      frontier.swap(next);
-    }
-    if (!found.empty()) {
-      DrivenVertex best;
-      double best_score = -1e300;
       for (int t : found) {
         const auto& tet = tets_[static_cast<std::size_t>(t)];
         Eigen::Matrix3d M;
@@ -151,18 +219,27 @@ void EmbeddedElementTracker::resolve(const TetMesh& mesh, std::vector<int> candi
         const Eigen::Vector3d w123 = M.inverse() * (X.col(v) - X.col(tet[0]));
         const std::array<double, 4> w{{1.0 - w123.sum(), w123[0], w123[1], w123[2]}};
         const double score = *std::min_element(w.begin(), w.end());
-        if (std::isfinite(score) && score > best_score) {
+        if (!std::isfinite(score)) continue;
+        const DrivenVertex candidate{v, t, tet, w};
+        if (score > best_score) {
           best_score = score;
-          best.vertex = v;
-          best.driver_tet = t;
-          best.drivers = tet;
-          best.weights = w;
+          best_any = candidate;
+        }
+        const double volume = M.determinant() / 6.0;
+        if (score >= kAcceptableWeight && volume > best_volume) {
+          best_volume = volume;
+          best = candidate;
         }
       }
-      if (best.vertex >= 0) {
-        out.driven.push_back(best);
-        continue;
-      }
+      if (best_any.vertex >= 0) ++layers;
+      if ((best.vertex >= 0 && layers >= 1) || layers >= kMoreLayers) break;
+      if (best_any.vertex >= 0) next.insert(next.end(), found.begin(), found.end());  // on through the active tets
+      frontier.swap(next);
+    }
+    if (best.vertex < 0) best = best_any;
+    if (best.vertex >= 0) {
+      out.driven.push_back(best);
+      continue;
     }
     // No active tet in reach: the passive region moves as one rigid body.
     RigidGroup g;
@@ -221,12 +298,15 @@ void EmbeddedMotion::move_mass(std::initializer_list<Eigen::VectorXd*> arrays, s
   moved_groups_.clear();
   if (!active_) return;
   const Eigen::VectorXd& mass = **arrays.begin();
-  // Weights that move the mass: the driving weights, unless one would leave a driver with
-  // no mass (a vertex far outside its driver tet): then the clamped, renormalised ones.
+  // Weights that move the mass: the driving weights when the vertex lies in its driver tet
+  // (then mass, momentum and gravity are exactly those of the vertex moving with it); for a
+  // vertex outside it (a negative weight) the clamped, renormalised ones, so that no driver
+  // loses mass (total mass and gravity kept; momentum to the extrapolation's first order).
   for (const DrivenVertex& d : driven_) {
     DrivenVertex m = d;
     bool ok = true;
-    for (int k = 0; k < 4; ++k) ok = ok && mass[d.drivers[static_cast<std::size_t>(k)]] + d.weights[static_cast<std::size_t>(k)] * mass[d.vertex] > 0.0;
+    for (int k = 0; k < 4; ++k) ok = ok && d.weights[static_cast<std::size_t>(k)] >= 0.0;
+    (void)mass;
     if (!ok) {
       double sum = 0.0;
       for (double& w : m.weights) sum += (w = std::max(w, 0.0));

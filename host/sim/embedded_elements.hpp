@@ -55,6 +55,10 @@ struct EmbeddedElements {
 // Tets searched from a vertex for an active tet of its piece before the search gives up
 // (the region searched then moves rigidly; docs/cut.md).
 constexpr int kMaxEmbeddingSearch = 4096;
+// Well-shaped tets face-connected to at most this many others through well-shaped tets (an
+// "island" that the slivers around it cut off from the elastic body of its piece) are
+// embedded too: elastically they would float free inside their piece (docs/cut.md).
+constexpr int kMaxIslandTets = 64;
 
 // Keeps EmbeddedElements for a mesh that cuts change: build() once (O(mesh)), update()
 // after each topology change (O(changed tets + driven vertices and rigid groups, each with
@@ -72,7 +76,13 @@ class EmbeddedElementTracker {
 
  private:
   void resolve(const TetMesh& mesh, std::vector<int> candidates, EmbeddedElements& out);
+  // Islands: well-shaped tets reached from `seeds` through face neighbours that are not
+  // below the bound; components of at most kMaxIslandTets become passive, larger ones
+  // elastic. Appends the vertices of tets whose flag changed to candidates.
+  void settle_islands(const std::vector<int>& seeds, EmbeddedElements& out, std::vector<int>& candidates);
+  void face_neighbours(int t, std::vector<int>& out) const;
   double min_deg_ = 0.0;
+  std::vector<char> below_;  // per tet: below the quality bound (passive = below_ or in an island)
   std::vector<std::array<int, 4>> tets_;
   std::vector<std::vector<int>> vertex_tets_;
   std::vector<char> fixed_;
