@@ -1,5 +1,7 @@
 #include "host/sim/embedded_elements.hpp"
 
+#include "host/sim/tissue_model.hpp"
+
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
 
@@ -39,6 +41,12 @@ double tet_min_dihedral_deg(const Eigen::Matrix3Xd& x, const std::array<int, 4>&
   return tet_min_dihedral_deg(x.col(tet[0]), x.col(tet[1]), x.col(tet[2]), x.col(tet[3]));
 }
 
+namespace {
+double edge_volume(const Eigen::Matrix3Xd& X, const std::array<int, 4>& q) {
+  return (X.col(q[1]) - X.col(q[0])).dot((X.col(q[2]) - X.col(q[0])).cross(X.col(q[3]) - X.col(q[0]))) / 6.0;
+}
+}  // namespace
+
 int EmbeddedElements::passive_count() const {
   return static_cast<int>(std::count_if(passive.begin(), passive.end(), [](std::uint8_t p) { return p != 0; }));
 }
@@ -52,6 +60,7 @@ void EmbeddedElementTracker::build(const TetMesh& mesh, const std::vector<int>& 
   const int n = mesh.num_vertices(), nt = mesh.num_tets();
   out = EmbeddedElements{};
   out.min_dihedral_deg = min_deg_;
+  passive_added_.clear();
   tets_ = mesh.tets;
   vertex_tets_.assign(static_cast<std::size_t>(n), {});
   fixed_.assign(static_cast<std::size_t>(n), 0);
@@ -60,8 +69,10 @@ void EmbeddedElementTracker::build(const TetMesh& mesh, const std::vector<int>& 
   if (min_deg_ <= 0.0) return;  // off: every tet elastic, nothing kept
   out.passive.assign(static_cast<std::size_t>(nt), 0);
   below_.assign(static_cast<std::size_t>(nt), 0);
+  volume_.assign(static_cast<std::size_t>(nt), 0.0);
   for (int t = 0; t < nt; ++t) {
     for (int w : tets_[static_cast<std::size_t>(t)]) vertex_tets_[static_cast<std::size_t>(w)].push_back(t);
+    volume_[static_cast<std::size_t>(t)] = edge_volume(mesh.rest_positions_World_mm, tets_[static_cast<std::size_t>(t)]);
     below_[static_cast<std::size_t>(t)] = tet_min_dihedral_deg(mesh.rest_positions_World_mm, tets_[static_cast<std::size_t>(t)]) < min_deg_ ? 1 : 0;
     out.passive[static_cast<std::size_t>(t)] = below_[static_cast<std::size_t>(t)];
   }
@@ -76,6 +87,7 @@ void EmbeddedElementTracker::build(const TetMesh& mesh, const std::vector<int>& 
     if (out.passive[static_cast<std::size_t>(t)])
       for (int w : tets_[static_cast<std::size_t>(t)]) candidates.push_back(w);
   resolve(mesh, std::move(candidates), out);
+  share_passive_mass(mesh, out);
 }
 
 void EmbeddedElementTracker::update(const TetMesh& mesh, const std::vector<int>& changed_tets, const std::vector<int>& fixed_vertices,
@@ -89,6 +101,8 @@ void EmbeddedElementTracker::update(const TetMesh& mesh, const std::vector<int>&
     if (*it < n) fixed_[static_cast<std::size_t>(*it)] = 1;
   out.passive.resize(static_cast<std::size_t>(nt), 0);
   below_.resize(static_cast<std::size_t>(nt), 0);
+  volume_.resize(static_cast<std::size_t>(nt), 0.0);
+  passive_added_.clear();
   std::vector<int> candidates;
   const std::size_t nt_old = tets_.size();
   tets_.resize(static_cast<std::size_t>(nt), {{-1, -1, -1, -1}});
@@ -107,6 +121,8 @@ void EmbeddedElementTracker::update(const TetMesh& mesh, const std::vector<int>&
     }
     below_[static_cast<std::size_t>(t)] = tet_min_dihedral_deg(mesh.rest_positions_World_mm, tet) < min_deg_ ? 1 : 0;
     out.passive[static_cast<std::size_t>(t)] = below_[static_cast<std::size_t>(t)];
+    passive_added_.push_back(t);  // checked against the flag when shared
+    volume_[static_cast<std::size_t>(t)] = edge_volume(mesh.rest_positions_World_mm, tet);
   }
   {  // islands among the changed tets and their face neighbours
     std::vector<int> seeds, nb;
@@ -118,13 +134,66 @@ void EmbeddedElementTracker::update(const TetMesh& mesh, const std::vector<int>&
     std::erase_if(seeds, [&](int t) { return below_[static_cast<std::size_t>(t)] != 0; });
     settle_islands(seeds, out, candidates);
   }
-  // Every driven vertex and rigid group is looked at again (few, each a local search): a cut
-  // may have separated a driven vertex from its driver's piece without touching the driver.
-  for (const DrivenVertex& d : out.driven) candidates.push_back(d.vertex);
-  for (const RigidGroup& g : out.rigid_groups) candidates.insert(candidates.end(), g.vertices.begin(), g.vertices.end());
-  out.driven.clear();
+  // Driven vertices and rigid groups near the change are looked at again (a cut may have
+  // separated a driven vertex from its driver's piece without touching the driver tet, but
+  // not without changing tets around the two): those with a changed vertex in the driver
+  // tet or among the vertices of their own tets; every rigid group (few).
+  std::sort(candidates.begin(), candidates.end());
+  candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+  auto changed_vertex = [&](int w) { return std::binary_search(candidates.begin(), candidates.end(), w); };
+  std::vector<int> again;
+  for (const DrivenVertex& d : out.driven) {
+    bool near = changed_vertex(d.vertex) || static_cast<std::size_t>(d.driver_tet) >= tets_.size() || tets_[static_cast<std::size_t>(d.driver_tet)] != d.drivers;
+    for (int k = 0; k < 4 && !near; ++k) near = changed_vertex(d.drivers[static_cast<std::size_t>(k)]);
+    for (int t : vertex_tets_[static_cast<std::size_t>(d.vertex)])
+      for (int k = 0; k < 4 && !near; ++k) near = changed_vertex(tets_[static_cast<std::size_t>(t)][static_cast<std::size_t>(k)]);
+    if (near) again.push_back(d.vertex);
+  }
+  for (const RigidGroup& g : out.rigid_groups) again.insert(again.end(), g.vertices.begin(), g.vertices.end());
   out.rigid_groups.clear();
+  candidates.insert(candidates.end(), again.begin(), again.end());
   resolve(mesh, std::move(candidates), out);
+  share_passive_mass(mesh, out);
+}
+
+void EmbeddedElementTracker::share_passive_mass(const TetMesh& mesh, EmbeddedElements& out) const {
+  // O(passive tets x their vertices' degree): the passive tets are the cut's, not the mesh.
+  auto volume = [&](int t) { return volume_[static_cast<std::size_t>(t)]; };
+  std::unordered_map<int, double> support_of;
+  std::vector<int> passive_tets;
+  if (out.passive_mass.empty()) {  // build: scan once
+    for (std::size_t t = 0; t < out.passive.size(); ++t)
+      if (out.passive[t]) passive_tets.push_back(static_cast<int>(t));
+  } else {
+    for (const PassiveMass& p : out.passive_mass) passive_tets.push_back(p.tet);
+  }
+  // Tets made passive since: found from the vertices of the driven set and the flags near
+  // them is not enough, so update() records them (passive_added_).
+  passive_tets.insert(passive_tets.end(), passive_added_.begin(), passive_added_.end());
+  std::sort(passive_tets.begin(), passive_tets.end());
+  passive_tets.erase(std::unique(passive_tets.begin(), passive_tets.end()), passive_tets.end());
+  out.passive_mass.clear();
+  for (int t : passive_tets) {
+    if (!out.is_passive(t)) continue;
+    PassiveMass p;
+    p.tet = t;
+    p.region = mesh.tet_region.empty() ? 0 : mesh.tet_region[static_cast<std::size_t>(t)];
+    p.volume_mm3 = volume(t);
+    p.v = tets_[static_cast<std::size_t>(t)];
+    double sum = 0.0;
+    for (int k = 0; k < 4; ++k) {
+      const int w = p.v[static_cast<std::size_t>(k)];
+      auto [it, fresh] = support_of.emplace(w, 0.0);
+      if (fresh)
+        for (int u : vertex_tets_[static_cast<std::size_t>(w)])
+          if (!out.is_passive(u)) it->second += 0.25 * volume(u);
+      const double support = it->second;
+      p.share[static_cast<std::size_t>(k)] = support;
+      sum += support;
+    }
+    for (double& sh : p.share) sh = sum > 0.0 ? sh / sum : 0.25;
+    out.passive_mass.push_back(p);
+  }
 }
 
 void EmbeddedElementTracker::face_neighbours(int t, std::vector<int>& out) const {
@@ -162,6 +231,7 @@ void EmbeddedElementTracker::settle_islands(const std::vector<int>& seeds, Embed
       const std::uint8_t flag = island || below_[static_cast<std::size_t>(t)] ? 1 : 0;
       if (out.passive[static_cast<std::size_t>(t)] != flag) {
         out.passive[static_cast<std::size_t>(t)] = flag;
+        if (flag) passive_added_.push_back(t);
         for (int w : tets_[static_cast<std::size_t>(t)]) candidates.push_back(w);
       }
     }
@@ -264,10 +334,11 @@ void EmbeddedElementTracker::resolve(const TetMesh& mesh, std::vector<int> candi
 void EmbeddedMotion::reset(const EmbeddedElements& embedded, const Eigen::Matrix3Xd& rest, const Eigen::Matrix3Xd& x,
                            const Eigen::Matrix3Xd& v) {
   const int n = static_cast<int>(rest.cols());
-  active_ = !embedded.driven.empty() || !embedded.rigid_groups.empty();
+  active_ = !embedded.driven.empty() || !embedded.rigid_groups.empty() || !embedded.passive_mass.empty();
   if (!active_ && held_.empty()) return;
   held_.assign(static_cast<std::size_t>(n), 0);
   driven_ = embedded.driven;
+  passive_mass_ = embedded.passive_mass;
   for (const DrivenVertex& d : driven_) held_[static_cast<std::size_t>(d.vertex)] = 1;
   std::vector<Body> bodies;
   for (const RigidGroup& g : embedded.rigid_groups) {
@@ -292,11 +363,31 @@ void EmbeddedMotion::reset(const EmbeddedElements& embedded, const Eigen::Matrix
   bodies_ = std::move(bodies);
 }
 
-void EmbeddedMotion::move_mass(std::initializer_list<Eigen::VectorXd*> arrays, std::vector<int>& touched) {
+void EmbeddedMotion::move_mass(std::initializer_list<Eigen::VectorXd*> arrays, std::vector<int>& touched,
+                               const std::vector<Material>* materials) {
   moved_.assign(arrays.size(), {});
   moved_driven_.clear();
   moved_groups_.clear();
+  shared_v_.clear();
+  shared_.assign(arrays.size(), {});
   if (!active_) return;
+  if (materials) {  // passive tets' mass re-shared by support (PassiveMass)
+    for (const PassiveMass& p : passive_mass_) {
+      const Material& mat = (*materials)[static_cast<std::size_t>(p.region)];
+      shared_v_.push_back(p.v);
+      std::size_t a = 0;
+      for (Eigen::VectorXd* arr : arrays) {
+        const double m = (a == 0 ? 1.0 : mat.damping_mass_per_s) * mat.density_kg_per_mm3 * p.volume_mm3;
+        std::array<double, 4> amounts{};
+        for (int k = 0; k < 4; ++k) {
+          amounts[static_cast<std::size_t>(k)] = (p.share[static_cast<std::size_t>(k)] - 0.25) * m;
+          (*arr)[p.v[static_cast<std::size_t>(k)]] += amounts[static_cast<std::size_t>(k)];
+        }
+        shared_[a++].push_back(amounts);
+      }
+      touched.insert(touched.end(), p.v.begin(), p.v.end());
+    }
+  }
   const Eigen::VectorXd& mass = **arrays.begin();
   // Weights that move the mass: the driving weights when the vertex lies in its driver tet
   // (then mass, momentum and gravity are exactly those of the vertex moving with it); for a
@@ -348,6 +439,17 @@ void EmbeddedMotion::move_mass(std::initializer_list<Eigen::VectorXd*> arrays, s
 
 void EmbeddedMotion::restore_mass(std::initializer_list<Eigen::VectorXd*> arrays, std::vector<int>& touched) {
   if (moved_.size() != arrays.size()) return;  // nothing moved
+  if (shared_.size() == arrays.size()) {
+    std::size_t a = 0;
+    for (Eigen::VectorXd* arr : arrays) {
+      const auto& amounts = shared_[a++];
+      for (std::size_t i = 0; i < amounts.size(); ++i)
+        for (int k = 0; k < 4; ++k) (*arr)[shared_v_[i][static_cast<std::size_t>(k)]] -= amounts[i][static_cast<std::size_t>(k)];
+    }
+    for (const auto& v : shared_v_) touched.insert(touched.end(), v.begin(), v.end());
+  }
+  shared_.clear();
+  shared_v_.clear();
   std::size_t a = 0;
   for (Eigen::VectorXd* arr : arrays) {
     const auto& in = moved_[a++];
@@ -371,6 +473,7 @@ void EmbeddedMotion::restore_mass(std::initializer_list<Eigen::VectorXd*> arrays
 }
 
 void EmbeddedMotion::moved_vertices(std::vector<int>& out) const {
+  for (const auto& v : shared_v_) out.insert(out.end(), v.begin(), v.end());
   for (const DrivenVertex& d : moved_driven_) {
     out.push_back(d.vertex);
     out.insert(out.end(), d.drivers.begin(), d.drivers.end());
@@ -379,6 +482,7 @@ void EmbeddedMotion::moved_vertices(std::vector<int>& out) const {
 }
 
 void EmbeddedMotion::current_vertices(std::vector<int>& out) const {
+  for (const PassiveMass& p : passive_mass_) out.insert(out.end(), p.v.begin(), p.v.end());
   for (const DrivenVertex& d : driven_) {
     out.push_back(d.vertex);
     out.insert(out.end(), d.drivers.begin(), d.drivers.end());

@@ -41,12 +41,27 @@ struct RigidGroup {
   bool held = false;          // contains a fixed vertex: the whole group stays where it is
 };
 
+// Where a passive tet's mass goes: shared among its vertices in proportion to each one's
+// elastic support (the rest volume of its active tets), not a quarter each: a vertex held
+// only by tiny active tets must not carry the mass of a large sliver next to it (it would
+// sag and invert them). A tet none of whose vertices has support keeps quarters.
+struct PassiveMass {
+  int tet = -1;
+  int region = 0;
+  double volume_mm3 = 0.0;
+  std::array<int, 4> v{};
+  std::array<double, 4> share{};  // sums to 1
+};
+
+struct Material;
+
 // What SimProblem carries (empty: every tet elastic, the models as before).
 struct EmbeddedElements {
   double min_dihedral_deg = 0.0;       // the bound these flags were made with (0: off)
   std::vector<std::uint8_t> passive;   // per tet: 1 = below the bound, no elastic term (empty: none)
   std::vector<DrivenVertex> driven;    // sorted by vertex
   std::vector<RigidGroup> rigid_groups;
+  std::vector<PassiveMass> passive_mass;  // one per passive tet, sorted by tet
   bool is_passive(int tet) const { return static_cast<std::size_t>(tet) < passive.size() && passive[static_cast<std::size_t>(tet)] != 0; }
   bool any() const { return !driven.empty() || !rigid_groups.empty() || passive_count() > 0; }
   int passive_count() const;
@@ -81,8 +96,11 @@ class EmbeddedElementTracker {
   // elastic. Appends the vertices of tets whose flag changed to candidates.
   void settle_islands(const std::vector<int>& seeds, EmbeddedElements& out, std::vector<int>& candidates);
   void face_neighbours(int t, std::vector<int>& out) const;
+  void share_passive_mass(const TetMesh& mesh, EmbeddedElements& out) const;
   double min_deg_ = 0.0;
   std::vector<char> below_;  // per tet: below the quality bound (passive = below_ or in an island)
+  std::vector<int> passive_added_;  // tets made passive by the current build/update
+  std::vector<double> volume_;      // rest volume per tet
   std::vector<std::array<int, 4>> tets_;
   std::vector<std::vector<int>> vertex_tets_;
   std::vector<char> fixed_;
@@ -104,7 +122,11 @@ class EmbeddedMotion {
   // Moves the mass-like per-vertex arrays (lumped mass first, then e.g. alpha * mass): a
   // driven vertex's entry goes to its drivers by its weights, a rigid group's entries to
   // the group (array 0 is its mass). Appends the vertices whose entries changed to touched.
-  void move_mass(std::initializer_list<Eigen::VectorXd*> arrays, std::vector<int>& touched);
+  // With materials (the problem's region materials), each passive tet's lumped quarters are
+  // first re-shared (PassiveMass): array 0 takes density * volume, array 1 (if any) also
+  // alpha * density * volume.
+  void move_mass(std::initializer_list<Eigen::VectorXd*> arrays, std::vector<int>& touched,
+                 const std::vector<Material>* materials = nullptr);
   // Undoes the last move_mass exactly (before the lumped masses change).
   void restore_mass(std::initializer_list<Eigen::VectorXd*> arrays, std::vector<int>& touched);
   // After a step of dt_s: driven vertices follow their drivers (positions and velocities),
@@ -134,7 +156,10 @@ class EmbeddedMotion {
   bool active_ = false;
   std::vector<char> held_;
   std::vector<DrivenVertex> driven_;
+  std::vector<PassiveMass> passive_mass_;
   std::vector<Body> bodies_;
+  std::vector<std::array<int, 4>> shared_v_;            // what move_mass re-shared: vertices
+  std::vector<std::vector<std::array<double, 4>>> shared_;  // per array, per passive tet: amounts added
   Eigen::Matrix3Xd rest_;
   // What move_mass moved (per array: per driven vertex, then per rigid vertex).
   std::vector<std::vector<double>> moved_;

@@ -192,7 +192,7 @@ CorotationalFem::~CorotationalFem() = default;
 void CorotationalFem::apply_embedding(const SimProblem& problem, Eigen::VectorXd& mass_alpha) {
   std::vector<int> touched;
   embedded_.reset(problem.embedded, X_, x_, v_);
-  embedded_.move_mass({&mass_, &mass_alpha}, touched);
+  embedded_.move_mass({&mass_, &mass_alpha}, touched, &problem.region_materials);
 }
 
 void CorotationalFem::merge_fixed_with_embedding() {

@@ -189,7 +189,7 @@ StableNeoHookeanFem::StableNeoHookeanFem(const SimProblem& problem, const ModelC
   {
     std::vector<int> touched;
     embedded_.reset(problem.embedded, X_, x_, v_);
-    embedded_.move_mass({&mass_, &mass_alpha_}, touched);
+    embedded_.move_mass({&mass_, &mass_alpha_}, touched, &problem.region_materials);
   }
   user_fixed_.assign(nv, 0);
   for (int v : problem.fixed_vertices) user_fixed_[v] = 1;

@@ -190,7 +190,7 @@ MassSpringModel::MassSpringModel(const SimProblem& problem, Integrator integrato
   {  // embedded vertices: mass to their drivers / rigid groups, held by the solver
     std::vector<int> touched;
     embedded_.reset(problem.embedded, mesh.rest_positions_World_mm, x_, v_);
-    embedded_.move_mass({&mass_, &mass_damping_}, touched);
+    embedded_.move_mass({&mass_, &mass_damping_}, touched, &problem.region_materials);
   }
   set_fixed_vertices(problem.fixed_vertices);
   reset_ledger();
@@ -325,7 +325,7 @@ std::optional<MeshChangeStats> MassSpringModel::apply_mesh_change(const SimProbl
   for (int w : touched)
     if (!(mass_[w] > 0.0)) throw std::invalid_argument("mass_spring: vertex " + std::to_string(w) + " lost its mass in the cut");
   embedded_.reset(problem.embedded, X, x, v);
-  embedded_.move_mass({&mass_, &mass_damping_}, touched);
+  embedded_.move_mass({&mass_, &mass_damping_}, touched, &problem.region_materials);
   merge_fixed();
   std::sort(touched.begin(), touched.end());
   touched.erase(std::unique(touched.begin(), touched.end()), touched.end());

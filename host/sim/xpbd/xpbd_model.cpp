@@ -114,7 +114,7 @@ XpbdModel::XpbdModel(const SimProblem& problem, const ModelConfig& config) : con
   {  // embedded vertices: mass to their drivers / rigid groups, held by the solver
     std::vector<int> touched;
     embedded_.reset(problem.embedded, mesh.rest_positions_World_mm, x_, v_);
-    embedded_.move_mass({&mass_, &mass_damping_per_s_}, touched);
+    embedded_.move_mass({&mass_, &mass_damping_per_s_}, touched, &problem.region_materials);
   }
   for (int i = 0; i < n; ++i) mass_damping_per_s_[i] = mass_[i] > 0.0 ? mass_damping_per_s_[i] / mass_[i] : 0.0;
   const std::size_t lanes = batches_.batches.size() * static_cast<std::size_t>(xpbd::kLanes);
@@ -450,7 +450,7 @@ std::optional<MeshChangeStats> XpbdModel::apply_mesh_change(const SimProblem& pr
     if (!(mass_[w] > 0.0)) throw std::invalid_argument("xpbd: vertex " + std::to_string(w) + " lost its mass in the cut");
   {
     std::vector<int> unused;
-    embedded_.move_mass({&mass_, &mass_damping_per_s_}, unused);
+    embedded_.move_mass({&mass_, &mass_damping_per_s_}, unused, &problem.region_materials);
   }
   merge_fixed();
   // State of the touched vertices (new ones, moved ones: the cutter's), masses.
