@@ -82,6 +82,7 @@ NavigationSession::NavigationSession(const SessionConfig& config, std::unique_pt
     const CuttingSpec& spec = *scene_->cutting;
     cut::CutSessionSettings settings;
     settings.cut.snap_fraction = spec.snap_fraction;
+    settings.min_dihedral_deg = spec.min_dihedral_deg;
     settings.sweep_strips = spec.sweep_strips;
     settings.tumour_margin_mm = spec.tumour_margin_mm;
     settings.push_stiffness_mN_per_mm = spec.push_stiffness_mN_per_mm;

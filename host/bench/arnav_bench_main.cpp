@@ -105,6 +105,9 @@ static int main_body(int argc, char** argv) {
   cut->add_option("--reference", cut_options.reference_mesh, "also cut each run's path on this mesh with the same model: tumour-centroid and cut-surface error (cut_reference.csv, cut_reference.png)")
       ->check(CLI::IsMember({"coarse", "paper"}));
   cut->add_option("--frames", cut_options.max_frames, "cap the frames per run")->check(CLI::PositiveNumber);
+  cut->add_option("--min-dihedral", cut_options.min_dihedral_deg,
+                  "quality bound in degrees, overriding the scene's cutting.min_dihedral_deg (0: no embedded treatment, the elements as cut)")
+      ->check(CLI::Range(0.0, 30.0));
   std::string rebuild = "inline";
   std::string local_updates = "on";
   cut->add_flag("--fem-background-refactor", cut_options.fem_background_refactor,
@@ -244,7 +247,8 @@ static int main_body(int argc, char** argv) {
       const auto& r = rows[i];
       std::cout << (i ? "," : "") << "{\"mesh\":\"" << r.mesh << "\",\"scenario\":\"" << r.scenario << "\",\"model\":\"" << r.label
                 << "\",\"background_rebuild\":" << (r.background ? "true" : "false") << ",\"frames\":" << r.frames << ",\"topology_p99_ms\":" << r.topology_p99_ms << ",\"frame_median_ms\":" << r.frame_median_ms
-                << ",\"frame_p99_ms\":" << r.frame_p99_ms << ",\"min_dihedral_deg\":" << r.min_dihedral_deg << ",\"volume_change_rel\":"
+                << ",\"frame_p99_ms\":" << r.frame_p99_ms << ",\"min_dihedral_deg\":" << r.min_dihedral_deg << ",\"min_dihedral_active_deg\":" << r.min_dihedral_active_deg
+                << ",\"embedded_tets\":" << r.embedded_tets << ",\"embedded_volume_fraction\":" << r.embedded_volume_fraction << ",\"volume_change_rel\":"
                 << r.volume_change_rel << ",\"path_fidelity_mm\":" << r.path_fidelity_mm << ",\"completion_deviation_mm\":" << r.completion_deviation_mm << ",\"pieces\":" << r.pieces << ",\"tumours_freed\":" << r.tumours_freed << ",\"tumours_separated\":" << r.tumours_separated << ",\"freed_drop_mm\":" << r.freed_drop_mm << ",\"organ_drift_mm\":" << r.organ_drift_mm << ",\"local_updates\":" << r.local_updates << ",\"rebuilds\":" << r.rebuilds
                 << ",\"local_updates_enabled\":" << (r.local_updates_enabled ? "true" : "false") << ",\"local_median_ms\":" << r.local_median_ms
                 << ",\"local_p99_ms\":" << r.local_p99_ms << ",\"rebuild_median_ms\":" << r.rebuild_median_ms << ",\"rebuild_p99_ms\":" << r.rebuild_p99_ms

@@ -77,10 +77,12 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
         if (derived) settings.cut.side_distance_mm = 20.0;
         if (scene.cutting) {
           settings.cut.snap_fraction = scene.cutting->snap_fraction;
+          settings.min_dihedral_deg = scene.cutting->min_dihedral_deg;
           settings.cut.path_tolerance_mm = scene.cutting->path_tolerance_mm;
           settings.sweep_strips = scene.cutting->sweep_strips;
           settings.tumour_margin_mm = scene.cutting->tumour_margin_mm;
         }
+        if (o.min_dihedral_deg >= 0) settings.min_dihedral_deg = o.min_dihedral_deg;
         const std::unique_ptr<CutSession> session_ptr = make_cut_session(scene, variant.config, settings);
         CutSession& session = *session_ptr;
         CutBenchRow row;
@@ -180,6 +182,28 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
         row.rebuild_median_ms = percentile(rebuild, 0.5);
         row.rebuild_p99_ms = percentile(rebuild, 0.99);
         row.min_dihedral_deg = after.min_dihedral_deg;
+        {  // the quality bound: elastic (active) tets and the embedded ones
+          const EmbeddedElements& emb = session.embedded();
+          const TetMesh& m = session.mesh();
+          row.min_dihedral_bound_deg = settings.min_dihedral_deg;
+          row.min_dihedral_active_deg = 180.0;
+          double embedded_volume = 0.0, volume = 0.0;
+          for (int t = 0; t < m.num_tets(); ++t) {
+            const auto& tet = m.tets[static_cast<std::size_t>(t)];
+            const Eigen::Matrix3Xd& X = m.rest_positions_World_mm;
+            const double V = (X.col(tet[1]) - X.col(tet[0])).dot((X.col(tet[2]) - X.col(tet[0])).cross(X.col(tet[3]) - X.col(tet[0]))) / 6.0;
+            volume += V;
+            if (emb.is_passive(t)) {
+              ++row.embedded_tets;
+              embedded_volume += V;
+            } else {
+              row.min_dihedral_active_deg = std::min(row.min_dihedral_active_deg, tet_min_dihedral_deg(X, tet));
+            }
+          }
+          row.embedded_volume_fraction = volume > 0 ? embedded_volume / volume : 0.0;
+          row.driven_vertices = static_cast<int>(emb.driven.size());
+          row.rigid_groups = static_cast<int>(emb.rigid_groups.size());
+        }
         row.volume_change_rel = after.total_volume_mm3 / input.total_volume_mm3 - 1.0;
         row.mesh_valid = after.valid();
         row.pieces = static_cast<int>(after.piece_volume_mm3.size());
@@ -219,6 +243,7 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
                   << row.frame_thread_cpu_p99_ms << " ms), topology " << row.topology_median_ms << "/"
                   << row.topology_p99_ms << " ms, local update " << row.local_median_ms << "/" << row.local_p99_ms << " ms (" << row.local_updates
                   << "), rebuild " << row.rebuild_median_ms << " ms (" << row.rebuilds << "), pieces " << row.pieces << ", tumours freed " << row.tumours_freed << ", separated " << row.tumours_separated << (derived ? ", freed block dropped " + std::to_string(row.freed_drop_mm) + " mm, organ drift " + std::to_string(row.organ_drift_mm) + " mm" : std::string()) << ", min dihedral " << row.min_dihedral_deg
+                  << " (active " << row.min_dihedral_active_deg << ", embedded " << row.embedded_tets << " tets, " << row.driven_vertices << " driven, " << row.rigid_groups << " rigid)"
                   << (row.healthy ? "" : " UNHEALTHY: " + row.warning) << "\n";
         if (compare)
           std::cerr << "arnav-bench cut:   against the rebuilt run: state difference " << row.state_diff_max_mm << " mm at most, "
@@ -236,6 +261,7 @@ void write_cut_csv(const std::string& path, const std::vector<CutBenchRow>& rows
   if (!out) throw std::runtime_error("cannot write " + path + ": check the folder");
   out << "mesh,scenario,model,background_rebuild,tets_before,tets_after,vertices_after,frames,topology_changes,new_tets,topology_median_ms,topology_p99_ms,"
          "topology_max_ms,frame_median_ms,frame_p99_ms,rebuild_median_ms,rebuild_p99_ms,min_dihedral_input_deg,min_dihedral_deg,"
+         "min_dihedral_bound_deg,min_dihedral_active_deg,embedded_tets,embedded_volume_fraction,driven_vertices,rigid_groups,"
          "volume_change_rel,path_fidelity_mm,completion_deviation_mm,completed_tets,pieces,free_pieces,tumours_freed,tumours_separated,freed_drop_mm,organ_drift_mm,ring_radius_mm,local_updates,local_median_ms,local_p99_ms,rebuilds,events,mesh_valid,healthy,warning,"
          "local_updates_enabled,state_diff_max_mm,state_diff_final_mm,state_compared_frames,frame_thread_cpu_median_ms,frame_thread_cpu_p99_ms\n";
   for (const auto& r : rows) {
@@ -244,7 +270,9 @@ void write_cut_csv(const std::string& path, const std::vector<CutBenchRow>& rows
     out << r.mesh << ',' << r.scenario << ',' << r.label << ',' << (r.background ? 1 : 0) << ',' << r.tets_before << ',' << r.tets_after << ',' << r.vertices_after << ','
         << r.frames << ',' << r.topology_changes << ',' << r.new_tets << ',' << r.topology_median_ms << ',' << r.topology_p99_ms << ','
         << r.topology_max_ms << ',' << r.frame_median_ms << ',' << r.frame_p99_ms << ',' << r.rebuild_median_ms << ',' << r.rebuild_p99_ms
-        << ',' << r.min_dihedral_input_deg << ',' << r.min_dihedral_deg << ',' << r.volume_change_rel << ',' << r.path_fidelity_mm << ','
+        << ',' << r.min_dihedral_input_deg << ',' << r.min_dihedral_deg << ',' << r.min_dihedral_bound_deg << ',' << r.min_dihedral_active_deg
+        << ',' << r.embedded_tets << ',' << r.embedded_volume_fraction << ',' << r.driven_vertices << ',' << r.rigid_groups
+        << ',' << r.volume_change_rel << ',' << r.path_fidelity_mm << ','
         << r.completion_deviation_mm << ',' << r.completed_tets << ',' << r.pieces << ',' << r.free_pieces << ',' << r.tumours_freed << ',' << r.tumours_separated << ',' << r.freed_drop_mm << ',' << r.organ_drift_mm << ',' << r.ring_radius_mm << ',' << r.local_updates << ',' << r.local_median_ms << ',' << r.local_p99_ms << ',' << r.rebuilds << ',' << r.events << ',' << (r.mesh_valid ? 1 : 0) << ','
         << (r.healthy ? 1 : 0) << ',' << warning << ',' << (r.local_updates_enabled ? 1 : 0) << ',' << r.state_diff_max_mm << ','
         << r.state_diff_final_mm << ',' << r.state_compared_frames << ',' << r.frame_thread_cpu_median_ms << ',' << r.frame_thread_cpu_p99_ms << '\n';

@@ -27,6 +27,7 @@ struct CutBenchOptions {
   // real-time setting, docs/sim-fem.md) instead of model_variants()' inline refactorisation;
   // its label gains "+background_refactor".
   bool fem_background_refactor = false;
+  double min_dihedral_deg = -1;                                // >= 0: overrides the scene's cutting.min_dihedral_deg (0: treatment off)
 };
 
 struct CutBenchRow {
@@ -44,7 +45,13 @@ struct CutBenchRow {
   double frame_median_ms = 0, frame_p99_ms = 0;
   double frame_thread_cpu_median_ms = 0, frame_thread_cpu_p99_ms = 0;  // CPU time of the stepping thread per frame (workers not counted)
   double rebuild_median_ms = 0, rebuild_p99_ms = 0;  // over frames with a topology change
-  double min_dihedral_input_deg = 0, min_dihedral_deg = 0;
+  double min_dihedral_input_deg = 0, min_dihedral_deg = 0;  // every tet (raw)
+  // Quality bound (docs/cut.md "Element quality"): the bound, the smallest dihedral angle of
+  // the elastic (active) tets, and the tets below it (embedded: no elastic term) with their
+  // share of the volume, the vertices they drive and the rigid pieces.
+  double min_dihedral_bound_deg = 0, min_dihedral_active_deg = 0;
+  int embedded_tets = 0, driven_vertices = 0, rigid_groups = 0;
+  double embedded_volume_fraction = 0;
   double volume_change_rel = 0;                      // rest volume after / before - 1
   double path_fidelity_mm = 0;                       // largest distance of a cut point from the swept surface (same instant)
   double completion_deviation_mm = 0;                // completed tets: largest distance of a point from their recorded points' plane

@@ -88,7 +88,8 @@ CutSession::CutSession(const SimProblem& problem, const ModelConfig& config, con
       tumour_input_(std::move(tumours)),
       tumour_input_tris_(std::move(tumour_tris)),
       vessel_input_(std::move(vessels)),
-      vessel_input_segments_(std::move(vessel_segments)) {
+      vessel_input_segments_(std::move(vessel_segments)),
+      quality_(settings.min_dihedral_deg) {
   if (settings_.sweep_strips < 1) throw std::invalid_argument("cutting: sweep_strips must be >= 1");
   if (!(settings_.tumour_margin_mm >= 0.0)) throw std::invalid_argument("cutting: tumour_margin_mm must be >= 0");
   if (!(settings_.push_stiffness_mN_per_mm > 0.0)) throw std::invalid_argument("cutting: push_stiffness_mN_per_mm must be > 0");
@@ -119,6 +120,7 @@ CutSession::CutSession(const SimProblem& problem, const ModelConfig& config, con
   for (const auto& t : tumour_input_) tumour_region_.push_back(near(t.rest_World_mm));
   if (vessel_input_) vessel_region_ = near(vessel_input_->rest_World_mm);
   tumour_edges_cut_.assign(tumour_input_.size(), 0);
+  quality_.build(problem_.mesh, problem_.fixed_vertices, problem_.embedded);  // tets below the quality bound
   model_ = make_tissue_model(problem_, config_);
   surface_ = SurfaceTracker(problem_.mesh);
   n0_ = problem_.mesh.num_vertices();
@@ -156,9 +158,21 @@ void CutSession::rebuild_model(const CutStepReport& step, const Eigen::Matrix3Xd
     if (fixed) problem_.fixed_vertices.push_back(old_vertices + static_cast<int>(i));
     origins_.push_back(o);
   }
+  // Tets below the quality bound among the changed ones, and what drives their vertices.
+  // Islands of good tets cut off by slivers can change the flag of tets the cut did not
+  // touch: the models re-make those too (their element data follow the flag).
+  const std::vector<std::uint8_t> passive_before = problem_.embedded.passive;
+  quality_.update(cutter_.mesh(), step.changed_tets, problem_.fixed_vertices, problem_.embedded);
+  std::vector<int> model_changed = step.changed_tets;
+  for (std::size_t t = 0; t < passive_before.size(); ++t)
+    if (problem_.embedded.is_passive(static_cast<int>(t)) != (passive_before[t] != 0)) model_changed.push_back(static_cast<int>(t));
+  if (model_changed.size() != step.changed_tets.size()) {
+    std::sort(model_changed.begin(), model_changed.end());
+    model_changed.erase(std::unique(model_changed.begin(), model_changed.end()), model_changed.end());
+  }
   // In place where the model can (work in the changed tets), while no background build runs.
   if (settings_.local_updates && !build_.valid() && static_cast<int>(model_->positions_World_mm().cols()) == old_vertices && sync_mesh(step)) {
-    if (const auto stats = model_->apply_mesh_change(problem_, step.changed_tets, x, v)) {
+    if (const auto stats = model_->apply_mesh_change(problem_, model_changed, x, v)) {
       report.local_update = true;
       report.local = *stats;
       ++local_updates_;

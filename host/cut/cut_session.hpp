@@ -47,6 +47,10 @@ struct CutSessionSettings {
   // Update the model in place after a cut (TissueModel::apply_mesh_change: work in the tets
   // the cut changed) where the model can; the others are rebuilt (above).
   bool local_updates = true;
+  // Quality bound (docs/cut.md "Element quality"): tets whose smallest dihedral angle is
+  // below it carry no elastic term; their lone vertices are driven by a well-shaped tet of
+  // their piece, pieces of such tets only move rigidly (SimProblem::embedded). 0: off.
+  double min_dihedral_deg = 5.0;
 };
 
 // A closed surface or a polyline carried by the volume (tumour, vessel centerlines), in its
@@ -132,6 +136,8 @@ class CutSession {
   const std::optional<SweptSurface>& last_sweep() const { return last_sweep_; }
   int rebuilds() const { return rebuilds_; }
   int local_updates() const { return local_updates_; }
+  // Tets below the quality bound and what moves their lone vertices (what the model got).
+  const EmbeddedElements& embedded() const { return problem_.embedded; }
 
  private:
   void rebuild_model(const CutStepReport& step, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, CutFrameReport& report);
@@ -185,6 +191,7 @@ class CutSession {
   int rebuilds_ = 0;
   int local_updates_ = 0;
   bool sync_mesh(const CutStepReport& step);  // problem_.mesh follows the cutter's in O(changed tets)
+  EmbeddedElementTracker quality_;             // problem_.embedded, updated from the changed tets
 };
 
 // A cut session on a loaded scene: its tumours and vessels carried through the cuts (one

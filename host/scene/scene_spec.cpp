@@ -397,7 +397,8 @@ SceneSpec parse_scene_spec(const std::string& yaml_text, const std::string& sour
     for (const auto& kv : root)
       if (kv.first.Scalar() == "cutting") cs.line = kv.first.Mark().line + 1;
     if (!c.IsNull()) {
-      r.keys(c, {"blade", "tumour_margin_mm", "snap_fraction", "path_tolerance_mm", "sweep_strips", "push_stiffness_mN_per_mm"}, "cutting");
+      r.keys(c, {"blade", "tumour_margin_mm", "snap_fraction", "path_tolerance_mm", "sweep_strips", "push_stiffness_mN_per_mm", "min_dihedral_deg"},
+             "cutting");
       if (const YAML::Node b = c["blade"]) {
         r.keys(b, {"tip_mm", "heel_mm"}, "cutting.blade");
         if (b["tip_mm"]) cs.blade_tip_Tool_mm = r.vec3(b["tip_mm"], "cutting.blade.tip_mm");
@@ -421,6 +422,12 @@ SceneSpec parse_scene_spec(const std::string& yaml_text, const std::string& sour
       }
       if (c["sweep_strips"]) cs.sweep_strips = static_cast<int>(r.integer(c["sweep_strips"], "cutting.sweep_strips", 1, 256));
       cs.push_stiffness_mN_per_mm = r.positive(c, "push_stiffness_mN_per_mm", cs.push_stiffness_mN_per_mm, "cutting");
+      if (c["min_dihedral_deg"]) {
+        cs.min_dihedral_deg = r.number(c["min_dihedral_deg"], "cutting.min_dihedral_deg");
+        if (!(cs.min_dihedral_deg >= 0 && cs.min_dihedral_deg <= 30))
+          r.fail(c["min_dihedral_deg"], "cutting.min_dihedral_deg must be in [0, 30]",
+                 "5: tets flatter than 5 degrees carry no elastic term (0 switches the treatment off)");
+      }
     }
     s.cutting = cs;
   }

@@ -86,6 +86,10 @@ struct CuttingSpec {
   double path_tolerance_mm = 0.1;         // a vertex that cannot move onto the cut snaps only this close to it (path fidelity)
   int sweep_strips = 8;                   // strips of the swept surface
   double push_stiffness_mN_per_mm = 50.0; // contact spring when cutting is off
+  // Quality bound (docs/cut.md "Element quality"): tets whose smallest dihedral angle is
+  // below it carry no elastic term in the models (embedded; host/sim/embedded_elements.hpp).
+  // 0 switches the treatment off.
+  double min_dihedral_deg = 5.0;
   int line = 0;
 };
 

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "host/scene/tet_mesh.hpp"
+#include "host/sim/embedded_elements.hpp"
 
 namespace arnav::host {
 
@@ -31,6 +32,9 @@ struct SimProblem {
   Eigen::Vector3d gravity_World_mm_s2 = Eigen::Vector3d(0, 0, -9810.0);
   std::optional<VesselTree> vessels;          // beams coupled to the volume when present
   Material vessel_material{.youngs_modulus_kPa = 500.0, .poisson_ratio = 0.45};
+  // Tets below a quality bound: no elastic term; vertices in no other tet driven by an
+  // active tet of their piece or moved rigidly (embedded_elements.hpp). Empty: none.
+  EmbeddedElements embedded;
 };
 
 // A material point: barycentric combination of mesh vertices (a vertex, or a point in a tet).

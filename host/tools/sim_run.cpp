@@ -45,6 +45,7 @@ SimRunResult run_scene_with_scalpel(const Scene& scene, const SimRunOptions& o, 
   const CuttingSpec& spec = *scene.cutting;
   CutSessionSettings settings;
   settings.cut.snap_fraction = spec.snap_fraction;
+  settings.min_dihedral_deg = spec.min_dihedral_deg;
   settings.cut.path_tolerance_mm = spec.path_tolerance_mm;
   settings.sweep_strips = spec.sweep_strips;
   settings.tumour_margin_mm = spec.tumour_margin_mm;

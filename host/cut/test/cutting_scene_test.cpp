@@ -29,6 +29,7 @@ TEST(CuttingSection, OnlyWhenDeclaredWithDefaults) {
   EXPECT_EQ(s.cutting->tumour_margin_mm, 10.0);
   EXPECT_EQ(s.cutting->snap_fraction, 0.1);
   EXPECT_EQ(s.cutting->path_tolerance_mm, 0.1);
+  EXPECT_EQ(s.cutting->min_dihedral_deg, 5.0);
   EXPECT_EQ(s.cutting->line, 6);
   const SceneSpec t = parse_scene_spec(kBase + "cutting:\n  blade: {tip_mm: [1, 2, 3], heel_mm: [1, 2, 33]}\n  tumour_margin_mm: 5\n"
                                                "  snap_fraction: 0.2\n  path_tolerance_mm: 0.05\n  sweep_strips: 4\n  push_stiffness_mN_per_mm: 10\n", "s.yaml");
@@ -38,6 +39,8 @@ TEST(CuttingSection, OnlyWhenDeclaredWithDefaults) {
   EXPECT_EQ(t.cutting->path_tolerance_mm, 0.05);
   EXPECT_EQ(t.cutting->sweep_strips, 4);
   EXPECT_EQ(t.cutting->push_stiffness_mN_per_mm, 10.0);
+  EXPECT_EQ(parse_scene_spec(kBase + "cutting:\n  min_dihedral_deg: 2.5\n", "s.yaml").cutting->min_dihedral_deg, 2.5);
+  EXPECT_EQ(parse_scene_spec(kBase + "cutting:\n  min_dihedral_deg: 0\n", "s.yaml").cutting->min_dihedral_deg, 0.0);  // off
 }
 
 TEST(CuttingSection, ErrorsNameTheLine) {
@@ -49,6 +52,9 @@ TEST(CuttingSection, ErrorsNameTheLine) {
             std::string::npos);
   EXPECT_NE(error_of(kBase + "cutting:\n  sweep_strips: 0\n").find("s.yaml:7: cutting.sweep_strips = 0 is out of range"), std::string::npos);
   EXPECT_NE(error_of(kBase + "cutting:\n  push_stiffness_mN_per_mm: 0\n").find("must be positive"), std::string::npos);
+  EXPECT_NE(error_of(kBase + "cutting:\n  min_dihedral_deg: -1\n").find("s.yaml:7: cutting.min_dihedral_deg must be in [0, 30]"), std::string::npos);
+  EXPECT_NE(error_of(kBase + "cutting:\n  min_dihedral_deg: 45\n").find("s.yaml:7: cutting.min_dihedral_deg must be in [0, 30]"), std::string::npos);
+  EXPECT_NE(error_of(kBase + "cutting:\n  min_dihedral_deg: flat\n").find("s.yaml:7"), std::string::npos);
 }
 
 TEST(CuttingSection, BundledCuttingSceneLoads) {

@@ -133,6 +133,8 @@ CorotationalFem::CorotationalFem(const SimProblem& problem, const ModelConfig& c
     tets_[i] = make_element(problem, t, quarter_mass_[i], quarter_alpha_[i]);
     for (int v : tets_[i].v) mass_alpha[v] += quarter_alpha_[i];
   }
+  apply_embedding(problem, mass_alpha);
+  mass_damped_ = mass_;
   mass_alpha_ = mass_alpha;
   q_.assign(tets_.size(), Eigen::Quaterniond::Identity());
 
@@ -155,8 +157,9 @@ CorotationalFem::CorotationalFem(const SimProblem& problem, const ModelConfig& c
     R_beam_.assign(beams_.size(), Eigen::Matrix3d::Identity());
   }
   check_vertex_indices(problem.fixed_vertices, nv, "corotational_fem: fixed vertices");
-  fixed_.assign(nv, 0);
-  for (int v : problem.fixed_vertices) fixed_[v] = 1;
+  user_fixed_.assign(nv, 0);
+  for (int v : problem.fixed_vertices) user_fixed_[v] = 1;
+  merge_fixed_with_embedding();
   solver_.set_refresh_residual(options_.refresh_residual);
   solver_.set_background_refactor(config.refactor_in_background);
   if (options_.background_nice < 0 || options_.background_nice > 19)
@@ -192,6 +195,7 @@ CorotationalFem::Tet CorotationalFem::make_element(const SimProblem& problem, in
   e.lambda = lame.lambda_kPa;
   e.beta = m.damping_stiffness_s;
   e.volume = signed_volume_mm3(mesh.rest_positions_World_mm, e.v);
+  e.passive = problem.embedded.is_passive(t);  // below the quality bound: no elastic term
   if (!(e.volume > 0.0))
     throw std::invalid_argument("corotational_fem: tet " + std::to_string(t) + " has non-positive rest volume " +
                                 std::to_string(e.volume) + " mm^3");
@@ -245,6 +249,10 @@ std::optional<MeshChangeStats> CorotationalFem::apply_mesh_change(const SimProbl
   std::vector<Tet> fresh(changed.size());
   std::vector<double> fresh_mass(changed.size()), fresh_alpha(changed.size());
   for (std::size_t i = 0; i < changed.size(); ++i) fresh[i] = make_element(problem, changed[i], fresh_mass[i], fresh_alpha[i]);
+  // The embedding's mass moves (embedded_elements.hpp) undone first: the lumped quarters
+  // change below, and the new embedding moves them again at the end.
+  std::vector<int> embedding_touched;
+  embedded_.restore_mass({&mass_, &mass_alpha_}, embedding_touched);
   Eigen::VectorXd dm = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(touched.size())), da = dm;
   const auto slot = [&](int w) { return std::lower_bound(touched.begin(), touched.end(), w) - touched.begin(); };
   for (std::size_t i = 0; i < changed.size(); ++i) {
@@ -279,9 +287,11 @@ std::optional<MeshChangeStats> CorotationalFem::apply_mesh_change(const SimProbl
     m->tail(n - n_old).setZero();
   }
   fixed_.resize(static_cast<std::size_t>(n), 0);
+  user_fixed_.resize(static_cast<std::size_t>(n), 0);
   for (auto it = problem.fixed_vertices.rbegin(); it != problem.fixed_vertices.rend() && *it >= n_old; ++it) {
     if (*it >= n) throw std::invalid_argument("corotational_fem: fixed vertex " + std::to_string(*it) + " is not in the cut mesh");
     fixed_[static_cast<std::size_t>(*it)] = 1;
+    user_fixed_[static_cast<std::size_t>(*it)] = 1;
   }
   for (std::size_t k = 0; k < touched.size(); ++k) {
     const int w = touched[k];
@@ -290,7 +300,7 @@ std::optional<MeshChangeStats> CorotationalFem::apply_mesh_change(const SimProbl
     mass_alpha_[w] += da[static_cast<Eigen::Index>(k)];
     mass_damped_[w] = last_dt_ > 0.0 ? mass_[w] + last_dt_ * mass_alpha_[w] : mass_[w];
     x_.col(w) = x.col(w);
-    v_.col(w) = (v.cols() == n && !fixed_[static_cast<std::size_t>(w)]) ? Eigen::Vector3d(v.col(w)) : Eigen::Vector3d::Zero();
+    v_.col(w) = (v.cols() == n && !user_fixed_[static_cast<std::size_t>(w)]) ? Eigen::Vector3d(v.col(w)) : Eigen::Vector3d::Zero();  // held: zeroed below
     ++stats.vertices_updated;
   }
   if (last_dx_.size() > 0) {
@@ -324,6 +334,17 @@ std::optional<MeshChangeStats> CorotationalFem::apply_mesh_change(const SimProbl
     q_[static_cast<std::size_t>(s)] = rotation_by_svd(edge_matrix(x_, fresh[i].v) * fresh[i].Dm_inv);
     stored_changed[i] = s;
     ++stats.elements_updated;
+  }
+  // Passive flags of unchanged tets can change too (islands of good tets cut off by slivers).
+  for (std::size_t i = 0; i < tets_.size(); ++i) tets_[i].passive = problem.embedded.is_passive(tet_order_[i]);
+  // The new embedding: mass moved to the drivers and rigid groups, their vertices held in the
+  // solve (Dirichlet rows, set by grow_pattern's fixed entries).
+  embedded_.reset(problem.embedded, X_, x_, v_);
+  embedded_.move_mass({&mass_, &mass_alpha_}, embedding_touched, &problem.region_materials);
+  merge_fixed_with_embedding();
+  for (int w = 0; w < n; ++w) {  // O(vertices), scalar: damped masses and held velocities
+    mass_damped_[w] = last_dt_ > 0.0 ? mass_[w] + last_dt_ * mass_alpha_[w] : mass_[w];
+    if (fixed_[static_cast<std::size_t>(w)]) v_.col(w).setZero();
   }
   grow_pattern(stored_changed, n_old, old_tets);
   update_partition(stored_changed, nt_old);
@@ -462,6 +483,17 @@ void CorotationalFem::update_partition(const std::vector<int>& stored_changed, i
   partition_.shared.insert(partition_.shared.end(), stored_changed.begin(), stored_changed.end());
 }
 
+void CorotationalFem::apply_embedding(const SimProblem& problem, Eigen::VectorXd& mass_alpha) {
+  std::vector<int> touched;
+  embedded_.reset(problem.embedded, X_, x_, v_);
+  embedded_.move_mass({&mass_, &mass_alpha}, touched, &problem.region_materials);
+}
+
+void CorotationalFem::merge_fixed_with_embedding() {
+  fixed_.assign(user_fixed_.size(), 0);
+  for (std::size_t i = 0; i < fixed_.size(); ++i) fixed_[i] = user_fixed_[i] || embedded_.held(static_cast<int>(i)) ? 1 : 0;
+}
+
 void CorotationalFem::build_pattern() {
   const int nv = static_cast<int>(X_.cols());
   std::vector<std::vector<int>> elements;
@@ -547,6 +579,7 @@ void CorotationalFem::assemble_element(int id, double dt_s, bool dynamic, double
   const int num_tets = static_cast<int>(tets_.size());
   if (id < num_tets) {
     const Tet& e = tets_[id];
+    if (e.passive) return;  // below the quality bound: no elastic term (its block stays zero)
     Eigen::Matrix3d Ds;
     for (int k = 0; k < 3; ++k) Ds.col(k) = x_.col(e.v[k + 1]) - x_.col(e.v[0]);
     const Eigen::Matrix3d F = Ds * e.Dm_inv;
@@ -636,7 +669,9 @@ double CorotationalFem::potential_energy(const Eigen::Matrix3Xd& x) {
 
 StepSummary CorotationalFem::step(double dt_s) {
   check_dt(dt_s);
-  return run_substeps(substeps_, dt_s, [this](double h) { return substep(h); });
+  StepSummary s = run_substeps(substeps_, dt_s, [this](double h) { return substep(h); });
+  embedded_.drive(x_, v_, dt_s, gravity_);  // embedded vertices follow their drivers / rigid groups
+  return s;
 }
 
 StepSummary CorotationalFem::substep(double dt_s) {
@@ -818,9 +853,9 @@ void CorotationalFem::remove_attachment(AttachmentId id) {
 void CorotationalFem::set_fixed_vertices(const std::vector<int>& vertices) {
   const int nv = static_cast<int>(X_.cols());
   check_vertex_indices(vertices, nv, "corotational_fem: set_fixed_vertices");
-  std::vector<char> fixed(nv, 0);
-  for (int v : vertices) fixed[v] = 1;
-  fixed_ = std::move(fixed);
+  user_fixed_.assign(nv, 0);
+  for (int v : vertices) user_fixed_[v] = 1;
+  merge_fixed_with_embedding();
   for (int i = 0; i < nv; ++i)
     if (fixed_[i]) v_.col(i).setZero();
   update_fixed_entries();
@@ -831,6 +866,7 @@ void CorotationalFem::set_state(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
   check_state_shape(x, v, static_cast<int>(X_.cols()));
   x_ = x;
   v_ = v;
+  embedded_.restart(x_, v_);  // rigid groups start from the given state
   last_dx_.setZero(x_.size());
   inversions_.reset_episode();
   // The warm-start rotations belong to the old state: restart them in closed form.

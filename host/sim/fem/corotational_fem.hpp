@@ -115,6 +115,7 @@ class CorotationalFem final : public TissueModel {
     Eigen::Matrix3d Dm_inv;
     std::array<Eigen::Vector3d, 4> g;  // shape function gradients (rest)
     double volume, mu, lambda, beta;
+    bool passive = false;  // below the quality bound (problem.embedded): no elastic term, not assembled
   };
   struct Beam {
     std::vector<int> v;
@@ -166,7 +167,15 @@ class CorotationalFem final : public TissueModel {
   std::vector<Eigen::Quaterniond> q_;      // per-tet rotation (warm start)
   std::vector<Eigen::Matrix3d> R_beam_;
   fem::FemAttachmentSet attachments_{"corotational_fem"};
-  std::vector<char> fixed_;               // per vertex
+  std::vector<char> fixed_;               // per vertex: user_fixed_ or held by embedded_
+  std::vector<char> user_fixed_;          // the problem's / set_fixed_vertices
+  // Embedded treatment of tets below the quality bound (embedded_elements.hpp): driven
+  // vertices and rigid groups are held (Dirichlet) in the solve, their mass moved, and
+  // written after every step. A local update after a cut must redo this for the new
+  // problem.embedded (restore_mass, reset, move_mass, merge_fixed_with_embedding).
+  EmbeddedMotion embedded_;
+  void apply_embedding(const SimProblem& problem, Eigen::VectorXd& mass_alpha);  // constructor
+  void merge_fixed_with_embedding();
   std::vector<int> fixed_entries_;        // nonzeros in rows/cols of fixed DOFs (off-diagonal)
   std::unique_ptr<SymmetricPattern> pattern_;
   std::vector<int> tet_map_;                   // 30 run starts per tet (10 blocks, compact_block_map)

@@ -169,6 +169,10 @@ StableNeoHookeanFem::StableNeoHookeanFem(const SimProblem& problem, const ModelC
     e.lambda = lame.lambda_kPa;
     e.beta = m.damping_stiffness_s;
     e.volume = signed_volume_mm3(X_, e.v);
+    if (problem.embedded.is_passive(t)) {  // below the quality bound: Psi = 0
+      e.passive = true;
+      e.mu = e.lambda = e.beta = 0.0;
+    }
     e.Dm_inv = edge_matrix(X_, e.v).inverse();
     std::array<Eigen::Vector3d, 4> g;
     for (int k = 0; k < 3; ++k) g[k + 1] = e.Dm_inv.row(k).transpose();
@@ -182,8 +186,14 @@ StableNeoHookeanFem::StableNeoHookeanFem(const SimProblem& problem, const ModelC
   if (problem.vessels && !problem.vessels->segments.empty())
     note_ = "vessel tree ignored: the stable_neo_hookean material has no beam coupling (use material_model corotational_linear)";
   check_vertex_indices(problem.fixed_vertices, nv, "corotational_fem: fixed vertices");
-  fixed_.assign(nv, 0);
-  for (int v : problem.fixed_vertices) fixed_[v] = 1;
+  {
+    std::vector<int> touched;
+    embedded_.reset(problem.embedded, X_, x_, v_);
+    embedded_.move_mass({&mass_, &mass_alpha_}, touched, &problem.region_materials);
+  }
+  user_fixed_.assign(nv, 0);
+  for (int v : problem.fixed_vertices) user_fixed_[v] = 1;
+  merge_fixed_with_embedding();
   solver_.set_refresh_residual(options_.refresh_residual);
   build_pattern();
 }
@@ -265,7 +275,14 @@ double StableNeoHookeanFem::attachment_energy(const Eigen::Matrix3Xd& x) const {
 
 StepSummary StableNeoHookeanFem::step(double dt_s) {
   check_dt(dt_s);
-  return run_substeps(substeps_, dt_s, [this](double h) { return substep(h); });
+  StepSummary s = run_substeps(substeps_, dt_s, [this](double h) { return substep(h); });
+  embedded_.drive(x_, v_, dt_s, gravity_);  // embedded vertices follow their drivers / rigid groups
+  return s;
+}
+
+void StableNeoHookeanFem::merge_fixed_with_embedding() {
+  fixed_.assign(user_fixed_.size(), 0);
+  for (std::size_t i = 0; i < fixed_.size(); ++i) fixed_[i] = user_fixed_[i] || embedded_.held(static_cast<int>(i)) ? 1 : 0;
 }
 
 StepSummary StableNeoHookeanFem::substep(double h) {
@@ -465,7 +482,7 @@ StepSummary StableNeoHookeanFem::substep(double h) {
   }
   int inverted = 0;
   for (const Tet& e : tets_)
-    if ((edge_matrix(x_, e.v) * e.Dm_inv).determinant() <= 0.0) ++inverted;
+    if (!e.passive && (edge_matrix(x_, e.v) * e.Dm_inv).determinant() <= 0.0) ++inverted;
   inversions_.update(inverted, static_cast<int>(tets_.size()), h, summary);
   summary.elastic_energy = elastic_energy_of(x_);
   summary.kinetic_energy = kinetic_energy(mass_, v_);
@@ -497,9 +514,9 @@ void StableNeoHookeanFem::remove_attachment(AttachmentId id) {
 void StableNeoHookeanFem::set_fixed_vertices(const std::vector<int>& vertices) {
   const int nv = static_cast<int>(X_.cols());
   check_vertex_indices(vertices, nv, "corotational_fem: set_fixed_vertices");
-  std::vector<char> fixed(nv, 0);
-  for (int v : vertices) fixed[v] = 1;
-  fixed_ = std::move(fixed);
+  user_fixed_.assign(nv, 0);
+  for (int v : vertices) user_fixed_[v] = 1;
+  merge_fixed_with_embedding();
   for (int i = 0; i < nv; ++i)
     if (fixed_[i]) v_.col(i).setZero();
   solver_.force_refactor();
@@ -509,6 +526,7 @@ void StableNeoHookeanFem::set_state(const Eigen::Matrix3Xd& x, const Eigen::Matr
   check_state_shape(x, v, static_cast<int>(X_.cols()));
   x_ = x;
   v_ = v;
+  embedded_.restart(x_, v_);  // rigid groups start from the given state
   inversions_.reset_episode();
 }
 

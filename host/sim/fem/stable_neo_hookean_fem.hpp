@@ -94,6 +94,7 @@ class StableNeoHookeanFem final : public TissueModel {
     Eigen::Matrix3d Dm_inv;
     Eigen::Matrix<double, 9, 12> dFdx;  // vec(F) = dFdx * (x_0, x_1, x_2, x_3)
     double volume, mu, lambda, beta;
+    bool passive = false;  // below the quality bound: mu = lambda = beta = 0 (no elastic term), not counted inverted
   };
   void build_pattern();
   // Elastic forces into f_el_ and the projected stiffness (times scale_k) plus the
@@ -114,7 +115,10 @@ class StableNeoHookeanFem final : public TissueModel {
   Eigen::VectorXd mass_, mass_alpha_;
   std::vector<Tet> tets_;
   fem::FemAttachmentSet attachments_{"corotational_fem"};
-  std::vector<char> fixed_;
+  std::vector<char> fixed_;       // user_fixed_ or held by embedded_
+  std::vector<char> user_fixed_;  // the problem's / set_fixed_vertices
+  EmbeddedMotion embedded_;       // driven vertices and rigid groups (embedded_elements.hpp)
+  void merge_fixed_with_embedding();
   std::unique_ptr<SymmetricPattern> pattern_;
   std::vector<int> tet_map_;  // 90 entries per tet (full block maps)
   ElementPartition partition_;

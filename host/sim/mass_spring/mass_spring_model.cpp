@@ -151,7 +151,9 @@ MassSpringModel::MassSpringModel(const SimProblem& problem, Integrator integrato
   const TetMesh& mesh = problem.mesh;
   mass_ = checked_masses_kg(problem, "mass_spring");
   const int n = mesh.num_vertices();
-  springs_ = build_spring_network(mesh, problem.region_materials);
+  passive_ = problem.embedded.passive;
+  passive_.resize(static_cast<std::size_t>(mesh.num_tets()), 0);
+  springs_ = build_spring_network(mesh, problem.region_materials, passive_);
   gravity_ = problem.gravity_World_mm_s2;
   vessels_ignored_ = problem.vessels.has_value() && !problem.vessels->segments.empty();
   x_ = mesh.rest_positions_World_mm;
@@ -170,7 +172,7 @@ MassSpringModel::MassSpringModel(const SimProblem& problem, Integrator integrato
     tet_lame_[t] = lame_from(mat);
     // Volume term with a fixed modulus kVolumeModulusPerE * E: enough to stop compressed
     // tets from collapsing and inverting, small enough to keep the CG well conditioned.
-    volume_stiffness_[t] = kVolumeModulusPerE * mat.youngs_modulus_kPa * signed_volume_mm3(x_, tets_[t]);
+    volume_stiffness_[t] = passive(t) ? 0.0 : kVolumeModulusPerE * mat.youngs_modulus_kPa * signed_volume_mm3(x_, tets_[t]);
     inv_6v0_[t] = 1.0 / (6.0 * signed_volume_mm3(x_, tets_[t]));
     const double quarter = 0.25 * signed_volume_mm3(x_, tets_[t]) * mat.density_kg_per_mm3;
     for (int v : tets_[t]) mass_damping_[v] += quarter * mat.damping_mass_per_s;
@@ -185,6 +187,11 @@ MassSpringModel::MassSpringModel(const SimProblem& problem, Integrator integrato
     vol_grad_.resize(tets_.size());
     vol_coef_.resize(tets_.size());
   }
+  {  // embedded vertices: mass to their drivers / rigid groups, held by the solver
+    std::vector<int> touched;
+    embedded_.reset(problem.embedded, mesh.rest_positions_World_mm, x_, v_);
+    embedded_.move_mass({&mass_, &mass_damping_}, touched, &problem.region_materials);
+  }
   set_fixed_vertices(problem.fixed_vertices);
   reset_ledger();
 }
@@ -198,6 +205,9 @@ std::optional<MeshChangeStats> MassSpringModel::apply_mesh_change(const SimProbl
   if (n < n_old || nt < nt_old || x.cols() != n || (v.cols() != n && v.cols() != 0) || mesh.tet_region.size() != mesh.tets.size())
     return std::nullopt;
   MeshChangeStats stats;
+  // The embedding's mass moves undone first (the lumped masses change below).
+  std::vector<int> embedded_touched;
+  embedded_.restore_mass({&mass_, &mass_damping_}, embedded_touched);
   auto key = [](int a, int b) {
     if (a > b) std::swap(a, b);
     return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) | static_cast<std::uint32_t>(b);
@@ -215,6 +225,7 @@ std::optional<MeshChangeStats> MassSpringModel::apply_mesh_change(const SimProbl
   mass_.conservativeResize(n);
   mass_damping_.conservativeResize(n);
   fixed_.resize(static_cast<std::size_t>(n), 0);
+  user_fixed_.resize(static_cast<std::size_t>(n), 0);
   for (int i = n_old; i < n; ++i) {
     mass_[i] = 0.0;
     mass_damping_[i] = 0.0;
@@ -222,7 +233,7 @@ std::optional<MeshChangeStats> MassSpringModel::apply_mesh_change(const SimProbl
     v_.col(i).setZero();
   }
   for (auto it = problem.fixed_vertices.rbegin(); it != problem.fixed_vertices.rend() && *it >= n_old; ++it)
-    fixed_[static_cast<std::size_t>(*it)] = 1;
+    user_fixed_[static_cast<std::size_t>(*it)] = 1;
   for (Eigen::Matrix3Xd* m : {&f_, &rhs_, &dv_, &r_, &z_, &p_, &q_, &diag_}) {
     m->conservativeResize(Eigen::NoChange, n);
     m->rightCols(n - n_old).setZero();
@@ -231,8 +242,9 @@ std::optional<MeshChangeStats> MassSpringModel::apply_mesh_change(const SimProbl
     buffer.conservativeResize(Eigen::NoChange, n);
     buffer.rightCols(n - n_old).setZero();
   }
-  std::vector<int> touched;
+  std::vector<int> touched = embedded_touched;
   for (int i = n_old; i < n; ++i) touched.push_back(i);
+  passive_.resize(static_cast<std::size_t>(nt), 0);
   // The changed tets' old contributions out.
   tets_.resize(static_cast<std::size_t>(nt));
   Dm_inv_.resize(static_cast<std::size_t>(nt));
@@ -246,10 +258,11 @@ std::optional<MeshChangeStats> MassSpringModel::apply_mesh_change(const SimProbl
     const Material& mat = problem.region_materials[static_cast<std::size_t>(mesh.tet_region[static_cast<std::size_t>(t)])];
     const auto& old = tets_[static_cast<std::size_t>(t)];
     const double V_old = 1.0 / (6.0 * inv_6v0_[static_cast<std::size_t>(t)]);
+    const double E_old = passive(t) ? 0.0 : mat.youngs_modulus_kPa;  // a passive tet added no stiffness
     for (const auto& e : kEdges) {
       const int sp = spring_of_edge_.at(key(old[e[0]], old[e[1]]));
       const double L = springs_.rest_length_mm[static_cast<std::size_t>(sp)];
-      const double k = mat.youngs_modulus_kPa * V_old / (L * L);
+      const double k = E_old * V_old / (L * L);
       if (--spring_tets_[static_cast<std::size_t>(sp)] == 0) {
         springs_.stiffness_mN_per_mm[static_cast<std::size_t>(sp)] = 0.0;  // no tet left: no spring (no round-off residue)
         springs_.damping_mN_s_per_mm[static_cast<std::size_t>(sp)] = 0.0;
@@ -274,9 +287,11 @@ std::optional<MeshChangeStats> MassSpringModel::apply_mesh_change(const SimProbl
     const double V = signed_volume_mm3(X, tet);
     if (!(V > 0.0)) throw std::invalid_argument("mass_spring: tet " + std::to_string(t) + " has non-positive rest volume after the cut");
     tets_[static_cast<std::size_t>(t)] = tet;
+    passive_[static_cast<std::size_t>(t)] = problem.embedded.is_passive(t) ? 1 : 0;
+    const double E = passive(t) ? 0.0 : mat.youngs_modulus_kPa;  // below the quality bound: no elastic term
     Dm_inv_[static_cast<std::size_t>(t)] = edge_matrix(X, tet).inverse();
     tet_lame_[static_cast<std::size_t>(t)] = lame_from(mat);
-    volume_stiffness_[static_cast<std::size_t>(t)] = kVolumeModulusPerE * mat.youngs_modulus_kPa * V;
+    volume_stiffness_[static_cast<std::size_t>(t)] = kVolumeModulusPerE * E * V;
     inv_6v0_[static_cast<std::size_t>(t)] = 1.0 / (6.0 * V);
     for (const auto& e : kEdges) {
       const int a = tet[e[0]], b = tet[e[1]];
@@ -291,7 +306,7 @@ std::optional<MeshChangeStats> MassSpringModel::apply_mesh_change(const SimProbl
       }
       if (spring_tets_[sp] == 0) springs_.rest_length_mm[sp] = (X.col(b) - X.col(a)).norm();
       const double L = springs_.rest_length_mm[sp];
-      const double k = mat.youngs_modulus_kPa * V / (L * L);
+      const double k = E * V / (L * L);
       springs_.stiffness_mN_per_mm[sp] += k;
       springs_.damping_mN_s_per_mm[sp] += mat.damping_stiffness_s * k;
       ++spring_tets_[sp];
@@ -306,11 +321,16 @@ std::optional<MeshChangeStats> MassSpringModel::apply_mesh_change(const SimProbl
   spring_dir_.resize(springs_.ends.size());
   spring_s1_.resize(springs_.ends.size());
   spring_s2_.resize(springs_.ends.size());
+  // The new embedding (driven vertices, rigid groups): mass moved, held in the solver.
+  for (int w : touched)
+    if (!(mass_[w] > 0.0)) throw std::invalid_argument("mass_spring: vertex " + std::to_string(w) + " lost its mass in the cut");
+  embedded_.reset(problem.embedded, X, x, v);
+  embedded_.move_mass({&mass_, &mass_damping_}, touched, &problem.region_materials);
+  merge_fixed();
   std::sort(touched.begin(), touched.end());
   touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
   inv_mass_.conservativeResize(n);
   for (int w : touched) {
-    if (!(mass_[w] > 0.0)) throw std::invalid_argument("mass_spring: vertex " + std::to_string(w) + " lost its mass in the cut");
     x_.col(w) = x.col(w);
     v_.col(w) = v.cols() == n && !fixed_[static_cast<std::size_t>(w)] ? Eigen::Vector3d(v.col(w)) : Eigen::Vector3d::Zero();
     inv_mass_[w] = fixed_[static_cast<std::size_t>(w)] ? 0.0 : 1.0 / mass_[w];
@@ -330,7 +350,11 @@ std::optional<MeshChangeStats> MassSpringModel::apply_mesh_change(const SimProbl
     base_valid_ = false;
     if (static_cast<int>(free_index_.size()) == n_old) {
       const std::vector<int> old_free_index = free_index_;
-      for (int i = n_old; i < n; ++i) free_index_.push_back(fixed_[static_cast<std::size_t>(i)] ? -1 : free_count_++);
+      // Rows numbered as a fresh build would (the old rows keep theirs unless the embedding
+      // now holds or frees one of their vertices).
+      free_index_.assign(static_cast<std::size_t>(n), -1);
+      free_count_ = 0;
+      for (int i = 0; i < n; ++i) free_index_[static_cast<std::size_t>(i)] = fixed_[static_cast<std::size_t>(i)] ? -1 : free_count_++;
       lg_rhs_.resize(free_count_, 3);
       lg_dx_.resize(free_count_, 3);
       if (!system_dirty_ && system_.ready()) {
@@ -387,16 +411,21 @@ std::string MassSpringModel::name() const {
 
 void MassSpringModel::set_fixed_vertices(const std::vector<int>& vertices) {
   check_vertex_indices(vertices, static_cast<int>(x_.cols()), "set_fixed_vertices");
-  fixed_.assign(static_cast<std::size_t>(x_.cols()), 0);
-  for (int v : vertices) fixed_[static_cast<std::size_t>(v)] = 1;
+  user_fixed_.assign(static_cast<std::size_t>(x_.cols()), 0);
+  for (int v : vertices) user_fixed_[static_cast<std::size_t>(v)] = 1;
+  merge_fixed();
   inv_mass_ = mass_.cwiseInverse();
-  for (int v : vertices) {
-    inv_mass_[v] = 0.0;
-    v_.col(v).setZero();
-  }
+  for (int v : vertices) v_.col(v).setZero();
+  for (std::size_t i = 0; i < fixed_.size(); ++i)
+    if (fixed_[i]) inv_mass_[static_cast<Eigen::Index>(i)] = 0.0;
   system_dirty_ = true;
   base_valid_ = false;
   update_omega_bound();
+}
+
+void MassSpringModel::merge_fixed() {
+  fixed_.assign(user_fixed_.size(), 0);
+  for (std::size_t i = 0; i < fixed_.size(); ++i) fixed_[i] = user_fixed_[i] || embedded_.held(static_cast<int>(i)) ? 1 : 0;
 }
 
 void MassSpringModel::update_omega_bound() {
@@ -472,6 +501,7 @@ void MassSpringModel::set_state(const Eigen::Matrix3Xd& positions_World_mm, cons
   check_state_shape(positions_World_mm, velocities_World_mm_s, static_cast<int>(x_.cols()));
   x_ = positions_World_mm;
   v_ = velocities_World_mm_s;
+  embedded_.restart(x_, v_);  // rigid groups start from the given state
   for (std::size_t i = 0; i < fixed_.size(); ++i)
     if (fixed_[i]) v_.col(static_cast<Eigen::Index>(i)).setZero();
   dv_.setZero();
@@ -713,6 +743,7 @@ StepSummary MassSpringModel::semi_implicit_substep(double h) {
     if (fixed_[static_cast<std::size_t>(i)]) {
       rhs_.col(i).setZero();
       dv_.col(i).setZero();
+      diag_.col(i).setOnes();  // a held embedded vertex has no mass here: no 0/0 in the preconditioner
     }
   }
   // PCG warm-started from the previous velocity change.
@@ -785,6 +816,12 @@ StepSummary MassSpringModel::semi_implicit_substep(double h) {
 }
 
 StepSummary MassSpringModel::step(double dt_s) {
+  StepSummary s = step_guarded(dt_s);
+  embedded_.drive(x_, v_, dt_s, gravity_);  // embedded vertices follow their drivers / rigid groups
+  return s;
+}
+
+StepSummary MassSpringModel::step_guarded(double dt_s) {
   check_dt(dt_s);
   if (integrator_ == Integrator::kSemiImplicit) return step_unguarded(dt_s);
   // Fallback (docs/sim.md): the explicit and local/global integrators diverge on extreme
@@ -912,7 +949,7 @@ MassSpringModel::StateMeasure MassSpringModel::measure_state() const {
     const auto& v = tets_[t];
     const Eigen::Vector3d x0 = x_.col(v[0]);
     const double six_v = (x_.col(v[1]) - x0).dot((x_.col(v[2]) - x0).cross(x_.col(v[3]) - x0));
-    if (!(six_v > 0.0)) ++inverted;
+    if (!(six_v > 0.0) && !passive(t)) ++inverted;  // a passive tet (no elastic term) may flatten
     e += volume_energy(six_v * inv_6v0_[t], volume_stiffness_[t]);
   }
   return {e + attachments_.energy(x_), inverted};

@@ -118,7 +118,10 @@ class MassSpringModel final : public TissueModel {
   int fallbacks() const { return fallbacks_; }
 
  private:
+  StepSummary step_guarded(double dt_s);    // step() before the embedded vertices are driven
   StepSummary step_unguarded(double dt_s);  // one step with integrator_ and config_
+  bool passive(int t) const { return static_cast<std::size_t>(t) < passive_.size() && passive_[static_cast<std::size_t>(t)] != 0; }
+  void merge_fixed();  // fixed_ = user_fixed_ or held by the embedding
   void explicit_substep(double h);
   StepSummary semi_implicit_substep(double h);
   StepSummary local_global_substep(double h);
@@ -145,7 +148,12 @@ class MassSpringModel final : public TissueModel {
   int threads_;
   Eigen::Matrix3Xd x_, v_;
   Eigen::VectorXd mass_, inv_mass_, mass_damping_;  // mass_damping_: Rayleigh alpha * m (kg/s)
-  std::vector<unsigned char> fixed_;
+  std::vector<unsigned char> fixed_;       // held by the solver: user_fixed_ or embedded (below)
+  std::vector<unsigned char> user_fixed_;  // set_fixed_vertices / the problem's
+  // Tets below the quality bound (problem.embedded): no spring stiffness, no volume term;
+  // driven vertices and rigid groups are held in the solver and moved after each step.
+  std::vector<std::uint8_t> passive_;
+  EmbeddedMotion embedded_;
   Eigen::Vector3d gravity_;
   bool vessels_ignored_ = false;  // the problem declares vessels this model cannot couple
   SpringNetwork springs_;

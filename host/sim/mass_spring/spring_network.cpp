@@ -10,7 +10,8 @@
 
 namespace arnav::host {
 
-SpringNetwork build_spring_network(const TetMesh& mesh, const std::vector<Material>& region_materials) {
+SpringNetwork build_spring_network(const TetMesh& mesh, const std::vector<Material>& region_materials,
+                                   const std::vector<std::uint8_t>& passive) {
   static const int kEdges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
   std::unordered_map<std::uint64_t, int> index;
   index.reserve(mesh.tets.size() * 2);
@@ -44,7 +45,8 @@ SpringNetwork build_spring_network(const TetMesh& mesh, const std::vector<Materi
       }
       const int s = it->second;
       const double L = net.rest_length_mm[s];
-      const double k = mat.youngs_modulus_kPa * volume / (L * L);  // kPa*mm^3/mm^2 = mN/mm
+      const bool elastic = static_cast<std::size_t>(t) >= passive.size() || passive[static_cast<std::size_t>(t)] == 0;
+      const double k = elastic ? mat.youngs_modulus_kPa * volume / (L * L) : 0.0;  // kPa*mm^3/mm^2 = mN/mm
       net.stiffness_mN_per_mm[s] += k;
       net.damping_mN_s_per_mm[s] += mat.damping_stiffness_s * k;
     }

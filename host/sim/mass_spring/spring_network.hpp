@@ -2,6 +2,7 @@
 // Springs on the unique edges of a tetrahedral mesh (the Voigt elements of the
 // mass-spring model). Units: mm, mN/mm, mN*s/mm.
 #include <array>
+#include <cstdint>
 #include <vector>
 
 #include "host/scene/tet_mesh.hpp"
@@ -22,6 +23,9 @@ struct SpringNetwork {
 // effective Poisson ratio of 1/4 (a spring network cannot represent another ratio).
 // Damping: Rayleigh stiffness-proportional beta of each region, eta_e = beta * k_e.
 // Throws std::invalid_argument for degenerate edges or tets.
-SpringNetwork build_spring_network(const TetMesh& mesh, const std::vector<Material>& region_materials);
+// Tets flagged in `passive` (embedded_elements.hpp) add no stiffness (their edges still get
+// a spring, of zero stiffness when no active tet shares it).
+SpringNetwork build_spring_network(const TetMesh& mesh, const std::vector<Material>& region_materials,
+                                   const std::vector<std::uint8_t>& passive = {});
 
 }  // namespace arnav::host

@@ -104,7 +104,19 @@ XpbdModel::XpbdModel(const SimProblem& problem, const ModelConfig& config) : con
   }
   mass_damping_per_s_ = Eigen::VectorXd::Zero(n);
   build_batches(problem);
-  mass_damping_per_s_ = mass_damping_per_s_.cwiseQuotient(mass_);
+  for (int t = 0; t < num_tets_; ++t) {  // passive tets: in no batch, their mass stays
+    if (!problem.embedded.is_passive(t)) continue;
+    const Material& mat = problem.region_materials[mesh.tet_region.empty() ? 0 : static_cast<std::size_t>(mesh.tet_region[static_cast<std::size_t>(t)])];
+    const double V = signed_volume_mm3(mesh.rest_positions_World_mm, mesh.tets[static_cast<std::size_t>(t)]);
+    passive_tets_[t] = {mesh.tets[static_cast<std::size_t>(t)], V};
+    for (int w : mesh.tets[static_cast<std::size_t>(t)]) mass_damping_per_s_[w] += 0.25 * V * mat.density_kg_per_mm3 * mat.damping_mass_per_s;
+  }
+  {  // embedded vertices: mass to their drivers / rigid groups, held by the solver
+    std::vector<int> touched;
+    embedded_.reset(problem.embedded, mesh.rest_positions_World_mm, x_, v_);
+    embedded_.move_mass({&mass_, &mass_damping_per_s_}, touched, &problem.region_materials);
+  }
+  for (int i = 0; i < n; ++i) mass_damping_per_s_[i] = mass_[i] > 0.0 ? mass_damping_per_s_[i] / mass_[i] : 0.0;
   const std::size_t lanes = batches_.batches.size() * static_cast<std::size_t>(xpbd::kLanes);
   if (!neo_hookean_) {
     rotation_.assign(4 * lanes, 0.0);
@@ -126,11 +138,14 @@ void XpbdModel::build_batches(const SimProblem& problem) {
   // parallel too, and only what touches both (a thin seam) runs on one thread. The cuts
   // do not depend on the thread count, so 1 and 2 threads compute the same positions.
   std::vector<unsigned char> touched, unused;
-  const std::array<std::vector<int>, 3> first = split_tets(mesh, all_tets(nt), touched);
+  std::vector<int> elastic = all_tets(nt);
+  std::erase_if(elastic, [&](int t) { return problem.embedded.is_passive(t); });  // below the quality bound: no constraint
+  const std::array<std::vector<int>, 3> first = split_tets(mesh, elastic, touched);
   const std::array<std::vector<int>, 3> second = split_tets(mesh, first[2], unused);
   const std::array<const std::vector<int>*, 5> groups = {&first[0], &first[1], &second[0], &second[1], &second[2]};
   for (auto& list : group_vertices_) list.clear();
-  for (int v = 0; v < n; ++v) group_vertices_[static_cast<std::size_t>(touched[static_cast<std::size_t>(v)] - 1)].push_back(v);
+  for (int v = 0; v < n; ++v)  // a vertex of passive tets only: the seam's (thread 0)
+    group_vertices_[touched[static_cast<std::size_t>(v)] == 0 ? 2 : static_cast<std::size_t>(touched[static_cast<std::size_t>(v)] - 1)].push_back(v);
 
   // Within a group, colours only make batches: the 8 tets of a batch touch distinct
   // vertices (one thread runs a group's batches in order, Gauss-Seidel between them).
@@ -366,10 +381,9 @@ std::optional<MeshChangeStats> XpbdModel::apply_mesh_change(const SimProblem& pr
     mass_damping_per_s_[i] = 0.0;
     group_vertices_[2].push_back(i);  // touched by the seam only: thread 0 owns it
   }
-  for (auto it = problem.fixed_vertices.rbegin(); it != problem.fixed_vertices.rend() && *it >= n_old; ++it)
-    fixed_[static_cast<std::size_t>(*it)] = 1;
   // Masses: the changed tets' old quarters out, their new quarters in (raw damping mass
-  // likewise); touched = vertices whose mass changed.
+  // likewise); touched = vertices whose mass changed. The embedding's mass moves (driven
+  // vertices, rigid groups) are undone first and made again for the new embedding.
   std::vector<int> touched;
   auto touch = [&](int w) { touched.push_back(w); };
   for (int w = n_old; w < n; ++w) touch(w);
@@ -379,11 +393,22 @@ std::optional<MeshChangeStats> XpbdModel::apply_mesh_change(const SimProblem& pr
       const xpbd::TetBatch& b = batches_.batches[static_cast<std::size_t>(lane / kLanes)];
       for (int a = 0; a < 4; ++a) touch(b.v[a][lane % kLanes]);
     }
+    if (const auto it = passive_tets_.find(t); it != passive_tets_.end())
+      for (int w : it->second.v) touch(w);
     for (int w : mesh.tets[static_cast<std::size_t>(t)]) touch(w);
   }
+  std::vector<int> embedded_vertices;
+  embedded_.moved_vertices(embedded_vertices);
+  embedded_.reset(problem.embedded, mesh.rest_positions_World_mm, x, v);
+  embedded_.current_vertices(embedded_vertices);
+  for (int w : embedded_vertices) touch(w);
   std::sort(touched.begin(), touched.end());
   touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
   for (int w : touched) mass_damping_per_s_[w] *= mass_[w];  // back to the raw sum
+  {
+    std::vector<int> unused;
+    embedded_.restore_mass({&mass_, &mass_damping_per_s_}, unused);
+  }
   for (int t : changed_tets) {
     const Material& mat = problem.region_materials[static_cast<std::size_t>(mesh.tet_region[static_cast<std::size_t>(t)])];
     if (t < num_tets_ && lane_of_tet_[static_cast<std::size_t>(t)] >= 0) {
@@ -400,6 +425,13 @@ std::optional<MeshChangeStats> XpbdModel::apply_mesh_change(const SimProblem& pr
       }
       remove_lane(lane);
       ++stats.elements_updated;
+    } else if (const auto it = passive_tets_.find(t); it != passive_tets_.end()) {
+      for (int w : it->second.v) {
+        mass_[w] -= 0.25 * it->second.volume_mm3 * mat.density_kg_per_mm3;
+        mass_damping_per_s_[w] -= 0.25 * it->second.volume_mm3 * mat.density_kg_per_mm3 * mat.damping_mass_per_s;
+      }
+      passive_tets_.erase(it);
+      ++stats.elements_updated;
     }
     const double V = signed_volume_mm3(mesh.rest_positions_World_mm, mesh.tets[static_cast<std::size_t>(t)]);
     if (!(V > 0.0)) throw std::invalid_argument("xpbd: tet " + std::to_string(t) + " has non-positive rest volume after the cut");
@@ -407,21 +439,32 @@ std::optional<MeshChangeStats> XpbdModel::apply_mesh_change(const SimProblem& pr
       mass_[w] += 0.25 * V * mat.density_kg_per_mm3;
       mass_damping_per_s_[w] += 0.25 * V * mat.density_kg_per_mm3 * mat.damping_mass_per_s;
     }
+    if (problem.embedded.is_passive(t)) passive_tets_[t] = {mesh.tets[static_cast<std::size_t>(t)], V};
   }
   num_tets_ = nt;
   lane_of_tet_.resize(static_cast<std::size_t>(nt), -1);
+  user_fixed_.resize(static_cast<std::size_t>(n), 0);
+  for (auto it = problem.fixed_vertices.rbegin(); it != problem.fixed_vertices.rend() && *it >= n_old; ++it)
+    user_fixed_[static_cast<std::size_t>(*it)] = 1;
+  for (int w : touched)
+    if (!(mass_[w] > 0.0)) throw std::invalid_argument("xpbd: vertex " + std::to_string(w) + " lost its mass in the cut");
+  {
+    std::vector<int> unused;
+    embedded_.move_mass({&mass_, &mass_damping_per_s_}, unused, &problem.region_materials);
+  }
+  merge_fixed();
   // State of the touched vertices (new ones, moved ones: the cutter's), masses.
   for (int w : touched) {
-    if (!(mass_[w] > 0.0)) throw std::invalid_argument("xpbd: vertex " + std::to_string(w) + " lost its mass in the cut");
-    mass_damping_per_s_[w] /= mass_[w];
+    mass_damping_per_s_[w] = mass_[w] > 0.0 ? mass_damping_per_s_[w] / mass_[w] : 0.0;
     x_.col(w) = x.col(w);
     x_prev_.col(w) = x.col(w);
     v_.col(w) = v.cols() == n && !fixed_[static_cast<std::size_t>(w)] ? Eigen::Vector3d(v.col(w)) : Eigen::Vector3d::Zero();
     inv_mass_[w] = fixed_[static_cast<std::size_t>(w)] ? 0.0 : 1.0 / mass_[w];
     ++stats.vertices_updated;
   }
-  // The changed tets join the seam.
+  // The changed tets join the seam (those below the quality bound: no constraint).
   for (int t : changed_tets) {
+    if (problem.embedded.is_passive(t)) continue;
     add_lane(problem, t);
     ++stats.elements_updated;
   }
@@ -465,14 +508,19 @@ void XpbdModel::reset_rotations() {
 
 void XpbdModel::set_fixed_vertices(const std::vector<int>& vertices) {
   check_vertex_indices(vertices, static_cast<int>(x_.cols()), "set_fixed_vertices");
-  fixed_.assign(static_cast<std::size_t>(x_.cols()), 0);
+  user_fixed_.assign(static_cast<std::size_t>(x_.cols()), 0);
+  for (int v : vertices) user_fixed_[static_cast<std::size_t>(v)] = 1;
+  merge_fixed();
   inv_mass_ = mass_.cwiseInverse();
-  for (int v : vertices) {
-    fixed_[static_cast<std::size_t>(v)] = 1;
-    inv_mass_[v] = 0.0;
-    v_.col(v).setZero();
-  }
+  for (int v : vertices) v_.col(v).setZero();
+  for (std::size_t i = 0; i < fixed_.size(); ++i)
+    if (fixed_[i]) inv_mass_[static_cast<Eigen::Index>(i)] = 0.0;  // fixed, or held by the embedding (mass moved off)
   update_tet_mass_blocks();
+}
+
+void XpbdModel::merge_fixed() {
+  fixed_.assign(user_fixed_.size(), 0);
+  for (std::size_t i = 0; i < fixed_.size(); ++i) fixed_[i] = user_fixed_[i] || embedded_.held(static_cast<int>(i)) ? 1 : 0;
 }
 
 AttachmentId XpbdModel::add_attachment(const AttachmentSpec& spec) {
@@ -497,6 +545,7 @@ void XpbdModel::set_state(const Eigen::Matrix3Xd& positions_World_mm, const Eige
   check_state_shape(positions_World_mm, velocities_World_mm_s, static_cast<int>(x_.cols()));
   x_ = positions_World_mm;
   v_ = velocities_World_mm_s;
+  embedded_.restart(x_, v_);  // rigid groups start from the given state
   for (std::size_t i = 0; i < fixed_.size(); ++i)
     if (fixed_[i]) v_.col(static_cast<Eigen::Index>(i)).setZero();
   inversions_.reset_episode();
@@ -674,6 +723,8 @@ StepSummary XpbdModel::step(double dt_s) {
   summary.kinetic_energy = kinetic_energy(mass_, v_);
   summary.elastic_energy = energy;
   ledger_.check(summary.kinetic_energy + summary.elastic_energy, gravity_potential(mass_, x_, gravity_), summary);
+  // Embedded vertices (massless here) follow their drivers; rigid groups move as bodies.
+  embedded_.drive(x_, v_, dt_s, gravity_);
   summary.wall_time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return summary;
 }

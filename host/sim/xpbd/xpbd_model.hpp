@@ -22,6 +22,7 @@
 #include <Eigen/Geometry>
 
 #include <array>
+#include <unordered_map>
 #include <vector>
 
 #include "host/sim/attachment_set.hpp"
@@ -91,7 +92,17 @@ class XpbdModel final : public TissueModel {
   int num_tets_ = 0;
   Eigen::Matrix3Xd x_, v_, x_prev_;
   Eigen::VectorXd mass_, inv_mass_, mass_damping_per_s_;
-  std::vector<unsigned char> fixed_;
+  std::vector<unsigned char> fixed_;       // held by the solver: user_fixed_ or embedded (below)
+  std::vector<unsigned char> user_fixed_;  // set_fixed_vertices / the problem's
+  // Tets below the quality bound (problem.embedded) are in no batch (no constraint); their
+  // vertices and rest volumes, for the masses a later cut takes out again.
+  struct PassiveTet {
+    std::array<int, 4> v;
+    double volume_mm3;
+  };
+  std::unordered_map<int, PassiveTet> passive_tets_;
+  EmbeddedMotion embedded_;  // driven vertices, rigid groups
+  void merge_fixed();
   Eigen::Vector3d gravity_;
   bool vessels_ignored_ = false;  // the problem declares vessels this model cannot couple
   xpbd::TetBatches batches_;      // tets in SIMD batches: two halves + interface
