@@ -108,11 +108,8 @@ TEST(BasisCache, SecondRunLoadsTheIdenticalBasis) {
   EXPECT_TRUE(second.warnings.empty());
   EXPECT_EQ(second.path, first.path);
   expect_same(*first.basis, *second.basis);
-  // the same registration from both
-  // the surface vertices, deformed by two of the modes
-  Eigen::VectorXd a0 = Eigen::VectorXd::Zero(first.basis->modes());
-  a0(0) = 3.0;
-  a0(4) = -2.0;
+  // the same registration from both: the surface vertices, deformed by two of the modes
+  const Eigen::VectorXd a0 = Eigen::VectorXd::Unit(first.basis->modes(), 0) * 3.0 - Eigen::VectorXd::Unit(first.basis->modes(), 4) * 2.0;
   const Eigen::VectorXd u = first.basis->U * a0;
   std::vector<char> on_surface(static_cast<std::size_t>(s.problem.mesh.num_vertices()), 0);
   for (const auto& f : s.problem.mesh.surface_tris)
