@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -271,4 +272,15 @@ TEST(BasisCacheFile, RoundTripsAndRejectsEveryTruncation) {
   } catch (const LoadError& e) {
     EXPECT_NE(std::string(e.what()).find("cache/x.bin: key abc is not the scene's abd"), std::string::npos) << e.what();
   }
+}
+
+TEST(BasisCacheFile, FuzzSeedIsAValidFile) {
+  // the fuzzer's seed (fuzz/basis_cache_seeds/tiny_basis.bin) must reach the accepting path
+  const char* src = std::getenv("ARNAV_SOURCE_DIR");
+  ASSERT_NE(src, nullptr);
+  const std::string bytes = read(fs::path(src) / "host/register/fuzz/basis_cache_seeds/tiny_basis.bin");
+  const LoadBasis b = parse_load_basis(bytes, "seed", 12, "tiny_basis.bin");
+  EXPECT_EQ(b.modes(), 3);
+  EXPECT_EQ(b.patch_of_vertex, (std::vector<int>{0, 0, -1, 0}));
+  EXPECT_EQ(serialize_load_basis(b, "seed").size(), bytes.size());
 }
