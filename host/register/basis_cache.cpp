@@ -1,12 +1,12 @@
 #include "host/register/basis_cache.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <random>
 #include <sstream>
 #include <system_error>
 #include <unistd.h>
@@ -121,8 +121,11 @@ CachedBasis cached_load_basis(const Scene& scene, const LoadBasisOptions& option
     c.warnings.push_back("basis cache: cannot create the folder " + dir + " (" + ec.message() + "); the basis is not cached. Fix: give a writable --basis-cache folder");
     return c;
   }
-  std::random_device rd;
-  const std::string tmp = (fs::path(dir) / ("." + name + ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(rd()))).string();
+  // unique per process and call: concurrent writers never share a temp file
+  static std::atomic<unsigned> calls{0};
+  const std::string tmp = (fs::path(dir) / ("." + name + ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(calls++) + "-" +
+                                            std::to_string(Clock::now().time_since_epoch().count())))
+                              .string();
   bool ok = false;
   {
     std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
