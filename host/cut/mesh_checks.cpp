@@ -7,28 +7,12 @@
 #include <numeric>
 #include <sstream>
 
+#include "host/scene/mesh_quality.hpp"
+
 namespace arnav::host::cut {
 
 double min_dihedral_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, const Eigen::Vector3d& d) {
-  const Eigen::Vector3d p[4] = {a, b, c, d};
-  // Outward face normals; the dihedral angle at an edge is pi minus the angle between the
-  // normals of its two faces.
-  Eigen::Vector3d n[4];
-  const int faces[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};  // face i opposite vertex i
-  for (int i = 0; i < 4; ++i) {
-    n[i] = (p[faces[i][1]] - p[faces[i][0]]).cross(p[faces[i][2]] - p[faces[i][0]]);
-    const double len = n[i].norm();
-    if (!(len > 0)) return 0.0;
-    n[i] /= len;
-    if (n[i].dot(p[faces[i][0]] - p[i]) < 0) n[i] = -n[i];
-  }
-  double worst = 180.0;
-  for (int i = 0; i < 4; ++i)
-    for (int j = i + 1; j < 4; ++j) {
-      const double cosang = std::clamp(-n[i].dot(n[j]), -1.0, 1.0);
-      worst = std::min(worst, std::acos(cosang) * 180.0 / M_PI);
-    }
-  return worst;
+  return tet_dihedral_range_deg(a, b, c, d).first;
 }
 
 CutMeshCheck check_cut_mesh(const TetMesh& mesh, const Eigen::Matrix3Xd& x_in) {

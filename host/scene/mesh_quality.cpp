@@ -28,31 +28,8 @@ double circumradius(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Ei
   return A.partialPivLu().solve(rhs).norm();
 }
 
-// Smallest and largest dihedral angle of one tet, degrees.
 std::pair<double, double> dihedral_range(const Eigen::Matrix3Xd& X, const std::array<int, 4>& v) {
-  Eigen::Vector3d p[4], n[4];
-  for (int k = 0; k < 4; ++k) p[k] = X.col(v[k]);
-  for (int k = 0; k < 4; ++k) {
-    const Eigen::Vector3d& a = p[(k + 1) % 4];
-    n[k] = (p[(k + 2) % 4] - a).cross(p[(k + 3) % 4] - a);
-    if (n[k].dot(p[k] - a) > 0) n[k] = -n[k];
-  }
-  static constexpr int kEdge[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
-  double lo = 180.0, hi = 0.0;
-  for (const auto& e : kEdge) {
-    int o[2], m = 0;
-    for (int k = 0; k < 4; ++k)
-      if (k != e[0] && k != e[1]) o[m++] = k;
-    const double deg = std::acos(std::clamp(-n[o[0]].normalized().dot(n[o[1]].normalized()), -1.0, 1.0)) * 180.0 / kPi;
-    if (std::isfinite(deg)) {
-      lo = std::min(lo, deg);
-      hi = std::max(hi, deg);
-    } else {
-      lo = 0.0;
-      hi = 180.0;
-    }
-  }
-  return {lo, hi};
+  return tet_dihedral_range_deg(X.col(v[0]), X.col(v[1]), X.col(v[2]), X.col(v[3]));
 }
 
 using Face = std::array<int, 3>;
@@ -134,6 +111,30 @@ int peel_boundary_slivers(TetMesh& mesh, double min_dihedral_deg, double* max_th
   return total;
 }
 
+std::pair<double, double> tet_dihedral_range_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                                                 const Eigen::Vector3d& d) {
+  const Eigen::Vector3d p[4] = {a, b, c, d};
+  // Outward normal of the face opposite vertex k; the dihedral angle at the edge shared by
+  // the faces opposite k and l is pi minus the angle between their normals.
+  Eigen::Vector3d n[4];
+  for (int k = 0; k < 4; ++k) {
+    const Eigen::Vector3d& p0 = p[(k + 1) % 4];
+    Eigen::Vector3d nk = (p[(k + 2) % 4] - p0).cross(p[(k + 3) % 4] - p0);
+    if (nk.dot(p[k] - p0) > 0) nk = -nk;
+    const double len = nk.norm();
+    if (!(len > 0.0)) return {0.0, 180.0};
+    n[k] = nk / len;
+  }
+  double lo = 180.0, hi = 0.0;
+  for (int k = 0; k < 4; ++k)
+    for (int l = k + 1; l < 4; ++l) {
+      const double deg = std::acos(std::clamp(-n[k].dot(n[l]), -1.0, 1.0)) * 180.0 / kPi;
+      lo = std::min(lo, deg);
+      hi = std::max(hi, deg);
+    }
+  return {lo, hi};
+}
+
 TetMeshQuality tet_mesh_quality(const TetMesh& mesh) {
   TetMeshQuality q;
   if (mesh.tets.empty()) return q;
@@ -141,35 +142,14 @@ TetMeshQuality tet_mesh_quality(const TetMesh& mesh) {
   std::vector<double> per_tet_min(mesh.tets.size());
   q.min_dihedral_deg = 180.0;
   q.min_volume_mm3 = std::numeric_limits<double>::infinity();
-  // The six edges (i, j) and the two faces opposite to them meet at the edge with the
-  // dihedral angle pi - angle between the outward face normals.
-  static constexpr int kEdge[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
   for (std::size_t t = 0; t < mesh.tets.size(); ++t) {
     const auto& v = mesh.tets[t];
     Eigen::Vector3d p[4];
     for (int k = 0; k < 4; ++k) p[k] = X.col(v[k]);
-    // Area vectors of the faces opposite each vertex, pointing outward.
-    Eigen::Vector3d n[4];
-    for (int k = 0; k < 4; ++k) {
-      const Eigen::Vector3d& a = p[(k + 1) % 4];
-      const Eigen::Vector3d& b = p[(k + 2) % 4];
-      const Eigen::Vector3d& c = p[(k + 3) % 4];
-      n[k] = (b - a).cross(c - a);
-      if (n[k].dot(p[k] - a) > 0) n[k] = -n[k];
-    }
-    double lo = 180.0, hi = 0.0, shortest = std::numeric_limits<double>::infinity();
-    for (const auto& e : kEdge) {
-      // The faces containing edge (i, j) are those opposite the two other vertices.
-      int others[2], m = 0;
-      for (int k = 0; k < 4; ++k)
-        if (k != e[0] && k != e[1]) others[m++] = k;
-      const double cosang = -n[others[0]].normalized().dot(n[others[1]].normalized());
-      const double deg = std::acos(std::clamp(cosang, -1.0, 1.0)) * 180.0 / kPi;
-      lo = std::min(lo, deg);
-      hi = std::max(hi, deg);
-      shortest = std::min(shortest, (p[e[0]] - p[e[1]]).norm());
-    }
-    if (!std::isfinite(lo)) lo = 0.0;
+    const auto [lo, hi] = tet_dihedral_range_deg(p[0], p[1], p[2], p[3]);
+    double shortest = std::numeric_limits<double>::infinity();
+    for (int k = 0; k < 4; ++k)
+      for (int l = k + 1; l < 4; ++l) shortest = std::min(shortest, (p[k] - p[l]).norm());
     per_tet_min[t] = lo;
     if (lo < q.min_dihedral_deg) {
       q.min_dihedral_deg = lo;

@@ -4,7 +4,10 @@
 // edges of normal length) has a dihedral angle near 0 or 180 degrees and a tiny volume;
 // under load it inverts first. Reported in the scene notes and by arnav-sim; a scene can
 // require a minimum (volume.min_dihedral_required_deg, docs/scene.md). Units: mm, degrees.
+#include <Eigen/Core>
+
 #include <string>
+#include <utility>
 
 #include "host/scene/tet_mesh.hpp"
 
@@ -21,6 +24,13 @@ struct TetMeshQuality {
 };
 
 TetMeshQuality tet_mesh_quality(const TetMesh& mesh);
+
+// Smallest and largest dihedral angle (degrees) of the tet (a, b, c, d): goes to 0 or 180 for
+// every flat shape (sliver, wedge, cap) and is scale-free; {0, 180} for a degenerate tet (a
+// face without area). The one quality measure of the scene, the cutter's checks and the
+// models' quality bound.
+std::pair<double, double> tet_dihedral_range_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                                                 const Eigen::Vector3d& d);
 
 // Removes boundary slivers: tets with exactly two faces on the boundary (a flat tet lying
 // on the surface, made of four surface vertices; TetGen keeps them when the surface is

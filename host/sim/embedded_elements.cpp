@@ -1,5 +1,6 @@
 #include "host/sim/embedded_elements.hpp"
 
+#include "host/scene/mesh_quality.hpp"
 #include "host/sim/tissue_model.hpp"
 
 #include <Eigen/Geometry>
@@ -14,27 +15,7 @@
 namespace arnav::host {
 
 double tet_min_dihedral_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, const Eigen::Vector3d& d) {
-  const Eigen::Vector3d p[4] = {a, b, c, d};
-  // Outward normal of the face opposite vertex k; the dihedral angle at the edge shared by
-  // the faces opposite k and l is pi minus the angle between their normals.
-  Eigen::Vector3d n[4];
-  for (int k = 0; k < 4; ++k) {
-    const Eigen::Vector3d& p0 = p[(k + 1) % 4];
-    const Eigen::Vector3d& p1 = p[(k + 2) % 4];
-    const Eigen::Vector3d& p2 = p[(k + 3) % 4];
-    Eigen::Vector3d nk = (p1 - p0).cross(p2 - p0);
-    if ((p[k] - p0).dot(nk) > 0) nk = -nk;
-    const double len = nk.norm();
-    if (!(len > 0.0)) return 0.0;
-    n[k] = nk / len;
-  }
-  double best = 180.0;
-  for (int k = 0; k < 4; ++k)
-    for (int l = k + 1; l < 4; ++l) {
-      const double cosine = std::clamp(-n[k].dot(n[l]), -1.0, 1.0);
-      best = std::min(best, std::acos(cosine) * 180.0 / M_PI);
-    }
-  return best;
+  return tet_dihedral_range_deg(a, b, c, d).first;
 }
 
 double tet_min_dihedral_deg(const Eigen::Matrix3Xd& x, const std::array<int, 4>& tet) {
