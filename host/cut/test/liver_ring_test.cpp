@@ -23,6 +23,7 @@
 #include <set>
 
 #include "host/cut/mesh_checks.hpp"
+#include "host/cut/test/tet_face_neighbours.hpp"
 #include "host/cut/scalpel_path.hpp"
 #include "host/cut/tet_cutter.hpp"
 #include "host/scene/scene.hpp"
@@ -180,21 +181,7 @@ void ring_on_the_liver(const std::string& scene_file, bool bundled_path) {
     }
     {
       // Shortest face path from an inside tet to an outside one.
-      std::map<std::array<int, 3>, std::vector<int>> by_face;
-      for (int t = 0; t < mesh.num_tets(); ++t) {
-        const auto& q = mesh.tets[static_cast<std::size_t>(t)];
-        for (int k = 0; k < 4; ++k) {
-          std::array<int, 3> f{q[static_cast<std::size_t>(k)], q[static_cast<std::size_t>((k + 1) % 4)], q[static_cast<std::size_t>((k + 2) % 4)]};
-          std::sort(f.begin(), f.end());
-          by_face[f].push_back(t);
-        }
-      }
-      std::vector<std::vector<int>> adj(static_cast<std::size_t>(mesh.num_tets()));
-      for (const auto& [f, ts] : by_face)
-        if (ts.size() == 2) {
-          adj[static_cast<std::size_t>(ts[0])].push_back(ts[1]);
-          adj[static_cast<std::size_t>(ts[1])].push_back(ts[0]);
-        }
+      const std::vector<std::vector<int>> adj = test::tet_face_neighbours(mesh);
       std::vector<int> parent(static_cast<std::size_t>(mesh.num_tets()), -2), queue;
       for (int t = 0; t < mesh.num_tets(); ++t)
         if (inside(t) == 1) {

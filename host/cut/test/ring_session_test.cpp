@@ -27,6 +27,7 @@
 
 #include "host/cut/cut_session.hpp"
 #include "host/cut/mesh_checks.hpp"
+#include "host/cut/test/tet_face_neighbours.hpp"
 #include "host/cut/ring_path.hpp"
 #include "host/cut/scalpel_path.hpp"
 #include "host/scene/scene.hpp"
@@ -78,21 +79,7 @@ void diagnose(const CutSession& session, const Eigen::Matrix3Xd& x, const RingFr
       print_tet(mesh, x, cutter, ring, t);
     }
   }
-  std::map<std::array<int, 3>, std::vector<int>> by_face;
-  for (int t = 0; t < mesh.num_tets(); ++t) {
-    const auto& q = mesh.tets[static_cast<std::size_t>(t)];
-    for (int k = 0; k < 4; ++k) {
-      std::array<int, 3> f{q[static_cast<std::size_t>(k)], q[static_cast<std::size_t>((k + 1) % 4)], q[static_cast<std::size_t>((k + 2) % 4)]};
-      std::sort(f.begin(), f.end());
-      by_face[f].push_back(t);
-    }
-  }
-  std::vector<std::vector<int>> adj(static_cast<std::size_t>(mesh.num_tets()));
-  for (const auto& [f, ts] : by_face)
-    if (ts.size() == 2) {
-      adj[static_cast<std::size_t>(ts[0])].push_back(ts[1]);
-      adj[static_cast<std::size_t>(ts[1])].push_back(ts[0]);
-    }
+  const std::vector<std::vector<int>> adj = test::tet_face_neighbours(mesh);
   auto outside = [&](int t) {
     for (int w : mesh.tets[static_cast<std::size_t>(t)]) {
       const Eigen::Vector3d q = ring.coords(x.col(w));
