@@ -467,6 +467,15 @@ LoadFitResult fit_load_basis(const Scene& scene, const LoadBasis& basis, const E
   Eigen::Isometry3d kept_D = D;
   Eigen::Matrix3Xd kept_x = x;
   bool done = false, moved = false;
+  // The level just run becomes the result (its weight, pose, shape and misfit).
+  auto keep_level = [&](double level, double lambda) {
+    moved = true;
+    level_chi = level;
+    kept_alpha = alpha;
+    kept_D = D;
+    kept_x = x;
+    res.lambda = lambda;
+  };
   // MAP prior: the absolute weight noise^2 / (sum(E V) strain^2); in relative units once
   // the data term's scale is known (first iteration).
   const bool map_prior = o.prior_strain > 0 && basis.stiffness_volume > 0;
@@ -505,12 +514,7 @@ LoadFitResult fit_load_basis(const Scene& scene, const LoadBasis& basis, const E
     res.level_lambda.push_back(lambda);
     if (map_prior) {
       // the prior fixes the regularisation: every level is kept, the prior's is the last
-      moved = true;
-      level_chi = level;
-      kept_alpha = alpha;
-      kept_D = D;
-      kept_x = x;
-      res.lambda = lambda;
+      keep_level(level, lambda);
       res.prior_lambda = prior_abs / hscale;
       if (last_level) stop = "reached the prior's regularisation";
       if (total >= o.max_iterations) {
@@ -525,12 +529,7 @@ LoadFitResult fit_load_basis(const Scene& scene, const LoadBasis& basis, const E
       break;  // keep the previous level
     }
     if (!gain) continue;  // still too stiff to move: next level
-    moved = true;
-    level_chi = level;
-    kept_alpha = alpha;
-    kept_D = D;
-    kept_x = x;
-    res.lambda = lambda;
+    keep_level(level, lambda);
     if (at_noise(pl, lm_level)) {
       stop = "reached the expected noise level";
       break;

@@ -44,6 +44,54 @@ Scene bar(bool clamped) {
 // Exact uniaxial solution of the clamped bar (nu = 0) under an end traction: tip displacement delta.
 Eigen::Vector3d stretched(const Eigen::Vector3d& p, double delta) { return p + Eigen::Vector3d(delta * p.x() / kSize.x(), 0, 0); }
 
+Eigen::Matrix3Xd columns(const std::vector<Eigen::Vector3d>& pts) {
+  Eigen::Matrix3Xd m(3, static_cast<Eigen::Index>(pts.size()));
+  for (std::size_t i = 0; i < pts.size(); ++i) m.col(static_cast<Eigen::Index>(i)) = pts[i];
+  return m;
+}
+
+// The stretched bar seen through its top face (z = 20) and its loaded end (x = 100), every
+// 2.5 mm, noise-free; the bottom, the sides and the clamped end are not seen (about 40 % of
+// the surface).
+Eigen::Matrix3Xd top_and_end_points(double delta) {
+  std::vector<Eigen::Vector3d> pts;
+  for (double x = 0.0; x <= 100.0; x += 2.5)
+    for (double y = 0.0; y <= 20.0; y += 2.5) pts.push_back(stretched(Eigen::Vector3d(x, y, 20.0), delta));
+  for (double y = 0.0; y <= 20.0; y += 2.5)
+    for (double z = 0.0; z < 20.0; z += 2.5) pts.push_back(stretched(Eigen::Vector3d(100.0, y, z), delta));
+  return columns(pts);
+}
+
+// A clamped bar's basis without support modes (they would let the clamp move).
+LoadBasis clamped_basis(const Scene& s, int patches) {
+  LoadBasisOptions bo;
+  bo.patches = patches;
+  bo.support_clusters = 0;
+  return build_load_basis(s, bo);
+}
+
+// Fit options for exact data on the bar: the pose is not estimated (a translation along x
+// would look like the stretch from these faces), no outliers, no robust down-weighting.
+LoadFitOptions exact_data_fit(double noise_mm, double prior_strain) {
+  LoadFitOptions fo;
+  fo.noise_mm = noise_mm;
+  fo.prior_strain = prior_strain;
+  fo.estimate_pose = false;
+  fo.keep_fraction = 1.0;
+  fo.huber_sigmas = 1e9;
+  return fo;
+}
+
+// Mean distance of the fitted vertices from the exact stretch.
+double mean_vertex_error(const Scene& s, const LoadFitResult& r, double delta) {
+  double mean = 0.0;
+  for (int v = 0; v < s.problem.mesh.num_vertices(); ++v) {
+    const Eigen::Vector3d p = s.problem.mesh.rest_positions_World_mm.col(v);
+    mean += (r.x_Model_mm.col(v) - stretched(p, delta)).norm() / s.problem.mesh.num_vertices();
+  }
+  return mean;
+}
+
 }  // namespace
 
 TEST(LoadBasis, CoversTheWholeSurfaceWithASymmetricEnergyMetric) {
@@ -92,28 +140,15 @@ struct BarFit {
   LoadFitResult r;
 };
 
-// The bar pulled at its end (tip displacement delta), seen through its top face (z = 20)
-// and the loaded end (x = 100), every 2.5 mm, noise-free; the bottom, the sides and the
-// clamped end are not seen (about 40 % of the surface). Errors against the exact solution.
+// The bar pulled at its end (tip displacement delta), seen through its top face and loaded
+// end (top_and_end_points). Errors against the exact solution.
 BarFit fit_bar(int patches, double delta) {
   const Scene s = bar(true);
-  std::vector<Eigen::Vector3d> pts;
-  for (double x = 0.0; x <= 100.0; x += 2.5)
-    for (double y = 0.0; y <= 20.0; y += 2.5) pts.push_back(stretched(Eigen::Vector3d(x, y, 20.0), delta));
-  for (double y = 0.0; y <= 20.0; y += 2.5)
-    for (double z = 0.0; z < 20.0; z += 2.5) pts.push_back(stretched(Eigen::Vector3d(100.0, y, z), delta));
-  Eigen::Matrix3Xd data(3, static_cast<Eigen::Index>(pts.size()));
-  for (std::size_t i = 0; i < pts.size(); ++i) data.col(static_cast<Eigen::Index>(i)) = pts[i];
-  LoadBasisOptions bo;
-  bo.patches = patches;
-  bo.support_clusters = 0;  // the bar is clamped (support modes would let the clamp move)
-  const LoadBasis b = build_load_basis(s, bo);
-  LoadFitOptions fo;
-  fo.noise_mm = 0.02;       // noise-free data: fit to the discretisation level
-  fo.prior_strain = 0.0;    // the discrepancy principle (the MAP prior: PriorStrainSetsTheRegularisation)
-  fo.estimate_pose = false; // a translation along x would look like the stretch from these faces
-  fo.keep_fraction = 1.0;    // no outliers:
-  fo.huber_sigmas = 1e9;     // no robust down-weighting (the end face is 5 mm off at the start, the top face not)
+  const Eigen::Matrix3Xd data = top_and_end_points(delta);
+  const LoadBasis b = clamped_basis(s, patches);
+  // noise-free data: fit to the discretisation level, with the discrepancy principle (the
+  // MAP prior: PriorStrainSetsTheRegularisation)
+  const LoadFitOptions fo = exact_data_fit(0.02, 0.0);
   BarFit f;
   f.r = fit_load_basis(s, b, data, fo);
   for (int v = 0; v < s.problem.mesh.num_vertices(); ++v) {
@@ -156,12 +191,10 @@ TEST(LoadBasis, NoDeformationWhenTheDataFitTheRestShape) {
   const LoadBasis b = build_load_basis(s, {});
   std::mt19937 rng(3);
   std::normal_distribution<double> n(0.0, 0.5);
-  Eigen::Matrix3Xd data(3, 0);
   std::vector<Eigen::Vector3d> pts;
   for (double x = 0.0; x <= 100.0; x += 2.5)
     for (double y = 0.0; y <= 20.0; y += 2.5) pts.push_back(Eigen::Vector3d(x, y, 20.0 + n(rng)));
-  data.resize(3, static_cast<Eigen::Index>(pts.size()));
-  for (std::size_t i = 0; i < pts.size(); ++i) data.col(static_cast<Eigen::Index>(i)) = pts[i];
+  const Eigen::Matrix3Xd data = columns(pts);
   LoadFitOptions fo;
   fo.noise_mm = 0.5;
   const LoadFitResult r = fit_load_basis(s, b, data, fo);
@@ -246,22 +279,13 @@ TEST(LoadBasis, LandmarksPullTheFitTowardsTheTrueDeformation) {
   std::vector<Eigen::Vector3d> pts;
   for (double x = 0.0; x <= 80.0; x += 5.0)
     for (double y = 0.0; y <= 20.0; y += 5.0) pts.push_back(stretched(Eigen::Vector3d(x, y, 20.0), delta));
-  Eigen::Matrix3Xd data(3, static_cast<Eigen::Index>(pts.size()));
-  for (std::size_t i = 0; i < pts.size(); ++i) data.col(static_cast<Eigen::Index>(i)) = pts[i];
-  LoadBasisOptions bo;
-  bo.patches = 16;
-  bo.support_clusters = 0;
-  const LoadBasis b = build_load_basis(s, bo);
+  const Eigen::Matrix3Xd data = columns(pts);
+  const LoadBasis b = clamped_basis(s, 16);
   std::vector<LandmarkPair> lm;
   for (const Eigen::Vector3d& p : {Eigen::Vector3d(100, 0, 20), Eigen::Vector3d(100, 20, 0), Eigen::Vector3d(100, 10, 10)})
     lm.push_back({p, stretched(p, delta)});
   auto run = [&](bool with_landmarks) {
-    LoadFitOptions fo;
-    fo.noise_mm = 0.1;
-    fo.prior_strain = 0.0;  // the discrepancy principle on points and landmarks
-    fo.estimate_pose = false;
-    fo.keep_fraction = 1.0;
-    fo.huber_sigmas = 1e9;
+    LoadFitOptions fo = exact_data_fit(0.1, 0.0);  // the discrepancy principle on points and landmarks
     fo.landmark_error_mm = 0.5;
     const LoadFitResult r = fit_load_basis(s, b, data, with_landmarks ? lm : std::vector<LandmarkPair>{}, fo);
     double mean = 0.0, tip = 0.0;
@@ -304,31 +328,12 @@ TEST(LoadBasis, LandmarksPullTheFitTowardsTheTrueDeformation) {
 TEST(LoadBasis, PriorStrainSetsTheRegularisation) {
   const Scene s = bar(true);
   const double delta = 5.0;
-  std::vector<Eigen::Vector3d> pts;
-  for (double x = 0.0; x <= 100.0; x += 2.5)
-    for (double y = 0.0; y <= 20.0; y += 2.5) pts.push_back(stretched(Eigen::Vector3d(x, y, 20.0), delta));
-  for (double y = 0.0; y <= 20.0; y += 2.5)
-    for (double z = 0.0; z < 20.0; z += 2.5) pts.push_back(stretched(Eigen::Vector3d(100.0, y, z), delta));
-  Eigen::Matrix3Xd data(3, static_cast<Eigen::Index>(pts.size()));
-  for (std::size_t i = 0; i < pts.size(); ++i) data.col(static_cast<Eigen::Index>(i)) = pts[i];
-  LoadBasisOptions bo;
-  bo.patches = 16;
-  bo.support_clusters = 0;
-  const LoadBasis b = build_load_basis(s, bo);
+  const Eigen::Matrix3Xd data = top_and_end_points(delta);
+  const LoadBasis b = clamped_basis(s, 16);
   EXPECT_NEAR(b.stiffness_volume, 5.0 * 100.0 * 20.0 * 20.0, 1e-6);
   auto run = [&](double strain) {
-    LoadFitOptions fo;
-    fo.noise_mm = 0.1;
-    fo.prior_strain = strain;
-    fo.estimate_pose = false;
-    fo.keep_fraction = 1.0;
-    fo.huber_sigmas = 1e9;
-    const LoadFitResult r = fit_load_basis(s, b, data, fo);
-    double mean = 0.0;
-    for (int v = 0; v < s.problem.mesh.num_vertices(); ++v) {
-      const Eigen::Vector3d p = s.problem.mesh.rest_positions_World_mm.col(v);
-      mean += (r.x_Model_mm.col(v) - stretched(p, delta)).norm() / s.problem.mesh.num_vertices();
-    }
+    const LoadFitResult r = fit_load_basis(s, b, data, exact_data_fit(0.1, strain));
+    const double mean = mean_vertex_error(s, r, delta);
     std::cout << "prior strain " << strain << ": lambda " << r.lambda << " (prior " << r.prior_lambda << "), vertex error mean " << mean
               << " mm, strain energy " << r.strain_energy << " mN mm, rms " << r.final_rms_mm << " mm; " << r.message << "\n";
     EXPECT_TRUE(r.accepted) << r.message;
