@@ -27,6 +27,17 @@ struct Sink {
   void on_event(const lcm::ReceiveBuffer*, const std::string&, const appliance_event_t* m) { events.push_back(*m); }
 };
 
+// A session on the fake Polaris with short timeouts (the fake answers at once).
+ndi::SessionConfig fast_session(std::vector<ndi::ToolConfig> tools) {
+  ndi::SessionConfig c;
+  c.tools = std::move(tools);
+  c.setup_timeout = 300ms;
+  c.reset_wait = 80ms;
+  c.break_duration = 1ms;
+  c.comm_settle = 1ms;
+  return c;
+}
+
 void drain(lcm::LCM& lcm) {
   while (lcm.handleTimeout(10) > 0) {
   }
@@ -40,13 +51,8 @@ TEST(Publisher, PosesHealthAndEventsOverLcm) {
   lcm.subscribe("ARNAV_HEALTH_ndi", &Sink::on_health, &sink);
   lcm.subscribe("ARNAV_EVENT", &Sink::on_event, &sink);
 
-  ndi::SessionConfig c;
-  c.tools = {{"pointer", rom("8700340.rom")}, {"reference", rom("8700339.rom")}};
-  c.setup_timeout = 300ms;
+  ndi::SessionConfig c = fast_session({{"pointer", rom("8700340.rom")}, {"reference", rom("8700339.rom")}});
   c.tracking_timeout = 30ms;
-  c.reset_wait = 80ms;
-  c.break_duration = 1ms;
-  c.comm_settle = 1ms;
   auto dev = std::make_shared<ndi::test::FakeDevice>();
   Publisher pub(lcm, c.tools, 60.0);
   ndi::Session session(c, ndi::test::fake_factory(dev), [&](const ndi::Event& e) { pub.publish_event(e); });
@@ -98,12 +104,7 @@ TEST(Publisher, OutOfVolumeAndMissingTools) {
   lcm::LCM lcm("memq://");
   Sink sink;
   lcm.subscribe("ARNAV_POSE_.*", &Sink::on_pose, &sink);
-  ndi::SessionConfig c;
-  c.tools = {{"pointer", rom("8700340.rom")}};
-  c.setup_timeout = 300ms;
-  c.reset_wait = 80ms;
-  c.break_duration = 1ms;
-  c.comm_settle = 1ms;
+  const ndi::SessionConfig c = fast_session({{"pointer", rom("8700340.rom")}});
   auto dev = std::make_shared<ndi::test::FakeDevice>();
   ndi::Session session(c, ndi::test::fake_factory(dev), nullptr);
   ASSERT_TRUE(session.start());
@@ -128,11 +129,6 @@ TEST(Publisher, OutOfVolumeAndMissingTools) {
   EXPECT_EQ(sink.poses[2].status, +tool_pose_t::STATUS_MISSING);
 }
 
-}  // namespace
-}  // namespace arnav::app
-
-namespace arnav::app {
-namespace {
 
 // With frames.reference: Ref, NDI poses go out as X_RefTool computed from the same device
 // frame; the reference tool itself stays X_NdiRef; without the reference, X_NdiTool.
@@ -140,12 +136,7 @@ TEST(Publisher, PosesInTheReferenceFrame) {
   lcm::LCM lcm("memq://");
   Sink sink;
   lcm.subscribe("ARNAV_POSE_.*", &Sink::on_pose, &sink);
-  ndi::SessionConfig c;
-  c.tools = {{"pointer", rom("8700340.rom")}, {"reference", rom("8700339.rom")}};
-  c.setup_timeout = 300ms;
-  c.reset_wait = 80ms;
-  c.break_duration = 1ms;
-  c.comm_settle = 1ms;
+  const ndi::SessionConfig c = fast_session({{"pointer", rom("8700340.rom")}, {"reference", rom("8700339.rom")}});
   auto dev = std::make_shared<ndi::test::FakeDevice>();
   ndi::Session session(c, ndi::test::fake_factory(dev), nullptr);
   ASSERT_TRUE(session.start());
