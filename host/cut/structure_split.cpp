@@ -407,7 +407,7 @@ SplitStructure split_surface(const TetMesh& mesh, const CutLips& lips, const Eig
   // Close the loops the split opened: a slit (the cut ends inside the surface) side by side,
   // any other loop by a fan around a centre on the cut.
   const std::size_t first_cap = out.size();
-  int caps = 0, slits = 0;
+  int caps = 0, slits = 0, ragged = 0;
   if (crossed > 0) {
     const auto key = [](int i, int j) { return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(i)) << 32) | static_cast<std::uint32_t>(j); };
     std::unordered_set<std::uint64_t> directed;
@@ -439,9 +439,15 @@ SplitStructure split_surface(const TetMesh& mesh, const CutLips& lips, const Eig
         const int n_in = static_cast<int>(rest.cols());
         for (int v : loop) slit |= v < n_in || on_loop.count(n_in + ((v - n_in) ^ 1)) > 0;
       }
-      if (slit && (close_slit(loop, static_cast<int>(rest.cols()), build.rest, directed, out) || sew_slit(loop, build.rest, directed, out))) {
+      if (slit && close_slit(loop, static_cast<int>(rest.cols()), build.rest, directed, out)) {
         ++caps;
         ++slits;
+        continue;
+      }
+      if (slit && sew_slit(loop, build.rest, directed, out)) {
+        ++caps;
+        ++slits;
+        ++ragged;
         continue;
       }
       Eigen::Vector3d centre = Eigen::Vector3d::Zero(), into = Eigen::Vector3d::Zero();
@@ -475,6 +481,7 @@ SplitStructure split_surface(const TetMesh& mesh, const CutLips& lips, const Eig
   s.crossed_edges = crossed;
   s.caps = caps;
   s.slits = slits;
+  s.ragged_slits = ragged;
   s.first_cap_tri = static_cast<int>(first_cap);
   return s;
 }

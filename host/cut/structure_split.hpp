@@ -80,7 +80,8 @@ struct SplitStructure {
   std::vector<std::array<int, 2>> segments;  // split polyline or empty
   int crossed_edges = 0;                 // input edges/segments crossing the cut
   int caps = 0;                          // loops closed (a fan, or a slit's two sides)
-  int slits = 0;                         // of which slits closed side by side (the cut ends inside the surface)
+  int slits = 0;                         // of which slits (the cut ends inside the surface)
+  int ragged_slits = 0;                  // of which sewn by the loop's own triangulation (not side by side)
   int first_cap_tri = 0;                 // tris[first_cap_tri..]: the triangles closing the loops
 };
 

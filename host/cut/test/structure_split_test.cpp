@@ -299,6 +299,27 @@ TEST(StructureSplit, PartialCutIntoTheTumourKeepsItClosed) {
   EXPECT_EQ(sc.components, 1);
   const CarriedPoints& t = session.tumours()[0];
   EXPECT_NEAR(signed_volume(t.rest_World_mm, tris, sc.component, -1) / signed_volume(sphere.positions_World_mm, sphere.tris, {}, -1), 1.0, 1e-9);
+  // The slit is closed side by side: each side by the cut's own plane between its copies and
+  // the chord between the crack ends (the copies on the plane x = 52.3, the crack ends, the
+  // vertices opposite the crossed edge of the triangles where the cut ends, within a tumour
+  // edge of it), not a fan.
+  double edge = 0.0;
+  for (const auto& tri : sphere.tris)
+    for (int k = 0; k < 3; ++k) edge = std::max(edge, (sphere.positions_World_mm.col(tri[static_cast<std::size_t>(k)]) - sphere.positions_World_mm.col(tri[static_cast<std::size_t>((k + 1) % 3)])).norm());
+  const int n = static_cast<int>(sphere.positions_World_mm.cols());
+  Embedding input;
+  input.tet.assign(t.embedding.tet.begin(), t.embedding.tet.begin() + n);
+  input.weights = t.embedding.weights.leftCols(n);
+  std::vector<int> all(static_cast<std::size_t>(session.mesh().num_tets()));
+  for (std::size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
+  const SplitStructure split = split_surface(session.mesh(), CutLips(session.mesh(), all), sphere.positions_World_mm, input, sphere.tris);
+  EXPECT_EQ(split.tris, tris);
+  EXPECT_EQ(split.slits, 1);
+  EXPECT_EQ(split.ragged_slits, 0);
+  EXPECT_EQ(split.caps, 1);
+  for (std::size_t k = static_cast<std::size_t>(split.first_cap_tri); k < split.tris.size(); ++k)
+    for (int v : split.tris[k]) EXPECT_NEAR(split.rest_World_mm(0, v), 52.3, v >= n ? 0.1 + 1e-9 : edge);  // path_tolerance_mm
+  EXPECT_EQ(self_intersections(split.rest_World_mm, split.tris), 0);
 }
 
 // A long curved slit ending inside the tumour: a banana-shaped tumour (an ellipsoid 44 mm
@@ -345,7 +366,8 @@ TEST(StructureSplit, LongCurvedSlitEndingInsideTheTumourIsClosedAlongTheCut) {
   EXPECT_GT(split.crossed_edges, 60) << "a long slit";
   // One slit; the other loops are the middles of tumour triangles the bent cut crosses on
   // all three edges (fans around a centre on the cut, 1 mm across).
-  EXPECT_EQ(split.slits, 1) << "closed side by side, not by a fan";
+  EXPECT_EQ(split.slits, 1) << "closed along the cut, not by a fan";
+  EXPECT_EQ(split.ragged_slits, 1) << "pockets where the slit passes tumour vertices: sewn";
   EXPECT_GE(split.caps, 1);
   const SurfaceCheck sc = check_surface(split.tris);
   EXPECT_TRUE(sc.closed_manifold()) << sc.open_edges << " open, " << sc.misoriented_edges << " misoriented, " << sc.nonmanifold_edges << " non-manifold";
