@@ -413,8 +413,8 @@ TEST(StructureSplit, LongCurvedSlitEndingInsideTheTumourIsClosedAlongTheCut) {
     }
   }
   for (int v = 0; v < mesh.num_vertices(); ++v) {
-    const int all = tet_count[static_cast<std::size_t>(v)], sum = tet_sides[static_cast<std::size_t>(v)];
-    if (all == 0 || std::abs(sum) != all) continue;  // tets on both sides
+    const int around = tet_count[static_cast<std::size_t>(v)], sum = tet_sides[static_cast<std::size_t>(v)];
+    if (around == 0 || std::abs(sum) != around) continue;  // tets on both sides
     const Eigen::Vector3d q = x.col(v);
     const double slope = (q.y() - y0) / bend;
     x.col(v) += 0.5 * (sum > 0 ? 1.0 : -1.0) * Eigen::Vector3d(1, -slope, 0).normalized();
