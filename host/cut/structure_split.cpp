@@ -3,6 +3,7 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <unordered_map>
 #include <unordered_set>
@@ -97,6 +98,121 @@ std::optional<EdgeCopies> edge_copies(int a, int b, const Eigen::Matrix3Xd& rest
 
 // The copy of edge a-b's crossing on vertex v's side (v is a or b).
 int copy_on_side(const EdgeCopies& c, int a, int b, int v) { return v == std::min(a, b) ? c.lo : c.hi; }
+
+
+// Triangulation of the polygon p[0..m-1] (closed by p[m-1] -> p[0]) of least total area
+// (dynamic programming over the polygon's diagonals, O(m^3)): on a long, thin, curved
+// polygon (a slit's side) it joins the two long sides by short rungs that follow the curve,
+// where a fan from one point makes long slivers across it. Triangles as index triples
+// i < k < j in polygon order; empty when m < 3.
+std::vector<std::array<int, 3>> least_area_triangulation(const std::vector<Eigen::Vector3d>& p) {
+  const int m = static_cast<int>(p.size());
+  std::vector<std::array<int, 3>> out;
+  if (m < 3) return out;
+  const auto at = [m](int i, int j) { return static_cast<std::size_t>(i) * static_cast<std::size_t>(m) + static_cast<std::size_t>(j); };
+  std::vector<double> cost(static_cast<std::size_t>(m) * static_cast<std::size_t>(m), 0.0);
+  std::vector<int> best(static_cast<std::size_t>(m) * static_cast<std::size_t>(m), -1);
+  for (int len = 2; len < m; ++len)
+    for (int i = 0; i + len < m; ++i) {
+      const int j = i + len;
+      double c_best = std::numeric_limits<double>::infinity();
+      for (int k = i + 1; k < j; ++k) {
+        const double area = 0.5 * (p[static_cast<std::size_t>(k)] - p[static_cast<std::size_t>(i)]).cross(p[static_cast<std::size_t>(j)] - p[static_cast<std::size_t>(i)]).norm();
+        const double c = cost[at(i, k)] + cost[at(k, j)] + area;
+        if (c < c_best) {
+          c_best = c;
+          best[at(i, j)] = k;
+        }
+      }
+      cost[at(i, j)] = c_best;
+    }
+  std::vector<std::pair<int, int>> todo{{0, m - 1}};
+  while (!todo.empty()) {
+    const auto [i, j] = todo.back();
+    todo.pop_back();
+    if (j - i < 2) continue;
+    const int k = best[at(i, j)];
+    out.push_back({i, k, j});
+    todo.emplace_back(i, k);
+    todo.emplace_back(k, j);
+  }
+  return out;
+}
+
+// A slit: the loop a cut ending inside the surface opens. It runs from one crack end (an
+// input vertex where the cut ends inside a triangle) along the crossing copies of the slit
+// to the other crack end and back along their twins (the other copies of the same
+// crossings, in reverse order); where the slit's end is ragged (the crack front crosses
+// the surface between tets the cut has not separated yet) it also passes input vertices
+// between the copies, once each way. Each way is closed by its own surface spanning its
+// points and the chord between the crack ends (the crack front inside the structure),
+// triangulated with least area; the way back's is the mirror image of the way out's, so the
+// two meet along the chord, coincide in the rest shape (the volume is unchanged) and part as
+// the cut opens. False (nothing added) when the loop is not such a mirror, a point repeats
+// on one way, or the chord is already an edge.
+bool close_slit(const std::vector<int>& loop, int input_points, const std::vector<Eigen::Vector3d>& rest,
+                const std::unordered_set<std::uint64_t>& directed, std::vector<std::array<int, 3>>& out) {
+  constexpr std::size_t kMaxSide = 600;  // O(m^3) work: longer slits keep the fan
+  const std::size_t n = loop.size();
+  if (n < 4 || n % 2 != 0 || n / 2 + 1 > kMaxSide) return false;
+  // Copies are made in pairs (edge_copies: the lower vertex's side, then the other's).
+  const auto twin = [input_points](int v) { return v < input_points ? v : input_points + ((v - input_points) ^ 1); };
+  const std::size_t half = n / 2;
+  for (std::size_t i0 = 0; i0 < half; ++i0) {
+    const std::size_t i1 = i0 + half;
+    if (loop[i0] >= input_points || loop[i1] >= input_points || loop[i0] == loop[i1]) continue;
+    bool mirror = true;
+    for (std::size_t k = 1; k < half && mirror; ++k) mirror = loop[(i0 + k) % n] == twin(loop[(i0 + n - k) % n]);
+    if (!mirror) continue;
+    std::vector<int> a(loop.begin() + static_cast<std::ptrdiff_t>(i0), loop.begin() + static_cast<std::ptrdiff_t>(i1) + 1);
+    std::vector<int> b;  // c1, the way back, c0: b[j] is the twin of a[m-1-j]
+    for (std::size_t k = i1; k <= i0 + n; ++k) b.push_back(loop[k % n]);
+    const std::size_t m = a.size();
+    std::vector<int> sorted = a;
+    std::sort(sorted.begin(), sorted.end());
+    if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) return false;
+    const int c0 = a.front(), c1 = a.back();
+    const auto key = [](int i, int j) { return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(i)) << 32) | static_cast<std::uint32_t>(j); };
+    if (directed.count(key(c0, c1)) || directed.count(key(c1, c0))) return false;
+    std::vector<Eigen::Vector3d> pa;
+    for (int v : a) pa.push_back(rest[static_cast<std::size_t>(v)]);
+    for (const auto& [i, k, j] : least_area_triangulation(pa)) {
+      // Reverse orientation of the loop, as the loop's own surface runs against it.
+      out.push_back({a[static_cast<std::size_t>(j)], a[static_cast<std::size_t>(k)], a[static_cast<std::size_t>(i)]});
+      out.push_back({b[m - 1 - static_cast<std::size_t>(i)], b[m - 1 - static_cast<std::size_t>(k)], b[m - 1 - static_cast<std::size_t>(j)]});
+    }
+    return true;
+  }
+  return false;
+}
+
+// A ragged slit (the crack front crosses the surface between tets the cut has not
+// separated, or the cut branches): the loop, which runs along both sides of the slit and
+// passes the crack ends, is sewn shut by its own least-area triangulation (each pair of
+// copies of a crossing and its neighbours form triangles of zero area in the rest shape,
+// which open with the cut). False (nothing added) when a point repeats on the loop, it is
+// too long, or a diagonal is already an edge of the surface.
+bool sew_slit(const std::vector<int>& loop, const std::vector<Eigen::Vector3d>& rest, const std::unordered_set<std::uint64_t>& directed,
+              std::vector<std::array<int, 3>>& out) {
+  constexpr std::size_t kMaxLoop = 600;  // O(n^3) work
+  const std::size_t n = loop.size();
+  if (n < 3 || n > kMaxLoop) return false;
+  std::vector<int> sorted = loop;
+  std::sort(sorted.begin(), sorted.end());
+  if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) return false;
+  std::vector<Eigen::Vector3d> p;
+  for (int v : loop) p.push_back(rest[static_cast<std::size_t>(v)]);
+  const auto tris = least_area_triangulation(p);
+  const auto key = [](int i, int j) { return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(i)) << 32) | static_cast<std::uint32_t>(j); };
+  for (const auto& [i, k, j] : tris)
+    for (const auto& [u, w] : {std::pair{i, k}, std::pair{k, j}, std::pair{i, j}}) {
+      if (w - u == 1 || (u == 0 && w == static_cast<int>(n) - 1)) continue;  // a loop edge
+      const int a = loop[static_cast<std::size_t>(u)], b = loop[static_cast<std::size_t>(w)];
+      if (directed.count(key(a, b)) || directed.count(key(b, a))) return false;
+    }
+  for (const auto& [i, k, j] : tris) out.push_back({loop[static_cast<std::size_t>(j)], loop[static_cast<std::size_t>(k)], loop[static_cast<std::size_t>(i)]});
+  return true;
+}
 
 }  // namespace
 
@@ -288,8 +404,10 @@ SplitStructure split_surface(const TetMesh& mesh, const CutLips& lips, const Eig
       }
     }
   }
-  // Close the loops the split opened: fans around each loop's centroid.
-  int caps = 0;
+  // Close the loops the split opened: a slit (the cut ends inside the surface) side by side,
+  // any other loop by a fan around a centre on the cut.
+  const std::size_t first_cap = out.size();
+  int caps = 0, slits = 0, ragged = 0;
   if (crossed > 0) {
     const auto key = [](int i, int j) { return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(i)) << 32) | static_cast<std::uint32_t>(j); };
     std::unordered_set<std::uint64_t> directed;
@@ -313,6 +431,25 @@ SplitStructure split_surface(const TetMesh& mesh, const CutLips& lips, const Eig
         loop.push_back(j);
       }
       if (loop.size() < 3) continue;
+      // A slit (the cut ends inside the surface): the loop passes an input vertex (a crack
+      // end) or both copies of a crossing (a triangle the ragged crack front crosses thrice).
+      bool slit = false;
+      {
+        std::unordered_set<int> on_loop(loop.begin(), loop.end());
+        const int n_in = static_cast<int>(rest.cols());
+        for (int v : loop) slit |= v < n_in || on_loop.count(n_in + ((v - n_in) ^ 1)) > 0;
+      }
+      if (slit && close_slit(loop, static_cast<int>(rest.cols()), build.rest, directed, out)) {
+        ++caps;
+        ++slits;
+        continue;
+      }
+      if (slit && sew_slit(loop, build.rest, directed, out)) {
+        ++caps;
+        ++slits;
+        ++ragged;
+        continue;
+      }
       Eigen::Vector3d centre = Eigen::Vector3d::Zero(), into = Eigen::Vector3d::Zero();
       Aabb box;
       for (int v : loop) {
@@ -343,6 +480,9 @@ SplitStructure split_surface(const TetMesh& mesh, const CutLips& lips, const Eig
   s.tris = std::move(out);
   s.crossed_edges = crossed;
   s.caps = caps;
+  s.slits = slits;
+  s.ragged_slits = ragged;
+  s.first_cap_tri = static_cast<int>(first_cap);
   return s;
 }
 

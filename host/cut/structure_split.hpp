@@ -9,9 +9,14 @@
 //  - a triangle with two crossed edges is split into three (one on the lone vertex's side,
 //    two on the other), one crossed edge (the cut ends inside the triangle) into two meeting
 //    at the opposite vertex, three crossed edges (two cuts) into its three corners;
-//  - each boundary loop the splitting opens is closed by a fan of triangles around the
-//    loop's centroid (on the cut for a planar cut; embedded on the loop's side), so every
-//    part stays a closed, consistently oriented 2-manifold surface;
+//  - each boundary loop the splitting opens is closed, so every part stays a closed,
+//    consistently oriented 2-manifold surface: a loop of one side (the cut goes through) by a
+//    fan of triangles around a centre put on the cut (embedded on the loop's side); a slit
+//    (the cut ends inside the surface: the loop runs from one crack end along the copies of
+//    one side to the other crack end and back along the other side's) by a surface per side
+//    spanning its copies and the chord between the crack ends, the triangulation of least
+//    area (short rungs along a long curved slit, where a fan from one point makes slivers
+//    that cross the surface), the two sides' mirror images meeting along the chord;
 //  - a segment crossed is replaced by two segments ending at the two new points.
 // The split is recomputed from the uncut structure against the current cut mesh, so it only
 // depends on where the cut is. Frame World, units mm.
@@ -74,7 +79,10 @@ struct SplitStructure {
   std::vector<std::array<int, 3>> tris;  // split surface (closed again) or empty
   std::vector<std::array<int, 2>> segments;  // split polyline or empty
   int crossed_edges = 0;                 // input edges/segments crossing the cut
-  int caps = 0;                          // loops closed by a fan
+  int caps = 0;                          // loops closed (a fan, or a slit's two sides)
+  int slits = 0;                         // of which slits (the cut ends inside the surface)
+  int ragged_slits = 0;                  // of which sewn by the loop's own triangulation (not side by side)
+  int first_cap_tri = 0;                 // tris[first_cap_tri..]: the triangles closing the loops
 };
 
 // Splits a closed surface (rest points, their embedding in mesh, triangles) along the cut.
