@@ -652,13 +652,22 @@ std::optional<MeshChangeStats> XpbdModel::apply_mesh_change(const SimProblem& pr
     embedded_.move_mass({&mass_, &mass_damping_per_s_}, unused, &problem.region_materials);
   }
   merge_fixed();
-  // State of the touched vertices (new ones, moved ones: the cutter's), masses.
+  // State of the touched vertices (new ones, moved ones: the cutter's), masses. The
+  // embedding's mass moves were undone and made again for every driven vertex and rigid
+  // group; most vertices get their inverse mass back to round-off: those keep it exactly
+  // (the mass blocks around them stay valid), only real changes refresh blocks below.
+  std::vector<int> reweighed;  // vertices whose inverse mass changed
   for (int w : touched) {
     mass_damping_per_s_[w] = mass_[w] > 0.0 ? mass_damping_per_s_[w] / mass_[w] : 0.0;
     x_.col(w) = x.col(w);
     x_prev_.col(w) = x.col(w);
     v_.col(w) = v.cols() == n && !fixed_[static_cast<std::size_t>(w)] ? Eigen::Vector3d(v.col(w)) : Eigen::Vector3d::Zero();
-    inv_mass_[w] = fixed_[static_cast<std::size_t>(w)] ? 0.0 : 1.0 / mass_[w];
+    const double inv = fixed_[static_cast<std::size_t>(w)] ? 0.0 : 1.0 / mass_[w];
+    const double before = inv_mass_[w];
+    if (w >= n_old || std::abs(inv - before) > 1e-12 * std::max(std::abs(inv), std::abs(before)) || (inv == 0.0) != (before == 0.0)) {
+      inv_mass_[w] = inv;
+      reweighed.push_back(w);
+    }
     ++stats.vertices_updated;
   }
   // The changed tets join the seam (those below the quality bound: no constraint).
@@ -667,9 +676,11 @@ std::optional<MeshChangeStats> XpbdModel::apply_mesh_change(const SimProblem& pr
     add_lane(problem, t);
     ++stats.elements_updated;
   }
-  // Mass blocks of every tet around a touched vertex.
+  // Mass blocks of the added tets and of every tet around a vertex whose inverse mass changed.
   std::vector<int> lanes;
-  for (int w : touched) lanes.insert(lanes.end(), vertex_lanes_[static_cast<std::size_t>(w)].begin(), vertex_lanes_[static_cast<std::size_t>(w)].end());
+  for (int t : changed_tets)
+    if (lane_of_tet_[static_cast<std::size_t>(t)] >= 0) lanes.push_back(lane_of_tet_[static_cast<std::size_t>(t)]);
+  for (int w : reweighed) lanes.insert(lanes.end(), vertex_lanes_[static_cast<std::size_t>(w)].begin(), vertex_lanes_[static_cast<std::size_t>(w)].end());
   std::sort(lanes.begin(), lanes.end());
   lanes.erase(std::unique(lanes.begin(), lanes.end()), lanes.end());
   for (int lane : lanes) {
