@@ -33,6 +33,9 @@ inline Eigen::Matrix3d cofactor(const Eigen::Matrix3d& F) {
 // as not converged.
 constexpr double kUnconvergedResidual = 0.01;
 
+// Slot of group g in the per-vertex counts XpbdModel::side_tets_ (groups 0, 2, 3), -1: none.
+int side_slot(int g) { return g == 0 ? 0 : (g == 2 ? 1 : (g == 3 ? 2 : -1)); }
+
 std::vector<int> all_tets(int nt) {
   std::vector<int> out(static_cast<std::size_t>(nt));
   for (int t = 0; t < nt; ++t) out[static_cast<std::size_t>(t)] = t;
@@ -355,7 +358,7 @@ void XpbdModel::remove_lane(int lane) {
   };
   for (int a = 0; a < 4; ++a) {
     drop(b.v[a][l], lane);
-    if (g == 2 || g == 3) --side_tets_[static_cast<std::size_t>(b.v[a][l])][static_cast<std::size_t>(g - 2)];
+    if (side_slot(g) >= 0) --side_tets_[static_cast<std::size_t>(b.v[a][l])][static_cast<std::size_t>(side_slot(g))];
   }
   --group_count_[static_cast<std::size_t>(g)];
   lane_of_tet_[static_cast<std::size_t>(batches_.tet[static_cast<std::size_t>(lane)])] = -1;
@@ -412,22 +415,53 @@ int XpbdModel::choose_group(const std::array<int, 4>& tet) const {
   // The phases of step_batches: groups 0 and 1 run at once (thread 1 predicts its own
   // vertices and sweeps group 1 with no barrier in between: group 1 touches only thread
   // 1's vertices, group 0 none of them), then groups 2 and 3 (no vertex in common), then
-  // the seam alone.
+  // the seam alone. Allowed: group 0 without a vertex of thread 1; group 1 without a
+  // vertex of thread 0 and with no group-0 tet at its shared vertices (those become
+  // thread 1's, add_lane); group 2 (3) with no tet of group 3 (2) at its vertices; the
+  // seam always. Among those, the one that lengthens the step's critical path
+  // max(n0, n1) + max(n2, n3) + n4 (tets) least, then the one with most slack.
   unsigned owners = 0;
-  bool at2 = false, at3 = false;
+  bool at0_shared = false, at2 = false, at3 = false;
   for (int w : tet) {
-    owners |= 1u << vertex_owner_[static_cast<std::size_t>(w)];
-    at2 = at2 || side_tets_[static_cast<std::size_t>(w)][0] > 0;
-    at3 = at3 || side_tets_[static_cast<std::size_t>(w)][1] > 0;
+    const auto& at = side_tets_[static_cast<std::size_t>(w)];
+    const unsigned char o = vertex_owner_[static_cast<std::size_t>(w)];
+    owners |= 1u << o;
+    at0_shared = at0_shared || (o == 2 && at[0] > 0);
+    at2 = at2 || at[1] > 0;
+    at3 = at3 || at[2] > 0;
   }
-  if (owners == 1u) return 0;
-  if (owners == 2u) return 1;
-  const bool may0 = (owners & 2u) == 0;
-  if (may0 && group_count_[0] < group_count_[1]) return 0;  // phase 1 is the lighter place
-  if (!at3 && !at2) return group_count_[2] <= group_count_[3] ? 2 : 3;
-  if (!at3) return 2;
-  if (!at2) return 3;
-  return may0 ? 0 : 4;
+  const std::array<bool, 5> allowed = {(owners & 2u) == 0, (owners & 1u) == 0 && !at0_shared, !at3, !at2, true};
+  const std::array<int, 5>& n = group_count_;
+  int best = 4;
+  long best_cost = 0, best_slack = 0;
+  for (int g = 0; g < 5; ++g) {
+    if (!allowed[static_cast<std::size_t>(g)]) continue;
+    long cost = 1, slack = -(1L << 40);  // the seam: always one more on the path, last on ties
+    if (g < 4) {
+      const int partner = g ^ 1;
+      const long mine = n[static_cast<std::size_t>(g)], other = n[static_cast<std::size_t>(partner)];
+      cost = mine + 1 > other ? mine + 1 - std::max(mine, other) : 0;
+      slack = other - mine;
+    }
+    if (g == 0 || cost < best_cost || (cost == best_cost && slack > best_slack)) {
+      best = g;
+      best_cost = cost;
+      best_slack = slack;
+    }
+  }
+  return best;
+}
+
+void XpbdModel::set_owner(int vertex, unsigned char owner) {
+  const std::size_t w = static_cast<std::size_t>(vertex);
+  auto& from = group_vertices_[vertex_owner_[w]];
+  const int pos = owner_pos_[w];
+  from[static_cast<std::size_t>(pos)] = from.back();
+  owner_pos_[static_cast<std::size_t>(from.back())] = pos;
+  from.pop_back();
+  vertex_owner_[w] = owner;
+  owner_pos_[w] = static_cast<int>(group_vertices_[owner].size());
+  group_vertices_[owner].push_back(vertex);
 }
 
 int XpbdModel::find_batch(int group, const std::array<int, 4>& tet) {
@@ -478,6 +512,9 @@ int XpbdModel::add_lane(const SimProblem& problem, int t) {
   using xpbd::kLanes;
   const auto& tet = problem.mesh.tets[static_cast<std::size_t>(t)];
   const int g = choose_group(tet);
+  if (g == 1)  // its shared vertices (no group-0 tet there) become thread 1's
+    for (int w : tet)
+      if (vertex_owner_[static_cast<std::size_t>(w)] == 2) set_owner(w, 1);
   const int bi = find_batch(g, tet);
   const std::size_t b = static_cast<std::size_t>(bi);
   const int l = batches_.count[b]++;
@@ -488,7 +525,7 @@ int XpbdModel::add_lane(const SimProblem& problem, int t) {
   lane_of_tet_[static_cast<std::size_t>(t)] = lane;
   for (int w : tet) {
     vertex_lanes_[static_cast<std::size_t>(w)].push_back(lane);
-    if (g == 2 || g == 3) ++side_tets_[static_cast<std::size_t>(w)][static_cast<std::size_t>(g - 2)];
+    if (side_slot(g) >= 0) ++side_tets_[static_cast<std::size_t>(w)][static_cast<std::size_t>(side_slot(g))];
   }
   ++group_count_[static_cast<std::size_t>(g)];
   if (!rotation_.empty()) {
@@ -511,7 +548,7 @@ void XpbdModel::build_local_maps() {
   const int n = static_cast<int>(x_.cols());
   lane_of_tet_.assign(static_cast<std::size_t>(num_tets_), -1);
   vertex_lanes_.assign(static_cast<std::size_t>(n), {});
-  side_tets_.assign(static_cast<std::size_t>(n), {0, 0});
+  side_tets_.assign(static_cast<std::size_t>(n), {0, 0, 0});
   for (std::size_t bi = 0; bi < batches_.batches.size(); ++bi)
     for (int l = 0; l < batches_.count[bi]; ++l) {
       const int lane = static_cast<int>(bi) * kLanes + l;
@@ -520,12 +557,16 @@ void XpbdModel::build_local_maps() {
       for (int a = 0; a < 4; ++a) {
         const int w = batches_.batches[bi].v[a][l];
         vertex_lanes_[static_cast<std::size_t>(w)].push_back(lane);
-        if (g == 2 || g == 3) ++side_tets_[static_cast<std::size_t>(w)][static_cast<std::size_t>(g - 2)];
+        if (side_slot(g) >= 0) ++side_tets_[static_cast<std::size_t>(w)][static_cast<std::size_t>(side_slot(g))];
       }
     }
   vertex_owner_.assign(static_cast<std::size_t>(n), 2);
+  owner_pos_.assign(static_cast<std::size_t>(n), -1);
   for (std::size_t d = 0; d < 3; ++d)
-    for (int w : group_vertices_[d]) vertex_owner_[static_cast<std::size_t>(w)] = static_cast<unsigned char>(d);
+    for (std::size_t i = 0; i < group_vertices_[d].size(); ++i) {
+      vertex_owner_[static_cast<std::size_t>(group_vertices_[d][i])] = static_cast<unsigned char>(d);
+      owner_pos_[static_cast<std::size_t>(group_vertices_[d][i])] = static_cast<int>(i);
+    }
   in_open_.assign(batches_.batches.size(), 0);
   for (auto& open : open_) open.clear();
   free_batches_.clear();
@@ -557,7 +598,7 @@ std::optional<MeshChangeStats> XpbdModel::apply_mesh_change(const SimProblem& pr
   mass_damping_per_s_.conservativeResize(n);
   fixed_.resize(static_cast<std::size_t>(n), 0);
   vertex_lanes_.resize(static_cast<std::size_t>(n));
-  side_tets_.resize(static_cast<std::size_t>(n), {0, 0});
+  side_tets_.resize(static_cast<std::size_t>(n), {0, 0, 0});
   for (int i = n_old; i < n; ++i) {
     mass_[i] = 0.0;
     mass_damping_per_s_[i] = 0.0;
@@ -573,10 +614,12 @@ std::optional<MeshChangeStats> XpbdModel::apply_mesh_change(const SimProblem& pr
         if (w >= n_old) owners[static_cast<std::size_t>(w - n_old)] |= old;
     }
     vertex_owner_.resize(static_cast<std::size_t>(n), 2);
+    owner_pos_.resize(static_cast<std::size_t>(n), -1);
     for (int i = n_old; i < n; ++i) {
       const unsigned o = owners[static_cast<std::size_t>(i - n_old)];
       const unsigned char d = o == 1u ? 0 : (o == 2u ? 1 : 2);
       vertex_owner_[static_cast<std::size_t>(i)] = d;
+      owner_pos_[static_cast<std::size_t>(i)] = static_cast<int>(group_vertices_[d].size());
       group_vertices_[d].push_back(i);
     }
   }

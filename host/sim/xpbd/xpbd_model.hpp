@@ -99,6 +99,7 @@ class XpbdModel final : public TissueModel {
   int find_batch(int group, const std::array<int, 4>& tet);
   void free_batch(int batch);
   void build_local_maps();
+  void set_owner(int vertex, unsigned char owner);
   void update_tet_mass_blocks();
   // One step (substeps, sweeps, attachments) in one parallel region; returns the elastic
   // energy of the tets and attachments and the inverted tets at its end.
@@ -138,12 +139,13 @@ class XpbdModel final : public TissueModel {
   EnergyLedger ledger_;
   // Local updates (apply_mesh_change), built at the first one: lane (batch * kLanes + lane)
   // of each tet, lanes of each vertex, the thread that owns each vertex (the index of its
-  // group_vertices_ list), tets of groups 2 and 3 at each vertex, per group the batches
+  // group_vertices_ list), tets of groups 0, 2 and 3 at each vertex, per group the batches
   // with a free lane (open; may hold stale entries, dropped when met), empty batches.
   std::vector<int> lane_of_tet_;
   std::vector<std::vector<int>> vertex_lanes_;
   std::vector<unsigned char> vertex_owner_;
-  std::vector<std::array<int, 2>> side_tets_;
+  std::vector<int> owner_pos_;                 // index of each vertex in its group_vertices_ list
+  std::vector<std::array<int, 3>> side_tets_;  // tets of groups 0, 2 and 3 at each vertex
   std::array<std::vector<int>, 5> open_;
   std::vector<unsigned char> in_open_;
   std::vector<int> free_batches_;

@@ -308,6 +308,10 @@ TEST_P(XpbdEnergy, LocalUpdatesKeepAValidParallelScheduleAfterManyChanges) {
     fresh_total += fresh_groups[static_cast<std::size_t>(g)];
   }
   EXPECT_EQ(total, fresh_total);
+  // Tets on the step's critical path: phases 1 and 2 run two groups at once, the seam alone.
+  auto path = [](const std::array<int, 5>& n) { return std::max(n[0], n[1]) + std::max(n[2], n[3]) + n[4]; };
+  std::cout << "[xpbd local updates] critical path " << path(groups) << " tets of " << total << " (fresh build " << path(fresh_groups) << ")\n";
+  EXPECT_LT(path(groups), 0.8 * total);  // the two threads share the work
   std::cout << "[xpbd local updates] " << changed_total << " changed tets: mean lanes per batch " << local.mean_lanes() << " (fresh build "
             << fresh.mean_lanes() << ", first build " << fresh_lanes << "), seam " << groups[4] << " tets (fresh " << fresh_groups[4]
             << ", first build " << seam_before << ")\n";
