@@ -470,9 +470,10 @@ int XpbdModel::find_batch(int group, const std::array<int, 4>& tet) {
   std::vector<int> clash;
   for (int w : tet)
     for (int lane : vertex_lanes_[static_cast<std::size_t>(w)]) clash.push_back(lane / kLanes);
+  std::sort(clash.begin(), clash.end());
   // First fit among the group's open batches, the most recent first; a bounded scan (the
   // work per tet stays constant), dropping stale entries (full, emptied) on the way.
-  constexpr int kScan = 16;
+  constexpr int kScan = 64;
   auto& open = open_[static_cast<std::size_t>(group)];
   int scanned = 0;
   for (std::size_t i = open.size(); i-- > 0 && scanned < kScan;) {
@@ -484,7 +485,7 @@ int XpbdModel::find_batch(int group, const std::array<int, 4>& tet) {
       continue;
     }
     ++scanned;
-    if (std::find(clash.begin(), clash.end(), bi) == clash.end()) return bi;
+    if (!std::binary_search(clash.begin(), clash.end(), bi)) return bi;
   }
   // A new batch at the end of the group's sweep: an emptied one again, else appended.
   int bi;
