@@ -466,8 +466,10 @@ void XpbdModel::set_owner(int vertex, unsigned char owner) {
 
 int XpbdModel::find_batch(int group, const std::array<int, 4>& tet) {
   using xpbd::kLanes;
-  // Batches already holding one of the tet's vertices (in any group).
-  std::vector<int> clash;
+  // Batches already holding one of the tet's vertices (in any group); a member buffer,
+  // so that no allocation is made per tet once it has grown.
+  std::vector<int>& clash = clash_;
+  clash.clear();
   for (int w : tet)
     for (int lane : vertex_lanes_[static_cast<std::size_t>(w)]) clash.push_back(lane / kLanes);
   std::sort(clash.begin(), clash.end());

@@ -151,6 +151,7 @@ class XpbdModel final : public TissueModel {
   std::vector<int> free_batches_;
   std::vector<int> batch_group_;  // group of each batch, -1: empty (free)
   std::array<int, 5> group_count_{};  // tets per group
+  std::vector<int> clash_;            // find_batch's scratch
 };
 
 }  // namespace arnav::host
