@@ -234,6 +234,7 @@ static int main_body(int argc, char** argv) {
       rows = run_cut_bench(cut_options);
       std::filesystem::create_directories(out_dir);
       write_cut_csv(out_dir + "/cut.csv", rows);
+      write_cut_frames_csv(out_dir + "/cut_frames.csv", rows);
       if (!cut_options.reference_mesh.empty()) {
         write_cut_reference_csv(out_dir + "/cut_reference.csv", rows);
         write_cut_reference_png(out_dir + "/cut_reference.png", rows);

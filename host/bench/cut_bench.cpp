@@ -149,6 +149,8 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
             }
           }
           topology.push_back(cr.cut.update_ms);
+          row.frame_timings.push_back({f, frame.back(), frame_cpu.back(), cr.cut.update_ms, cr.rebuild_ms, cr.reembed_ms, step.wall_time_ms,
+                                       static_cast<int>(cr.cut.changed_tets.size())});
           row.frames = f;
           row.events += static_cast<int>(cr.events.size());
           row.path_fidelity_mm = std::max(row.path_fidelity_mm, cr.cut.max_path_deviation_mm);
@@ -277,6 +279,17 @@ void write_cut_csv(const std::string& path, const std::vector<CutBenchRow>& rows
         << (r.healthy ? 1 : 0) << ',' << warning << ',' << (r.local_updates_enabled ? 1 : 0) << ',' << r.state_diff_max_mm << ','
         << r.state_diff_final_mm << ',' << r.state_compared_frames << ',' << r.frame_thread_cpu_median_ms << ',' << r.frame_thread_cpu_p99_ms << '\n';
   }
+}
+
+void write_cut_frames_csv(const std::string& path, const std::vector<CutBenchRow>& rows) {
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error("cannot write " + path + ": check the folder");
+  out << "mesh,scenario,model,local_updates_enabled,background_rebuild,frame,frame_ms,frame_thread_cpu_ms,topology_ms,model_update_ms,reembed_ms,step_ms,changed_tets\n";
+  for (const auto& r : rows)
+    for (const auto& f : r.frame_timings)
+      out << r.mesh << ',' << r.scenario << ',' << r.label << ',' << (r.local_updates_enabled ? 1 : 0) << ',' << (r.background ? 1 : 0) << ','
+          << f.frame << ',' << f.frame_ms << ',' << f.frame_cpu_ms << ',' << f.topology_ms << ',' << f.model_update_ms << ',' << f.reembed_ms
+          << ',' << f.step_ms << ',' << f.changed_tets << '\n';
 }
 
 }  // namespace arnav::host

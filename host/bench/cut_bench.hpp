@@ -30,8 +30,20 @@ struct CutBenchOptions {
   double min_dihedral_deg = -1;                                // >= 0: overrides the scene's cutting.min_dihedral_deg (0: treatment off)
 };
 
+// One frame of a run (cut_frames.csv): where the frame's time went.
+struct CutFrameTiming {
+  int frame = 0;
+  double frame_ms = 0, frame_cpu_ms = 0;  // wall time of apply_blade + step, CPU time of the stepping thread
+  double topology_ms = 0;                 // the cutter's topology update
+  double model_update_ms = 0;             // model updated in place or rebuilt (0 without topology change)
+  double reembed_ms = 0;                  // tumours and vessels re-embedded and split
+  double step_ms = 0;                     // the model's step (StepSummary::wall_time_ms)
+  int changed_tets = 0;                   // tets the cut changed this frame
+};
+
 struct CutBenchRow {
   std::string mesh, scenario, label;
+  std::vector<CutFrameTiming> frame_timings;  // per frame (cut_frames.csv)
   bool background = false;  // model rebuilt on a worker thread
   bool local_updates_enabled = true;  // CutSessionSettings::local_updates
   // Local runs with a rebuilt run of the same model (CutBenchOptions::local_updates both):
@@ -80,5 +92,7 @@ struct CutBenchRow {
 
 std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& options);
 void write_cut_csv(const std::string& path, const std::vector<CutBenchRow>& rows);
+// Per-frame breakdown of every run (CutFrameTiming): one line per frame.
+void write_cut_frames_csv(const std::string& path, const std::vector<CutBenchRow>& rows);
 
 }  // namespace arnav::host

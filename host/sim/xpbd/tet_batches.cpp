@@ -198,10 +198,13 @@ ARNAV_INLINE double solve_batch(const TetBatch& b, int count, double* X, const d
 }
 
 template <bool kDamped>
-ARNAV_INLINE double solve_range(const TetBatch* batches, const int* count, int begin, int end, double* X, const double* XP,
+ARNAV_INLINE double solve_range(const TetBatch* batches, const int* count, const int* index, int num, double* X, const double* XP,
                                 const double* W, double h, bool residual) {
   double sum = 0.0;
-  for (int k = begin; k < end; ++k) sum += solve_batch<kDamped>(batches[k], count[k], X, XP, W, h, residual);
+  for (int i = 0; i < num; ++i) {
+    const int k = index[i];
+    sum += solve_batch<kDamped>(batches[k], count[k], X, XP, W, h, residual);
+  }
   return sum;
 }
 
@@ -351,36 +354,38 @@ ARNAV_INLINE double solve_corotated_batch(const TetBatch& b, int count, double* 
 }
 
 template <bool kDamped, bool kMultipliers>
-ARNAV_INLINE double solve_corotated_range(const TetBatch* batches, const int* count, int begin, int end, double* X,
+ARNAV_INLINE double solve_corotated_range(const TetBatch* batches, const int* count, const int* index, int num, double* X,
                                           const double* XP, const double* W, double* rotation, double* lambda, double h,
                                           bool residual) {
   double sum = 0.0;
-  for (int k = begin; k < end; ++k)
+  for (int i = 0; i < num; ++i) {
+    const int k = index[i];
     sum += solve_corotated_batch<kDamped, kMultipliers>(batches[k], count[k], X, XP, W, rotation + 4L * kLanes * k,
                                                         kMultipliers ? lambda + 10L * kLanes * k : nullptr, h, residual);  // no multipliers: lambda is null
+  }
   return sum;
 }
 
 }  // namespace
 
 ARNAV_XPBD_CLONES
-double solve_nh_batches(const TetBatch* batches, const int* count, int begin, int end, double* X, const double* XP,
+double solve_nh_batches(const TetBatch* batches, const int* count, const int* index, int num, double* X, const double* XP,
                         const double* W, const SweepParams& params) {
-  return params.damped ? solve_range<true>(batches, count, begin, end, X, XP, W, params.h_s, params.residual)
-                       : solve_range<false>(batches, count, begin, end, X, XP, W, params.h_s, params.residual);
+  return params.damped ? solve_range<true>(batches, count, index, num, X, XP, W, params.h_s, params.residual)
+                       : solve_range<false>(batches, count, index, num, X, XP, W, params.h_s, params.residual);
 }
 
 ARNAV_XPBD_CLONES
-double solve_corotated_batches(const TetBatch* batches, const int* count, int begin, int end, double* X, const double* XP,
-                               const double* W, double* rotation, double* lambda, const SweepParams& params) {
+double solve_corotated_batches(const TetBatch* batches, const int* count, const int* index, int num, double* X,
+                               const double* XP, const double* W, double* rotation, double* lambda, const SweepParams& params) {
   const double h = params.h_s;
   const bool r = params.residual;
   if (params.damped)
     return params.multipliers
-               ? solve_corotated_range<true, true>(batches, count, begin, end, X, XP, W, rotation, lambda, h, r)
-               : solve_corotated_range<true, false>(batches, count, begin, end, X, XP, W, rotation, lambda, h, r);
-  return params.multipliers ? solve_corotated_range<false, true>(batches, count, begin, end, X, XP, W, rotation, lambda, h, r)
-                            : solve_corotated_range<false, false>(batches, count, begin, end, X, XP, W, rotation, lambda, h, r);
+               ? solve_corotated_range<true, true>(batches, count, index, num, X, XP, W, rotation, lambda, h, r)
+               : solve_corotated_range<true, false>(batches, count, index, num, X, XP, W, rotation, lambda, h, r);
+  return params.multipliers ? solve_corotated_range<false, true>(batches, count, index, num, X, XP, W, rotation, lambda, h, r)
+                            : solve_corotated_range<false, false>(batches, count, index, num, X, XP, W, rotation, lambda, h, r);
 }
 
 ARNAV_XPBD_CLONES

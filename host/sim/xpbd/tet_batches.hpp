@@ -35,15 +35,16 @@ struct alignas(64) TetBatch {
   double lambda_V[kLanes];
 };
 
-// The tets of a mesh in batches whose kLanes tets touch distinct vertices, grouped:
-// batches [group_begin[g], group_begin[g+1]) hold group g = 0, 1 (the two halves of the
-// mesh, which share no vertex), 2, 3 (the two sides of the interface between the halves,
-// which share no vertex either) and 4 (the seam: interface tets touching both sides).
+// The tets of a mesh in batches whose kLanes tets touch distinct vertices, in five groups:
+// group 0 and 1 (the two halves of the mesh, which share no vertex), 2 and 3 (the two
+// sides of the interface between the halves, which share no vertex either) and 4 (the
+// seam: tets touching both sides). group[g] lists the batches of group g in sweep order;
+// a batch belongs to at most one group (a batch in none is empty, kept for reuse).
 struct TetBatches {
   std::vector<TetBatch> batches;
   std::vector<int> count;         // used lanes per batch
   std::vector<int> tet;           // batch * kLanes + lane -> mesh tet index (-1 unused)
-  std::array<int, 6> group_begin{};
+  std::array<std::vector<int>, 5> group;
 };
 
 struct SweepParams {
@@ -53,22 +54,22 @@ struct SweepParams {
   bool residual = true;       // compute the sweep's correction (else the solves return 0)
 };
 
-// Solves the blocks of batches [begin, end) once, in order (Gauss-Seidel from batch to
+// Solves the blocks of batches index[0..num) once, in order (Gauss-Seidel from batch to
 // batch, Jacobi across the lanes of a batch). One sweep per substep, so the Lagrange
 // multipliers start and stay at zero and are not stored. X: positions (3 x n, column
 // major), XP: positions at the substep start (read only when damped), W: inverse masses.
 // Returns the sum over tets of |dF|^2, the squared Frobenius norm of the change of F
 // this solve made (strain units): the sweep's correction (0 unless params.residual).
-double solve_nh_batches(const TetBatch* batches, const int* count, int begin, int end, double* X, const double* XP,
+double solve_nh_batches(const TetBatch* batches, const int* count, const int* index, int num, double* X, const double* XP,
                         const double* W, const SweepParams& params);
 
-// Fixed-corotated blocks (see xpbd_model.hpp) of batches [begin, end), once, in order.
+// Fixed-corotated blocks (see xpbd_model.hpp) of batches index[0..num), once, in order.
 // rotation: warm start of each tet's polar rotation, 4 x kLanes per batch (quaternion
 // w, x, y, z), refined once per solve and stored back; lambda: multipliers, 10 x kLanes
 // per batch (read and written when params.multipliers). Returns the sum over tets of
 // |dF|^2 (as solve_nh_batches) when params.residual, else 0.
-double solve_corotated_batches(const TetBatch* batches, const int* count, int begin, int end, double* X, const double* XP,
-                               const double* W, double* rotation, double* lambda, const SweepParams& params);
+double solve_corotated_batches(const TetBatch* batches, const int* count, const int* index, int num, double* X,
+                               const double* XP, const double* W, double* rotation, double* lambda, const SweepParams& params);
 
 // Fixed-corotated stored energy and inverted tets (as nh_energy), R refined once from
 // rotation (not stored).

@@ -33,6 +33,9 @@ inline Eigen::Matrix3d cofactor(const Eigen::Matrix3d& F) {
 // as not converged.
 constexpr double kUnconvergedResidual = 0.01;
 
+// Slot of group g in the per-vertex counts XpbdModel::side_tets_ (groups 0, 2, 3), -1: none.
+int side_slot(int g) { return g == 0 ? 0 : (g == 2 ? 1 : (g == 3 ? 2 : -1)); }
+
 std::vector<int> all_tets(int nt) {
   std::vector<int> out(static_cast<std::size_t>(nt));
   for (int t = 0; t < nt; ++t) out[static_cast<std::size_t>(t)] = t;
@@ -153,7 +156,7 @@ void XpbdModel::build_batches(const SimProblem& problem) {
   nb.batches.clear();
   nb.count.clear();
   nb.tet.clear();
-  nb.group_begin[0] = 0;
+  for (auto& list : nb.group) list.clear();
   for (std::size_t g = 0; g < groups.size(); ++g) {
     std::vector<std::array<int, 4>> group_tets;
     for (int t : *groups[g]) group_tets.push_back(mesh.tets[t]);
@@ -162,6 +165,7 @@ void XpbdModel::build_batches(const SimProblem& problem) {
       for (int k = col.color_offsets[c]; k < col.color_offsets[c + 1]; ++k) {
         const int slot = k - col.color_offsets[c], l = slot % kLanes;
         if (l == 0) {
+          nb.group[g].push_back(static_cast<int>(nb.batches.size()));
           nb.batches.emplace_back();
           nb.count.push_back(0);
           nb.tet.insert(nb.tet.end(), kLanes, -1);
@@ -176,7 +180,11 @@ void XpbdModel::build_batches(const SimProblem& problem) {
         for (int v : mesh.tets[t]) mass_damping_per_s_[v] += 0.25 * V * mat.density_kg_per_mm3 * mat.damping_mass_per_s;
       }
     }
-    nb.group_begin[g + 1] = static_cast<int>(nb.batches.size());
+  }
+  batch_group_.assign(nb.batches.size(), -1);
+  for (std::size_t g = 0; g < groups.size(); ++g) {
+    for (int bi : nb.group[g]) batch_group_[static_cast<std::size_t>(bi)] = static_cast<int>(g);
+    group_count_[g] = static_cast<int>(groups[g]->size());
   }
   // Unused lanes repeat lane 0 (finite arithmetic; never written back nor summed).
   for (std::size_t bi = 0; bi < nb.batches.size(); ++bi) fill_unused_lanes(bi);
@@ -234,9 +242,85 @@ void XpbdModel::fill_unused_lanes(std::size_t bi) {
 std::array<int, 5> XpbdModel::group_tets() const {
   std::array<int, 5> out{};
   for (std::size_t g = 0; g < 5; ++g)
-    for (int bi = batches_.group_begin[g]; bi < batches_.group_begin[g + 1]; ++bi)
-      out[g] += batches_.count[static_cast<std::size_t>(bi)];
+    for (int bi : batches_.group[g]) out[g] += batches_.count[static_cast<std::size_t>(bi)];
   return out;
+}
+
+int XpbdModel::active_batches() const {
+  int n = 0;
+  for (const auto& list : batches_.group) n += static_cast<int>(list.size());
+  return n;
+}
+
+double XpbdModel::mean_lanes() const {
+  const std::array<int, 5> tets = group_tets();
+  const int batches = active_batches();
+  return batches > 0 ? static_cast<double>(tets[0] + tets[1] + tets[2] + tets[3] + tets[4]) / batches : 0.0;
+}
+
+std::string XpbdModel::check_batches(const SimProblem& problem) const {
+  using xpbd::kLanes;
+  const TetMesh& mesh = problem.mesh;
+  const int n = mesh.num_vertices(), nt = mesh.num_tets();
+  if (x_.cols() != n || num_tets_ != nt) return "model and mesh differ in size";
+  std::vector<int> seen(static_cast<std::size_t>(nt), 0);
+  std::vector<unsigned char> owner(static_cast<std::size_t>(n), 255);
+  for (std::size_t d = 0; d < 3; ++d)
+    for (int w : group_vertices_[d]) {
+      if (w < 0 || w >= n || owner[static_cast<std::size_t>(w)] != 255) return "vertex " + std::to_string(w) + " owned twice or out of range";
+      owner[static_cast<std::size_t>(w)] = static_cast<unsigned char>(d);
+    }
+  for (int w = 0; w < n; ++w)
+    if (owner[static_cast<std::size_t>(w)] == 255) return "vertex " + std::to_string(w) + " owned by no thread";
+  std::vector<int> group_of_batch(batches_.batches.size(), -1);
+  for (int g = 0; g < 5; ++g)
+    for (int bi : batches_.group[static_cast<std::size_t>(g)]) {
+      if (bi < 0 || static_cast<std::size_t>(bi) >= batches_.batches.size() || group_of_batch[static_cast<std::size_t>(bi)] >= 0)
+        return "batch " + std::to_string(bi) + " listed twice or out of range";
+      group_of_batch[static_cast<std::size_t>(bi)] = g;
+    }
+  // Vertex marks: bit g for a tet of group g at the vertex.
+  std::vector<unsigned char> mark(static_cast<std::size_t>(n), 0);
+  for (std::size_t bi = 0; bi < batches_.batches.size(); ++bi) {
+    const xpbd::TetBatch& b = batches_.batches[bi];
+    const int g = group_of_batch[bi], count = batches_.count[bi];
+    if (count < 0 || count > kLanes) return "batch " + std::to_string(bi) + " holds " + std::to_string(count) + " lanes";
+    if (g < 0 && count > 0) return "batch " + std::to_string(bi) + " holds tets but is in no group";
+    std::vector<int> vertices;
+    for (int l = 0; l < count; ++l) {
+      const int t = batches_.tet[bi * kLanes + static_cast<std::size_t>(l)];
+      const std::string where = "tet " + std::to_string(t) + " (batch " + std::to_string(bi) + ", lane " + std::to_string(l) + ")";
+      if (t < 0 || t >= nt) return where + ": no mesh tet";
+      if (problem.embedded.is_passive(t)) return where + ": passive (below the quality bound) but has a constraint";
+      if (++seen[static_cast<std::size_t>(t)] > 1) return where + ": in two lanes";
+      const auto& tet = mesh.tets[static_cast<std::size_t>(t)];
+      const Eigen::Matrix3d Dm_inv = edge_matrix(mesh.rest_positions_World_mm, tet).inverse();
+      for (int a = 0; a < 4; ++a) {
+        if (b.v[a][l] != tet[static_cast<std::size_t>(a)]) return where + ": vertices differ from the mesh";
+        vertices.push_back(tet[static_cast<std::size_t>(a)]);
+      }
+      for (int a = 0; a < 3; ++a)
+        for (int j = 0; j < 3; ++j)
+          if (std::abs(b.b[a][j][l] - Dm_inv(a, j)) > 1e-9 * (1.0 + std::abs(Dm_inv(a, j)))) return where + ": rest shape differs from the mesh";
+      for (int w : tet) {
+        const unsigned char o = owner[static_cast<std::size_t>(w)];
+        if (g == 1 && o != 1) return where + ": in group 1 but vertex " + std::to_string(w) + " is not thread 1's";
+        if (g == 0 && o == 1) return where + ": in group 0 but vertex " + std::to_string(w) + " is thread 1's";
+        mark[static_cast<std::size_t>(w)] |= static_cast<unsigned char>(1u << g);
+      }
+    }
+    std::sort(vertices.begin(), vertices.end());
+    if (std::adjacent_find(vertices.begin(), vertices.end()) != vertices.end())
+      return "batch " + std::to_string(bi) + ": two lanes share a vertex";
+  }
+  for (int t = 0; t < nt; ++t)
+    if (!problem.embedded.is_passive(t) && seen[static_cast<std::size_t>(t)] != 1) return "elastic tet " + std::to_string(t) + " in no lane";
+  for (int w = 0; w < n; ++w) {
+    const unsigned m = mark[static_cast<std::size_t>(w)];
+    if ((m & 1u) && (m & 2u)) return "vertex " + std::to_string(w) + " in groups 0 and 1 (swept at the same time)";
+    if ((m & 4u) && (m & 8u)) return "vertex " + std::to_string(w) + " in groups 2 and 3 (swept at the same time)";
+  }
+  return {};
 }
 
 void XpbdModel::update_tet_mass_blocks() {
@@ -266,12 +350,17 @@ void XpbdModel::remove_lane(int lane) {
   using xpbd::kLanes;
   const std::size_t bi = static_cast<std::size_t>(lane / kLanes);
   const int l = lane % kLanes, last = batches_.count[bi] - 1;
+  const int g = batch_group_[bi];
   xpbd::TetBatch& b = batches_.batches[bi];
   auto drop = [&](int v, int id) {
     auto& list = vertex_lanes_[static_cast<std::size_t>(v)];
     list.erase(std::remove(list.begin(), list.end(), id), list.end());
   };
-  for (int a = 0; a < 4; ++a) drop(b.v[a][l], lane);
+  for (int a = 0; a < 4; ++a) {
+    drop(b.v[a][l], lane);
+    if (side_slot(g) >= 0) --side_tets_[static_cast<std::size_t>(b.v[a][l])][static_cast<std::size_t>(side_slot(g))];
+  }
+  --group_count_[static_cast<std::size_t>(g)];
   lane_of_tet_[static_cast<std::size_t>(batches_.tet[static_cast<std::size_t>(lane)])] = -1;
   if (l != last) {  // the batch's last lane takes the freed one
     const int from = static_cast<int>(bi) * kLanes + last;
@@ -297,34 +386,139 @@ void XpbdModel::remove_lane(int lane) {
   }
   batches_.tet[bi * kLanes + static_cast<std::size_t>(last)] = -1;
   --batches_.count[bi];
+  if (batches_.count[bi] == 0) {
+    free_batch(static_cast<int>(bi));
+    return;
+  }
   fill_unused_lanes(bi);
+  if (!in_open_[bi]) {
+    in_open_[bi] = 1;
+    open_[static_cast<std::size_t>(g)].push_back(static_cast<int>(bi));
+  }
+}
+
+void XpbdModel::free_batch(int batch) {
+  const std::size_t bi = static_cast<std::size_t>(batch);
+  const std::size_t g = static_cast<std::size_t>(batch_group_[bi]);
+  auto& list = batches_.group[g];
+  list.erase(std::find(list.begin(), list.end(), batch));  // keeps the sweep order of the others
+  if (in_open_[bi]) {
+    auto& open = open_[g];
+    open.erase(std::find(open.begin(), open.end(), batch));
+    in_open_[bi] = 0;
+  }
+  batch_group_[bi] = -1;
+  free_batches_.push_back(batch);
+}
+
+int XpbdModel::choose_group(const std::array<int, 4>& tet) const {
+  // The phases of step_batches: groups 0 and 1 run at once (thread 1 predicts its own
+  // vertices and sweeps group 1 with no barrier in between: group 1 touches only thread
+  // 1's vertices, group 0 none of them), then groups 2 and 3 (no vertex in common), then
+  // the seam alone. Allowed: group 0 without a vertex of thread 1; group 1 without a
+  // vertex of thread 0 and with no group-0 tet at its shared vertices (those become
+  // thread 1's, add_lane); group 2 (3) with no tet of group 3 (2) at its vertices; the
+  // seam always. Among those, the one that lengthens the step's critical path
+  // max(n0, n1) + max(n2, n3) + n4 (tets) least, then the one with most slack.
+  unsigned owners = 0;
+  bool at0_shared = false, at2 = false, at3 = false;
+  for (int w : tet) {
+    const auto& at = side_tets_[static_cast<std::size_t>(w)];
+    const unsigned char o = vertex_owner_[static_cast<std::size_t>(w)];
+    owners |= 1u << o;
+    at0_shared = at0_shared || (o == 2 && at[0] > 0);
+    at2 = at2 || at[1] > 0;
+    at3 = at3 || at[2] > 0;
+  }
+  const std::array<bool, 5> allowed = {(owners & 2u) == 0, (owners & 1u) == 0 && !at0_shared, !at3, !at2, true};
+  const std::array<int, 5>& n = group_count_;
+  int best = 4;
+  long best_cost = 0, best_slack = 0;
+  for (int g = 0; g < 5; ++g) {
+    if (!allowed[static_cast<std::size_t>(g)]) continue;
+    long cost = 1, slack = -(1L << 40);  // the seam: always one more on the path, last on ties
+    if (g < 4) {
+      const int partner = g ^ 1;
+      const long mine = n[static_cast<std::size_t>(g)], other = n[static_cast<std::size_t>(partner)];
+      cost = mine + 1 > other ? mine + 1 - std::max(mine, other) : 0;
+      slack = other - mine;
+    }
+    if (g == 0 || cost < best_cost || (cost == best_cost && slack > best_slack)) {
+      best = g;
+      best_cost = cost;
+      best_slack = slack;
+    }
+  }
+  return best;
+}
+
+void XpbdModel::set_owner(int vertex, unsigned char owner) {
+  const std::size_t w = static_cast<std::size_t>(vertex);
+  auto& from = group_vertices_[vertex_owner_[w]];
+  const int pos = owner_pos_[w];
+  from[static_cast<std::size_t>(pos)] = from.back();
+  owner_pos_[static_cast<std::size_t>(from.back())] = pos;
+  from.pop_back();
+  vertex_owner_[w] = owner;
+  owner_pos_[w] = static_cast<int>(group_vertices_[owner].size());
+  group_vertices_[owner].push_back(vertex);
+}
+
+int XpbdModel::find_batch(int group, const std::array<int, 4>& tet) {
+  using xpbd::kLanes;
+  // Batches already holding one of the tet's vertices (in any group); a member buffer,
+  // so that no allocation is made per tet once it has grown.
+  std::vector<int>& clash = clash_;
+  clash.clear();
+  for (int w : tet)
+    for (int lane : vertex_lanes_[static_cast<std::size_t>(w)]) clash.push_back(lane / kLanes);
+  std::sort(clash.begin(), clash.end());
+  // First fit among the group's open batches, the most recent first; a bounded scan (the
+  // work per tet stays constant), dropping stale entries (full, emptied) on the way.
+  constexpr int kScan = 64;
+  auto& open = open_[static_cast<std::size_t>(group)];
+  int scanned = 0;
+  for (std::size_t i = open.size(); i-- > 0 && scanned < kScan;) {
+    const int bi = open[i];
+    if (batch_group_[static_cast<std::size_t>(bi)] != group || batches_.count[static_cast<std::size_t>(bi)] >= kLanes) {
+      in_open_[static_cast<std::size_t>(bi)] = 0;
+      open[i] = open.back();
+      open.pop_back();
+      continue;
+    }
+    ++scanned;
+    if (!std::binary_search(clash.begin(), clash.end(), bi)) return bi;
+  }
+  // A new batch at the end of the group's sweep: an emptied one again, else appended.
+  int bi;
+  if (!free_batches_.empty()) {
+    bi = free_batches_.back();
+    free_batches_.pop_back();
+  } else {
+    bi = static_cast<int>(batches_.batches.size());
+    batches_.batches.emplace_back();
+    batches_.count.push_back(0);
+    batches_.tet.insert(batches_.tet.end(), kLanes, -1);
+    batch_group_.push_back(-1);
+    in_open_.push_back(0);
+    if (!rotation_.empty()) rotation_.resize(rotation_.size() + 4 * kLanes, 0.0);
+    if (!lambda_.empty()) lambda_.resize(lambda_.size() + 10 * kLanes, 0.0);
+  }
+  batch_group_[static_cast<std::size_t>(bi)] = group;
+  batches_.group[static_cast<std::size_t>(group)].push_back(bi);
+  in_open_[static_cast<std::size_t>(bi)] = 1;
+  open.push_back(bi);
+  return bi;
 }
 
 int XpbdModel::add_lane(const SimProblem& problem, int t) {
   using xpbd::kLanes;
   const auto& tet = problem.mesh.tets[static_cast<std::size_t>(t)];
-  // A batch appended by cuts with a free lane and none of the tet's vertices (the last few
-  // only: constant work per tet).
-  int bi = -1;
-  const int nb = static_cast<int>(batches_.batches.size());
-  for (int k = nb - 1; k >= std::max(cut_batches_begin_, nb - 8) && bi < 0; --k) {
-    if (batches_.count[static_cast<std::size_t>(k)] >= kLanes) continue;
-    bool clash = false;
-    const xpbd::TetBatch& b = batches_.batches[static_cast<std::size_t>(k)];
-    for (int l = 0; l < batches_.count[static_cast<std::size_t>(k)] && !clash; ++l)
-      for (int a = 0; a < 4 && !clash; ++a)
-        for (int w : tet) clash = clash || b.v[a][l] == w;
-    if (!clash) bi = k;
-  }
-  if (bi < 0) {
-    batches_.batches.emplace_back();
-    batches_.count.push_back(0);
-    batches_.tet.insert(batches_.tet.end(), kLanes, -1);
-    if (!rotation_.empty()) rotation_.resize(rotation_.size() + 4 * kLanes, 0.0);
-    if (!lambda_.empty()) lambda_.resize(lambda_.size() + 10 * kLanes, 0.0);
-    bi = nb;
-    batches_.group_begin[5] = bi + 1;  // the seam group (one thread) ends the list
-  }
+  const int g = choose_group(tet);
+  if (g == 1)  // its shared vertices (no group-0 tet there) become thread 1's
+    for (int w : tet)
+      if (vertex_owner_[static_cast<std::size_t>(w)] == 2) set_owner(w, 1);
+  const int bi = find_batch(g, tet);
   const std::size_t b = static_cast<std::size_t>(bi);
   const int l = batches_.count[b]++;
   fill_lane(batches_.batches[b], l, problem, t);
@@ -332,7 +526,11 @@ int XpbdModel::add_lane(const SimProblem& problem, int t) {
   batches_.tet[static_cast<std::size_t>(lane)] = t;
   if (lane_of_tet_.size() <= static_cast<std::size_t>(t)) lane_of_tet_.resize(static_cast<std::size_t>(t) + 1, -1);
   lane_of_tet_[static_cast<std::size_t>(t)] = lane;
-  for (int w : tet) vertex_lanes_[static_cast<std::size_t>(w)].push_back(lane);
+  for (int w : tet) {
+    vertex_lanes_[static_cast<std::size_t>(w)].push_back(lane);
+    if (side_slot(g) >= 0) ++side_tets_[static_cast<std::size_t>(w)][static_cast<std::size_t>(side_slot(g))];
+  }
+  ++group_count_[static_cast<std::size_t>(g)];
   if (!rotation_.empty()) {
     Eigen::Matrix3d Dm_inv;
     for (int a = 0; a < 3; ++a)
@@ -348,6 +546,43 @@ int XpbdModel::add_lane(const SimProblem& problem, int t) {
   return lane;
 }
 
+void XpbdModel::build_local_maps() {
+  using xpbd::kLanes;
+  const int n = static_cast<int>(x_.cols());
+  lane_of_tet_.assign(static_cast<std::size_t>(num_tets_), -1);
+  vertex_lanes_.assign(static_cast<std::size_t>(n), {});
+  side_tets_.assign(static_cast<std::size_t>(n), {0, 0, 0});
+  for (std::size_t bi = 0; bi < batches_.batches.size(); ++bi)
+    for (int l = 0; l < batches_.count[bi]; ++l) {
+      const int lane = static_cast<int>(bi) * kLanes + l;
+      lane_of_tet_[static_cast<std::size_t>(batches_.tet[static_cast<std::size_t>(lane)])] = lane;
+      const int g = batch_group_[bi];
+      for (int a = 0; a < 4; ++a) {
+        const int w = batches_.batches[bi].v[a][l];
+        vertex_lanes_[static_cast<std::size_t>(w)].push_back(lane);
+        if (side_slot(g) >= 0) ++side_tets_[static_cast<std::size_t>(w)][static_cast<std::size_t>(side_slot(g))];
+      }
+    }
+  vertex_owner_.assign(static_cast<std::size_t>(n), 2);
+  owner_pos_.assign(static_cast<std::size_t>(n), -1);
+  for (std::size_t d = 0; d < 3; ++d)
+    for (std::size_t i = 0; i < group_vertices_[d].size(); ++i) {
+      vertex_owner_[static_cast<std::size_t>(group_vertices_[d][i])] = static_cast<unsigned char>(d);
+      owner_pos_[static_cast<std::size_t>(group_vertices_[d][i])] = static_cast<int>(i);
+    }
+  in_open_.assign(batches_.batches.size(), 0);
+  for (auto& open : open_) open.clear();
+  free_batches_.clear();
+  for (std::size_t bi = 0; bi < batches_.batches.size(); ++bi) {
+    if (batch_group_[bi] < 0) {
+      free_batches_.push_back(static_cast<int>(bi));
+    } else if (batches_.count[bi] < kLanes) {
+      in_open_[bi] = 1;
+      open_[static_cast<std::size_t>(batch_group_[bi])].push_back(static_cast<int>(bi));
+    }
+  }
+}
+
 std::optional<MeshChangeStats> XpbdModel::apply_mesh_change(const SimProblem& problem, const std::vector<int>& changed_tets,
                                                             const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v) {
   using xpbd::kLanes;
@@ -356,17 +591,7 @@ std::optional<MeshChangeStats> XpbdModel::apply_mesh_change(const SimProblem& pr
   if (n < n_old || nt < num_tets_ || x.cols() != n || (v.cols() != n && v.cols() != 0) || mesh.tet_region.size() != mesh.tets.size())
     return std::nullopt;
   MeshChangeStats stats;
-  if (lane_of_tet_.empty()) {  // once: the maps for local updates
-    lane_of_tet_.assign(static_cast<std::size_t>(num_tets_), -1);
-    vertex_lanes_.assign(static_cast<std::size_t>(n_old), {});
-    for (std::size_t bi = 0; bi < batches_.batches.size(); ++bi)
-      for (int l = 0; l < batches_.count[bi]; ++l) {
-        const int lane = static_cast<int>(bi) * kLanes + l;
-        lane_of_tet_[static_cast<std::size_t>(batches_.tet[static_cast<std::size_t>(lane)])] = lane;
-        for (int a = 0; a < 4; ++a) vertex_lanes_[static_cast<std::size_t>(batches_.batches[bi].v[a][l])].push_back(lane);
-      }
-    cut_batches_begin_ = static_cast<int>(batches_.batches.size());
-  }
+  if (lane_of_tet_.empty()) build_local_maps();  // once: the maps for local updates
   // Appended vertices.
   x_.conservativeResize(Eigen::NoChange, n);
   v_.conservativeResize(Eigen::NoChange, n);
@@ -376,10 +601,30 @@ std::optional<MeshChangeStats> XpbdModel::apply_mesh_change(const SimProblem& pr
   mass_damping_per_s_.conservativeResize(n);
   fixed_.resize(static_cast<std::size_t>(n), 0);
   vertex_lanes_.resize(static_cast<std::size_t>(n));
+  side_tets_.resize(static_cast<std::size_t>(n), {0, 0, 0});
   for (int i = n_old; i < n; ++i) {
     mass_[i] = 0.0;
     mass_damping_per_s_[i] = 0.0;
-    group_vertices_[2].push_back(i);  // touched by the seam only: thread 0 owns it
+  }
+  {  // A new vertex is a half's (its thread predicts it) when every old vertex of the
+     // changed tets around it is; else thread 0 owns it (the seam's list).
+    std::vector<unsigned> owners(static_cast<std::size_t>(n - n_old), 0);
+    for (int t : changed_tets) {
+      unsigned old = 0;
+      for (int w : mesh.tets[static_cast<std::size_t>(t)])
+        if (w < n_old) old |= 1u << vertex_owner_[static_cast<std::size_t>(w)];
+      for (int w : mesh.tets[static_cast<std::size_t>(t)])
+        if (w >= n_old) owners[static_cast<std::size_t>(w - n_old)] |= old;
+    }
+    vertex_owner_.resize(static_cast<std::size_t>(n), 2);
+    owner_pos_.resize(static_cast<std::size_t>(n), -1);
+    for (int i = n_old; i < n; ++i) {
+      const unsigned o = owners[static_cast<std::size_t>(i - n_old)];
+      const unsigned char d = o == 1u ? 0 : (o == 2u ? 1 : 2);
+      vertex_owner_[static_cast<std::size_t>(i)] = d;
+      owner_pos_[static_cast<std::size_t>(i)] = static_cast<int>(group_vertices_[d].size());
+      group_vertices_[d].push_back(i);
+    }
   }
   // Masses: the changed tets' old quarters out, their new quarters in (raw damping mass
   // likewise); touched = vertices whose mass changed. The embedding's mass moves (driven
@@ -453,13 +698,22 @@ std::optional<MeshChangeStats> XpbdModel::apply_mesh_change(const SimProblem& pr
     embedded_.move_mass({&mass_, &mass_damping_per_s_}, unused, &problem.region_materials);
   }
   merge_fixed();
-  // State of the touched vertices (new ones, moved ones: the cutter's), masses.
+  // State of the touched vertices (new ones, moved ones: the cutter's), masses. The
+  // embedding's mass moves were undone and made again for every driven vertex and rigid
+  // group; most vertices get their inverse mass back to round-off: those keep it exactly
+  // (the mass blocks around them stay valid), only real changes refresh blocks below.
+  std::vector<int> reweighed;  // vertices whose inverse mass changed
   for (int w : touched) {
     mass_damping_per_s_[w] = mass_[w] > 0.0 ? mass_damping_per_s_[w] / mass_[w] : 0.0;
     x_.col(w) = x.col(w);
     x_prev_.col(w) = x.col(w);
     v_.col(w) = v.cols() == n && !fixed_[static_cast<std::size_t>(w)] ? Eigen::Vector3d(v.col(w)) : Eigen::Vector3d::Zero();
-    inv_mass_[w] = fixed_[static_cast<std::size_t>(w)] ? 0.0 : 1.0 / mass_[w];
+    const double inv = fixed_[static_cast<std::size_t>(w)] ? 0.0 : 1.0 / mass_[w];
+    const double before = inv_mass_[w];
+    if (w >= n_old || std::abs(inv - before) > 1e-12 * std::max(std::abs(inv), std::abs(before)) || (inv == 0.0) != (before == 0.0)) {
+      inv_mass_[w] = inv;
+      reweighed.push_back(w);
+    }
     ++stats.vertices_updated;
   }
   // The changed tets join the seam (those below the quality bound: no constraint).
@@ -468,9 +722,11 @@ std::optional<MeshChangeStats> XpbdModel::apply_mesh_change(const SimProblem& pr
     add_lane(problem, t);
     ++stats.elements_updated;
   }
-  // Mass blocks of every tet around a touched vertex.
+  // Mass blocks of the added tets and of every tet around a vertex whose inverse mass changed.
   std::vector<int> lanes;
-  for (int w : touched) lanes.insert(lanes.end(), vertex_lanes_[static_cast<std::size_t>(w)].begin(), vertex_lanes_[static_cast<std::size_t>(w)].end());
+  for (int t : changed_tets)
+    if (lane_of_tet_[static_cast<std::size_t>(t)] >= 0) lanes.push_back(lane_of_tet_[static_cast<std::size_t>(t)]);
+  for (int w : reweighed) lanes.insert(lanes.end(), vertex_lanes_[static_cast<std::size_t>(w)].begin(), vertex_lanes_[static_cast<std::size_t>(w)].end());
   std::sort(lanes.begin(), lanes.end());
   lanes.erase(std::unique(lanes.begin(), lanes.end()), lanes.end());
   for (int lane : lanes) {
@@ -562,7 +818,7 @@ void XpbdModel::step_batches(double h, StepSummary& summary, bool& converged, do
   // solve still corrects the inertial prediction. Computed where it is reported (first
   // and last sweep of the step) or tested (tolerance > 0).
   const double constraints = static_cast<double>(num_tets_);
-  const std::array<int, 6> group = batches_.group_begin;
+  const std::array<std::vector<int>, 5>& group = batches_.group;
   xpbd::SweepParams params;
   params.h_s = h;
   params.damped = damped_;
@@ -577,16 +833,18 @@ void XpbdModel::step_batches(double h, StepSummary& summary, bool& converged, do
   const double* mass_damping = mass_damping_per_s_.data();
   const xpbd::TetBatch* batches = batches_.batches.data();
   const int* count = batches_.count.data();
-  auto solve = [&](int begin, int end, bool residual) {
+  auto solve = [&](std::size_t g, bool residual) {
     xpbd::SweepParams p = params;
     p.residual = residual;
-    return neo_hookean_ ? xpbd::solve_nh_batches(batches, count, begin, end, X, XP, W, p)
-                        : xpbd::solve_corotated_batches(batches, count, begin, end, X, XP, W, rotation, lambda, p);
+    const int* index = group[g].data();
+    const int num = static_cast<int>(group[g].size());
+    return neo_hookean_ ? xpbd::solve_nh_batches(batches, count, index, num, X, XP, W, p)
+                        : xpbd::solve_corotated_batches(batches, count, index, num, X, XP, W, rotation, lambda, p);
   };
   // Multipliers restart at zero every substep; each thread clears those of its groups.
   auto clear_multipliers = [&](std::size_t g) {
     if (params.multipliers)
-      std::fill(lambda + kLambdaPerBatch * group[g], lambda + kLambdaPerBatch * group[g + 1], 0.0);
+      for (int bi : group[g]) std::fill(lambda + kLambdaPerBatch * bi, lambda + kLambdaPerBatch * (bi + 1), 0.0);
   };
   const Eigen::Vector3d g = gravity_;
   // Per-thread partial sums, a cache line apart.
@@ -634,14 +892,14 @@ void XpbdModel::step_batches(double h, StepSummary& summary, bool& converged, do
                               (s == config_.substeps - 1 && it == config_.iterations - 1);
         double correction = 0.0;
         for (int d = tid; d < 2; d += nt)
-          correction += solve(group[static_cast<std::size_t>(d)], group[static_cast<std::size_t>(d) + 1], residual);
+          correction += solve(static_cast<std::size_t>(d), residual);
 #pragma omp barrier
         for (int d = tid; d < 2; d += nt)
-          correction += solve(group[static_cast<std::size_t>(d) + 2], group[static_cast<std::size_t>(d) + 3], residual);
+          correction += solve(static_cast<std::size_t>(d) + 2, residual);
         partial[static_cast<std::size_t>(8 * tid)] = correction;
 #pragma omp barrier
         if (tid == 0) {
-          double sum = solve(group[4], group[5], residual);
+          double sum = solve(4, residual);
           if (it == 0)
             for (int id : attachments_.active()) attachments_[id].lambda.setZero();
           solve_attachments(h);
@@ -663,7 +921,7 @@ void XpbdModel::step_batches(double h, StepSummary& summary, bool& converged, do
     }
 #pragma omp barrier
     // Energy and inverted tets at the end of the step, in the same region.
-    const int num_batches = group[5];
+    const int num_batches = static_cast<int>(batches_.batches.size());
     const int b0 = static_cast<int>(static_cast<long>(num_batches) * tid / nt);
     const int b1 = static_cast<int>(static_cast<long>(num_batches) * (tid + 1) / nt);
     int bad = 0;
@@ -736,7 +994,7 @@ int XpbdModel::count_inverted() const {
 }
 
 double XpbdModel::tet_energy(int* inverted) const {
-  const int end = batches_.group_begin[5];
+  const int end = static_cast<int>(batches_.batches.size());
   return neo_hookean_ ? xpbd::nh_energy(batches_.batches.data(), batches_.count.data(), 0, end, x_.data(), inverted)
                       : xpbd::corotated_energy(batches_.batches.data(), batches_.count.data(), 0, end, x_.data(),
                                                rotation_.data(), inverted);

@@ -54,18 +54,36 @@ class XpbdModel final : public TissueModel {
   const Eigen::Matrix3Xd& velocities_World_mm_s() const override { return v_; }
   void set_state(const Eigen::Matrix3Xd& positions_World_mm, const Eigen::Matrix3Xd& velocities_World_mm_s) override;
   std::vector<ElementMeasure> element_measures() const override;
-  // In place after a cut: the changed tets leave their batches (the last lane of the batch
-  // takes the freed one) and join batches appended to the seam group (one thread), lumped
-  // masses change by the removed and added tets' quarters, mass blocks are refreshed for
-  // the tets around the vertices whose mass changed. O(changed tets and their neighbours).
+  // In place after a cut: the changed tets leave their batches (the batch's last lane
+  // takes the freed one; an emptied batch leaves its group) and each joins the group it
+  // can run in (the same rules as build_batches: a half when all its vertices are that
+  // half's, else a side of the interface, else the seam) in the first batch of that group
+  // with a free lane and none of its vertices (first fit over the group's open batches,
+  // found through the lanes of its four vertices), else a new or reused empty batch;
+  // lumped masses change by the removed and added tets' quarters, mass blocks are
+  // refreshed for the tets around the vertices whose mass changed. A new vertex belongs
+  // to a half when every old vertex of the changed tets around it does. O(changed tets
+  // and their neighbours), no recolouring of the mesh.
   std::optional<MeshChangeStats> apply_mesh_change(const SimProblem& problem, const std::vector<int>& changed_tets,
                                                    const Eigen::Matrix3Xd& x_World_mm, const Eigen::Matrix3Xd& v_World_mm_s) override;
 
+  // Lumped vertex masses (kg) as the solver uses them: an embedded vertex's moved to its
+  // drivers (0 there), a rigid group's to the group.
+  const Eigen::VectorXd& masses_kg() const { return mass_; }
   // Stored elastic energy of tets and attachments at the current state (mN*mm).
   double elastic_energy() const;
   // Tets per group of the parallel sweep (tet_batches.hpp): the two halves (swept by two
   // threads at once), the two sides of their interface (likewise), the seam (one thread).
   std::array<int, 5> group_tets() const;
+  // Checks the batches against problem (the mesh this model was built on or last updated
+  // to): every elastic tet in exactly one lane with its vertices and rest shape, no
+  // passive tet in a lane, the lanes of a batch on distinct vertices, groups 0 and 1 on
+  // disjoint vertices and likewise 2 and 3, group 1 only on the vertices thread 1 owns and
+  // group 0 on none of them. Empty when valid, else the first violation found.
+  std::string check_batches(const SimProblem& problem) const;
+  // Batches holding tets and the mean of their used lanes (SIMD occupancy, kLanes at most).
+  int active_batches() const;
+  double mean_lanes() const;
   // The energy in use: "neo_hookean" or "corotated".
   std::string energy() const { return neo_hookean_ ? "neo_hookean" : "corotated"; }
 
@@ -77,6 +95,11 @@ class XpbdModel final : public TissueModel {
   void fill_unused_lanes(std::size_t bi);
   void remove_lane(int lane);
   int add_lane(const SimProblem& problem, int t);
+  int choose_group(const std::array<int, 4>& tet) const;
+  int find_batch(int group, const std::array<int, 4>& tet);
+  void free_batch(int batch);
+  void build_local_maps();
+  void set_owner(int vertex, unsigned char owner);
   void update_tet_mass_blocks();
   // One step (substeps, sweeps, attachments) in one parallel region; returns the elastic
   // energy of the tets and attachments and the inverted tets at its end.
@@ -115,10 +138,20 @@ class XpbdModel final : public TissueModel {
   int inverted_at_end_ = -1;      // inverted tets after the last step; -1: unknown
   EnergyLedger ledger_;
   // Local updates (apply_mesh_change), built at the first one: lane (batch * kLanes + lane)
-  // of each tet, lanes of each vertex, first batch appended by cuts.
+  // of each tet, lanes of each vertex, the thread that owns each vertex (the index of its
+  // group_vertices_ list), tets of groups 0, 2 and 3 at each vertex, per group the batches
+  // with a free lane (open; may hold stale entries, dropped when met), empty batches.
   std::vector<int> lane_of_tet_;
   std::vector<std::vector<int>> vertex_lanes_;
-  int cut_batches_begin_ = -1;
+  std::vector<unsigned char> vertex_owner_;
+  std::vector<int> owner_pos_;                 // index of each vertex in its group_vertices_ list
+  std::vector<std::array<int, 3>> side_tets_;  // tets of groups 0, 2 and 3 at each vertex
+  std::array<std::vector<int>, 5> open_;
+  std::vector<unsigned char> in_open_;
+  std::vector<int> free_batches_;
+  std::vector<int> batch_group_;  // group of each batch, -1: empty (free)
+  std::array<int, 5> group_count_{};  // tets per group
+  std::vector<int> clash_;            // find_batch's scratch
 };
 
 }  // namespace arnav::host
