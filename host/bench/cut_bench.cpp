@@ -106,6 +106,7 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
         int first = 1;  // frames before it: the organ settling under gravity (derived ring)
         RingPath ring;
         Eigen::Matrix3Xd tumour_then, tumour_tracked;  // ring_follow: the tumour when the path was made, and as last tracked
+        bool tracking = follow;
         if (derived) {
           // The organ hangs 2 s with the blade away, then the ring is made round the tumour as
           // it hangs (the access direction that keeps the ligaments out of the block).
@@ -139,7 +140,7 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
         for (int f = first; f <= frames && row.healthy; ++f) {
           ScalpelSample s = path.at(f * scene.time_step_s);
           if (follow) {
-            if (f * scene.time_step_s < ring.cut_end_s)
+            if (tracking && f * scene.time_step_s < ring.cut_end_s)
               tumour_tracked = session.tumours().front().embedding.apply(session.mesh(), session.positions_World_mm()).leftCols(tumour_then.cols());
             s.blade = follow_tracked(s.blade, tumour_then, tumour_tracked);
           }
@@ -149,6 +150,10 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
           const StepSummary step = session.step(scene.time_step_s);
           frame.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
           frame_cpu.push_back(thread_cpu_ms() - cpu0);
+          // ring_follow: once the block is free the surgeon stops following it (outside the
+          // frame's timing: an O(tets) check of the tumour's piece after topology changes).
+          if (tracking && cr.cut.topology_changed && piece_is_free(session.mesh(), session.tumours().front().embedding.tet.front(), session.fixed_vertices()))
+            tracking = false;
           if (record) rebuilt_states.push_back(session.positions_World_mm());
           if (compare && !parted && static_cast<std::size_t>(f - first) < rebuilt_states.size()) {
             const Eigen::Matrix3Xd x = session.positions_World_mm();
