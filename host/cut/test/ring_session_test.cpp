@@ -26,6 +26,8 @@
 // bundled ring, the FEM on the scene ring, and a second patient's liver.
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
+
 #include <cmath>
 #include <cstdlib>
 #include <iostream>
@@ -392,4 +394,26 @@ TEST(RingPath, KeepsTheFixedVerticesOutOfTheBlockAndWritesAScalpelFile) {
   for (int v = 0; v < mesh.num_vertices(); ++v) all[static_cast<std::size_t>(v)] = v;
   EXPECT_THROW(make_ring_path(mesh, x, all, tumour), std::invalid_argument);
   EXPECT_THROW(make_ring_path(mesh, x, {}, Eigen::Matrix3Xd(3, 0)), std::invalid_argument);
+}
+
+// The blade following the tracked points: a rigid motion of the points carries the blade by
+// exactly that motion (rotation and translation recovered to round-off); a free piece.
+TEST(RingPath, FollowTrackedCarriesTheBladeByTheTrackedRigidMotion) {
+  const Scene scene = load_scene(kData + "/liver/liver_coarse_cut.scene.yaml");
+  const Eigen::Matrix3Xd& tumour = scene.tumours.front().rest.positions_World_mm;
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, -2, 0.5).normalized()).toRotationMatrix();
+  const Eigen::Vector3d p(12.0, -30.0, 4.5);
+  const Eigen::Matrix3Xd moved = (R * tumour).colwise() + p;
+  const BladeSegment planned{Eigen::Vector3d(70, 150, 120), Eigen::Vector3d(75, 160, 170)};
+  const BladeSegment now = follow_tracked(planned, tumour, moved);
+  EXPECT_LT((now.tip_World_mm - (R * planned.tip_World_mm + p)).norm(), 1e-9);
+  EXPECT_LT((now.heel_World_mm - (R * planned.heel_World_mm + p)).norm(), 1e-9);
+  const BladeSegment same = follow_tracked(planned, tumour, tumour);
+  EXPECT_LT((same.tip_World_mm - planned.tip_World_mm).norm(), 1e-9);
+  EXPECT_THROW(follow_tracked(planned, tumour, tumour.leftCols(tumour.cols() - 1)), std::invalid_argument);
+  EXPECT_THROW(follow_tracked(planned, tumour.leftCols(2), tumour.leftCols(2)), std::invalid_argument);
+  // The uncut liver is one piece held by its fixed vertices; without them it is free.
+  EXPECT_FALSE(piece_is_free(scene.problem.mesh, 0, scene.problem.fixed_vertices));
+  EXPECT_TRUE(piece_is_free(scene.problem.mesh, 0, {}));
+  EXPECT_THROW(piece_is_free(scene.problem.mesh, scene.problem.mesh.num_tets(), {}), std::invalid_argument);
 }
