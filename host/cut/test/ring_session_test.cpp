@@ -240,6 +240,7 @@ RingOutcome ring_in_session(const std::string& scene_file, const std::string& mo
       std::cout << "frame " << f << " tumour centroid in ring coordinates " << frame.coords(session->tumours().front().embedding.apply(session->mesh(), xf).rowwise().mean()).transpose()
                 << ", tumour points " << session->tumours().front().rest_World_mm.cols() << ", inverted elements " << step.inverted_elements << "\n";
     }
+    if (debug && previous && !s.cutting) std::cout << "frame " << f << ": stroke's end (finish_stroke) " << cut.cut.update_ms << " ms, " << cut.cut.tets_completed << " tets completed\n";
     if (debug && previous && !s.cutting) diagnose(*session, session->positions_World_mm(), frame, "frame " + std::to_string(f) + ", stroke ended", &scene.problem.mesh, &x0);
     previous = s.cutting;
     if (x_at_cut_end.cols() == 0 && f * dt >= ring.cut_end_s) {
