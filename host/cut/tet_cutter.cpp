@@ -1232,8 +1232,9 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       }
     }
   }
-  // Tets made by the separation above (an edge inside the cut split at its mid-point) are
-  // watched like the others: the blade may already have left them.
+  // Tets made after the watch list was updated (the completions' splits, the separation's
+  // mid-point splits of edges inside the cut) are watched like the others: the blade may
+  // already have left them, and a tet never watched is never completed.
   for (int t : r.changed_tets) watch_tet(t);
   r.topology_changed = r.vertices_added > 0 || r.vertices_moved > 0;
   std::sort(r.changed_tets.begin(), r.changed_tets.end());
