@@ -99,8 +99,8 @@ static int main_body(int argc, char** argv) {
   cut->add_option("-o,--out", out_dir, "output folder for cut.csv");
   cut->add_option("--data", cut_options.data_dir, "data folder with liver/*.scene.yaml and liver/scalpel_*.csv");
   cut->add_option("--mesh", cut_options.meshes, "meshes (coarse: 4,768 tets; paper: 26,054 tets)")->check(CLI::IsMember({"coarse", "paper"}));
-  cut->add_option("--scenario", cut_options.scenarios, "scenarios (right_lobe, ring: data/liver/scalpel_*.csv; ring_scene: ring and bottom cut made from the scene round the tumour, clear of the fixed vertices, docs/cut.md)")
-      ->check(CLI::IsMember({"right_lobe", "ring", "ring_scene"}));
+  cut->add_option("--scenario", cut_options.scenarios, "scenarios (right_lobe, ring: data/liver/scalpel_*.csv; ring_scene: ring and bottom cut made from the scene round the tumour, clear of the fixed vertices; ring_follow: the same with the blade following the tumour, docs/cut.md)")
+      ->check(CLI::IsMember({"right_lobe", "ring", "ring_scene", "ring_follow"}));
   cut->add_option("--setting", cut_options.setting_prefixes, "run only the models whose label starts with this (repeatable)");
   cut->add_option("--reference", cut_options.reference_mesh, "also cut each run's path on this mesh with the same model: tumour-centroid and cut-surface error (cut_reference.csv, cut_reference.png)")
       ->check(CLI::IsMember({"coarse", "paper"}));

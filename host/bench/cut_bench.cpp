@@ -54,8 +54,13 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
     const Scene scene = load_scene(o.data_dir + (mesh_name == "coarse" ? "/liver/liver_coarse_cut.scene.yaml" : "/liver/liver.scene.yaml"));
     const CutMeshCheck input = check_cut_mesh(scene.problem.mesh);
     for (const auto& scenario : scenarios) {
-      if (scenario != "right_lobe" && scenario != "ring" && scenario != "ring_scene") throw std::invalid_argument("cut bench: unknown scenario '" + scenario + "' (right_lobe, ring, ring_scene)");
-      const bool derived = scenario == "ring_scene";  // made from the scene after the organ settled (cut/ring_path.hpp)
+      if (scenario != "right_lobe" && scenario != "ring" && scenario != "ring_scene" && scenario != "ring_follow")
+        throw std::invalid_argument("cut bench: unknown scenario '" + scenario + "' (right_lobe, ring, ring_scene, ring_follow)");
+      // ring_scene: made from the scene after the organ settled (cut/ring_path.hpp), fixed in
+      // World; ring_follow: the same path with the blade following the tumour's rigid motion
+      // (follow_tracked: a surgeon keeping the ring round the lesion) until the bottom cut ends.
+      const bool derived = scenario == "ring_scene" || scenario == "ring_follow";
+      const bool follow = scenario == "ring_follow";
       const ScalpelPath csv_path = derived ? ScalpelPath{} : load_scalpel_csv(o.data_dir + "/liver/scalpel_" + scenario + ".csv");
       for (ModelVariant variant : model_variants())
       for (const bool background : o.background) {
@@ -100,6 +105,8 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
         ScalpelPath path = csv_path;
         int first = 1;  // frames before it: the organ settling under gravity (derived ring)
         RingPath ring;
+        Eigen::Matrix3Xd tumour_then, tumour_tracked;  // ring_follow: the tumour when the path was made, and as last tracked
+        bool tracking = follow;
         if (derived) {
           // The organ hangs 2 s with the blade away, then the ring is made round the tumour as
           // it hangs (the access direction that keeps the ligaments out of the block).
@@ -114,7 +121,9 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
             }
           }
           const Eigen::Matrix3Xd x = session.positions_World_mm();
-          ring = make_ring_path(session.mesh(), x, session.fixed_vertices(), session.tumours().front().embedding.apply(session.mesh(), x));
+          tumour_then = session.tumours().front().embedding.apply(session.mesh(), x);
+          tumour_tracked = tumour_then;
+          ring = make_ring_path(session.mesh(), x, session.fixed_vertices(), tumour_then);
           for (auto& sample : ring.path.samples) sample.t_s += settle * scene.time_step_s;
           ring.ring_end_s += settle * scene.time_step_s;
           ring.cut_end_s += settle * scene.time_step_s;
@@ -129,13 +138,22 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
         Eigen::Vector3d tumour_at_cut_end = Eigen::Vector3d::Zero();
         Eigen::Matrix3Xd x_at_cut_end;
         for (int f = first; f <= frames && row.healthy; ++f) {
-          const ScalpelSample s = path.at(f * scene.time_step_s);
+          ScalpelSample s = path.at(f * scene.time_step_s);
+          if (follow) {
+            if (tracking && f * scene.time_step_s < ring.cut_end_s)
+              tumour_tracked = session.tumours().front().embedding.apply(session.mesh(), session.positions_World_mm()).leftCols(tumour_then.cols());
+            s.blade = follow_tracked(s.blade, tumour_then, tumour_tracked);
+          }
           const auto t0 = std::chrono::steady_clock::now();
           const double cpu0 = thread_cpu_ms();
           const CutFrameReport cr = session.apply_blade(s.blade, s.cutting);
           const StepSummary step = session.step(scene.time_step_s);
           frame.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
           frame_cpu.push_back(thread_cpu_ms() - cpu0);
+          // ring_follow: once the block is free the surgeon stops following it (outside the
+          // frame's timing: an O(tets) check of the tumour's piece after topology changes).
+          if (tracking && cr.cut.topology_changed && piece_is_free(session.mesh(), session.tumours().front().embedding.tet.front(), session.fixed_vertices()))
+            tracking = false;
           if (record) rebuilt_states.push_back(session.positions_World_mm());
           if (compare && !parted && static_cast<std::size_t>(f - first) < rebuilt_states.size()) {
             const Eigen::Matrix3Xd x = session.positions_World_mm();

@@ -14,7 +14,7 @@ struct CutBenchOptions {
   std::string data_dir;                                        // folder with liver/*.scene.yaml and the scalpel paths
   bool quick = false;                                          // CI smoke run: coarse mesh, XPBD, 150 frames
   std::vector<std::string> meshes = {"coarse"};                // coarse (4,768 tets) and/or paper (26,054 tets)
-  std::vector<std::string> scenarios = {"right_lobe", "ring"};  // ring: data/liver/scalpel_ring.csv; ring_scene: made from the scene (cut/ring_path.hpp)
+  std::vector<std::string> scenarios = {"right_lobe", "ring"};  // ring: data/liver/scalpel_ring.csv; ring_scene: made from the scene (cut/ring_path.hpp); ring_follow: that path following the tumour
   std::vector<std::string> setting_prefixes;                   // model labels to run (prefix match; empty: all)
   int max_frames = 0;                                          // cap per run (0: the whole path)
   std::vector<bool> background = {false};                      // rebuild the model inline and/or in the background

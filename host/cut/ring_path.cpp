@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <iomanip>
+#include <numeric>
 #include <sstream>
 #include <stdexcept>
 
@@ -155,6 +156,33 @@ RingPath make_ring_path(const TetMesh& mesh, const Eigen::Matrix3Xd& x, const st
   add(1e-3, away, away + length * d, false);
   add(o.hold_s, away, away + length * d, false);
   return best;
+}
+
+BladeSegment follow_tracked(const BladeSegment& planned, const Eigen::Matrix3Xd& then, const Eigen::Matrix3Xd& now) {
+  if (then.cols() != now.cols() || then.cols() < 3) {
+    throw std::invalid_argument("follow_tracked: the tracked point sets must be the same points (" + std::to_string(then.cols()) + " then, " +
+                                std::to_string(now.cols()) + " now), at least 3");
+  }
+  const Eigen::Matrix4d T = Eigen::umeyama(then, now, false);
+  const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
+  const Eigen::Vector3d p = T.topRightCorner<3, 1>();
+  return {R * planned.tip_World_mm + p, R * planned.heel_World_mm + p};
+}
+
+bool piece_is_free(const TetMesh& mesh, int seed_tet, const std::vector<int>& fixed_vertices) {
+  if (seed_tet < 0 || seed_tet >= mesh.num_tets()) throw std::invalid_argument("piece_is_free: tet " + std::to_string(seed_tet) + " is not in the mesh");
+  std::vector<int> parent(static_cast<std::size_t>(mesh.num_vertices()));
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](int v) {
+    while (parent[static_cast<std::size_t>(v)] != v) v = parent[static_cast<std::size_t>(v)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(v)])];
+    return v;
+  };
+  for (const auto& tet : mesh.tets)
+    for (int k = 1; k < 4; ++k) parent[static_cast<std::size_t>(find(tet[static_cast<std::size_t>(k)]))] = find(tet[0]);
+  const int root = find(mesh.tets[static_cast<std::size_t>(seed_tet)][0]);
+  for (int v : fixed_vertices)
+    if (v >= 0 && v < mesh.num_vertices() && find(v) == root) return false;
+  return true;
 }
 
 }  // namespace arnav::host::cut

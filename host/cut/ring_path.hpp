@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "host/cut/blade.hpp"
 #include "host/cut/scalpel_path.hpp"
 #include "host/scene/tet_mesh.hpp"
 
@@ -64,5 +65,21 @@ struct RingPath {
 // points.
 RingPath make_ring_path(const TetMesh& mesh, const Eigen::Matrix3Xd& x_World_mm, const std::vector<int>& fixed_vertices,
                         const Eigen::Matrix3Xd& tumour_World_mm, const RingPathSettings& settings = {});
+
+// The blade as a surgeon following the lesion holds it: the planned blade (World, in the
+// configuration the path was made in) carried by the rigid motion (rotation and translation,
+// least squares: Eigen::umeyama) that best maps the tracked points from where they were then
+// (tracked_then, e.g. the tumour's points when make_ring_path ran) to where they are now
+// (tracked_now, the same points in the same order). The cut stays round the lesion while the
+// organ swings; what is tracked is the lesion's rigid motion, not its deformation (the blade
+// is not bent with the tissue). Throws std::invalid_argument when the point sets differ in
+// size or have fewer than 3 points.
+BladeSegment follow_tracked(const BladeSegment& planned_World_mm, const Eigen::Matrix3Xd& tracked_then_World_mm,
+                            const Eigen::Matrix3Xd& tracked_now_World_mm);
+
+// True when the piece holding tet seed_tet has no fixed vertex: it has come free (a piece is
+// a vertex-connected part of the mesh; a cut duplicates the vertices on it, so pieces share
+// none). O(tets). A surgeon following the lesion (follow_tracked) stops following it then.
+bool piece_is_free(const TetMesh& mesh, int seed_tet, const std::vector<int>& fixed_vertices);
 
 }  // namespace arnav::host::cut

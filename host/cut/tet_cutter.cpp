@@ -202,6 +202,17 @@ CutStepReport TetCutter::finish_stroke(Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v)
   return r;
 }
 
+void TetCutter::watch_tet(int t) {
+  if (static_cast<std::size_t>(t) >= watched_.size()) watched_.resize(mesh_.tets.size(), 0);
+  if (watched_[static_cast<std::size_t>(t)]) return;
+  for (int w : mesh_.tets[static_cast<std::size_t>(t)])
+    if (on_stroke(w)) {
+      watched_[static_cast<std::size_t>(t)] = 1;
+      watch_.push_back(t);
+      return;
+    }
+}
+
 void TetCutter::update_surface() { mesh_.surface_tris = boundary_faces(mesh_); }
 
 void TetCutter::begin_stroke() {
@@ -907,19 +918,31 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
     // (straight between the points as they were) leave slivers of material between them that
     // neither swept: an edge crossing the cut there has no crossing (docs/cut.md, "The ring in
     // the running simulation").
+    // At the stroke's end every tet round a vertex on this stroke's cut is looked at once
+    // (O(vertices + cut), once per stroke): a tet the sweep never reached because the tissue
+    // carried it across the blade's path between two frames (an organ recoiling as the cut
+    // frees it moved a vertex 1.5 mm across the blade in one frame) is otherwise never
+    // watched. Free vertices without a side then get one from the complete surface
+    // (45 degrees, within an edge of their tets), as the faces on the cut do.
     {
-      auto watch = [&](int t) {
-        if (static_cast<std::size_t>(t) >= watched_.size()) watched_.resize(mesh_.tets.size(), 0);
-        if (watched_[static_cast<std::size_t>(t)]) return;
-        for (int w : mesh_.tets[static_cast<std::size_t>(t)])
-          if (on_stroke(w)) {
-            watched_[static_cast<std::size_t>(t)] = 1;
-            watch_.push_back(t);
-            return;
-          }
-      };
+      auto watch = [&](int t) { watch_tet(t); };
       for (int t : candidates) watch(t);
       for (int t : r.changed_tets) watch(t);
+      if (finishing_) {
+        for (int w = 0; w < mesh_.num_vertices(); ++w)
+          if (on_stroke(w))
+            for (int t : vertex_tets_[static_cast<std::size_t>(w)]) watch(t);
+        for (int t : watch_) {
+          if (tip_tet_[static_cast<std::size_t>(t)]) continue;
+          for (int w : mesh_.tets[static_cast<std::size_t>(t)]) {
+            if (on_stroke(w) || side_[static_cast<std::size_t>(w)] != 0) continue;
+            if (const int sd = stroke_side(w, x, kLazyCone); sd != 0) {
+              side_[static_cast<std::size_t>(w)] = static_cast<signed char>(sd);
+              sided_.push_back(w);
+            }
+          }
+        }
+      }
       std::vector<int> keep;
       for (int t : watch_) {
         if (near[static_cast<std::size_t>(t)] || tip_tet_[static_cast<std::size_t>(t)]) {
@@ -1209,6 +1232,10 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       }
     }
   }
+  // Tets made after the watch list was updated (the completions' splits, the separation's
+  // mid-point splits of edges inside the cut) are watched like the others: the blade may
+  // already have left them, and a tet never watched is never completed.
+  for (int t : r.changed_tets) watch_tet(t);
   r.topology_changed = r.vertices_added > 0 || r.vertices_moved > 0;
   std::sort(r.changed_tets.begin(), r.changed_tets.end());
   r.changed_tets.erase(std::unique(r.changed_tets.begin(), r.changed_tets.end()), r.changed_tets.end());

@@ -168,6 +168,8 @@ class TetCutter {
   int stroke_side(int w, const Eigen::Matrix3Xd& x, double cone, bool within_reach = true) const;
   // Distance of p from this stroke's whole swept surface (as swept).
   double stroke_distance(const Eigen::Vector3d& p) const;
+  // Adds tet t to the watch list when it has a vertex on this stroke's cut.
+  void watch_tet(int t);
   bool move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   int add_vertex(const VertexOrigin& o, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   void split_edge(int a, int b, double t_ab, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r,
