@@ -27,6 +27,9 @@ struct CutBenchOptions {
   // real-time setting, docs/sim-fem.md) instead of model_variants()' inline refactorisation;
   // its label gains "+background_refactor".
   bool fem_background_refactor = false;
+  // >= -1: the co-rotational FEM's cut-region correction after a cut
+  // (CorotationalFem::set_cut_region_rings; -1 off); its label gains "+cut_rings N".
+  int fem_cut_region_rings = -2;
   double min_dihedral_deg = -1;                                // >= 0: overrides the scene's cutting.min_dihedral_deg (0: treatment off)
 };
 
@@ -76,9 +79,23 @@ struct CutBenchRow {
   double reference_wall_s = 0;
   double tumour_centroid_error_mm = -1;            // -1: not measured (no tumour, no reference)
   double cut_surface_mean_mm = -1, cut_surface_max_mm = -1;  // symmetric distance of the cut faces; -1: a run has none
+  // Per frame (cut_frames.csv): whether the topology changed, whole-frame and model-update
+  // (local update or rebuild) time, and the model step's solver iterations and final
+  // residual (StepSummary: PCG iterations for the co-rotational FEM, Newton iterations for
+  // the stable Neo-Hookean one).
+  struct FrameSample {
+    int frame = 0;
+    bool topology_changed = false;
+    double frame_ms = 0, update_ms = 0;
+    int iterations = 0;
+    double final_residual = 0;
+  };
+  std::vector<FrameSample> samples;
 };
 
 std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& options);
 void write_cut_csv(const std::string& path, const std::vector<CutBenchRow>& rows);
+// One line per frame of every run (CutBenchRow::samples).
+void write_cut_frames_csv(const std::string& path, const std::vector<CutBenchRow>& rows);
 
 }  // namespace arnav::host

@@ -166,6 +166,7 @@ CorotationalFem::CorotationalFem(const SimProblem& problem, const ModelConfig& c
   if (options_.background_nice < 0 || options_.background_nice > 19)
     throw std::invalid_argument("corotational_fem: background_nice must be in [0, 19]");
   solver_.set_background_nice(options_.background_nice);
+  set_cut_region_rings(options_.cut_region_rings);
   if (config.single_precision_preconditioner && solver_.kind() != FemLinearSolver::Kind::PcgFactor) {
     throw std::invalid_argument("corotational_fem: single_precision_preconditioner needs linear_solver pcg");
   }
@@ -180,6 +181,11 @@ CorotationalFem::CorotationalFem(const SimProblem& problem, const ModelConfig& c
 }
 
 CorotationalFem::~CorotationalFem() = default;
+
+void CorotationalFem::set_cut_region_rings(int rings) {
+  if (rings < -1) throw std::invalid_argument("corotational_fem: cut_region_rings must be >= -1 (-1: no cut-region correction)");
+  solver_.set_cut_region_rings(rings);
+}
 
 CorotationalFem::Tet CorotationalFem::make_element(const SimProblem& problem, int t, double& quarter_mass,
                                                    double& quarter_alpha) const {
@@ -348,7 +354,8 @@ void CorotationalFem::grow_pattern(const std::vector<int>& stored_changed, int o
   // (padded) while the new pattern is factorised on a worker; otherwise (deterministic) and
   // for the direct kinds, the new pattern is factorised (analysis included) at the next solve.
   if (solver_.background_refactor()) {
-    solver_.pattern_extended(old_vertices, preconditioner_aliases(stored_changed, old_vertices));
+    solver_.pattern_extended(old_vertices, preconditioner_aliases(stored_changed, old_vertices),
+                             fem::touched_vertices(changes, old_vertices, n));
   } else {
     solver_.pattern_changed();
   }

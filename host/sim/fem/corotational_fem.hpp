@@ -47,6 +47,9 @@ struct FemOptions {
   VesselBeamOptions beams;          // used only when the problem declares vessels
   int background_nice = 5;          // refactor_in_background: nice level of the worker thread
                                     // (FemLinearSolver::set_background_nice)
+  int cut_region_rings = 1;         // after a cut, while PCG runs on the old factor: the changed
+                                    // vertices and this many rings of neighbours are solved
+                                    // exactly on the current matrix (-1: off; FemLinearSolver::pattern_extended)
 };
 
 class CorotationalFem final : public TissueModel {
@@ -86,6 +89,8 @@ class CorotationalFem final : public TissueModel {
                                                    const Eigen::Matrix3Xd& x_World_mm, const Eigen::Matrix3Xd& v_World_mm_s) override;
   // After a cut: the factor of the new pattern is still being made (PCG runs on the old one).
   bool factor_pending() const { return solver_.factor_pending(); }
+  // FemOptions::cut_region_rings (benchmarks compare the settings on one model).
+  void set_cut_region_rings(int rings);
 
   // Introspection for tests and benchmarks.
   int num_beam_elements() const { return static_cast<int>(beams_.size()); }

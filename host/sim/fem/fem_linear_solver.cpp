@@ -81,6 +81,11 @@ struct FemLinearSolver::Factors {
   // factor in use does not have.
   std::vector<Eigen::Matrix3d> tail_inv;
   std::vector<int> tail_alias;  // their aggregation vertex in the factor (-1: none)
+  // Cut-region correction (prepare_preconditioner): the DOFs whose entries changed since the
+  // factor's pattern (and rings of neighbours), the rows of A there, the factor of A_SS.
+  std::vector<int> region_dofs;
+  Eigen::SparseMatrix<double, Eigen::RowMajor, int> region_rows;
+  Eigen::SimplicialLLT<SparseMatrixLower, Eigen::Lower> region_solver;
 };
 
 FemLinearSolver::Kind FemLinearSolver::parse(const std::string& name) {
@@ -131,6 +136,7 @@ void FemLinearSolver::discard_background() {
 
 void FemLinearSolver::pattern_changed() {
   discard_background();  // its snapshot has the old pattern
+  cut_regions_.clear();
   ++pattern_version_;
   analyzed_ = false;
   have_factor_ = false;
@@ -138,7 +144,7 @@ void FemLinearSolver::pattern_changed() {
   f_->snapshot = SparseMatrixLower();
 }
 
-void FemLinearSolver::pattern_extended(int old_vertices, const std::vector<int>& alias) {
+void FemLinearSolver::pattern_extended(int old_vertices, const std::vector<int>& alias, const std::vector<int>& changed_vertices) {
   if (kind_ != Kind::PcgFactor || !have_factor_) {
     pattern_changed();
     return;
@@ -156,6 +162,84 @@ void FemLinearSolver::pattern_extended(int old_vertices, const std::vector<int>&
   analyzed_ = false;
   if (!f_->pending) f_->pending = make_cholmod();
   refresh_requested_ = true;
+  cut_regions_.push_back({pattern_version_, changed_vertices});
+}
+
+void FemLinearSolver::prepare_preconditioner(const SparseMatrixLower& A) {
+  region_active_ = false;
+  if (kind_ != Kind::PcgFactor) return;
+  if (factor_dofs_ < A.rows()) prepare_padding(A);
+  // Cut-region correction: the vertices whose entries changed since the factor's pattern.
+  cut_regions_.erase(std::remove_if(cut_regions_.begin(), cut_regions_.end(),
+                                    [&](const CutRegion& c) { return c.version <= factor_version_; }),
+                     cut_regions_.end());
+  if (cut_region_rings_ < 0 || cut_regions_.empty() || factor_version_ == pattern_version_) return;
+  const auto n = static_cast<int>(A.rows());
+  std::vector<int> pos(static_cast<std::size_t>(n), -1);
+  std::vector<int>& dofs = f_->region_dofs;
+  dofs.clear();
+  const auto add_vertex = [&](int v) {
+    if (v < 0 || 3 * v + 2 >= n || pos[static_cast<std::size_t>(3 * v)] >= 0) return;
+    for (int d = 0; d < 3; ++d) {
+      pos[static_cast<std::size_t>(3 * v + d)] = 0;
+      dofs.push_back(3 * v + d);
+    }
+  };
+  for (const CutRegion& c : cut_regions_)
+    for (int v : c.vertices) add_vertex(v);
+  const int* outer = A.outerIndexPtr();
+  const int* inner = A.innerIndexPtr();
+  const double* values = A.valuePtr();
+  // Rings of neighbours (vertices coupled to the region in A): one pass over the entries each.
+  for (int ring = 0; ring < cut_region_rings_; ++ring) {
+    std::vector<int> more;
+    for (int c = 0; c < n; ++c)
+      for (int k = outer[c]; k < outer[c + 1]; ++k) {
+        const int r = inner[k];
+        const bool rin = pos[static_cast<std::size_t>(r)] >= 0, cin = pos[static_cast<std::size_t>(c)] >= 0;
+        if (rin != cin) more.push_back((rin ? c : r) / 3);
+      }
+    for (int v : more) add_vertex(v);
+  }
+  std::sort(dofs.begin(), dofs.end());
+  for (std::size_t i = 0; i < dofs.size(); ++i) pos[static_cast<std::size_t>(dofs[i])] = static_cast<int>(i);
+  // Rows S of the symmetric matrix (s x n) and its S x S block, from the lower triangle.
+  const auto m = static_cast<Eigen::Index>(dofs.size());
+  std::vector<Eigen::Triplet<double>> rows, block;
+  for (int c = 0; c < n; ++c)
+    for (int k = outer[c]; k < outer[c + 1]; ++k) {
+      const int r = inner[k];
+      const int pr = pos[static_cast<std::size_t>(r)], pc = pos[static_cast<std::size_t>(c)];
+      if (pr >= 0) rows.emplace_back(pr, c, values[k]);
+      if (pc >= 0 && r != c) rows.emplace_back(pc, r, values[k]);
+      if (pr >= 0 && pc >= 0) block.emplace_back(pr, pc, values[k]);  // lower triangle of the block (r >= c)
+    }
+  f_->region_rows.resize(m, n);
+  f_->region_rows.setFromTriplets(rows.begin(), rows.end());
+  SparseMatrixLower local(m, m);
+  local.setFromTriplets(block.begin(), block.end());
+  f_->region_solver.compute(local);
+  region_active_ = f_->region_solver.info() == Eigen::Success;
+}
+
+void FemLinearSolver::apply_preconditioner(const Eigen::VectorXd& r, Eigen::VectorXd& z) const {
+  if (!region_active_) {
+    apply_factor(r, z);
+    return;
+  }
+  // M^-1 = T + (I - T A) P (I - A T), T = E A_SS^-1 E^T (exact solve of the changed region
+  // on the current matrix), P the (padded) old factor: symmetric, and positive definite
+  // whenever P is (r^T T r = 0 means E^T r = 0, and then (I - A T) r = r).
+  const std::vector<int>& dofs = f_->region_dofs;
+  const auto m = static_cast<Eigen::Index>(dofs.size());
+  Eigen::VectorXd rs(m);
+  for (Eigen::Index i = 0; i < m; ++i) rs[i] = r[dofs[static_cast<std::size_t>(i)]];
+  const Eigen::VectorXd u = f_->region_solver.solve(rs);
+  const Eigen::VectorXd y = r - f_->region_rows.transpose() * u;
+  apply_factor(y, z);
+  const Eigen::VectorXd t = f_->region_rows * z;
+  const Eigen::VectorXd c = f_->region_solver.solve(t);
+  for (Eigen::Index i = 0; i < m; ++i) z[dofs[static_cast<std::size_t>(i)]] += u[i] - c[i];
 }
 
 void FemLinearSolver::prepare_padding(const SparseMatrixLower& A) {
@@ -373,7 +457,7 @@ LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eige
     return s;
   }
   // Preconditioned conjugate gradients, warm started from x.
-  if (kind_ == Kind::PcgFactor && factor_dofs_ < A.rows()) prepare_padding(A);
+  prepare_preconditioner(A);
   const bool worker = background_ || job_.valid();  // a fresher factor can come from the worker
   Eigen::VectorXd r = b - Asym * x;
   s.initial_residual = r.norm() / b_norm;
@@ -394,7 +478,7 @@ LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eige
   };
   auto refresh = [&](const std::string& why) {
     if (!factorize(A, s)) return false;
-    if (kind_ == Kind::PcgFactor && factor_dofs_ < A.rows()) prepare_padding(A);
+    prepare_preconditioner(A);
     s.message = "preconditioner refreshed after " + std::to_string(it) + " iterations: " + why;
     restart();
     return true;
@@ -420,7 +504,7 @@ LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eige
         job_.wait();
         poll_background(s);
         if (s.background_swapped) {
-          if (factor_dofs_ < A.rows()) prepare_padding(A);
+          prepare_preconditioner(A);
           s.message = "waited for the background factor after " + std::to_string(it) + " iterations at residual " +
                       std::to_string(res);
           restart();
@@ -430,7 +514,7 @@ LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eige
       if (!refresh("residual " + std::to_string(res))) return s;
       continue;
     }
-    apply_factor(r, z);
+    apply_preconditioner(r, z);
     const double rz_new = r.dot(z);
     if (p.size() == 0) {
       p = z;
