@@ -189,28 +189,18 @@ void CorotationalFem::set_cut_region_rings(int rings) {
 
 CorotationalFem::Tet CorotationalFem::make_element(const SimProblem& problem, int t, double& quarter_mass,
                                                    double& quarter_alpha) const {
-  const TetMesh& mesh = problem.mesh;
-  const int region = mesh.tet_region.empty() ? 0 : mesh.tet_region[static_cast<std::size_t>(t)];
-  if (region < 0 || region >= static_cast<int>(problem.region_materials.size()))
-    throw std::invalid_argument("corotational_fem: tet " + std::to_string(t) + " refers to region " + std::to_string(region) +
-                                " which has no material");
-  const Material& m = problem.region_materials[static_cast<std::size_t>(region)];
+  const fem::RestTet r = fem::rest_tet(problem, t, "corotational_fem");
   Tet e;
-  e.v = mesh.tets[static_cast<std::size_t>(t)];
-  const Lame lame = lame_from(m);
-  e.mu = lame.mu_kPa;
-  e.lambda = lame.lambda_kPa;
-  e.beta = m.damping_stiffness_s;
-  e.volume = signed_volume_mm3(mesh.rest_positions_World_mm, e.v);
-  e.passive = problem.embedded.is_passive(t);  // below the quality bound: no elastic term
-  if (!(e.volume > 0.0))
-    throw std::invalid_argument("corotational_fem: tet " + std::to_string(t) + " has non-positive rest volume " +
-                                std::to_string(e.volume) + " mm^3");
-  e.Dm_inv = edge_matrix(mesh.rest_positions_World_mm, e.v).inverse();
-  for (int k = 0; k < 3; ++k) e.g[k + 1] = e.Dm_inv.row(k).transpose();
-  e.g[0] = -(e.g[1] + e.g[2] + e.g[3]);
-  quarter_mass = 0.25 * e.volume * m.density_kg_per_mm3;
-  quarter_alpha = quarter_mass * m.damping_mass_per_s;
+  e.v = r.v;
+  e.Dm_inv = r.Dm_inv;
+  e.g = r.g;
+  e.volume = r.volume;
+  e.mu = r.mu;
+  e.lambda = r.lambda;
+  e.beta = r.beta;
+  e.passive = r.passive;  // below the quality bound: no elastic term
+  quarter_mass = r.quarter_mass;
+  quarter_alpha = r.quarter_alpha;
   return e;
 }
 

@@ -1,9 +1,38 @@
 #include "host/sim/fem/fem_mesh_change.hpp"
 
+#include <Eigen/LU>
 #include <algorithm>
 #include <stdexcept>
 
+#include "host/sim/tet_geometry.hpp"
+
 namespace arnav::host::fem {
+
+RestTet rest_tet(const SimProblem& problem, int t, const std::string& who) {
+  const TetMesh& mesh = problem.mesh;
+  const int region = mesh.tet_region.empty() ? 0 : mesh.tet_region[static_cast<std::size_t>(t)];
+  if (region < 0 || region >= static_cast<int>(problem.region_materials.size()))
+    throw std::invalid_argument(who + ": tet " + std::to_string(t) + " refers to region " + std::to_string(region) +
+                                " which has no material");
+  const Material& m = problem.region_materials[static_cast<std::size_t>(region)];
+  RestTet e;
+  e.v = mesh.tets[static_cast<std::size_t>(t)];
+  const Lame lame = lame_from(m);
+  e.mu = lame.mu_kPa;
+  e.lambda = lame.lambda_kPa;
+  e.beta = m.damping_stiffness_s;
+  e.passive = problem.embedded.is_passive(t);
+  e.volume = signed_volume_mm3(mesh.rest_positions_World_mm, e.v);
+  if (!(e.volume > 0.0))
+    throw std::invalid_argument(who + ": tet " + std::to_string(t) + " has non-positive rest volume " + std::to_string(e.volume) +
+                                " mm^3");
+  e.Dm_inv = edge_matrix(mesh.rest_positions_World_mm, e.v).inverse();
+  for (int k = 0; k < 3; ++k) e.g[static_cast<std::size_t>(k) + 1] = e.Dm_inv.row(k).transpose();
+  e.g[0] = -(e.g[1] + e.g[2] + e.g[3]);
+  e.quarter_mass = 0.25 * e.volume * m.density_kg_per_mm3;
+  e.quarter_alpha = e.quarter_mass * m.damping_mass_per_s;
+  return e;
+}
 
 bool mesh_change_fits(const SimProblem& problem, const std::vector<int>& changed, int old_vertices, int old_tets,
                       const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v) {

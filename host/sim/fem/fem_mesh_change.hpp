@@ -21,6 +21,21 @@
 
 namespace arnav::host::fem {
 
+// A tet's rest data from the problem, common to both FEM materials: vertices, Dm^-1 and the
+// shape-function gradients, rest volume, Lame parameters and Rayleigh beta of its region,
+// whether it is passive (below the quality bound), and its lumped quarters of mass and alpha
+// mass. Throws std::invalid_argument (`who` names the model) for a region without material
+// or a non-positive rest volume.
+struct RestTet {
+  std::array<int, 4> v{};
+  Eigen::Matrix3d Dm_inv;
+  std::array<Eigen::Vector3d, 4> g;
+  double volume = 0, mu = 0, lambda = 0, beta = 0;
+  bool passive = false;
+  double quarter_mass = 0, quarter_alpha = 0;
+};
+RestTet rest_tet(const SimProblem& problem, int mesh_tet, const std::string& who);
+
 // True when `changed` (mesh tets) is a change the models can take in place: sorted, unique,
 // in the cut mesh, listing every appended tet; the mesh did not shrink; x (and v unless
 // empty) have the cut mesh's vertex count.

@@ -187,36 +187,21 @@ StableNeoHookeanFem::~StableNeoHookeanFem() = default;
 
 StableNeoHookeanFem::Tet StableNeoHookeanFem::make_element(const SimProblem& problem, int t, double& quarter_mass,
                                                            double& quarter_alpha) const {
-  const TetMesh& mesh = problem.mesh;
-  const int region = mesh.tet_region.empty() ? 0 : mesh.tet_region[static_cast<std::size_t>(t)];
-  if (region < 0 || region >= static_cast<int>(problem.region_materials.size()))
-    throw std::invalid_argument(std::string(kWho) + ": tet " + std::to_string(t) + " refers to region " +
-                                std::to_string(region) + " which has no material");
-  const Material& m = problem.region_materials[static_cast<std::size_t>(region)];
+  const fem::RestTet r = fem::rest_tet(problem, t, kWho);
   Tet e;
-  e.v = mesh.tets[static_cast<std::size_t>(t)];
-  const Lame lame = lame_from(m);
-  e.mu = lame.mu_kPa;
-  e.lambda = lame.lambda_kPa;
-  e.beta = m.damping_stiffness_s;
-  e.volume = signed_volume_mm3(mesh.rest_positions_World_mm, e.v);
-  if (!(e.volume > 0.0))
-    throw std::invalid_argument(std::string(kWho) + ": tet " + std::to_string(t) + " has non-positive rest volume " +
-                                std::to_string(e.volume) + " mm^3");
-  if (problem.embedded.is_passive(t)) {  // below the quality bound: Psi = 0
-    e.passive = true;
-    e.mu = e.lambda = e.beta = 0.0;
-  }
-  e.Dm_inv = edge_matrix(mesh.rest_positions_World_mm, e.v).inverse();
-  std::array<Eigen::Vector3d, 4> g;
-  for (int k = 0; k < 3; ++k) g[k + 1] = e.Dm_inv.row(k).transpose();
-  g[0] = -(g[1] + g[2] + g[3]);
+  e.v = r.v;
+  e.Dm_inv = r.Dm_inv;
+  e.volume = r.volume;
+  e.passive = r.passive;  // below the quality bound: Psi = 0
+  e.mu = r.passive ? 0.0 : r.mu;
+  e.lambda = r.passive ? 0.0 : r.lambda;
+  e.beta = r.passive ? 0.0 : r.beta;
   e.dFdx.setZero();
   for (int a = 0; a < 4; ++a)
     for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) e.dFdx(i + 3 * j, 3 * a + i) = g[a][j];
-  quarter_mass = 0.25 * e.volume * m.density_kg_per_mm3;
-  quarter_alpha = quarter_mass * m.damping_mass_per_s;
+      for (int j = 0; j < 3; ++j) e.dFdx(i + 3 * j, 3 * a + i) = r.g[static_cast<std::size_t>(a)][j];
+  quarter_mass = r.quarter_mass;
+  quarter_alpha = r.quarter_alpha;
   return e;
 }
 
