@@ -155,8 +155,8 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
             }
           }
           topology.push_back(cr.cut.update_ms);
-          row.samples.push_back({f, cr.cut.topology_changed, frame.back(), cr.cut.topology_changed ? cr.rebuild_ms : 0.0, step.iterations,
-                                 step.final_residual});
+          row.samples.push_back({f, cr.cut.topology_changed, frame.back(), frame_cpu.back(), cr.cut.topology_changed ? cr.rebuild_ms : 0.0,
+                                 step.iterations, step.final_residual});
           row.frames = f;
           row.events += static_cast<int>(cr.events.size());
           row.path_fidelity_mm = std::max(row.path_fidelity_mm, cr.cut.max_path_deviation_mm);
@@ -267,11 +267,11 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
 void write_cut_frames_csv(const std::string& path, const std::vector<CutBenchRow>& rows) {
   std::ofstream out(path);
   if (!out) throw std::runtime_error("cannot write " + path + ": check the folder");
-  out << "mesh,scenario,model,background_rebuild,local_updates_enabled,frame,topology_changed,frame_ms,model_update_ms,iterations,final_residual\n";
+  out << "mesh,scenario,model,background_rebuild,local_updates_enabled,frame,topology_changed,frame_ms,frame_thread_cpu_ms,model_update_ms,iterations,final_residual\n";
   for (const auto& r : rows)
     for (const auto& f : r.samples)
       out << r.mesh << ',' << r.scenario << ',' << r.label << ',' << (r.background ? 1 : 0) << ',' << (r.local_updates_enabled ? 1 : 0) << ','
-          << f.frame << ',' << (f.topology_changed ? 1 : 0) << ',' << f.frame_ms << ',' << f.update_ms << ',' << f.iterations << ','
+          << f.frame << ',' << (f.topology_changed ? 1 : 0) << ',' << f.frame_ms << ',' << f.frame_cpu_ms << ',' << f.update_ms << ',' << f.iterations << ','
           << f.final_residual << '\n';
 }
 

@@ -86,7 +86,7 @@ struct CutBenchRow {
   struct FrameSample {
     int frame = 0;
     bool topology_changed = false;
-    double frame_ms = 0, update_ms = 0;
+    double frame_ms = 0, frame_cpu_ms = 0, update_ms = 0;  // frame_cpu_ms: the stepping thread's CPU time
     int iterations = 0;
     double final_residual = 0;
   };
