@@ -86,6 +86,8 @@ struct FemLinearSolver::Factors {
   std::vector<int> region_dofs;
   Eigen::SparseMatrix<double, Eigen::RowMajor, int> region_rows;
   Eigen::SimplicialLLT<SparseMatrixLower, Eigen::Lower> region_solver;
+  std::vector<int> region_analysed;  // the region of the solver's symbolic analysis
+  Eigen::Index region_analysed_nnz = -1;
 };
 
 FemLinearSolver::Kind FemLinearSolver::parse(const std::string& name) {
@@ -185,8 +187,12 @@ void FemLinearSolver::prepare_preconditioner(const SparseMatrixLower& A) {
       dofs.push_back(3 * v + d);
     }
   };
-  for (const CutRegion& c : cut_regions_)
-    for (int v : c.vertices) add_vertex(v);
+  // Newest cuts first; when the worker's factor is late (a loaded machine) and the region
+  // grows past kMaxRegionDofs, the older cuts' vertices are left to the old factor alone:
+  // the cost of a solve stays bounded (still SPD, only a weaker correction).
+  constexpr std::size_t kMaxRegionDofs = 3000;
+  for (auto it = cut_regions_.rbegin(); it != cut_regions_.rend() && dofs.size() < kMaxRegionDofs; ++it)
+    for (int v : it->vertices) add_vertex(v);
   const int* outer = A.outerIndexPtr();
   const int* inner = A.innerIndexPtr();
   const double* values = A.valuePtr();
@@ -199,6 +205,7 @@ void FemLinearSolver::prepare_preconditioner(const SparseMatrixLower& A) {
         const bool rin = pos[static_cast<std::size_t>(r)] >= 0, cin = pos[static_cast<std::size_t>(c)] >= 0;
         if (rin != cin) more.push_back((rin ? c : r) / 3);
       }
+    if (dofs.size() + 3 * more.size() > 4 * kMaxRegionDofs) break;
     for (int v : more) add_vertex(v);
   }
   std::sort(dofs.begin(), dofs.end());
@@ -218,7 +225,13 @@ void FemLinearSolver::prepare_preconditioner(const SparseMatrixLower& A) {
   f_->region_rows.setFromTriplets(rows.begin(), rows.end());
   SparseMatrixLower local(m, m);
   local.setFromTriplets(block.begin(), block.end());
-  f_->region_solver.compute(local);
+  // The symbolic analysis is kept while the region and its pattern stay (frames between cuts).
+  if (dofs != f_->region_analysed || local.nonZeros() != f_->region_analysed_nnz) {
+    f_->region_solver.analyzePattern(local);
+    f_->region_analysed = dofs;
+    f_->region_analysed_nnz = local.nonZeros();
+  }
+  f_->region_solver.factorize(local);
   region_active_ = f_->region_solver.info() == Eigen::Success;
 }
 
