@@ -188,11 +188,16 @@ void FemLinearSolver::prepare_preconditioner(const SparseMatrixLower& A) {
     }
   };
   // Newest cuts first; when the worker's factor is late (a loaded machine) and the region
-  // grows past kMaxRegionDofs, the older cuts' vertices are left to the old factor alone:
-  // the cost of a solve stays bounded (still SPD, only a weaker correction).
-  constexpr std::size_t kMaxRegionDofs = 3000;
-  for (auto it = cut_regions_.rbegin(); it != cut_regions_.rend() && dofs.size() < kMaxRegionDofs; ++it)
+  // would grow past an eighth of the DOFs (at most 1,500), the older cuts' vertices and
+  // further rings are left to the old factor alone: the region's factorisation stays a small
+  // fraction of a full one (still SPD, only a weaker correction).
+  const std::size_t cap = std::min<std::size_t>(1500, std::max<std::size_t>(150, static_cast<std::size_t>(n) / 8));
+  for (auto it = cut_regions_.rbegin(); it != cut_regions_.rend(); ++it) {
+    std::size_t fresh = 0;
+    for (int v : it->vertices) fresh += (v >= 0 && 3 * v + 2 < n && pos[static_cast<std::size_t>(3 * v)] < 0) ? 3 : 0;
+    if (!dofs.empty() && dofs.size() + fresh > cap) break;
     for (int v : it->vertices) add_vertex(v);
+  }
   const int* outer = A.outerIndexPtr();
   const int* inner = A.innerIndexPtr();
   const double* values = A.valuePtr();
@@ -205,7 +210,9 @@ void FemLinearSolver::prepare_preconditioner(const SparseMatrixLower& A) {
         const bool rin = pos[static_cast<std::size_t>(r)] >= 0, cin = pos[static_cast<std::size_t>(c)] >= 0;
         if (rin != cin) more.push_back((rin ? c : r) / 3);
       }
-    if (dofs.size() + 3 * more.size() > 4 * kMaxRegionDofs) break;
+    std::sort(more.begin(), more.end());
+    more.erase(std::unique(more.begin(), more.end()), more.end());
+    if (dofs.size() + 3 * more.size() > cap) break;
     for (int v : more) add_vertex(v);
   }
   std::sort(dofs.begin(), dofs.end());
