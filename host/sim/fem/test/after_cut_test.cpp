@@ -271,3 +271,49 @@ TEST(CorotationalAfterCut, CutRegionCorrectionCutsPcgIterationsOnTheOldFactor) {
   EXPECT_LE(iterations[1], 20);  // about what the same factor age costs without a cut
   EXPECT_LE(iterations[2], iterations[1]);
 }
+
+// The work of an in-place update scales with the cut, not with the mesh: the same slit in a
+// bar and in one four times longer updates exactly as many element and vertex records
+// (both FEM materials), one per changed tet and at most four per changed tet.
+TEST(FemUpdateInPlace, WorkScalesWithTheCutNotTheMesh) {
+  for (const bool neo_hookean : {false, true}) {
+    std::vector<MeshChangeStats> stats;
+    std::vector<int> changed;
+    for (const double length : {100.0, 400.0}) {
+      const int cells = static_cast<int>(length / 10);
+      const SimProblem problem = clamped_bar(Eigen::Vector3d(length, 20, 20), cells, 2, 2, 50.0);
+      ModelConfig config = neo_hookean_config();
+      if (!neo_hookean) {
+        config.material_model.clear();
+        config.linear_solver = "pcg";
+        config.iterations = 200;
+        config.tolerance = 1e-10;
+      }
+      const std::unique_ptr<TissueModel> model =
+          neo_hookean ? std::unique_ptr<TissueModel>(std::make_unique<StableNeoHookeanFem>(problem, config))
+                      : std::unique_ptr<TissueModel>(std::make_unique<CorotationalFem>(problem, config));
+      ASSERT_TRUE(model->step(1.0 / 60.0).healthy);
+      TetCutter cutter(problem.mesh, CutSettings{});
+      Eigen::Matrix3Xd x = model->positions_World_mm(), v = model->velocities_World_mm_s();
+      const CutStepReport r = cutter.step(SweptSurface{{Eigen::Vector3d(45.3, -5, 8), Eigen::Vector3d(45.3, -5, 30)},
+                                                       {Eigen::Vector3d(45.3, 25, 8), Eigen::Vector3d(45.3, 25, 30)}, 1, {}},
+                                          x, v);
+      ASSERT_TRUE(r.topology_changed);
+      SimProblem cut_problem = problem;
+      cut_problem.mesh = cutter.mesh();
+      const auto s = model->apply_mesh_change(cut_problem, r.changed_tets, x, v);
+      ASSERT_TRUE(s.has_value());
+      stats.push_back(*s);
+      changed.push_back(static_cast<int>(r.changed_tets.size()));
+      ASSERT_TRUE(model->step(1.0 / 60.0).healthy);
+    }
+    std::cout << "[fem after cut] " << (neo_hookean ? "stable Neo-Hookean" : "co-rotational") << ": " << changed[0]
+              << " changed tets, " << stats[0].elements_updated << " element and " << stats[0].vertices_updated
+              << " vertex records on the short and the long bar\n";
+    EXPECT_EQ(changed[0], changed[1]);
+    EXPECT_EQ(stats[0].elements_updated, changed[0]);
+    EXPECT_EQ(stats[1].elements_updated, stats[0].elements_updated);
+    EXPECT_EQ(stats[1].vertices_updated, stats[0].vertices_updated);
+    EXPECT_LE(stats[0].vertices_updated, 4 * changed[0]);
+  }
+}
