@@ -96,7 +96,7 @@ static int main_body(int argc, char** argv) {
   cut_options.data_dir = ARNAV_DEFAULT_DATA_DIR;
   CLI::App* cut = app.add_subcommand("cut", "the scalpel cutting the liver: topology update, frame time, quality, volume, path fidelity");
   cut->add_flag("--quick", cut_options.quick, "CI smoke run: coarse mesh, XPBD, right-lobe path, 150 frames");
-  cut->add_option("-o,--out", out_dir, "output folder for cut.csv");
+  cut->add_option("-o,--out", out_dir, "output folder for cut.csv and cut_frames.csv (per frame)");
   cut->add_option("--data", cut_options.data_dir, "data folder with liver/*.scene.yaml and liver/scalpel_*.csv");
   cut->add_option("--mesh", cut_options.meshes, "meshes (coarse: 4,768 tets; paper: 26,054 tets)")->check(CLI::IsMember({"coarse", "paper"}));
   cut->add_option("--scenario", cut_options.scenarios, "scenarios (right_lobe, ring: data/liver/scalpel_*.csv; ring_scene: ring and bottom cut made from the scene round the tumour, clear of the fixed vertices; ring_follow: the same with the blade following the tumour, docs/cut.md)")
@@ -110,6 +110,10 @@ static int main_body(int argc, char** argv) {
       ->check(CLI::Range(0.0, 30.0));
   std::string rebuild = "inline";
   std::string local_updates = "on";
+  cut->add_option("--fem-cut-rings", cut_options.fem_cut_region_rings,
+                  "co-rotational FEM after a cut, while PCG runs on the old factor: rings of neighbours of the changed vertices "
+                  "solved exactly on the current matrix (-1: no correction; default: the model's, 1; label +cut_rings N)")
+      ->check(CLI::Range(-1, 5));
   cut->add_flag("--fem-background-refactor", cut_options.fem_background_refactor,
                 "run the co-rotational FEM with refactor_in_background (the recommended real-time setting; label +background_refactor)");
   cut->add_option("--local-updates", local_updates,

@@ -14,6 +14,7 @@
 #include "host/cut/ring_path.hpp"
 #include "host/cut/scalpel_path.hpp"
 #include "host/scene/scene.hpp"
+#include "host/sim/fem/corotational_fem.hpp"
 #include "host/sim/model_factory.hpp"
 
 namespace arnav::host {
@@ -69,6 +70,9 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
         variant.config.refactor_in_background = true;
         variant.label += "+background_refactor";
       }
+      const bool set_rings = o.fem_cut_region_rings >= -1 && variant.config.kind == "corotational_fem" &&
+                             variant.config.material_model != "stable_neo_hookean";
+      if (set_rings) variant.label += "+cut_rings" + std::to_string(o.fem_cut_region_rings);
       std::vector<Eigen::Matrix3Xd> rebuilt_states;  // per frame, of the rebuilt run (local_updates both)
       std::vector<bool> local_modes = o.local_updates;
       std::stable_sort(local_modes.begin(), local_modes.end());  // rebuilt run first
@@ -90,6 +94,8 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
         if (o.min_dihedral_deg >= 0) settings.min_dihedral_deg = o.min_dihedral_deg;
         const std::unique_ptr<CutSession> session_ptr = make_cut_session(scene, variant.config, settings);
         CutSession& session = *session_ptr;
+        if (set_rings)
+          if (auto* fem = dynamic_cast<CorotationalFem*>(&session.model())) fem->set_cut_region_rings(o.fem_cut_region_rings);
         CutBenchRow row;
         row.mesh = mesh_name;
         row.scenario = scenario;
@@ -167,8 +173,9 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
             }
           }
           topology.push_back(cr.cut.update_ms);
-          row.frame_timings.push_back({f, frame.back(), frame_cpu.back(), cr.cut.update_ms, cr.rebuild_ms, cr.reembed_ms, step.wall_time_ms,
-                                       static_cast<int>(cr.cut.changed_tets.size())});
+          row.frame_timings.push_back({f, frame.back(), frame_cpu.back(), cr.cut.update_ms, cr.cut.topology_changed ? cr.rebuild_ms : 0.0,
+                                       cr.reembed_ms, step.wall_time_ms, static_cast<int>(cr.cut.changed_tets.size()),
+                                       cr.cut.topology_changed, step.iterations, step.final_residual});
           row.frames = f;
           row.events += static_cast<int>(cr.events.size());
           row.path_fidelity_mm = std::max(row.path_fidelity_mm, cr.cut.max_path_deviation_mm);
@@ -302,12 +309,13 @@ void write_cut_csv(const std::string& path, const std::vector<CutBenchRow>& rows
 void write_cut_frames_csv(const std::string& path, const std::vector<CutBenchRow>& rows) {
   std::ofstream out(path);
   if (!out) throw std::runtime_error("cannot write " + path + ": check the folder");
-  out << "mesh,scenario,model,local_updates_enabled,background_rebuild,frame,frame_ms,frame_thread_cpu_ms,topology_ms,model_update_ms,reembed_ms,step_ms,changed_tets\n";
+  out << "mesh,scenario,model,local_updates_enabled,background_rebuild,frame,frame_ms,frame_thread_cpu_ms,topology_ms,model_update_ms,reembed_ms,step_ms,"
+         "changed_tets,topology_changed,iterations,final_residual\n";
   for (const auto& r : rows)
     for (const auto& f : r.frame_timings)
       out << r.mesh << ',' << r.scenario << ',' << r.label << ',' << (r.local_updates_enabled ? 1 : 0) << ',' << (r.background ? 1 : 0) << ','
           << f.frame << ',' << f.frame_ms << ',' << f.frame_cpu_ms << ',' << f.topology_ms << ',' << f.model_update_ms << ',' << f.reembed_ms
-          << ',' << f.step_ms << ',' << f.changed_tets << '\n';
+          << ',' << f.step_ms << ',' << f.changed_tets << ',' << (f.topology_changed ? 1 : 0) << ',' << f.iterations << ',' << f.final_residual << '\n';
 }
 
 }  // namespace arnav::host

@@ -27,6 +27,9 @@ struct CutBenchOptions {
   // real-time setting, docs/sim-fem.md) instead of model_variants()' inline refactorisation;
   // its label gains "+background_refactor".
   bool fem_background_refactor = false;
+  // >= -1: the co-rotational FEM's cut-region correction after a cut
+  // (CorotationalFem::set_cut_region_rings; -1 off); its label gains "+cut_rings N".
+  int fem_cut_region_rings = -2;
   double min_dihedral_deg = -1;                                // >= 0: overrides the scene's cutting.min_dihedral_deg (0: treatment off)
 };
 
@@ -39,6 +42,11 @@ struct CutFrameTiming {
   double reembed_ms = 0;                  // tumours and vessels re-embedded and split
   double step_ms = 0;                     // the model's step (StepSummary::wall_time_ms)
   int changed_tets = 0;                   // tets the cut changed this frame
+  bool topology_changed = false;
+  // the model step's solver iterations and final residual (StepSummary: PCG iterations for
+  // the co-rotational FEM, Newton iterations for the stable Neo-Hookean one)
+  int iterations = 0;
+  double final_residual = 0;
 };
 
 struct CutBenchRow {

@@ -12,6 +12,7 @@
 #include "host/sim/model_setup.hpp"
 #include "host/sim/element_measure.hpp"
 #include "host/sim/fem/blas_threads.hpp"
+#include "host/sim/fem/fem_mesh_change.hpp"
 #include "host/sim/fem/rotation_extraction.hpp"
 #include "host/sim/fem/stable_neo_hookean_fem.hpp"
 #include "host/sim/tet_geometry.hpp"
@@ -165,6 +166,7 @@ CorotationalFem::CorotationalFem(const SimProblem& problem, const ModelConfig& c
   if (options_.background_nice < 0 || options_.background_nice > 19)
     throw std::invalid_argument("corotational_fem: background_nice must be in [0, 19]");
   solver_.set_background_nice(options_.background_nice);
+  set_cut_region_rings(options_.cut_region_rings);
   if (config.single_precision_preconditioner && solver_.kind() != FemLinearSolver::Kind::PcgFactor) {
     throw std::invalid_argument("corotational_fem: single_precision_preconditioner needs linear_solver pcg");
   }
@@ -180,30 +182,25 @@ CorotationalFem::CorotationalFem(const SimProblem& problem, const ModelConfig& c
 
 CorotationalFem::~CorotationalFem() = default;
 
+void CorotationalFem::set_cut_region_rings(int rings) {
+  if (rings < -1) throw std::invalid_argument("corotational_fem: cut_region_rings must be >= -1 (-1: no cut-region correction)");
+  solver_.set_cut_region_rings(rings);
+}
+
 CorotationalFem::Tet CorotationalFem::make_element(const SimProblem& problem, int t, double& quarter_mass,
                                                    double& quarter_alpha) const {
-  const TetMesh& mesh = problem.mesh;
-  const int region = mesh.tet_region.empty() ? 0 : mesh.tet_region[static_cast<std::size_t>(t)];
-  if (region < 0 || region >= static_cast<int>(problem.region_materials.size()))
-    throw std::invalid_argument("corotational_fem: tet " + std::to_string(t) + " refers to region " + std::to_string(region) +
-                                " which has no material");
-  const Material& m = problem.region_materials[static_cast<std::size_t>(region)];
+  const fem::RestTet r = fem::rest_tet(problem, t, "corotational_fem");
   Tet e;
-  e.v = mesh.tets[static_cast<std::size_t>(t)];
-  const Lame lame = lame_from(m);
-  e.mu = lame.mu_kPa;
-  e.lambda = lame.lambda_kPa;
-  e.beta = m.damping_stiffness_s;
-  e.volume = signed_volume_mm3(mesh.rest_positions_World_mm, e.v);
-  e.passive = problem.embedded.is_passive(t);  // below the quality bound: no elastic term
-  if (!(e.volume > 0.0))
-    throw std::invalid_argument("corotational_fem: tet " + std::to_string(t) + " has non-positive rest volume " +
-                                std::to_string(e.volume) + " mm^3");
-  e.Dm_inv = edge_matrix(mesh.rest_positions_World_mm, e.v).inverse();
-  for (int k = 0; k < 3; ++k) e.g[k + 1] = e.Dm_inv.row(k).transpose();
-  e.g[0] = -(e.g[1] + e.g[2] + e.g[3]);
-  quarter_mass = 0.25 * e.volume * m.density_kg_per_mm3;
-  quarter_alpha = quarter_mass * m.damping_mass_per_s;
+  e.v = r.v;
+  e.Dm_inv = r.Dm_inv;
+  e.g = r.g;
+  e.volume = r.volume;
+  e.mu = r.mu;
+  e.lambda = r.lambda;
+  e.beta = r.beta;
+  e.passive = r.passive;  // below the quality bound: no elastic term
+  quarter_mass = r.quarter_mass;
+  quarter_alpha = r.quarter_alpha;
   return e;
 }
 
@@ -211,31 +208,29 @@ std::optional<MeshChangeStats> CorotationalFem::apply_mesh_change(const SimProbl
                                                                   const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v) {
   const TetMesh& mesh = problem.mesh;
   const int n_old = static_cast<int>(X_.cols()), n = mesh.num_vertices();
-  const int nt_old = static_cast<int>(tets_.size()), nt = mesh.num_tets();
-  if (n < n_old || nt < nt_old || x.cols() != n || (v.cols() != n && v.cols() != 0) ||
-      (!mesh.tet_region.empty() && mesh.tet_region.size() != mesh.tets.size()))
-    return std::nullopt;
-  // changed: sorted, unique, in the mesh, every appended tet listed.
-  int appended = 0;
-  for (std::size_t i = 0; i < changed.size(); ++i) {
-    if (changed[i] < 0 || changed[i] >= nt || (i > 0 && changed[i] <= changed[i - 1])) return std::nullopt;
-    appended += changed[i] >= nt_old;
-  }
-  if (appended != nt - nt_old) return std::nullopt;
+  const int nt_old = static_cast<int>(tets_.size());
+  if (!fem::mesh_change_fits(problem, changed, n_old, nt_old, x, v)) return std::nullopt;
   if (stored_of_mesh_.size() != tet_order_.size()) {  // once: mesh tet -> stored tet
     stored_of_mesh_.assign(tet_order_.size(), -1);
     for (std::size_t i = 0; i < tet_order_.size(); ++i) stored_of_mesh_[static_cast<std::size_t>(tet_order_[i])] = static_cast<int>(i);
   }
-  // Vertices whose records change: those of the changed tets before and after, the appended ones.
-  std::vector<int> touched;
-  for (int t : changed) {
-    if (t < nt_old)
-      for (int w : tets_[static_cast<std::size_t>(stored_of_mesh_[static_cast<std::size_t>(t)])].v) touched.push_back(w);
-    for (int w : mesh.tets[static_cast<std::size_t>(t)]) touched.push_back(w);
+  // New elements and masses, checked before anything changes.
+  std::vector<Tet> fresh(changed.size());
+  std::vector<fem::TetChange> changes(changed.size());
+  for (std::size_t i = 0; i < changed.size(); ++i) {
+    fem::TetChange& c = changes[i];
+    fresh[i] = make_element(problem, changed[i], c.mass_after, c.alpha_after);
+    c.after = fresh[i].v;
+    if (changed[i] < nt_old) {
+      const auto s = static_cast<std::size_t>(stored_of_mesh_[static_cast<std::size_t>(changed[i])]);
+      c.existed = true;
+      c.before = tets_[s].v;
+      c.mass_before = quarter_mass_[s];
+      c.alpha_before = quarter_alpha_[s];
+    }
   }
-  for (int i = n_old; i < n; ++i) touched.push_back(i);
-  std::sort(touched.begin(), touched.end());
-  touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+  // Vertices whose records change: those of the changed tets before and after, the appended ones.
+  const std::vector<int> touched = fem::touched_vertices(changes, n_old, n);
   // Vessel beams are embedded in tets with the rest shape of their vertices: a cut through
   // them needs a new embedding (the caller rebuilds).
   const auto is_touched = [&](int w) { return std::binary_search(touched.begin(), touched.end(), w); };
@@ -245,73 +240,21 @@ std::optional<MeshChangeStats> CorotationalFem::apply_mesh_change(const SimProbl
     for (int s : b.tets)
       if (std::binary_search(changed.begin(), changed.end(), tet_order_[static_cast<std::size_t>(s)])) return std::nullopt;
   }
-  // New elements and masses, checked before anything changes.
-  std::vector<Tet> fresh(changed.size());
-  std::vector<double> fresh_mass(changed.size()), fresh_alpha(changed.size());
-  for (std::size_t i = 0; i < changed.size(); ++i) fresh[i] = make_element(problem, changed[i], fresh_mass[i], fresh_alpha[i]);
-  // The embedding's mass moves (embedded_elements.hpp) undone first: the lumped quarters
-  // change below, and the new embedding moves them again at the end.
-  std::vector<int> embedding_touched;
-  embedded_.restore_mass({&mass_, &mass_alpha_}, embedding_touched);
-  Eigen::VectorXd dm = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(touched.size())), da = dm;
-  const auto slot = [&](int w) { return std::lower_bound(touched.begin(), touched.end(), w) - touched.begin(); };
-  for (std::size_t i = 0; i < changed.size(); ++i) {
-    if (changed[i] < nt_old) {
-      const int s = stored_of_mesh_[static_cast<std::size_t>(changed[i])];
-      for (int w : tets_[static_cast<std::size_t>(s)].v) {
-        dm[slot(w)] -= quarter_mass_[static_cast<std::size_t>(s)];
-        da[slot(w)] -= quarter_alpha_[static_cast<std::size_t>(s)];
-      }
-    }
-    for (int w : fresh[i].v) {
-      dm[slot(w)] += fresh_mass[i];
-      da[slot(w)] += fresh_alpha[i];
-    }
-  }
-  for (std::size_t k = 0; k < touched.size(); ++k) {
-    const int w = touched[k];
-    const double before = w < n_old ? mass_[w] : 0.0;
-    // A vertex whose tets all went away keeps round-off of its old mass at most.
-    if (!(before + dm[static_cast<Eigen::Index>(k)] > 1e-9 * std::max(before, std::abs(dm[static_cast<Eigen::Index>(k)]))))
-      throw std::invalid_argument("corotational_fem: vertex " + std::to_string(w) +
-                                  " belongs to no tetrahedron after the cut (zero mass)");
-  }
+  if (pair_tets_.empty())  // once, O(tets): the pairs the tets couple before the cut
+    for (const Tet& t : tets_) pair_tets_.add(t.v);
 
-  // Vertex records: appended ones, then the touched ones' rest position, mass and state.
+  // Vertex records: rest position, masses, state, fixed flags and the embedding.
   MeshChangeStats stats;
-  X_.conservativeResize(Eigen::NoChange, n);
-  x_.conservativeResize(Eigen::NoChange, n);
-  v_.conservativeResize(Eigen::NoChange, n);
-  for (Eigen::VectorXd* m : {&mass_, &mass_alpha_, &mass_damped_}) {
-    m->conservativeResize(n);
-    m->tail(n - n_old).setZero();
-  }
-  fixed_.resize(static_cast<std::size_t>(n), 0);
-  user_fixed_.resize(static_cast<std::size_t>(n), 0);
-  for (auto it = problem.fixed_vertices.rbegin(); it != problem.fixed_vertices.rend() && *it >= n_old; ++it) {
-    if (*it >= n) throw std::invalid_argument("corotational_fem: fixed vertex " + std::to_string(*it) + " is not in the cut mesh");
-    fixed_[static_cast<std::size_t>(*it)] = 1;
-    user_fixed_[static_cast<std::size_t>(*it)] = 1;
-  }
-  for (std::size_t k = 0; k < touched.size(); ++k) {
-    const int w = touched[k];
-    X_.col(w) = mesh.rest_positions_World_mm.col(w);
-    mass_[w] += dm[static_cast<Eigen::Index>(k)];
-    mass_alpha_[w] += da[static_cast<Eigen::Index>(k)];
-    mass_damped_[w] = last_dt_ > 0.0 ? mass_[w] + last_dt_ * mass_alpha_[w] : mass_[w];
-    x_.col(w) = x.col(w);
-    v_.col(w) = (v.cols() == n && !user_fixed_[static_cast<std::size_t>(w)]) ? Eigen::Vector3d(v.col(w)) : Eigen::Vector3d::Zero();  // held: zeroed below
-    ++stats.vertices_updated;
-  }
+  stats.vertices_updated = fem::update_vertex_records(problem, changes, touched, x, v, embedded_,
+                                                      {X_, x_, v_, mass_, mass_alpha_, fixed_, user_fixed_}, "corotational_fem");
+  mass_damped_.conservativeResize(n);
+  for (int w = 0; w < n; ++w) mass_damped_[w] = last_dt_ > 0.0 ? mass_[w] + last_dt_ * mass_alpha_[w] : mass_[w];
   if (last_dx_.size() > 0) {
     last_dx_.conservativeResize(3 * static_cast<Eigen::Index>(n));
     last_dx_.tail(3 * static_cast<Eigen::Index>(n - n_old)).setZero();
   }
 
   // Element records: changed tets in their slots, appended ones at the end.
-  std::vector<std::array<int, 4>> old_tets;
-  for (int t : changed)
-    if (t < nt_old) old_tets.push_back(tets_[static_cast<std::size_t>(stored_of_mesh_[static_cast<std::size_t>(t)])].v);
   std::vector<int> stored_changed(changed.size());
   for (std::size_t i = 0; i < changed.size(); ++i) {
     const int t = changed[i];
@@ -328,8 +271,8 @@ std::optional<MeshChangeStats> CorotationalFem::apply_mesh_change(const SimProbl
       stored_of_mesh_.push_back(s);  // changed is sorted: t == stored_of_mesh_.size() - 1
     }
     tets_[static_cast<std::size_t>(s)] = fresh[i];
-    quarter_mass_[static_cast<std::size_t>(s)] = fresh_mass[i];
-    quarter_alpha_[static_cast<std::size_t>(s)] = fresh_alpha[i];
+    quarter_mass_[static_cast<std::size_t>(s)] = changes[i].mass_after;
+    quarter_alpha_[static_cast<std::size_t>(s)] = changes[i].alpha_after;
     // Warm-start rotation from the current shape, in closed form (as set_state does).
     q_[static_cast<std::size_t>(s)] = rotation_by_svd(edge_matrix(x_, fresh[i].v) * fresh[i].Dm_inv);
     stored_changed[i] = s;
@@ -337,17 +280,8 @@ std::optional<MeshChangeStats> CorotationalFem::apply_mesh_change(const SimProbl
   }
   // Passive flags of unchanged tets can change too (islands of good tets cut off by slivers).
   for (std::size_t i = 0; i < tets_.size(); ++i) tets_[i].passive = problem.embedded.is_passive(tet_order_[i]);
-  // The new embedding: mass moved to the drivers and rigid groups, their vertices held in the
-  // solve (Dirichlet rows, set by grow_pattern's fixed entries).
-  embedded_.reset(problem.embedded, X_, x_, v_);
-  embedded_.move_mass({&mass_, &mass_alpha_}, embedding_touched, &problem.region_materials);
-  merge_fixed_with_embedding();
-  for (int w = 0; w < n; ++w) {  // O(vertices), scalar: damped masses and held velocities
-    mass_damped_[w] = last_dt_ > 0.0 ? mass_[w] + last_dt_ * mass_alpha_[w] : mass_[w];
-    if (fixed_[static_cast<std::size_t>(w)]) v_.col(w).setZero();
-  }
-  grow_pattern(stored_changed, n_old, old_tets);
-  update_partition(stored_changed, nt_old);
+  grow_pattern(stored_changed, n_old, changes);
+  fem::update_partition(partition_, stored_changed, nt_old, static_cast<int>(tets_.size()));
   inversions_.reset_episode();  // as for a model rebuilt on the cut mesh (set_state)
   return stats;
 }
@@ -382,61 +316,20 @@ std::vector<int> CorotationalFem::preconditioner_aliases(const std::vector<int>&
 }
 
 void CorotationalFem::grow_pattern(const std::vector<int>& stored_changed, int old_vertices,
-                                   const std::vector<std::array<int, 4>>& old_tets) {
+                                   const std::vector<fem::TetChange>& changes) {
   const int n = static_cast<int>(X_.cols());
   std::vector<std::vector<int>> groups;
   groups.reserve(stored_changed.size());
   for (int s : stored_changed) groups.emplace_back(tets_[static_cast<std::size_t>(s)].v.begin(), tets_[static_cast<std::size_t>(s)].v.end());
-  // Vertex pairs no tet couples any more (their entries leave the pattern, as in a model
-  // built on the cut mesh), unless an attachment or beam couples them.
-  const auto key = [](int a, int b) {  // a > b
-    return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) | static_cast<std::uint32_t>(b);
-  };
-  const auto count_pairs = [&](const std::array<int, 4>& v, int delta, std::vector<std::pair<int, int>>* emptied) {
-    for (int a : v)
-      for (int b : v)
-        if (a > b) {
-          auto it = pair_tets_.try_emplace(key(a, b), 0).first;
-          it->second += delta;
-          if (emptied && it->second == 0) emptied->emplace_back(b, a);
-        }
-  };
-  if (pair_tets_.empty()) {  // once: O(tets); the changed tets are in tets_ with their new vertices already
-    for (std::size_t s = 0; s < tets_.size(); ++s) count_pairs(tets_[s].v, 1, nullptr);
-    for (const auto& v : old_tets) count_pairs(v, 1, nullptr);
-    for (int s : stored_changed) count_pairs(tets_[static_cast<std::size_t>(s)].v, -1, nullptr);
-  }
-  std::vector<std::pair<int, int>> emptied, drop;
-  for (const auto& v : old_tets) count_pairs(v, -1, &emptied);
-  for (int s : stored_changed) count_pairs(tets_[static_cast<std::size_t>(s)].v, 1, nullptr);
-  if (!emptied.empty()) {
-    std::vector<std::vector<int>> kept;  // attachments (removed ones keep their entries) and beams
-    attachments_.append_groups(kept);
-    for (const Beam& b : beams_) kept.push_back(b.v);
-    for (const auto& pair : emptied) {
-      const int b = pair.first, a = pair.second;  // (clang: no lambda capture of structured bindings)
-      const auto it = pair_tets_.find(key(a, b));
-      if (it == pair_tets_.end() || it->second != 0) continue;  // coupled again (or listed twice)
-      pair_tets_.erase(it);
-      const bool held = std::any_of(kept.begin(), kept.end(), [&](const std::vector<int>& g) {
-        return std::find(g.begin(), g.end(), a) != g.end() && std::find(g.begin(), g.end(), b) != g.end();
-      });
-      if (!held) drop.emplace_back(b, a);
-    }
-    std::sort(drop.begin(), drop.end());
-  }
-  std::vector<int> remap;
-  auto grown = std::make_unique<SymmetricPattern>(pattern_->extended(n, groups, remap, drop));
-  const bool same = drop.empty() && grown->matrix().nonZeros() == pattern_->matrix().nonZeros() &&
-                    grown->matrix().rows() == pattern_->matrix().rows();
-  if (!same) {
-    // Unchanged tets keep their entries, which only move: their maps are remapped (a vertex's
-    // three rows stay consecutive, so the compact run starts stay runs).
-    for (int& k : tet_map_) k = remap[static_cast<std::size_t>(k)];
-    for (auto& map : beam_maps_)
-      for (int& k : map)
-        if (k >= 0) k = remap[static_cast<std::size_t>(k)];
-    pattern_ = std::move(grown);
+  // Vertex pairs no tet couples any more leave the pattern (as in a model built on the cut
+  // mesh), unless an attachment (removed ones keep their entries) or a beam couples them.
+  std::vector<std::vector<int>> kept;
+  attachments_.append_groups(kept);
+  for (const Beam& b : beams_) kept.push_back(b.v);
+  const std::vector<std::pair<int, int>> drop = pair_tets_.update(changes, kept);
+  std::vector<std::vector<int>*> maps{&tet_map_};
+  for (auto& map : beam_maps_) maps.push_back(&map);
+  if (fem::grow_pattern(pattern_, n, groups, drop, maps)) {
     attachments_.map_into(*pattern_);
     A_ = pattern_->matrix();
   }
@@ -451,36 +344,11 @@ void CorotationalFem::grow_pattern(const std::vector<int>& stored_changed, int o
   // (padded) while the new pattern is factorised on a worker; otherwise (deterministic) and
   // for the direct kinds, the new pattern is factorised (analysis included) at the next solve.
   if (solver_.background_refactor()) {
-    solver_.pattern_extended(old_vertices, preconditioner_aliases(stored_changed, old_vertices));
+    solver_.pattern_extended(old_vertices, preconditioner_aliases(stored_changed, old_vertices),
+                             fem::touched_vertices(changes, old_vertices, n));
   } else {
     solver_.pattern_changed();
   }
-}
-
-void CorotationalFem::update_partition(const std::vector<int>& stored_changed, int num_tets_before) {
-  // Element ids: tets [0, T), beams [T, T + B): appended tets move the beam ids up.
-  const int num_tets = static_cast<int>(tets_.size()), shift = num_tets - num_tets_before;
-  const auto shift_beams = [&](std::vector<int>& ids) {
-    if (shift > 0)
-      for (int& id : ids)
-        if (id >= num_tets_before) id += shift;
-  };
-  for (auto& part : partition_.parts) shift_beams(part);
-  shift_beams(partition_.shared);
-  if (partition_.parts.size() <= 1) {
-    // One part (one thread): the appended tets join it, the changed ones are in it already.
-    for (int s : stored_changed)
-      if (s >= num_tets_before) partition_.parts[0].push_back(s);
-    return;
-  }
-  // Several parts: a changed tet may now touch vertices of another part or new vertices:
-  // changed and appended tets go to the interface set (assembled serially).
-  std::vector<char> moved(static_cast<std::size_t>(num_tets), 0);
-  for (int s : stored_changed) moved[static_cast<std::size_t>(s)] = 1;
-  const auto is_moved = [&](int id) { return id < num_tets && moved[static_cast<std::size_t>(id)]; };
-  for (auto& part : partition_.parts) part.erase(std::remove_if(part.begin(), part.end(), is_moved), part.end());
-  partition_.shared.erase(std::remove_if(partition_.shared.begin(), partition_.shared.end(), is_moved), partition_.shared.end());
-  partition_.shared.insert(partition_.shared.end(), stored_changed.begin(), stored_changed.end());
 }
 
 void CorotationalFem::apply_embedding(const SimProblem& problem, Eigen::VectorXd& mass_alpha) {

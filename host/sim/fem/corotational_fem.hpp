@@ -29,6 +29,7 @@
 
 #include "host/sim/beams/beam_embedding.hpp"
 #include "host/sim/fem/fem_linear_solver.hpp"
+#include "host/sim/fem/fem_mesh_change.hpp"
 #include "host/sim/fem/symmetric_pattern.hpp"
 #include "host/sim/model_config.hpp"
 #include "host/sim/step_health.hpp"
@@ -46,6 +47,9 @@ struct FemOptions {
   VesselBeamOptions beams;          // used only when the problem declares vessels
   int background_nice = 5;          // refactor_in_background: nice level of the worker thread
                                     // (FemLinearSolver::set_background_nice)
+  int cut_region_rings = 1;         // after a cut, while PCG runs on the old factor: the changed
+                                    // vertices and this many rings of neighbours are solved
+                                    // exactly on the current matrix (-1: off; FemLinearSolver::pattern_extended)
 };
 
 class CorotationalFem final : public TissueModel {
@@ -85,6 +89,8 @@ class CorotationalFem final : public TissueModel {
                                                    const Eigen::Matrix3Xd& x_World_mm, const Eigen::Matrix3Xd& v_World_mm_s) override;
   // After a cut: the factor of the new pattern is still being made (PCG runs on the old one).
   bool factor_pending() const { return solver_.factor_pending(); }
+  // FemOptions::cut_region_rings (benchmarks compare the settings on one model).
+  void set_cut_region_rings(int rings);
 
   // Introspection for tests and benchmarks.
   int num_beam_elements() const { return static_cast<int>(beams_.size()); }
@@ -130,14 +136,13 @@ class CorotationalFem final : public TissueModel {
   // apply_mesh_change, in parts (an element-exclusion flag would be honoured in
   // make_element and in the pattern groups of grow_pattern).
   Tet make_element(const SimProblem& problem, int mesh_tet, double& quarter_mass, double& quarter_alpha) const;
-  // old_tets: the changed tets' vertices before the cut (their pairs leave the pattern when
-  // no tet or attachment couples them any more).
-  void grow_pattern(const std::vector<int>& stored_changed, int old_vertices, const std::vector<std::array<int, 4>>& old_tets);
+  // changes: the changed tets before and after the cut (pairs no tet, attachment or beam
+  // couples any more leave the pattern).
+  void grow_pattern(const std::vector<int>& stored_changed, int old_vertices, const std::vector<fem::TetChange>& changes);
   // For each vertex from old_vertices on: the nearest (rest) free older vertex it shares a
   // changed tet with (through other new vertices if need be), -1 for fixed or isolated ones
   // (FemLinearSolver::pattern_extended aggregates them in the old factor).
   std::vector<int> preconditioner_aliases(const std::vector<int>& stored_changed, int old_vertices) const;
-  void update_partition(const std::vector<int>& stored_changed, int num_tets_before);
   struct AssemblyStats {
     double energy = 0;
     int inverted = 0;
@@ -161,7 +166,7 @@ class CorotationalFem final : public TissueModel {
   std::vector<int> tet_order_;             // stored tet i is mesh tet tet_order_[i]
   std::vector<int> stored_of_mesh_;        // inverse of tet_order_ (made at the first apply_mesh_change)
   std::vector<double> quarter_mass_, quarter_alpha_;  // per stored tet: its share of each vertex's m and alpha m
-  std::unordered_map<std::uint64_t, int> pair_tets_;  // vertex pair (a > b) -> tets coupling it (made at the first apply_mesh_change)
+  fem::TetPairCounts pair_tets_;           // tets per vertex pair (made at the first apply_mesh_change)
   std::vector<Beam> beams_;
   std::optional<VesselEmbedding> embedding_;
   std::vector<Eigen::Quaterniond> q_;      // per-tet rotation (warm start)

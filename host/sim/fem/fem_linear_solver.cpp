@@ -81,6 +81,13 @@ struct FemLinearSolver::Factors {
   // factor in use does not have.
   std::vector<Eigen::Matrix3d> tail_inv;
   std::vector<int> tail_alias;  // their aggregation vertex in the factor (-1: none)
+  // Cut-region correction (prepare_preconditioner): the DOFs whose entries changed since the
+  // factor's pattern (and rings of neighbours), the rows of A there, the factor of A_SS.
+  std::vector<int> region_dofs;
+  Eigen::SparseMatrix<double, Eigen::RowMajor, int> region_rows;
+  Eigen::SimplicialLLT<SparseMatrixLower, Eigen::Lower> region_solver;
+  std::vector<int> region_analysed;  // the region of the solver's symbolic analysis
+  Eigen::Index region_analysed_nnz = -1;
 };
 
 FemLinearSolver::Kind FemLinearSolver::parse(const std::string& name) {
@@ -131,6 +138,7 @@ void FemLinearSolver::discard_background() {
 
 void FemLinearSolver::pattern_changed() {
   discard_background();  // its snapshot has the old pattern
+  cut_regions_.clear();
   ++pattern_version_;
   analyzed_ = false;
   have_factor_ = false;
@@ -138,7 +146,7 @@ void FemLinearSolver::pattern_changed() {
   f_->snapshot = SparseMatrixLower();
 }
 
-void FemLinearSolver::pattern_extended(int old_vertices, const std::vector<int>& alias) {
+void FemLinearSolver::pattern_extended(int old_vertices, const std::vector<int>& alias, const std::vector<int>& changed_vertices) {
   if (kind_ != Kind::PcgFactor || !have_factor_) {
     pattern_changed();
     return;
@@ -156,6 +164,102 @@ void FemLinearSolver::pattern_extended(int old_vertices, const std::vector<int>&
   analyzed_ = false;
   if (!f_->pending) f_->pending = make_cholmod();
   refresh_requested_ = true;
+  cut_regions_.push_back({pattern_version_, changed_vertices});
+}
+
+void FemLinearSolver::prepare_preconditioner(const SparseMatrixLower& A) {
+  region_active_ = false;
+  if (kind_ != Kind::PcgFactor) return;
+  if (factor_dofs_ < A.rows()) prepare_padding(A);
+  // Cut-region correction: the vertices whose entries changed since the factor's pattern.
+  cut_regions_.erase(std::remove_if(cut_regions_.begin(), cut_regions_.end(),
+                                    [&](const CutRegion& c) { return c.version <= factor_version_; }),
+                     cut_regions_.end());
+  if (cut_region_rings_ < 0 || cut_regions_.empty() || factor_version_ == pattern_version_) return;
+  const auto n = static_cast<int>(A.rows());
+  std::vector<int> pos(static_cast<std::size_t>(n), -1);
+  std::vector<int>& dofs = f_->region_dofs;
+  dofs.clear();
+  const auto add_vertex = [&](int v) {
+    if (v < 0 || 3 * v + 2 >= n || pos[static_cast<std::size_t>(3 * v)] >= 0) return;
+    for (int d = 0; d < 3; ++d) {
+      pos[static_cast<std::size_t>(3 * v + d)] = 0;
+      dofs.push_back(3 * v + d);
+    }
+  };
+  // Newest cuts first; when the worker's factor is late (a loaded machine) and the region
+  // would grow past an eighth of the DOFs (at most 1,500), the older cuts' vertices and
+  // further rings are left to the old factor alone: the region's factorisation stays a small
+  // fraction of a full one (still SPD, only a weaker correction).
+  const std::size_t cap = std::min<std::size_t>(1500, std::max<std::size_t>(150, static_cast<std::size_t>(n) / 8));
+  for (auto it = cut_regions_.rbegin(); it != cut_regions_.rend(); ++it) {
+    std::size_t fresh = 0;
+    for (int v : it->vertices) fresh += (v >= 0 && 3 * v + 2 < n && pos[static_cast<std::size_t>(3 * v)] < 0) ? 3 : 0;
+    if (!dofs.empty() && dofs.size() + fresh > cap) break;
+    for (int v : it->vertices) add_vertex(v);
+  }
+  const int* outer = A.outerIndexPtr();
+  const int* inner = A.innerIndexPtr();
+  const double* values = A.valuePtr();
+  // Rings of neighbours (vertices coupled to the region in A): one pass over the entries each.
+  for (int ring = 0; ring < cut_region_rings_; ++ring) {
+    std::vector<int> more;
+    for (int c = 0; c < n; ++c)
+      for (int k = outer[c]; k < outer[c + 1]; ++k) {
+        const int r = inner[k];
+        const bool rin = pos[static_cast<std::size_t>(r)] >= 0, cin = pos[static_cast<std::size_t>(c)] >= 0;
+        if (rin != cin) more.push_back((rin ? c : r) / 3);
+      }
+    std::sort(more.begin(), more.end());
+    more.erase(std::unique(more.begin(), more.end()), more.end());
+    if (dofs.size() + 3 * more.size() > cap) break;
+    for (int v : more) add_vertex(v);
+  }
+  std::sort(dofs.begin(), dofs.end());
+  for (std::size_t i = 0; i < dofs.size(); ++i) pos[static_cast<std::size_t>(dofs[i])] = static_cast<int>(i);
+  // Rows S of the symmetric matrix (s x n) and its S x S block, from the lower triangle.
+  const auto m = static_cast<Eigen::Index>(dofs.size());
+  std::vector<Eigen::Triplet<double>> rows, block;
+  for (int c = 0; c < n; ++c)
+    for (int k = outer[c]; k < outer[c + 1]; ++k) {
+      const int r = inner[k];
+      const int pr = pos[static_cast<std::size_t>(r)], pc = pos[static_cast<std::size_t>(c)];
+      if (pr >= 0) rows.emplace_back(pr, c, values[k]);
+      if (pc >= 0 && r != c) rows.emplace_back(pc, r, values[k]);
+      if (pr >= 0 && pc >= 0) block.emplace_back(pr, pc, values[k]);  // lower triangle of the block (r >= c)
+    }
+  f_->region_rows.resize(m, n);
+  f_->region_rows.setFromTriplets(rows.begin(), rows.end());
+  SparseMatrixLower local(m, m);
+  local.setFromTriplets(block.begin(), block.end());
+  // The symbolic analysis is kept while the region and its pattern stay (frames between cuts).
+  if (dofs != f_->region_analysed || local.nonZeros() != f_->region_analysed_nnz) {
+    f_->region_solver.analyzePattern(local);
+    f_->region_analysed = dofs;
+    f_->region_analysed_nnz = local.nonZeros();
+  }
+  f_->region_solver.factorize(local);
+  region_active_ = f_->region_solver.info() == Eigen::Success;
+}
+
+void FemLinearSolver::apply_preconditioner(const Eigen::VectorXd& r, Eigen::VectorXd& z) const {
+  if (!region_active_) {
+    apply_factor(r, z);
+    return;
+  }
+  // M^-1 = T + (I - T A) P (I - A T), T = E A_SS^-1 E^T (exact solve of the changed region
+  // on the current matrix), P the (padded) old factor: symmetric, and positive definite
+  // whenever P is (r^T T r = 0 means E^T r = 0, and then (I - A T) r = r).
+  const std::vector<int>& dofs = f_->region_dofs;
+  const auto m = static_cast<Eigen::Index>(dofs.size());
+  Eigen::VectorXd rs(m);
+  for (Eigen::Index i = 0; i < m; ++i) rs[i] = r[dofs[static_cast<std::size_t>(i)]];
+  const Eigen::VectorXd u = f_->region_solver.solve(rs);
+  const Eigen::VectorXd y = r - f_->region_rows.transpose() * u;
+  apply_factor(y, z);
+  const Eigen::VectorXd t = f_->region_rows * z;
+  const Eigen::VectorXd c = f_->region_solver.solve(t);
+  for (Eigen::Index i = 0; i < m; ++i) z[dofs[static_cast<std::size_t>(i)]] += u[i] - c[i];
 }
 
 void FemLinearSolver::prepare_padding(const SparseMatrixLower& A) {
@@ -373,7 +477,7 @@ LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eige
     return s;
   }
   // Preconditioned conjugate gradients, warm started from x.
-  if (kind_ == Kind::PcgFactor && factor_dofs_ < A.rows()) prepare_padding(A);
+  prepare_preconditioner(A);
   const bool worker = background_ || job_.valid();  // a fresher factor can come from the worker
   Eigen::VectorXd r = b - Asym * x;
   s.initial_residual = r.norm() / b_norm;
@@ -394,7 +498,7 @@ LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eige
   };
   auto refresh = [&](const std::string& why) {
     if (!factorize(A, s)) return false;
-    if (kind_ == Kind::PcgFactor && factor_dofs_ < A.rows()) prepare_padding(A);
+    prepare_preconditioner(A);
     s.message = "preconditioner refreshed after " + std::to_string(it) + " iterations: " + why;
     restart();
     return true;
@@ -420,7 +524,7 @@ LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eige
         job_.wait();
         poll_background(s);
         if (s.background_swapped) {
-          if (factor_dofs_ < A.rows()) prepare_padding(A);
+          prepare_preconditioner(A);
           s.message = "waited for the background factor after " + std::to_string(it) + " iterations at residual " +
                       std::to_string(res);
           restart();
@@ -430,7 +534,7 @@ LinearSolveSummary FemLinearSolver::solve(const SparseMatrixLower& A, const Eige
       if (!refresh("residual " + std::to_string(res))) return s;
       continue;
     }
-    apply_factor(r, z);
+    apply_preconditioner(r, z);
     const double rz_new = r.dot(z);
     if (p.size() == 0) {
       p = z;

@@ -81,7 +81,17 @@ class FemLinearSolver {
   // refactor_in_background is on or not; it replaces the old one at the first solve after
   // it is done. A cut while that job runs: its factor (closer to the new matrix) is taken
   // when done and another job follows for the newest pattern. Other kinds: pattern_changed().
-  void pattern_extended(int old_vertices, const std::vector<int>& alias);
+  // changed_vertices: the vertices whose matrix entries the cut changed (those of the
+  // changed tets before and after, the appended ones). While the factor in use is older
+  // than the pattern, PCG corrects it there (set_cut_region_rings): with S the DOFs of the
+  // vertices changed since the factor's pattern (plus rings of neighbours) and
+  // T = E A_SS^-1 E^T the exact solve on them with the current matrix, the preconditioner is
+  // T + (I - T A) P (I - A T), P the padded old factor: symmetric positive definite, and
+  // exact in the region where the old factor still couples the two sides of the cut.
+  void pattern_extended(int old_vertices, const std::vector<int>& alias, const std::vector<int>& changed_vertices = {});
+  // Rings of neighbours added to the corrected region (default 1); -1: no correction (the
+  // padded old factor alone, as before).
+  void set_cut_region_rings(int rings) { cut_region_rings_ = rings; }
   // True while the factor in use belongs to an older pattern (a cut's factor is pending).
   bool factor_pending() const { return have_factor_ && factor_version_ != pattern_version_; }
 
@@ -134,6 +144,16 @@ class FemLinearSolver {
   Eigen::Index factor_dofs_ = 0, pending_dofs_ = 0;
   std::vector<int> alias_;  // per vertex: the older vertex an appended one is aggregated with (identity before the first cut)
   void prepare_padding(const SparseMatrixLower& A);
+  // Padding and cut-region correction of the factor in use for the matrix A.
+  void prepare_preconditioner(const SparseMatrixLower& A);
+  void apply_preconditioner(const Eigen::VectorXd& r, Eigen::VectorXd& z) const;
+  struct CutRegion {
+    long version;               // pattern version the cut made
+    std::vector<int> vertices;  // vertices whose entries it changed
+  };
+  std::vector<CutRegion> cut_regions_;  // since the factor in use
+  int cut_region_rings_ = 1;
+  bool region_active_ = false;
   std::future<int> job_;            // the running background job (JobResult in the .cpp)
   struct Factors;
   std::unique_ptr<Factors> f_;

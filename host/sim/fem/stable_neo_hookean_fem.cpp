@@ -11,6 +11,7 @@
 #include <string>
 
 #include "host/sim/element_measure.hpp"
+#include "host/sim/fem/fem_mesh_change.hpp"
 #include "host/sim/model_setup.hpp"
 #include "host/sim/tet_geometry.hpp"
 
@@ -121,6 +122,7 @@ Matrix9d project_numerically(const Matrix9d& H) {
 }  // namespace stable_neo_hookean
 
 namespace {
+constexpr const char* kWho = "corotational_fem (material_model stable_neo_hookean)";
 Eigen::Map<Eigen::VectorXd> flat(Eigen::Matrix3Xd& m) { return {m.data(), m.size()}; }
 Eigen::Map<const Eigen::VectorXd> flat(const Eigen::Matrix3Xd& m) { return {m.data(), m.size()}; }
 
@@ -160,28 +162,11 @@ StableNeoHookeanFem::StableNeoHookeanFem(const SimProblem& problem, const ModelC
   const int nv = mesh.num_vertices();
   mass_alpha_ = Eigen::VectorXd::Zero(nv);
   tets_.resize(mesh.tets.size());
+  quarter_mass_.resize(tets_.size());
+  quarter_alpha_.resize(tets_.size());
   for (int t = 0; t < mesh.num_tets(); ++t) {
-    Tet& e = tets_[t];
-    e.v = mesh.tets[t];
-    const Material& m = problem.region_materials[mesh.tet_region.empty() ? 0 : mesh.tet_region[t]];
-    const Lame lame = lame_from(m);
-    e.mu = lame.mu_kPa;
-    e.lambda = lame.lambda_kPa;
-    e.beta = m.damping_stiffness_s;
-    e.volume = signed_volume_mm3(X_, e.v);
-    if (problem.embedded.is_passive(t)) {  // below the quality bound: Psi = 0
-      e.passive = true;
-      e.mu = e.lambda = e.beta = 0.0;
-    }
-    e.Dm_inv = edge_matrix(X_, e.v).inverse();
-    std::array<Eigen::Vector3d, 4> g;
-    for (int k = 0; k < 3; ++k) g[k + 1] = e.Dm_inv.row(k).transpose();
-    g[0] = -(g[1] + g[2] + g[3]);
-    e.dFdx.setZero();
-    for (int a = 0; a < 4; ++a)
-      for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) e.dFdx(i + 3 * j, 3 * a + i) = g[a][j];
-    for (int v : e.v) mass_alpha_[v] += 0.25 * e.volume * m.density_kg_per_mm3 * m.damping_mass_per_s;
+    tets_[t] = make_element(problem, t, quarter_mass_[t], quarter_alpha_[t]);
+    for (int v : tets_[t].v) mass_alpha_[v] += quarter_alpha_[t];
   }
   if (problem.vessels && !problem.vessels->segments.empty())
     note_ = "vessel tree ignored: the stable_neo_hookean material has no beam coupling (use material_model corotational_linear)";
@@ -199,6 +184,101 @@ StableNeoHookeanFem::StableNeoHookeanFem(const SimProblem& problem, const ModelC
 }
 
 StableNeoHookeanFem::~StableNeoHookeanFem() = default;
+
+StableNeoHookeanFem::Tet StableNeoHookeanFem::make_element(const SimProblem& problem, int t, double& quarter_mass,
+                                                           double& quarter_alpha) const {
+  const fem::RestTet r = fem::rest_tet(problem, t, kWho);
+  Tet e;
+  e.v = r.v;
+  e.Dm_inv = r.Dm_inv;
+  e.volume = r.volume;
+  e.passive = r.passive;  // below the quality bound: Psi = 0
+  e.mu = r.passive ? 0.0 : r.mu;
+  e.lambda = r.passive ? 0.0 : r.lambda;
+  e.beta = r.passive ? 0.0 : r.beta;
+  e.dFdx.setZero();
+  for (int a = 0; a < 4; ++a)
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) e.dFdx(i + 3 * j, 3 * a + i) = r.g[static_cast<std::size_t>(a)][j];
+  quarter_mass = r.quarter_mass;
+  quarter_alpha = r.quarter_alpha;
+  return e;
+}
+
+std::optional<MeshChangeStats> StableNeoHookeanFem::apply_mesh_change(const SimProblem& problem, const std::vector<int>& changed,
+                                                                      const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v) {
+  const TetMesh& mesh = problem.mesh;
+  const int n_old = static_cast<int>(X_.cols()), n = mesh.num_vertices();
+  const int nt_old = static_cast<int>(tets_.size()), nt = mesh.num_tets();
+  if (!fem::mesh_change_fits(problem, changed, n_old, nt_old, x, v)) return std::nullopt;
+  // New elements and masses, checked before anything changes.
+  std::vector<Tet> fresh(changed.size());
+  std::vector<fem::TetChange> changes(changed.size());
+  for (std::size_t i = 0; i < changed.size(); ++i) {
+    fem::TetChange& c = changes[i];
+    const auto t = static_cast<std::size_t>(changed[i]);
+    fresh[i] = make_element(problem, changed[i], c.mass_after, c.alpha_after);
+    c.after = fresh[i].v;
+    if (changed[i] < nt_old) {
+      c.existed = true;
+      c.before = tets_[t].v;
+      c.mass_before = quarter_mass_[t];
+      c.alpha_before = quarter_alpha_[t];
+    }
+  }
+  const std::vector<int> touched = fem::touched_vertices(changes, n_old, n);
+  if (pair_tets_.empty())  // once, O(tets): the pairs the tets couple before the cut
+    for (const Tet& t : tets_) pair_tets_.add(t.v);
+
+  // Vertex records: rest position, masses, state, fixed flags and the embedding.
+  MeshChangeStats stats;
+  stats.vertices_updated =
+      fem::update_vertex_records(problem, changes, touched, x, v, embedded_, {X_, x_, v_, mass_, mass_alpha_, fixed_, user_fixed_}, kWho);
+
+  // Element records (stored in mesh order): changed tets in their slots, appended ones at the end.
+  tets_.resize(static_cast<std::size_t>(nt));
+  quarter_mass_.resize(tets_.size());
+  quarter_alpha_.resize(tets_.size());
+  std::vector<std::vector<int>> groups;
+  groups.reserve(changed.size());
+  for (std::size_t i = 0; i < changed.size(); ++i) {
+    const auto t = static_cast<std::size_t>(changed[i]);
+    tets_[t] = fresh[i];
+    quarter_mass_[t] = changes[i].mass_after;
+    quarter_alpha_[t] = changes[i].alpha_after;
+    groups.emplace_back(fresh[i].v.begin(), fresh[i].v.end());
+    ++stats.elements_updated;
+  }
+  // Passive flags of unchanged tets can change too (islands of good tets cut off by
+  // slivers): an O(tets) byte pass, the few that flip made again.
+  for (int t = 0; t < nt; ++t)
+    if (tets_[static_cast<std::size_t>(t)].passive != problem.embedded.is_passive(t)) {
+      double qm = 0, qa = 0;
+      tets_[static_cast<std::size_t>(t)] = make_element(problem, t, qm, qa);
+      ++stats.elements_updated;
+    }
+
+  // Pattern: the changed tets' pairs in, the pairs no tet or attachment couples any more
+  // out, in one merge pass; the unchanged tets' maps remapped, the changed ones' made again.
+  std::vector<std::vector<int>> kept;
+  attachments_.append_groups(kept);
+  const std::vector<std::pair<int, int>> drop = pair_tets_.update(changes, kept);
+  if (fem::grow_pattern(pattern_, n, groups, drop, {&tet_map_})) {
+    attachments_.map_into(*pattern_);
+    A_ = pattern_->matrix();
+    K_ = A_;
+    D_ = A_;
+  }
+  tet_map_.resize(90 * tets_.size());
+  for (std::size_t i = 0; i < changed.size(); ++i) {
+    const std::vector<int> m = pattern_->block_map(groups[i]);
+    std::copy(m.begin(), m.end(), tet_map_.begin() + 90 * static_cast<std::ptrdiff_t>(changed[i]));
+  }
+  fem::update_partition(partition_, changed, nt_old, nt);
+  solver_.pattern_changed();  // analysed and factorised at the next solve
+  inversions_.reset_episode();  // as for a model rebuilt on the cut mesh (set_state)
+  return stats;
+}
 
 void StableNeoHookeanFem::build_pattern() {
   std::vector<std::vector<int>> elements;

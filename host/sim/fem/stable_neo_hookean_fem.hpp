@@ -33,6 +33,7 @@
 
 #include "host/sim/fem/corotational_fem.hpp"
 #include "host/sim/fem/fem_linear_solver.hpp"
+#include "host/sim/fem/fem_mesh_change.hpp"
 #include "host/sim/fem/symmetric_pattern.hpp"
 #include "host/sim/model_config.hpp"
 #include "host/sim/step_health.hpp"
@@ -74,6 +75,17 @@ class StableNeoHookeanFem final : public TissueModel {
   const Eigen::Matrix3Xd& velocities_World_mm_s() const override { return v_; }
   void set_state(const Eigen::Matrix3Xd& positions_World_mm, const Eigen::Matrix3Xd& velocities_World_mm_s) override;
   std::vector<ElementMeasure> element_measures() const override;
+  // In place after a cut (docs/sim-fem.md "After a cut"), as CorotationalFem does it
+  // (fem_mesh_change.hpp): element data (rest shape, Lame parameters, quarter masses) of the
+  // changed and appended tets only (and of the few whose passive flag the new embedding
+  // flips), lumped masses and state of their vertices and of the appended ones, the
+  // embedding's driven vertices and rigid groups, the sparse pattern grown by the new vertex
+  // pairs and cleared of the uncoupled ones in one merge pass (unchanged tets' maps
+  // remapped). The new pattern is analysed and factorised at the next solve. Throws
+  // std::invalid_argument, before changing anything, for a changed tet of non-positive rest
+  // volume or a vertex left without mass.
+  std::optional<MeshChangeStats> apply_mesh_change(const SimProblem& problem, const std::vector<int>& changed_tets,
+                                                   const Eigen::Matrix3Xd& x_World_mm, const Eigen::Matrix3Xd& v_World_mm_s) override;
 
   // Introspection for tests and benchmarks.
   const InversionMonitor& inversions() const { return inversions_; }
@@ -87,6 +99,8 @@ class StableNeoHookeanFem final : public TissueModel {
     int linear_iterations = 0, factorizations = 0;
   };
   const Timing& last_timing() const { return timing_; }
+  // Last assembled Newton system (lower triangle).
+  const SparseMatrixLower& system_matrix() const { return A_; }
 
  private:
   struct Tet {
@@ -96,6 +110,7 @@ class StableNeoHookeanFem final : public TissueModel {
     double volume, mu, lambda, beta;
     bool passive = false;  // below the quality bound: mu = lambda = beta = 0 (no elastic term), not counted inverted
   };
+  Tet make_element(const SimProblem& problem, int mesh_tet, double& quarter_mass, double& quarter_alpha) const;
   void build_pattern();
   // Elastic forces into f_el_ and the projected stiffness (times scale_k) plus the
   // Rayleigh-beta matrix (when `damping_matrix`) into the value arrays; returns Psi.
@@ -113,7 +128,9 @@ class StableNeoHookeanFem final : public TissueModel {
   Eigen::Vector3d gravity_;
   Eigen::Matrix3Xd X_, x_, v_;
   Eigen::VectorXd mass_, mass_alpha_;
-  std::vector<Tet> tets_;
+  std::vector<Tet> tets_;                             // in mesh order
+  std::vector<double> quarter_mass_, quarter_alpha_;  // per tet: its share of each vertex's m and alpha m
+  fem::TetPairCounts pair_tets_;                      // tets per vertex pair (made at the first apply_mesh_change)
   fem::FemAttachmentSet attachments_{"corotational_fem"};
   std::vector<char> fixed_;       // user_fixed_ or held by embedded_
   std::vector<char> user_fixed_;  // the problem's / set_fixed_vertices
