@@ -32,9 +32,12 @@ int EmbeddedElements::passive_count() const {
   return static_cast<int>(std::count_if(passive.begin(), passive.end(), [](std::uint8_t p) { return p != 0; }));
 }
 
-EmbeddedElementTracker::EmbeddedElementTracker(double min_dihedral_deg) : min_deg_(min_dihedral_deg) {
+EmbeddedElementTracker::EmbeddedElementTracker(double min_dihedral_deg, double min_relative_volume)
+    : min_deg_(min_dihedral_deg), min_relative_volume_(min_relative_volume) {
   if (!(min_dihedral_deg >= 0.0 && min_dihedral_deg < 70.5))
     throw std::invalid_argument("min_dihedral_deg must be in [0, 70.5) (got " + std::to_string(min_dihedral_deg) + ")");
+  if (!(min_relative_volume >= 0.0 && min_relative_volume < 1.0))
+    throw std::invalid_argument("min_relative_volume must be in [0, 1) (got " + std::to_string(min_relative_volume) + ")");
 }
 
 void EmbeddedElementTracker::build(const TetMesh& mesh, const std::vector<int>& fixed_vertices, EmbeddedElements& out) {
@@ -51,10 +54,14 @@ void EmbeddedElementTracker::build(const TetMesh& mesh, const std::vector<int>& 
   out.passive.assign(static_cast<std::size_t>(nt), 0);
   below_.assign(static_cast<std::size_t>(nt), 0);
   volume_.assign(static_cast<std::size_t>(nt), 0.0);
+  flat_.assign(static_cast<std::size_t>(nt), 0);
   for (int t = 0; t < nt; ++t) {
     for (int w : tets_[static_cast<std::size_t>(t)]) vertex_tets_[static_cast<std::size_t>(w)].push_back(t);
     volume_[static_cast<std::size_t>(t)] = edge_volume(mesh.rest_positions_World_mm, tets_[static_cast<std::size_t>(t)]);
-    below_[static_cast<std::size_t>(t)] = tet_min_dihedral_deg(mesh.rest_positions_World_mm, tets_[static_cast<std::size_t>(t)]) < min_deg_ ? 1 : 0;
+    flat_[static_cast<std::size_t>(t)] = tet_min_dihedral_deg(mesh.rest_positions_World_mm, tets_[static_cast<std::size_t>(t)]) < min_deg_ ? 1 : 0;
+  }
+  for (int t = 0; t < nt; ++t) {
+    below_[static_cast<std::size_t>(t)] = flat_[static_cast<std::size_t>(t)] || tiny(t) ? 1 : 0;
     out.passive[static_cast<std::size_t>(t)] = below_[static_cast<std::size_t>(t)];
   }
   std::vector<int> candidates;
@@ -82,6 +89,7 @@ void EmbeddedElementTracker::update(const TetMesh& mesh, const std::vector<int>&
     if (*it < n) fixed_[static_cast<std::size_t>(*it)] = 1;
   out.passive.resize(static_cast<std::size_t>(nt), 0);
   below_.resize(static_cast<std::size_t>(nt), 0);
+  flat_.resize(static_cast<std::size_t>(nt), 0);
   volume_.resize(static_cast<std::size_t>(nt), 0.0);
   passive_added_.clear();
   std::vector<int> candidates;
@@ -100,18 +108,42 @@ void EmbeddedElementTracker::update(const TetMesh& mesh, const std::vector<int>&
       vertex_tets_[static_cast<std::size_t>(w)].push_back(t);
       candidates.push_back(w);
     }
-    below_[static_cast<std::size_t>(t)] = tet_min_dihedral_deg(mesh.rest_positions_World_mm, tet) < min_deg_ ? 1 : 0;
-    out.passive[static_cast<std::size_t>(t)] = below_[static_cast<std::size_t>(t)];
-    passive_added_.push_back(t);  // checked against the flag when shared
+    flat_[static_cast<std::size_t>(t)] = tet_min_dihedral_deg(mesh.rest_positions_World_mm, tet) < min_deg_ ? 1 : 0;
     volume_[static_cast<std::size_t>(t)] = edge_volume(mesh.rest_positions_World_mm, tet);
   }
-  {  // islands among the changed tets and their face neighbours
-    std::vector<int> seeds, nb;
+  // The size bound of every tet at a vertex of a changed tet (the largest volume at those
+  // vertices changed): the changed tets' and their vertex neighbours' flags.
+  std::vector<int> flipped;
+  {
+    std::vector<int> near;
+    for (int w : candidates) near.insert(near.end(), vertex_tets_[static_cast<std::size_t>(w)].begin(), vertex_tets_[static_cast<std::size_t>(w)].end());
+    std::sort(near.begin(), near.end());
+    near.erase(std::unique(near.begin(), near.end()), near.end());
     for (int t : changed_tets) {
-      seeds.push_back(t);
-      face_neighbours(t, nb);
-      seeds.insert(seeds.end(), nb.begin(), nb.end());
+      below_[static_cast<std::size_t>(t)] = flat_[static_cast<std::size_t>(t)] || tiny(t) ? 1 : 0;
+      out.passive[static_cast<std::size_t>(t)] = below_[static_cast<std::size_t>(t)];
+      passive_added_.push_back(t);  // checked against the flag when shared
     }
+    for (int t : near) {
+      const char b = flat_[static_cast<std::size_t>(t)] || tiny(t) ? 1 : 0;
+      if (b == below_[static_cast<std::size_t>(t)]) continue;
+      below_[static_cast<std::size_t>(t)] = b;
+      flipped.push_back(t);
+      if (b) {
+        out.passive[static_cast<std::size_t>(t)] = 1;
+        passive_added_.push_back(t);
+      }
+      for (int w : tets_[static_cast<std::size_t>(t)]) candidates.push_back(w);
+    }
+  }
+  {  // islands among the changed tets, the tets whose size flag flipped, and their face neighbours
+    std::vector<int> seeds, nb;
+    for (const std::vector<int>* list : std::initializer_list<const std::vector<int>*>{&changed_tets, &flipped})
+      for (int t : *list) {
+        seeds.push_back(t);
+        face_neighbours(t, nb);
+        seeds.insert(seeds.end(), nb.begin(), nb.end());
+      }
     std::erase_if(seeds, [&](int t) { return below_[static_cast<std::size_t>(t)] != 0; });
     settle_islands(seeds, out, candidates);
   }
@@ -175,6 +207,14 @@ void EmbeddedElementTracker::share_passive_mass(const TetMesh& mesh, EmbeddedEle
     for (double& sh : p.share) sh = sum > 0.0 ? sh / sum : 0.25;
     out.passive_mass.push_back(p);
   }
+}
+
+bool EmbeddedElementTracker::tiny(int t) const {
+  if (!(min_relative_volume_ > 0.0)) return false;
+  double largest = 0.0;
+  for (int w : tets_[static_cast<std::size_t>(t)])
+    for (int u : vertex_tets_[static_cast<std::size_t>(w)]) largest = std::max(largest, volume_[static_cast<std::size_t>(u)]);
+  return volume_[static_cast<std::size_t>(t)] < min_relative_volume_ * largest;
 }
 
 void EmbeddedElementTracker::face_neighbours(int t, std::vector<int>& out) const {

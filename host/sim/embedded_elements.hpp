@@ -74,14 +74,22 @@ constexpr int kMaxEmbeddingSearch = 4096;
 // "island" that the slivers around it cut off from the elastic body of its piece) are
 // embedded too: elastically they would float free inside their piece (docs/cut.md).
 constexpr int kMaxIslandTets = 64;
+// Size bound: a tet whose rest volume is below kMinRelativeVolume times that of the largest
+// tet at one of its vertices is passive too, however well shaped (docs/cut.md). A cut leaves
+// such tets where its sweeps cross (0.01-1 mm^3 next to 100-2,000 mm^3 on the coarse liver):
+// they move by their own size in a frame, their springs carry 1e-5 of their neighbours'
+// masses, and the mass-spring ring runs stopped on them. Scale-free; an evenly refined
+// region is not touched (only a jump of 1,000 in volume between tets at one vertex).
+constexpr double kMinRelativeVolume = 1e-3;
 
 // Keeps EmbeddedElements for a mesh that cuts change: build() once (O(mesh)), update()
 // after each topology change (O(changed tets + driven vertices and rigid groups, each with
 // a local search)).
 class EmbeddedElementTracker {
  public:
-  // min_dihedral_deg in [0, 70.5): tets below it are passive (0: none).
-  explicit EmbeddedElementTracker(double min_dihedral_deg = 0.0);
+  // min_dihedral_deg in [0, 70.5): tets below it are passive (0: none); min_relative_volume
+  // in [0, 1): the size bound above (0: none; only with min_dihedral_deg > 0).
+  explicit EmbeddedElementTracker(double min_dihedral_deg = 0.0, double min_relative_volume = kMinRelativeVolume);
   double min_dihedral_deg() const { return min_deg_; }
   // fixed_vertices: Dirichlet vertices (never driven; a rigid group holding one is held).
   void build(const TetMesh& mesh, const std::vector<int>& fixed_vertices, EmbeddedElements& out);
@@ -96,8 +104,11 @@ class EmbeddedElementTracker {
   // elastic. Appends the vertices of tets whose flag changed to candidates.
   void settle_islands(const std::vector<int>& seeds, EmbeddedElements& out, std::vector<int>& candidates);
   void face_neighbours(int t, std::vector<int>& out) const;
+  bool tiny(int t) const;  // rest volume below min_relative_volume_ x the largest tet at one of its vertices
   void share_passive_mass(const TetMesh& mesh, EmbeddedElements& out) const;
   double min_deg_ = 0.0;
+  double min_relative_volume_ = 0.0;
+  std::vector<char> flat_;   // per tet: smallest dihedral angle below min_deg_
   std::vector<char> below_;  // per tet: below the quality bound (passive = below_ or in an island)
   std::vector<int> passive_added_;  // tets made passive by the current build/update
   std::vector<double> volume_;      // rest volume per tet

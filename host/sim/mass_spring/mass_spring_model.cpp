@@ -752,6 +752,11 @@ StepSummary MassSpringModel::semi_implicit_substep(double h) {
   apply_system(dv_, q_);
   r_ = rhs_ - q_;
   double r_norm = std::sqrt(dot(threads_, r_, r_));
+  if (r_norm > b_norm) {  // the previous velocity change is a worse start than none (a cut, a jolt)
+    dv_.setZero();
+    r_ = rhs_;
+    r_norm = b_norm;
+  }
   const double denom = b_norm > 0.0 ? b_norm : 1.0;
   s.initial_residual = r_norm / denom;
   s.termination = "max_iterations";
@@ -821,9 +826,35 @@ StepSummary MassSpringModel::step(double dt_s) {
   return s;
 }
 
+StepSummary MassSpringModel::semi_implicit_guarded(double dt_s) {
+  // Step control (docs/sim.md): one linearised backward-Euler step follows an element only
+  // while its motion in the step is small against its size. Elements far below the mesh's
+  // resolution (what a cut leaves between its sweeps) can move by their own size in a frame;
+  // the step then creates energy or inverts them. Such a step is undone and redone with 2,
+  // 4, ..., kMaxRetrySubsteps times the substeps; counted (retries()) and named in the warning.
+  const Eigen::Matrix3Xd x0 = x_, v0 = v_;
+  const InversionMonitor inversions0 = inversions_;
+  StepSummary s = step_unguarded(dt_s);
+  const int substeps = config_.substeps;
+  for (int factor = 2; !s.healthy && s.termination != "factorization_failed" && factor <= kMaxRetrySubsteps; factor *= 2) {
+    const std::string first = s.warning;
+    x_ = x0;
+    v_ = v0;
+    inversions_ = inversions0;
+    dv_.setZero();
+    config_.substeps = substeps * factor;
+    s = step_unguarded(dt_s);
+    config_.substeps = substeps;
+    ++retries_;
+    if (s.healthy)
+      report(s, "semi_implicit step redone with " + std::to_string(substeps * factor) + " substeps (" + first.substr(0, 160) + ")", false);
+  }
+  return s;
+}
+
 StepSummary MassSpringModel::step_guarded(double dt_s) {
   check_dt(dt_s);
-  if (integrator_ == Integrator::kSemiImplicit) return step_unguarded(dt_s);
+  if (integrator_ == Integrator::kSemiImplicit) return semi_implicit_guarded(dt_s);
   // Fallback (docs/sim.md): the explicit and local/global integrators diverge on extreme
   // boundaries (an organ hanging from a small patch: nearly every tet flips within
   // 0.1-0.6 s). A step that ends unhealthy (non-finite state, energy created, collapse) is
@@ -837,7 +868,7 @@ StepSummary MassSpringModel::step_guarded(double dt_s) {
     config_.substeps = 1;
     config_.iterations = 20;
     config_.tolerance = 1e-4;
-    StepSummary s = step_unguarded(dt_s);
+    StepSummary s = semi_implicit_guarded(dt_s);
     integrator_ = integrator;
     config_ = config;
     return s;

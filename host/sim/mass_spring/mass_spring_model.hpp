@@ -116,9 +116,14 @@ class MassSpringModel final : public TissueModel {
   // explicit / local_global: steps redone with the semi-implicit integrator after they
   // diverged (step() below; docs/sim.md).
   int fallbacks() const { return fallbacks_; }
+  // semi_implicit (also the fallback): steps redone with more substeps after they ended
+  // unhealthy (energy created, non-finite), up to kMaxRetrySubsteps times the configured ones.
+  int retries() const { return retries_; }
+  static constexpr int kMaxRetrySubsteps = 8;
 
  private:
   StepSummary step_guarded(double dt_s);    // step() before the embedded vertices are driven
+  StepSummary semi_implicit_guarded(double dt_s);  // semi-implicit step, redone with more substeps when unhealthy
   StepSummary step_unguarded(double dt_s);  // one step with integrator_ and config_
   bool passive(int t) const { return static_cast<std::size_t>(t) < passive_.size() && passive_[static_cast<std::size_t>(t)] != 0; }
   void merge_fixed();  // fixed_ = user_fixed_ or held by the embedding
@@ -174,6 +179,7 @@ class MassSpringModel final : public TissueModel {
   InversionMonitor inversions_;  // inverted tets: counted warning (step_health.hpp)
   double fallback_left_s_ = 0.0;  // simulated time the semi-implicit fallback still runs
   int fallbacks_ = 0;
+  int retries_ = 0;
   EnergyLedger ledger_;
 
   // Work buffers, sized once (no allocation per step).

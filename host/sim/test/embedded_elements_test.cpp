@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
+#include <vector>
 #include <cmath>
 
 #include "host/scene/box_mesh.hpp"
@@ -108,6 +110,104 @@ TEST(EmbeddedElements, TrackerFindsTheSliverAndItsDriverAndUpdatesLikeABuild) {
   EmbeddedElements none;
   off.build(p.mesh, p.fixed_vertices, none);
   EXPECT_FALSE(none.any());
+}
+
+// A cluster of well-shaped tets (3 x 3 x 3 cubes of 0.5 mm, 162 Kuhn tets, >= 35 degrees)
+// sharing one vertex with the bar's free corner, next to the bar's 167 mm^3 tets: far below
+// the mesh's resolution where it meets the bar (the ring cut on the bundled liver left such
+// tets, 0.01-1 mm^3 next to 100-2,000 mm^3 ones, and the mass-spring runs stopped on them).
+// More than kMaxIslandTets tets: not an island. Returns the tets at the shared vertex.
+std::vector<int> add_tiny_cluster(SimProblem& p) {
+  const Eigen::Vector3d c(40, 20, 20);
+  int corner = -1;
+  for (int v = 0; v < p.mesh.num_vertices(); ++v)
+    if ((p.mesh.rest_positions_World_mm.col(v) - c).norm() < 1e-9) corner = v;
+  if (corner < 0) return {};
+  const TetMesh cluster = make_box_tet_mesh(3, 3, 3, {1.5, 1.5, 1.5});
+  std::vector<int> index(static_cast<std::size_t>(cluster.num_vertices()));
+  for (int v = 0; v < cluster.num_vertices(); ++v) {
+    if (cluster.rest_positions_World_mm.col(v).norm() < 1e-12) {
+      index[static_cast<std::size_t>(v)] = corner;
+      continue;
+    }
+    const int w = p.mesh.num_vertices();
+    p.mesh.rest_positions_World_mm.conservativeResize(Eigen::NoChange, w + 1);
+    p.mesh.rest_positions_World_mm.col(w) = c + cluster.rest_positions_World_mm.col(v);
+    index[static_cast<std::size_t>(v)] = w;
+  }
+  std::vector<int> at_corner;
+  for (const auto& tet : cluster.tets) {
+    std::array<int, 4> t;
+    for (int k = 0; k < 4; ++k) t[static_cast<std::size_t>(k)] = index[static_cast<std::size_t>(tet[static_cast<std::size_t>(k)])];
+    if (std::find(t.begin(), t.end(), corner) != t.end()) at_corner.push_back(p.mesh.num_tets());
+    p.mesh.tets.push_back(t);
+    p.mesh.tet_region.push_back(0);
+  }
+  return at_corner;
+}
+
+TEST(EmbeddedElements, TinyWellShapedTetsNextToLargeOnesArePassiveAndUpdateLikeABuild) {
+  SimProblem p = bar_problem();
+  const int nt0 = p.mesh.num_tets();
+  EmbeddedElementTracker incremental(kBound_deg);
+  EmbeddedElements inc;
+  incremental.build(p.mesh, p.fixed_vertices, inc);
+  const std::vector<int> at_corner = add_tiny_cluster(p);
+  ASSERT_FALSE(at_corner.empty());
+  std::vector<int> added;
+  for (int t = nt0; t < p.mesh.num_tets(); ++t) {
+    EXPECT_GT(tet_min_dihedral_deg(p.mesh.rest_positions_World_mm, p.mesh.tets[static_cast<std::size_t>(t)]), 30.0);  // well shaped
+    added.push_back(t);
+  }
+  incremental.update(p.mesh, added, p.fixed_vertices, inc);
+  EmbeddedElementTracker fresh(kBound_deg);
+  EmbeddedElements built;
+  fresh.build(p.mesh, p.fixed_vertices, built);
+  for (const EmbeddedElements* e : {&inc, &built}) {
+    // Exactly the cluster's tets at the shared vertex (0.02 mm^3 against 167: below 1e-3);
+    // the rest of the cluster sees only its own size and stays elastic.
+    EXPECT_EQ(e->passive_count(), static_cast<int>(at_corner.size()));
+    for (int t : at_corner) EXPECT_TRUE(e->is_passive(t));
+    EXPECT_TRUE(e->rigid_groups.empty());
+    for (const DrivenVertex& d : e->driven) EXPECT_FALSE(e->is_passive(d.driver_tet));
+  }
+  EXPECT_EQ(inc.passive, built.passive);
+  ASSERT_EQ(inc.driven.size(), built.driven.size());
+  for (std::size_t k = 0; k < inc.driven.size(); ++k) EXPECT_EQ(inc.driven[k].driver_tet, built.driven[k].driver_tet);
+  // Off (min_relative_volume 0): only the dihedral bound, nothing passive.
+  EmbeddedElements shape_only;
+  EmbeddedElementTracker(kBound_deg, 0.0).build(p.mesh, p.fixed_vertices, shape_only);
+  EXPECT_EQ(shape_only.passive_count(), 0);
+  EXPECT_THROW(EmbeddedElementTracker(kBound_deg, -1e-3), std::invalid_argument);
+  EXPECT_THROW(EmbeddedElementTracker(kBound_deg, 1.0), std::invalid_argument);
+}
+
+// The size flag of a tet depends on the tets at its vertices: when they change, its flag
+// changes without the tet itself being touched, and the update follows a build.
+TEST(EmbeddedElements, SizeFlagOfAnUntouchedTetFollowsItsNeighbours) {
+  SimProblem p = bar_problem();
+  const int nt0 = p.mesh.num_tets(), nv0 = p.mesh.num_vertices();
+  const Eigen::Vector3d c(40, 20, 20);
+  // The bar shrunk to 1/100 about the corner: its tets (0.17e-3 mm^3) are no larger than
+  // the cluster's (0.02 mm^3), nothing is tiny.
+  for (int v = 0; v < nv0; ++v) p.mesh.rest_positions_World_mm.col(v) = c + 0.01 * (p.mesh.rest_positions_World_mm.col(v) - c);
+  const std::vector<int> at_corner = add_tiny_cluster(p);
+  ASSERT_FALSE(at_corner.empty());
+  EmbeddedElementTracker incremental(kBound_deg);
+  EmbeddedElements inc;
+  incremental.build(p.mesh, p.fixed_vertices, inc);
+  EXPECT_EQ(inc.passive_count(), 0);
+  // A change that grows every bar tet back to full size (all of them "changed"); the
+  // cluster's tets are untouched but now lie next to tets 8,000 times larger.
+  std::vector<int> changed;
+  for (int t = 0; t < nt0; ++t) changed.push_back(t);
+  for (int v = 0; v < nv0; ++v) p.mesh.rest_positions_World_mm.col(v) = c + 100.0 * (p.mesh.rest_positions_World_mm.col(v) - c);
+  incremental.update(p.mesh, changed, p.fixed_vertices, inc);
+  EmbeddedElements built;
+  EmbeddedElementTracker(kBound_deg).build(p.mesh, p.fixed_vertices, built);
+  EXPECT_EQ(built.passive_count(), static_cast<int>(at_corner.size()));
+  EXPECT_EQ(inc.passive, built.passive);
+  ASSERT_EQ(inc.driven.size(), built.driven.size());
 }
 
 // The flat cap (0.01 degrees) glued to the free end of a sagging bar: every model runs
