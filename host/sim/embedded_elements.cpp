@@ -154,16 +154,27 @@ void EmbeddedElementTracker::update(const TetMesh& mesh, const std::vector<int>&
   std::sort(candidates.begin(), candidates.end());
   candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
   auto changed_vertex = [&](int w) { return std::binary_search(candidates.begin(), candidates.end(), w); };
+  auto touches_change = [&](int w) {
+    if (changed_vertex(w)) return true;
+    for (int t : vertex_tets_[static_cast<std::size_t>(w)])
+      for (int k = 0; k < 4; ++k)
+        if (changed_vertex(tets_[static_cast<std::size_t>(t)][static_cast<std::size_t>(k)])) return true;
+    return false;
+  };
   std::vector<int> again;
   for (const DrivenVertex& d : out.driven) {
-    bool near = changed_vertex(d.vertex) || static_cast<std::size_t>(d.driver_tet) >= tets_.size() || tets_[static_cast<std::size_t>(d.driver_tet)] != d.drivers;
+    bool near = static_cast<std::size_t>(d.driver_tet) >= tets_.size() || tets_[static_cast<std::size_t>(d.driver_tet)] != d.drivers;
     for (int k = 0; k < 4 && !near; ++k) near = changed_vertex(d.drivers[static_cast<std::size_t>(k)]);
-    for (int t : vertex_tets_[static_cast<std::size_t>(d.vertex)])
-      for (int k = 0; k < 4 && !near; ++k) near = changed_vertex(tets_[static_cast<std::size_t>(t)][static_cast<std::size_t>(k)]);
-    if (near) again.push_back(d.vertex);
+    if (near || touches_change(d.vertex)) again.push_back(d.vertex);
   }
-  for (const RigidGroup& g : out.rigid_groups) again.insert(again.end(), g.vertices.begin(), g.vertices.end());
-  out.rigid_groups.clear();
+  // A rigid group is a region of passive tets with no active tet in reach: a change that
+  // touches none of its vertices' tets leaves it as it is (pieces share no vertex); the
+  // others are resolved again with the candidates.
+  std::erase_if(out.rigid_groups, [&](const RigidGroup& g) {
+    const bool near = std::any_of(g.vertices.begin(), g.vertices.end(), touches_change);
+    if (near) again.insert(again.end(), g.vertices.begin(), g.vertices.end());
+    return near;
+  });
   candidates.insert(candidates.end(), again.begin(), again.end());
   resolve(mesh, std::move(candidates), out);
   share_passive_mass(mesh, out);
@@ -273,15 +284,28 @@ void EmbeddedElementTracker::resolve(const TetMesh& mesh, std::vector<int> candi
     return false;
   };
   std::unordered_set<int> grouped;
-  std::unordered_set<int> visited;
-  std::vector<int> frontier, next, found;
+  for (const RigidGroup& g : out.rigid_groups) grouped.insert(g.vertices.begin(), g.vertices.end());  // kept by an update
+  // Tets visited by the current search: a stamp per tet (no clearing between searches).
+  visit_stamp_.resize(tets_.size(), 0);
+  std::vector<int> visited, frontier, next, found;
+  auto visit = [&](int t) {
+    unsigned& stamp = visit_stamp_[static_cast<std::size_t>(t)];
+    if (stamp == visit_epoch_) return false;
+    stamp = visit_epoch_;
+    visited.push_back(t);
+    return true;
+  };
   for (int v : candidates) {
     if (fixed_[static_cast<std::size_t>(v)] || grouped.count(v) || vertex_tets_[static_cast<std::size_t>(v)].empty() || has_active(v)) continue;
     // Breadth-first over tets sharing a vertex (pieces share no vertex: a cut duplicates
     // them), so the driver is always in the vertex's piece.
+    if (++visit_epoch_ == 0) {  // wrapped: every stamp is stale
+      std::fill(visit_stamp_.begin(), visit_stamp_.end(), 0u);
+      visit_epoch_ = 1;
+    }
     visited.clear();
     frontier = vertex_tets_[static_cast<std::size_t>(v)];
-    for (int t : frontier) visited.insert(t);
+    for (int t : frontier) visit(t);
     found.clear();
     // The driver: among the active tets near the vertex (from the first layer that reaches
     // active tets on, one layer further through active tets too), those that hold it with
@@ -300,7 +324,7 @@ void EmbeddedElementTracker::resolve(const TetMesh& mesh, std::vector<int> candi
       for (int t : frontier)
         for (int u : tets_[static_cast<std::size_t>(t)])
           for (int t2 : vertex_tets_[static_cast<std::size_t>(u)]) {
-            if (!visited.insert(t2).second) continue;
+            if (!visit(t2)) continue;
             (passive(t2) ? next : found).push_back(t2);
           }
       for (int t : found) {

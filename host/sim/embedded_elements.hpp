@@ -115,6 +115,8 @@ class EmbeddedElementTracker {
   std::vector<std::array<int, 4>> tets_;
   std::vector<std::vector<int>> vertex_tets_;
   std::vector<char> fixed_;
+  std::vector<unsigned> visit_stamp_;  // resolve(): per tet, the search that last visited it
+  unsigned visit_epoch_ = 0;
 };
 
 // What a model does with EmbeddedElements at run time: which vertices its solver holds
