@@ -15,6 +15,7 @@
 #include "host/cut/cut_session.hpp"
 #include "host/cut/mesh_checks.hpp"
 #include "host/scene/box_mesh.hpp"
+#include "host/sim/test/box_problem.hpp"
 #include "host/sim/fem/corotational_fem.hpp"
 #include "host/sim/mass_spring/mass_spring_model.hpp"
 #include "host/sim/model_factory.hpp"
@@ -25,14 +26,7 @@ using namespace arnav::host::cut;
 namespace {
 
 SimProblem bar_problem(const Eigen::Vector3d& size, int nx, int ny, int nz, double youngs_kPa) {
-  SimProblem p;
-  p.mesh = make_box_tet_mesh(nx, ny, nz, size);
-  Material m;
-  m.youngs_modulus_kPa = youngs_kPa;
-  m.poisson_ratio = 0.4;
-  m.damping_mass_per_s = 5.0;
-  p.region_materials = {m};
-  return p;
+  return test::box_problem(nx, ny, nz, size, test::soft_tissue(youngs_kPa));
 }
 
 BladeSegment horizontal_blade(double y, double z, double x0, double x1) {

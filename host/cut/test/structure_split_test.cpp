@@ -16,6 +16,7 @@
 #include "host/cut/mesh_checks.hpp"
 #include "host/cut/structure_split.hpp"
 #include "host/scene/box_mesh.hpp"
+#include "host/sim/test/box_problem.hpp"
 #include "host/scene/scene.hpp"
 #include "host/scene/surface_shapes.hpp"
 #include "host/sim/model_factory.hpp"
@@ -32,14 +33,7 @@ ModelConfig variant(const std::string& label) {
 }
 
 SimProblem bar_problem(const Eigen::Vector3d& size, int nx, int ny, int nz) {
-  SimProblem p;
-  p.mesh = make_box_tet_mesh(nx, ny, nz, size);
-  Material m;
-  m.youngs_modulus_kPa = 10.0;
-  m.poisson_ratio = 0.4;
-  m.damping_mass_per_s = 5.0;
-  p.region_materials = {m};
-  return p;
+  return test::box_problem(nx, ny, nz, size, test::soft_tissue(10.0));
 }
 
 struct SurfaceCheck {

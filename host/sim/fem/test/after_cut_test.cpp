@@ -12,6 +12,7 @@
 #include "host/cut/mesh_checks.hpp"
 #include "host/cut/tet_cutter.hpp"
 #include "host/scene/box_mesh.hpp"
+#include "host/sim/test/box_problem.hpp"
 #include "host/sim/fem/corotational_fem.hpp"
 #include "host/sim/fem/stable_neo_hookean_fem.hpp"
 
@@ -22,16 +23,10 @@ namespace {
 
 // A bar of size_mm along x, held at its x = 0 face.
 SimProblem clamped_bar(const Eigen::Vector3d& size_mm, int nx, int ny, int nz, double youngs_kPa) {
-  SimProblem p;
-  p.mesh = make_box_tet_mesh(nx, ny, nz, size_mm);
-  Material m;
-  m.youngs_modulus_kPa = youngs_kPa;
-  m.poisson_ratio = 0.4;
-  m.damping_mass_per_s = 5.0;
+  Material m = test::soft_tissue(youngs_kPa);
   m.damping_stiffness_s = 0.01;
-  p.region_materials = {m};
-  for (int v = 0; v < p.mesh.num_vertices(); ++v)
-    if (p.mesh.rest_positions_World_mm(0, v) < 1e-9) p.fixed_vertices.push_back(v);
+  SimProblem p = test::box_problem(nx, ny, nz, size_mm, m);
+  test::clamp_x0_face(p);
   return p;
 }
 

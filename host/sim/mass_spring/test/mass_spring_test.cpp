@@ -8,6 +8,7 @@
 #include <cmath>
 
 #include "host/scene/box_mesh.hpp"
+#include "host/sim/test/box_problem.hpp"
 #include "host/sim/mass_spring/mass_spring_model.hpp"
 
 namespace arnav::host {
@@ -15,13 +16,7 @@ namespace {
 
 using Integrator = MassSpringModel::Integrator;
 
-SimProblem box_problem(int nx, int ny, int nz, const Eigen::Vector3d& size_mm, const Material& m, bool gravity) {
-  SimProblem p;
-  p.mesh = make_box_tet_mesh(nx, ny, nz, size_mm);
-  p.region_materials = {m};
-  if (!gravity) p.gravity_World_mm_s2.setZero();
-  return p;
-}
+using test::box_problem;
 
 ModelConfig config(int iterations = 50, double tol = 1e-10) {
   ModelConfig c;

@@ -11,6 +11,7 @@
 #include <random>
 
 #include "host/scene/box_mesh.hpp"
+#include "host/sim/test/box_problem.hpp"
 #include "host/sim/embedded_elements.hpp"
 #include "host/sim/tet_geometry.hpp"
 #include "host/sim/xpbd/xpbd_model.hpp"
@@ -18,13 +19,7 @@
 namespace arnav::host {
 namespace {
 
-SimProblem box_problem(int nx, int ny, int nz, const Eigen::Vector3d& size_mm, const Material& m, bool gravity) {
-  SimProblem p;
-  p.mesh = make_box_tet_mesh(nx, ny, nz, size_mm);
-  p.region_materials = {m};
-  if (!gravity) p.gravity_World_mm_s2.setZero();
-  return p;
-}
+using test::box_problem;
 
 // The Neo-Hookean energy runs one sweep per substep (small steps), so for it the same
 // work, substeps x iterations sweeps, is given as substeps.
