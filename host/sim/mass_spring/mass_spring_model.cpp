@@ -832,14 +832,15 @@ StepSummary MassSpringModel::semi_implicit_guarded(double dt_s) {
   // resolution (what a cut leaves between its sweeps) can move by their own size in a frame;
   // the step then creates energy or inverts them. Such a step is undone and redone with 2,
   // 4, ..., kMaxRetrySubsteps times the substeps; counted (retries()) and named in the warning.
-  const Eigen::Matrix3Xd x0 = x_, v0 = v_;
+  x_before_step_ = x_;
+  v_before_step_ = v_;
   const InversionMonitor inversions0 = inversions_;
   StepSummary s = step_unguarded(dt_s);
   const int substeps = config_.substeps;
   for (int factor = 2; !s.healthy && s.termination != "factorization_failed" && factor <= kMaxRetrySubsteps; factor *= 2) {
     const std::string first = s.warning;
-    x_ = x0;
-    v_ = v0;
+    x_ = x_before_step_;
+    v_ = v_before_step_;
     inversions_ = inversions0;
     dv_.setZero();
     config_.substeps = substeps * factor;
@@ -880,12 +881,13 @@ StepSummary MassSpringModel::step_guarded(double dt_s) {
       report(s, "fallback: semi_implicit integrator for another " + std::to_string(std::max(fallback_left_s_, 0.0)) + " s", false);
     return s;
   }
-  const Eigen::Matrix3Xd x0 = x_, v0 = v_;
+  x_before_step_ = x_;
+  v_before_step_ = v_;
   const InversionMonitor inversions0 = inversions_;
   StepSummary first = step_unguarded(dt_s);
   if (first.healthy || first.termination == "refused_unstable_dt") return first;
-  x_ = x0;
-  v_ = v0;
+  x_ = x_before_step_;  // restored before the redo saves its own start in the same buffers
+  v_ = v_before_step_;
   inversions_ = inversions0;
   StepSummary s = semi_implicit_step();
   ++fallbacks_;

@@ -180,6 +180,9 @@ class MassSpringModel final : public TissueModel {
   double fallback_left_s_ = 0.0;  // simulated time the semi-implicit fallback still runs
   int fallbacks_ = 0;
   int retries_ = 0;
+  // The state an undone step is redone from (step_guarded, semi_implicit_guarded; members: no
+  // allocation per step).
+  Eigen::Matrix3Xd x_before_step_, v_before_step_;
   EnergyLedger ledger_;
 
   // Work buffers, sized once (no allocation per step).
