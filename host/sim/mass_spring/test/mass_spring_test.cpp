@@ -165,8 +165,7 @@ TEST(MassSpring, AttachmentPullsAndReleaseReturnsToRest) {
   Material m;
   m.damping_mass_per_s = 10.0;
   SimProblem p = box_problem(4, 2, 2, {40, 20, 20}, m, false);
-  for (int k = 0; k <= 2; ++k)
-    for (int j = 0; j <= 2; ++j) p.fixed_vertices.push_back(box_vertex_index(4, 2, 0, j, k));
+  test::clamp_x0_face(p);
   MassSpringModel model(p, Integrator::kSemiImplicit, config(100, 1e-8));
   const int tip = box_vertex_index(4, 2, 4, 1, 1);
   const Eigen::Vector3d rest_tip = p.mesh.rest_positions_World_mm.col(tip);
@@ -191,8 +190,7 @@ TEST(MassSpring, SemiImplicitWarmStartIsNeverWorseThanZero) {
   Material m;
   m.damping_mass_per_s = 2.0;
   SimProblem p = box_problem(4, 2, 2, {40, 20, 20}, m, true);
-  for (int k = 0; k <= 2; ++k)
-    for (int j = 0; j <= 2; ++j) p.fixed_vertices.push_back(box_vertex_index(4, 2, 0, j, k));
+  test::clamp_x0_face(p);
   MassSpringModel model(p, Integrator::kSemiImplicit, config(5, 1e-12));
   const int tip = box_vertex_index(4, 2, 4, 1, 1);
   const Eigen::Vector3d rest_tip = p.mesh.rest_positions_World_mm.col(tip);
@@ -297,8 +295,7 @@ TEST(MassSpringLocalGlobal, IterationsConvergeToTheBackwardEulerStep) {
   m.damping_stiffness_s = 0.01;  // Voigt dashpots: along the spring, direction from the iterate
   m.damping_mass_per_s = 5.0;
   SimProblem p = box_problem(4, 2, 2, {40, 20, 20}, m, true);
-  for (int k = 0; k <= 2; ++k)
-    for (int j = 0; j <= 2; ++j) p.fixed_vertices.push_back(box_vertex_index(4, 2, 0, j, k));
+  test::clamp_x0_face(p);
   Eigen::Matrix3Xd x0 = p.mesh.rest_positions_World_mm;
   x0.row(0) *= 1.2;
   std::vector<double> residual;
@@ -333,8 +330,7 @@ TEST(MassSpringLocalGlobal, AttachmentsRefactorLazilyPullAndRelease) {
   Material m;
   m.damping_mass_per_s = 10.0;
   SimProblem p = box_problem(4, 2, 2, {40, 20, 20}, m, false);
-  for (int k = 0; k <= 2; ++k)
-    for (int j = 0; j <= 2; ++j) p.fixed_vertices.push_back(box_vertex_index(4, 2, 0, j, k));
+  test::clamp_x0_face(p);
   MassSpringModel lg(p, Integrator::kLocalGlobal, config(1, 0.0));
   MassSpringModel semi(p, Integrator::kSemiImplicit, config(100, 1e-10));
   std::vector<AttachmentId> ids_lg, ids_semi;

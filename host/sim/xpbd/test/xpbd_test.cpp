@@ -172,8 +172,7 @@ TEST_P(XpbdEnergy, AttachmentPullsAndReleaseReturnsToRest) {
   Material m;
   m.damping_mass_per_s = 10.0;
   SimProblem p = box_problem(4, 2, 2, {40, 20, 20}, m, false);
-  for (int k = 0; k <= 2; ++k)
-    for (int j = 0; j <= 2; ++j) p.fixed_vertices.push_back(box_vertex_index(4, 2, 0, j, k));
+  test::clamp_x0_face(p);
   XpbdModel model(p, config(20, 2, 1, GetParam()));
   const int tip = box_vertex_index(4, 2, 4, 1, 1);
   const Eigen::Vector3d rest_tip = p.mesh.rest_positions_World_mm.col(tip);
@@ -219,8 +218,7 @@ TEST_P(XpbdEnergy, TwoThreadsGiveTheSameResultAsOne) {
 // changed, three appended), with the quality bound on so that thin pieces turn passive.
 TEST_P(XpbdEnergy, LocalUpdatesKeepAValidParallelScheduleAfterManyChanges) {
   SimProblem p = box_problem(6, 3, 3, {60, 30, 30}, Material{}, true);
-  for (int k = 0; k <= 3; ++k)
-    for (int j = 0; j <= 3; ++j) p.fixed_vertices.push_back(box_vertex_index(6, 3, 0, j, k));
+  test::clamp_x0_face(p);
   EmbeddedElementTracker tracker(8.0);
   tracker.build(p.mesh, p.fixed_vertices, p.embedded);
   // Small steps (so that the sweep order matters little when compared with a fresh build
