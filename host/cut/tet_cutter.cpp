@@ -925,13 +925,12 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
     // watched. Free vertices without a side then get one from the complete surface
     // (45 degrees, within an edge of their tets), as the faces on the cut do.
     {
-      auto watch = [&](int t) { watch_tet(t); };
-      for (int t : candidates) watch(t);
-      for (int t : r.changed_tets) watch(t);
+      for (int t : candidates) watch_tet(t);
+      for (int t : r.changed_tets) watch_tet(t);
       if (finishing_) {
         for (int w = 0; w < mesh_.num_vertices(); ++w)
           if (on_stroke(w))
-            for (int t : vertex_tets_[static_cast<std::size_t>(w)]) watch(t);
+            for (int t : vertex_tets_[static_cast<std::size_t>(w)]) watch_tet(t);
         for (int t : watch_) {
           if (tip_tet_[static_cast<std::size_t>(t)]) continue;
           for (int w : mesh_.tets[static_cast<std::size_t>(t)]) {
