@@ -209,14 +209,16 @@ void Server::handle_request(Client& c, const Message& m) {
   }
   if (m.header.type == "STT_TDATA" || m.header.type == "STP_TDATA") {
     const bool start = m.header.type == "STT_TDATA";
+    bool changed = false;
     {
       std::lock_guard lock(c.mutex);
+      changed = c.tdata != start;
       c.tdata = start;
       if (!start)  // no TDATA after the stop: drop one still queued
         c.pending.erase(std::remove_if(c.pending.begin(), c.pending.end(), [](const auto& p) { return p.first.rfind("TDATA:", 0) == 0; }),
                         c.pending.end());
     }
-    log_("client " + c.peer + (start ? " started" : " stopped") + " tracking data");
+    if (changed) log_("client " + c.peer + (start ? " started" : " stopped") + " tracking data");
   } else if (m.header.type == "GET_STATUS") {
     queue(c, "STATUS", pack_status(options_.status_device_name, ::igtl::StatusMessage::STATUS_OK, "", wall_us()));
   }

