@@ -62,6 +62,14 @@ void receive_loop(int port, std::atomic<bool>& stop, std::vector<Arrival>& out, 
   }
 }
 
+// Baseline in the same run: a plain LCM subscriber of the same poses (LCM + scheduling alone).
+struct LcmBaseline {
+  std::vector<Arrival>* out;
+  void on_pose(const lcm::ReceiveBuffer*, const std::string&, const arnav::tool_pose_t* p) {
+    out->push_back({"T" + p->tool_name.substr(1) + "ToTracker", p->receive_time_wall_us, arnav::monotonic_us()});
+  }
+};
+
 double percentile(std::vector<double> v, double p) {
   if (v.empty()) return 0.0;
   std::sort(v.begin(), v.end());
@@ -112,6 +120,13 @@ int run(int argc, char** argv) {
     threads.emplace_back([&, c] { receive_loop(port, stop, arrivals[static_cast<std::size_t>(c)], errors[static_cast<std::size_t>(c)]); });
   std::vector<std::unique_ptr<arnav::igtl::test::TestClient>> stuck_clients;
   for (int s = 0; s < stuck; ++s) stuck_clients.push_back(std::make_unique<arnav::igtl::test::TestClient>(port));
+  std::vector<Arrival> baseline_arrivals;
+  std::thread baseline_thread([&] {
+    lcm::LCM sub(kLcmUrl);
+    LcmBaseline handler{&baseline_arrivals};
+    sub.subscribe(std::string(arnav::channels::kPoseRegex), &LcmBaseline::on_pose, &handler);
+    while (!stop.load()) sub.handleTimeout(50);
+  });
   std::this_thread::sleep_for(std::chrono::milliseconds(500));  // clients connected
 
   lcm::LCM bus(kLcmUrl);
@@ -150,6 +165,7 @@ int run(int argc, char** argv) {
   const std::string load_after = loadavg();
   stop.store(true);
   for (auto& t : threads) t.join();
+  baseline_thread.join();
   stuck_clients.clear();
   igtl.stop(SIGTERM, 15.0);
 
@@ -170,6 +186,13 @@ int run(int argc, char** argv) {
     j["clients"].push_back({{"received", lat_us.size()}, {"missed", published.size() - lat_us.size()}, {"p50_us", percentile(lat_us, 50)},
                             {"p99_us", percentile(lat_us, 99)}, {"max_us", percentile(lat_us, 100)}, {"error", errors[static_cast<std::size_t>(c)]}});
   }
+  std::vector<double> baseline_us;
+  for (const auto& a : baseline_arrivals)
+    if (const auto it = published.find({a.name, a.wall_key_us}); it != published.end())
+      baseline_us.push_back(static_cast<double>(a.arrival_mono_us - it->second));
+  j["lcm_only_latency_us"] = {{"what", "the same poses received by a plain LCM subscriber in this process (LCM and scheduling alone)"},
+                              {"samples", baseline_us.size()}, {"p50", percentile(baseline_us, 50)}, {"p99", percentile(baseline_us, 99)},
+                              {"max", percentile(baseline_us, 100)}};
   std::ifstream stats_in(dir + "/stats.json");
   nlohmann::json server_stats = nlohmann::json::object();
   if (stats_in) server_stats = nlohmann::json::parse(stats_in, nullptr, false);

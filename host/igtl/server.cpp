@@ -27,7 +27,8 @@ struct Server::Client {
   std::vector<std::pair<std::string, Packet>> pending;  // latest per stream, oldest stream first
   bool tdata = false;
   bool closing = false;
-  std::int64_t last_sent_mono_us = 0;
+  bool sending = false;                // the sender thread has a batch on the way (not under the lock)
+  std::int64_t last_sent_mono_us = 0;  // guarded by mutex
   std::atomic<int> threads_running{2};
   std::thread reader;
   std::thread sender;
@@ -36,6 +37,10 @@ struct Server::Client {
 namespace {
 
 std::string errno_text() { return std::strerror(errno); }
+
+// The rest of a message the fast path could send only in part: never replaced by a newer
+// message (that would cut a message in the middle of the stream).
+const std::string kPartialStream = std::string("\0partial", 8);
 
 timeval to_timeval(double s) {
   timeval tv{};
@@ -226,23 +231,45 @@ void Server::handle_request(Client& c, const Message& m) {
   ++stats_.requests_handled;
 }
 
+// Fast path: with nothing queued and the sender idle, the caller (the LCM thread) sends at
+// once without blocking (MSG_DONTWAIT), saving the sender thread's wake-up; what the socket
+// does not take goes to the sender thread, which may block up to the send timeout.
 void Server::queue(Client& c, const std::string& stream, const Packet& packet) {
-  bool replaced = false;
+  bool replaced = false, sent_now = false;
+  std::string failure;
   {
     std::lock_guard lock(c.mutex);
     if (c.closing) return;
-    auto it = std::find_if(c.pending.begin(), c.pending.end(), [&](const auto& p) { return p.first == stream; });
-    if (it != c.pending.end()) {
-      it->second = packet;
-      replaced = true;
+    if (!c.sending && c.pending.empty()) {
+      const ssize_t n = ::send(c.fd, packet->data(), packet->size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+      if (n == static_cast<ssize_t>(packet->size())) {
+        sent_now = true;
+        c.last_sent_mono_us = monotonic_us();
+      } else if (n > 0) {
+        c.pending.emplace_back(kPartialStream, std::make_shared<const std::vector<std::uint8_t>>(packet->begin() + n, packet->end()));
+      } else if (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) {
+        failure = "send failed: " + errno_text();
+      } else {
+        c.pending.emplace_back(stream, packet);
+      }
     } else {
-      c.pending.emplace_back(stream, packet);
+      auto it = std::find_if(c.pending.begin(), c.pending.end(), [&](const auto& p) { return p.first == stream; });
+      if (it != c.pending.end()) {
+        it->second = packet;
+        replaced = true;
+      } else {
+        c.pending.emplace_back(stream, packet);
+      }
     }
   }
-  c.wake.notify_one();
-  if (replaced) {
+  if (!failure.empty()) {
+    close_client(c, failure, true);
+    return;
+  }
+  if (!sent_now) c.wake.notify_one();
+  if (replaced || sent_now) {
     std::lock_guard lock(stats_mutex_);
-    ++stats_.messages_replaced;
+    ++(replaced ? stats_.messages_replaced : stats_.messages_sent);
   }
 }
 
@@ -286,17 +313,18 @@ void Server::sender_loop(Client& c) {
   const auto keepalive = std::chrono::microseconds(static_cast<std::int64_t>(options_.keepalive_s * 1e6));
   std::vector<std::pair<std::string, Packet>> batch;
   for (;;) {
+    bool keepalive_due = false;
     {
       std::unique_lock lock(c.mutex);
+      c.sending = false;
       c.wake.wait_for(lock, keepalive, [&] { return c.closing || !c.pending.empty(); });
       if (c.closing) break;
       batch.swap(c.pending);
+      keepalive_due = batch.empty() && monotonic_us() - c.last_sent_mono_us >= static_cast<std::int64_t>(keepalive.count());
+      if (batch.empty() && !keepalive_due) continue;
+      c.sending = true;
     }
-    bool keepalive_sent = false;
-    if (batch.empty() && monotonic_us() - c.last_sent_mono_us >= static_cast<std::int64_t>(keepalive.count())) {
-      batch.emplace_back("STATUS", pack_status(options_.status_device_name, ::igtl::StatusMessage::STATUS_OK, "", wall_us()));
-      keepalive_sent = true;
-    }
+    if (keepalive_due) batch.emplace_back("STATUS", pack_status(options_.status_device_name, ::igtl::StatusMessage::STATUS_OK, "", wall_us()));
     std::uint64_t sent = 0;
     bool ok = true;
     for (const auto& item : batch) {
@@ -304,11 +332,14 @@ void Server::sender_loop(Client& c) {
       ++sent;
     }
     batch.clear();
-    if (sent > 0) c.last_sent_mono_us = monotonic_us();
+    if (sent > 0) {
+      std::lock_guard lock(c.mutex);
+      c.last_sent_mono_us = monotonic_us();
+    }
     {
       std::lock_guard lock(stats_mutex_);
       stats_.messages_sent += sent;
-      if (keepalive_sent && ok) ++stats_.keepalives_sent;
+      if (keepalive_due && ok) ++stats_.keepalives_sent;
     }
     if (!ok) break;
   }

@@ -173,6 +173,8 @@ TEST(HilIgtl, SlicerAndPackagedClientsOnTheBench) {
     const std::size_t transforms = count_of(log, "Receiving TRANSFORM data type.");
     EXPECT_GE(transforms, 300u) << "ReceiveClient " << i << ":\n" << log.substr(0, 2000);
     EXPECT_GE(count_of(log, "Time stamp: 17"), transforms) << "timestamps are not UTC seconds";
+    // ReceiveClient prints the matrix only when the body's CRC checks (the last one may be cut by SIGTERM).
+    EXPECT_GE(count_of(log, "0, 0, 0, 1\n=============") + 1, transforms) << "TRANSFORMs whose CRC failed in ReceiveClient " << i;
   }
   // Packaged TrackingDataClient: STT_TDATA answered with TDATA of both tools.
   const std::string tlog = read_file(tracking.log_path());

@@ -43,7 +43,7 @@ bool TestClient::send(const std::vector<std::uint8_t>& bytes) {
 
 const std::vector<Message>& TestClient::receive_until(std::size_t count, double timeout_s) {
   const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-  std::vector<std::uint8_t> buffer(256 * 1024);
+  std::vector<std::uint8_t>& buffer = buffer_;
   while (fd_ >= 0 && !closed_ && received_.size() < count && std::chrono::steady_clock::now() < end) {
     pollfd p{fd_, POLLIN, 0};
     if (::poll(&p, 1, 20) <= 0) continue;

@@ -38,6 +38,7 @@ class TestClient {
   bool closed_ = false;
   StreamReader reader_;
   std::vector<Message> received_;
+  std::vector<std::uint8_t> buffer_ = std::vector<std::uint8_t>(256 * 1024);
 };
 
 std::vector<std::uint8_t> raw_header_bytes(const Header& header);
