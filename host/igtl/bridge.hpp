@@ -4,11 +4,17 @@
 // offset is configured), a tool that is not seen (any status but VALID) sends nothing;
 // the valid tools of one tracker frame become one TDATA for the clients that asked;
 // camera frames (image_frame_t, JPEG/PNG) become RGB IMAGE messages, optionally
-// downscaled and rate limited. Called from the LCM thread only.
+// downscaled and rate limited, on the bridge's own image thread (decoding a 720p JPEG takes
+// milliseconds: the LCM thread only hands the latest frame over, so poses never wait for
+// an image). on_pose/on_frame/flush are called from the LCM thread only.
+#include <condition_variable>
 #include <cstdint>
 #include <map>
+#include <mutex>
+#include <optional>
 #include <set>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -37,17 +43,21 @@ struct BridgeStats {
   std::uint64_t frames = 0;
   std::uint64_t images = 0;
   std::uint64_t frames_rate_limited = 0;
+  std::uint64_t frames_replaced = 0;     // a newer frame arrived before the image thread took it
   std::uint64_t frames_undecodable = 0;
 };
 
 class Bridge {
  public:
   Bridge(BridgeOptions options, Server& server, Server::Log log);
+  ~Bridge();
+  Bridge(const Bridge&) = delete;
+  Bridge& operator=(const Bridge&) = delete;
   void on_pose(const tool_pose_t& pose);
   void on_frame(const image_frame_t& frame);
   // Sends the TDATA of a tracker frame still being collected (end of a log).
   void flush();
-  const BridgeStats& stats() const { return stats_; }
+  BridgeStats stats() const;
 
  private:
   struct FrameGroup {
@@ -61,6 +71,8 @@ class Bridge {
   const std::string* device_name(const std::string& tool, const std::string& child, const std::string& parent);
   void add_to_frame(const tool_pose_t& pose, const std::vector<TrackedElement>& elements);
   void send_tdata(FrameGroup& group);
+  void image_loop();
+  void send_image(const image_frame_t& frame);
 
   BridgeOptions options_;
   Server& server_;
@@ -69,7 +81,12 @@ class Bridge {
   std::set<std::string> unnamed_;
   std::map<int, FrameGroup> frames_;           // per pose source (NDI, camera)
   std::int64_t last_image_capture_us_ = 0;
+  mutable std::mutex mutex_;               // guards stats_, next_frame_, stopping_
+  std::condition_variable image_wake_;
+  std::optional<image_frame_t> next_frame_;
+  bool stopping_ = false;
   BridgeStats stats_;
+  std::thread image_thread_;
 };
 
 }  // namespace arnav::igtl

@@ -84,6 +84,7 @@ nlohmann::json stats_json(const arnav::igtl::Bridge& bridge, const arnav::igtl::
           {"frames", b.frames},
           {"images", b.images},
           {"frames_rate_limited", b.frames_rate_limited},
+          {"frames_replaced", b.frames_replaced},
           {"frames_undecodable", b.frames_undecodable},
           {"clients_accepted", s.clients_accepted},
           {"clients_now", s.clients_now},
