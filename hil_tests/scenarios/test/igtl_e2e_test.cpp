@@ -198,5 +198,57 @@ TEST(HilIgtl, SlicerAndPackagedClientsOnTheBench) {
   if (::testing::Test::HasFailure()) std::fprintf(stderr, "%s\n--- arnav-igtl ---\n%s\n", run.logs().c_str(), igtl.log_tail(6000).c_str());
 }
 
+// The appliance's synthetic camera publishing every frame (docs/camera.md): arnav-igtl turns
+// them into IMAGE messages, checked by the packaged ReceiveClient (printed only with a good CRC).
+TEST(HilIgtl, CameraFramesBecomeImagesForThePackagedClient) {
+  HilRun run;
+  HilRunOptions o;
+  o.extra_config =
+      "camera:\n  name: bench\n  source: synthetic\n  width: 640\n  height: 480\n  fps: 15\n"
+      "  detector: {family: tag36h11, decimate: 2, threads: 1}\n"
+      "  publish_frames: {every: 1, jpeg_quality: 80}\n"
+      "  tools:\n    - name: cam_marker\n      tag: {id: 3, size_mm: 40}\n"
+      "  synthetic:\n    boards:\n      - tool: cam_marker\n        trajectory: {distance_mm: 400, amplitude_mm: [30, 20, 40], period_s: 5}\n";
+  const std::int64_t t0 = monotonic_us();
+  if (const std::string why = run.start(o); !why.empty()) GTEST_SKIP() << "HIL bench not available: " << why;
+  ASSERT_TRUE(run.wait_all_valid(10, t0, 90.0)) << "no tracking within 90 s\n" << run.logs();
+  const std::string dir = run.dir();
+  ChildProcess igtl({env_or("ARNAV_IGTL_EXE", ARNAV_IGTL_EXE), "--lcm", std::string(HilRun::kLcmUrl) + "&recv_buf_size=4194304", "--port", "0",
+                     "--image-downscale", "2", "--stats-json", dir + "/igtl_stats.json"},
+                    {}, dir + "/igtl.log", true);
+  const auto ready = igtl.read_line(30.0);
+  ASSERT_TRUE(ready && ready->rfind("READY ", 0) == 0) << igtl.log_tail();
+  const std::string port_text = ready->substr(6);
+  ChildProcess receiver({env_or("ARNAV_IGTL_RECEIVE_CLIENT", ARNAV_IGTL_RECEIVE_CLIENT), "127.0.0.1", port_text}, {}, dir + "/receive_client.log");
+  igtl::test::TestClient raw(std::stoi(port_text));
+  ASSERT_TRUE(raw.connected()) << raw.why();
+  std::size_t images = 0;
+  igtl::test::Unpacked last_image;
+  for (int i = 0; i < 100 && images < 10 && !raw.closed_by_server(); ++i) {
+    raw.receive_until(1u << 20, 0.1);
+    for (const auto& m : raw.take())
+      if (m.header.type == "IMAGE") {
+        ++images;
+        last_image = igtl::test::unpack(m);
+      }
+  }
+  receiver.stop(SIGTERM, 5.0);
+  EXPECT_EQ(igtl.stop(SIGTERM, 15.0), 0) << igtl.log_tail();
+  run.stop_appliance();
+  run.stop_simulator();
+  EXPECT_GE(images, 10u) << igtl.log_tail() << run.logs();
+  EXPECT_TRUE(last_image.crc_ok);
+  EXPECT_EQ(last_image.device_name, "Image_Reference");
+  EXPECT_EQ(last_image.width, 320);
+  EXPECT_EQ(last_image.height, 240);
+  EXPECT_EQ(last_image.components, 3);
+  EXPECT_GT(last_image.wall_us, wall_us() - 120'000'000);  // a UTC capture time, not zero
+  const std::string log = read_file(receiver.log_path());
+  EXPECT_GE(count_of(log, "Receiving IMAGE data type."), 3u) << log.substr(0, 2000);
+  EXPECT_GE(count_of(log, "Dimensions            : (320, 240, 1)"), 3u) << "IMAGE printed only with a good CRC\n" << log.substr(0, 2000);
+  std::printf("[ hil ] igtl: %zu IMAGEs to the raw client, %zu printed by ReceiveClient\n", images,
+              count_of(log, "Dimensions            : (320, 240, 1)"));
+}
+
 }  // namespace
 }  // namespace arnav::hil
