@@ -65,9 +65,12 @@ Server::Server(ServerOptions options, Log log) : options_(std::move(options)), l
   const int yes = 1;
   ::setsockopt(listen_fd_, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
   if (::bind(listen_fd_, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0 || ::listen(listen_fd_, 64) != 0) {
+    const int error = errno;
     const std::string why = errno_text();
     ::close(listen_fd_);
-    throw ServerError("cannot listen on " + where + ": " + why + " (another OpenIGTLink server, e.g. PlusServer, may hold the port: choose one with --port)");
+    throw ServerError("cannot listen on " + where + ": " + why +
+                      (error == EADDRINUSE ? " (another OpenIGTLink server, e.g. PlusServer, holds the port: choose another with --port)"
+                                           : " (check that --bind names an address of this machine)"));
   }
   socklen_t len = sizeof addr;
   ::getsockname(listen_fd_, reinterpret_cast<sockaddr*>(&addr), &len);
