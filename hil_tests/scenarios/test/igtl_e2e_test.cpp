@@ -19,6 +19,8 @@
 #include <thread>
 
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "host/igtl/messages.hpp"
 #include "host/igtl/test/test_client.hpp"
@@ -243,6 +245,12 @@ TEST(HilIgtl, CameraFramesBecomeImagesForThePackagedClient) {
   EXPECT_EQ(last_image.height, 240);
   EXPECT_EQ(last_image.components, 3);
   EXPECT_GT(last_image.wall_us, wall_us() - 120'000'000);  // a UTC capture time, not zero
+  if (const char* save = std::getenv("ARNAV_IGTL_SAVE_IMAGE"); save && last_image.crc_ok && last_image.components == 3) {
+    // What a client received, as a picture (docs/igtl.md): RGB pixels back to BGR for OpenCV.
+    cv::Mat rgb(last_image.height, last_image.width, CV_8UC3, last_image.pixels.data()), bgr;
+    cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+    cv::imwrite(save, bgr);
+  }
   const std::string log = read_file(receiver.log_path());
   EXPECT_GE(count_of(log, "Receiving IMAGE data type."), 3u) << log.substr(0, 2000);
   EXPECT_GE(count_of(log, "Dimensions            : (320, 240, 1)"), 3u) << "IMAGE printed only with a good CRC\n" << log.substr(0, 2000);
