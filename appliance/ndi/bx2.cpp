@@ -90,9 +90,10 @@ ParseError parse_6d(Cursor c, std::uint32_t items, const FrameInfo& frame, Track
         if (!std::isfinite(x)) return ParseError::BadField;
       }
       r.state = HandleState::Valid;
-      r.q_NdiTool_wxyz = {v[0], v[1], v[2], v[3]};
-      r.p_NdiTool_mm = {v[4], v[5], v[6]};
-      r.rms_error_mm = v[7];
+      const auto d = [&](int k) { return static_cast<double>(v[k]); };
+      r.q_NdiTool_wxyz = {d(0), d(1), d(2), d(3)};
+      r.p_NdiTool_mm = {d(4), d(5), d(6)};
+      r.rms_error_mm = d(7);
     }
     ++out.count;
   }

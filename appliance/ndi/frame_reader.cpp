@@ -75,7 +75,8 @@ std::size_t FrameReader::find_start(std::span<const std::uint8_t> avail, bool& p
   for (std::size_t pos = 0; pos < avail.size(); ++pos) {
     int m = pair_match(avail, pos, kStreamStart0, kStreamStart1);
     if (expect_binary_) {
-      m = std::max({m, pair_match(avail, pos, kBxStart0, kBxStart1), pair_match(avail, pos, kExtendedStart0, kBxStart1)});
+      m = std::max(m, pair_match(avail, pos, kBxStart0, kBxStart1));
+      if (expect_extended_) m = std::max(m, pair_match(avail, pos, kExtendedStart0, kBxStart1));
       const int a = ascii_start_match(avail.subspan(pos));
       if (a == 2) return pos;
       if (a == 1 && pos + 8 > avail.size()) m = std::max(m, 1);  // keyword cut off at the end of the buffer
@@ -91,8 +92,8 @@ std::size_t FrameReader::find_start(std::span<const std::uint8_t> avail, bool& p
   return avail.size();
 }
 
-FrameReader::Step FrameReader::reply_at(std::span<const std::uint8_t> bytes, bool binary_allowed, Frame& out,
-                                        std::size_t& used) {
+FrameReader::Step FrameReader::reply_at(std::span<const std::uint8_t> bytes, bool binary_allowed, bool extended_allowed,
+                                        Frame& out, std::size_t& used) {
   used = 1;
   if (binary_allowed && bytes[0] == kBxStart0) {
     if (bytes.size() < kBxHeaderBytes) return Step::NeedMore;
@@ -112,7 +113,7 @@ FrameReader::Step FrameReader::reply_at(std::span<const std::uint8_t> bytes, boo
     used = total;
     return Step::Done;
   }
-  if (binary_allowed && bytes[0] == kExtendedStart0) {
+  if (binary_allowed && extended_allowed && bytes[0] == kExtendedStart0) {
     if (bytes.size() < kExtendedHeaderBytes) return Step::NeedMore;
     const std::uint32_t length = u32(bytes.data() + 2);
     if (bytes[1] != kBxStart1 || length == 0 || length > kMaxExtendedReply) {
@@ -167,7 +168,7 @@ FrameReader::Step FrameReader::stream_at(std::span<const std::uint8_t> bytes, Fr
     return Step::Corrupt;
   }
   std::size_t inner_used = 0;
-  const Step s = reply_at(inner, true, out, inner_used);
+  const Step s = reply_at(inner, true, true, out, inner_used);
   if (s == Step::NeedMore) return s;
   if (s == Step::Corrupt) {
     used = header;  // drop the packet header; what follows is resynchronised
@@ -189,7 +190,8 @@ bool FrameReader::next(Frame& out) {
     avail = avail.subspan(pos);
     out.stream_id = {};
     std::size_t used = 0;
-    const Step s = avail[0] == kStreamStart0 ? stream_at(avail, out, used) : reply_at(avail, expect_binary_, out, used);
+    const Step s = avail[0] == kStreamStart0 ? stream_at(avail, out, used)
+                                             : reply_at(avail, expect_binary_, expect_binary_ && expect_extended_, out, used);
     if (s == Step::NeedMore) return false;
     if (s == Step::Corrupt) {
       skip(used);

@@ -5,7 +5,10 @@
 //  - binary replies C4 A5 (BX, BX2), whose header CRC must check before the length field
 //    is trusted, then the body CRC;
 //  - extended binary replies C8 A5 with a u32 length and no CRC (long replies such as
-//    images; at most kMaxExtendedReply bytes; never a source of poses);
+//    images; at most kMaxExtendedReply bytes; never a source of poses). With no CRC to
+//    check, a C8 A5 in line noise would make the reader wait for up to 1 MiB, so they are
+//    only recognised inside a stream packet (whose header CRC checked) or when a caller
+//    that asked for one says so (set_expect_extended);
 //  - stream packets D4 B5, u16 id length, id, u16 CRC of the bytes before it, then one
 //    ordinary reply of any kind above: pushed by the device after STREAM (TCP devices);
 //    the id comes out in Frame::stream_id.
@@ -60,6 +63,8 @@ class FrameReader {
   // a reply, and binary replies are only recognised inside stream packets.
   void set_expect_binary(bool expect) { expect_binary_ = expect; }
   bool expect_binary() const { return expect_binary_; }
+  // Whether a bare C8 A5 starts an extended reply (only while binary replies are expected).
+  void set_expect_extended(bool expect) { expect_extended_ = expect; }
 
   void feed(std::span<const std::uint8_t> bytes);
   // Next complete reply, or false when more bytes are needed.
@@ -73,7 +78,7 @@ class FrameReader {
  private:
   enum class Step : std::uint8_t { NeedMore, Done, Corrupt };
   // A reply (not a stream packet) at the start of bytes; on Done sets out and used.
-  Step reply_at(std::span<const std::uint8_t> bytes, bool binary_allowed, Frame& out, std::size_t& used);
+  Step reply_at(std::span<const std::uint8_t> bytes, bool binary_allowed, bool extended_allowed, Frame& out, std::size_t& used);
   Step stream_at(std::span<const std::uint8_t> bytes, Frame& out, std::size_t& used);
   std::size_t find_start(std::span<const std::uint8_t> avail, bool& partial) const;
   void skip(std::size_t n);
@@ -82,6 +87,7 @@ class FrameReader {
   std::vector<std::uint8_t> buf_;
   std::size_t start_ = 0;
   bool expect_binary_ = false;
+  bool expect_extended_ = false;
   ReaderCounters counters_;
 };
 

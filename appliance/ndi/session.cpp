@@ -296,10 +296,10 @@ bool Session::choose_network_mode() {
   if (r.status == CmdResult::Ok) {
     const auto dot = r.body.find('.');
     if (dot != std::string::npos) {
-      int major = 0;
+      int revision = 0;
       std::size_t i = dot + 1;
-      for (; i < r.body.size() && i < dot + 4 && r.body[i] >= '0' && r.body[i] <= '9'; ++i) major = major * 10 + (r.body[i] - '0');
-      if (i > dot + 1) api_major_ = major;
+      for (; i < r.body.size() && i < dot + 4 && r.body[i] >= '0' && r.body[i] <= '9'; ++i) revision = revision * 10 + (r.body[i] - '0');
+      if (i > dot + 1) api_major_ = revision;
     }
   }
   use_bx2_ = use_bx_ && api_major_ >= 3;

@@ -5,6 +5,7 @@
 // (device timestamp -> published). Exit 0 when no frame was lost or repeated, every pose
 // was valid and the appliance stopped cleanly. Needs root (namespaces).
 #include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>

@@ -34,9 +34,10 @@ void parse_all_ascii(std::string_view body) {
   (void)decode_command(body);
 }
 
-void run_reader(const std::uint8_t* data, std::size_t size, bool binary, std::size_t chunk) {
+void run_reader(const std::uint8_t* data, std::size_t size, bool binary, std::size_t chunk, bool extended = false) {
   FrameReader reader;
   reader.set_expect_binary(binary);
+  reader.set_expect_extended(extended);
   Frame f;
   TrackingReply t;
   for (std::size_t pos = 0; pos < size; pos += chunk) {
@@ -68,6 +69,7 @@ void run_reader(const std::uint8_t* data, std::size_t size, bool binary, std::si
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   run_reader(data, size, true, size == 0 ? 1 : size);
   run_reader(data, size, true, 7);
+  run_reader(data, size, true, 5, true);
   run_reader(data, size, false, size == 0 ? 1 : size);
   TrackingReply t;
   (void)parse_bx(std::span(data, size), t);

@@ -57,10 +57,12 @@ struct Seen {
   std::string text;
 };
 
-std::vector<Seen> read_all(const Bytes& wire, bool expect_binary, std::size_t chunk, FrameReader* keep = nullptr) {
+std::vector<Seen> read_all(const Bytes& wire, bool expect_binary, std::size_t chunk, FrameReader* keep = nullptr,
+                           bool expect_extended = false) {
   FrameReader local;
   FrameReader& reader = keep ? *keep : local;
   reader.set_expect_binary(expect_binary);
+  reader.set_expect_extended(expect_extended);
   std::vector<Seen> out;
   Frame f;
   for (std::size_t pos = 0; pos < wire.size(); pos += chunk) {
@@ -149,16 +151,28 @@ TEST(StreamFramer, ExtendedRepliesAreFramedByTheirLengthAndBoundedInSize) {
   Bytes ext = {kExtendedStart0, 0xA5, 5, 0, 0, 0, 'h', 'e', 'l', 'l', 'o'};
   Bytes wire = ext;
   append(wire, packet("ARNAV", bx2_bytes(8)));
-  auto seen = read_all(wire, true, 2);
+  auto seen = read_all(wire, true, 2, nullptr, true);
   ASSERT_EQ(seen.size(), 2u);
   EXPECT_EQ(seen[0].kind, Frame::Kind::Extended);
   EXPECT_EQ(seen[1].frame, 8u);
+  // Inside a stream packet too (its header CRC vouches for the start).
+  seen = read_all(packet("IMG", ext), true, 3);
+  ASSERT_EQ(seen.size(), 1u);
+  EXPECT_EQ(seen[0].kind, Frame::Kind::Extended);
+  EXPECT_EQ(seen[0].id, "IMG");
   // A length beyond kMaxExtendedReply is not waited for: the next packet still comes out.
   Bytes huge = {kExtendedStart0, 0xA5, 0xFF, 0xFF, 0xFF, 0x7F};
   append(huge, packet("ARNAV", bx2_bytes(9)));
-  seen = read_all(huge, true, 5);
+  seen = read_all(huge, true, 5, nullptr, true);
   ASSERT_FALSE(seen.empty());
   EXPECT_EQ(seen.back().frame, 9u);
+  // Unasked for, a bare C8 A5 with a plausible length (line noise) does not hold up the
+  // stream behind it.
+  Bytes noise = {kExtendedStart0, 0xA5, 0x00, 0x00, 0x01, 0x00};
+  append(noise, packet("ARNAV", bx2_bytes(10)));
+  seen = read_all(noise, true, 4);
+  ASSERT_EQ(seen.size(), 1u);
+  EXPECT_EQ(seen[0].frame, 10u);
 }
 
 TEST(StreamFramer, RandomFaultStreamNeverYieldsAFrameThatWasNotSent) {

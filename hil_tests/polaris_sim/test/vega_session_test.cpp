@@ -88,7 +88,8 @@ Tally track(ndi::Session& s, double seconds) {
         for (std::size_t i = 0; i < r.count; ++i) {
           const auto& h = r.handles[i];
           if (h.state != ndi::HandleState::Valid) continue;
-          const double qn = std::hypot(h.q_NdiTool_wxyz[0], h.q_NdiTool_wxyz[1], h.q_NdiTool_wxyz[2], h.q_NdiTool_wxyz[3]);
+          const auto& q = h.q_NdiTool_wxyz;
+          const double qn = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
           EXPECT_NEAR(qn, 1.0, 1e-5);
           EXPECT_TRUE(std::isfinite(h.p_NdiTool_mm[0]) && std::isfinite(h.p_NdiTool_mm[1]) && std::isfinite(h.p_NdiTool_mm[2]));
         }
