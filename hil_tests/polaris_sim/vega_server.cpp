@@ -43,9 +43,12 @@ std::string option_value(const std::string& params, const std::string& name) {
 }
 
 Bytes stream_packet(const std::string& id, const Bytes& reply) {
-  Bytes out = {ndi::kStreamStart0, ndi::kStreamStart1, static_cast<std::uint8_t>(id.size() & 0xFF),
-               static_cast<std::uint8_t>(id.size() >> 8)};
-  out.insert(out.end(), id.begin(), id.end());
+  Bytes out;
+  out.reserve(6 + id.size() + reply.size());
+  for (std::uint8_t b : {ndi::kStreamStart0, ndi::kStreamStart1, static_cast<std::uint8_t>(id.size() & 0xFF),
+                         static_cast<std::uint8_t>(id.size() >> 8)})
+    out.push_back(b);
+  for (char c : id) out.push_back(static_cast<std::uint8_t>(c));
   const std::uint16_t crc = ndi::crc16(std::span(out));
   out.push_back(static_cast<std::uint8_t>(crc & 0xFF));
   out.push_back(static_cast<std::uint8_t>(crc >> 8));

@@ -32,8 +32,10 @@ Bytes bx2_bytes(std::uint32_t frame) {
 }
 
 Bytes packet(const std::string& id, const Bytes& reply) {
-  Bytes out = {kStreamStart0, kStreamStart1, static_cast<std::uint8_t>(id.size()), 0};
-  out.insert(out.end(), id.begin(), id.end());
+  Bytes out;
+  out.reserve(6 + id.size() + reply.size());
+  for (std::uint8_t b : {kStreamStart0, kStreamStart1, static_cast<std::uint8_t>(id.size()), std::uint8_t{0}}) out.push_back(b);
+  for (char c : id) out.push_back(static_cast<std::uint8_t>(c));
   const std::uint16_t crc = crc16(std::span(out));
   out.push_back(static_cast<std::uint8_t>(crc & 0xFF));
   out.push_back(static_cast<std::uint8_t>(crc >> 8));
@@ -68,7 +70,7 @@ std::vector<Seen> read_all(const Bytes& wire, bool expect_binary, std::size_t ch
   for (std::size_t pos = 0; pos < wire.size(); pos += chunk) {
     reader.feed(std::span(wire.data() + pos, std::min(chunk, wire.size() - pos)));
     while (reader.next(f)) {
-      Seen s{f.streamed(), std::string(f.stream()), f.kind, f.crc_ok};
+      Seen s{f.streamed(), std::string(f.stream()), f.kind, f.crc_ok, 0, {}};
       if (f.kind == Frame::Kind::Binary && f.crc_ok) {
         TrackingReply t;
         if (parse_bx2(f.bytes, t, true) == ParseError::None) s.frame = t.frame_number();
@@ -128,8 +130,11 @@ TEST(StreamFramer, CorruptPacketHeaderIsSkippedAndTheNextPacketIsFine) {
     const auto seen = read_all(wire, true, 4, &reader);
     ASSERT_FALSE(seen.empty()) << at;
     // Nothing from the damaged packet passes as a good stream frame of ours.
-    for (const auto& s : seen)
-      if (s.streamed && s.crc_ok && s.id == "ARNAV") EXPECT_EQ(s.frame, 2u) << at;
+    for (const auto& s : seen) {
+      if (s.streamed && s.crc_ok && s.id == "ARNAV") {
+        EXPECT_EQ(s.frame, 2u) << at;
+      }
+    }
     EXPECT_EQ(seen.back().frame, 2u) << at;
     EXPECT_GE(reader.counters().crc_errors, 1) << at;
   }
