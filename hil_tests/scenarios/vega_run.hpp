@@ -31,19 +31,23 @@ struct VegaRunOptions {
   int sim_priority = 0;                 // SCHED_FIFO of the simulator (0: normal)
 };
 
-// What the subscriber saw. Frames and losses are counted from the device frame numbers
-// of each tool's poses; latency is publish_time_mono_us - device_time_us of every pose
-// (device timestamp -> published; both on this machine's CLOCK_MONOTONIC because the
-// simulated device stamps frames with it) and arrival - device time at the subscriber.
+// What the subscriber saw, and what the appliance reported. Lost frames are the
+// appliance's own count (device_health_t.dropped_frames: gaps in the device frame numbers
+// it received, since bring-up); the subscriber's gaps (lcm_gaps) add the datagrams LCM
+// lost on the way to this process, a separate figure. Latency is publish_time_mono_us -
+// device_time_us of every pose (device timestamp -> published; both on this machine's
+// CLOCK_MONOTONIC because the simulated device stamps frames with it) and arrival - device
+// time at the subscriber.
 struct VegaStats {
   std::uint64_t poses = 0;
   std::uint64_t frames = 0;        // new frame numbers of the first tool
-  std::uint64_t lost = 0;          // frame-number gaps, worst tool
+  std::uint64_t lcm_gaps = 0;      // frame-number gaps seen by this subscriber, worst tool
   std::uint64_t repeated = 0;      // a frame number not above the last one, all tools
   std::uint64_t not_valid = 0;     // poses whose status is not VALID
   std::uint64_t bad_device_time = 0;  // device time after publish time (impossible)
   double max_gap_s = 0.0;          // longest wait between two poses of the first tool
-  std::int64_t appliance_dropped_frames = -1;  // last device_health_t.dropped_frames
+  std::int64_t appliance_dropped_frames = -1;  // last device_health_t.dropped_frames (since bring-up)
+  std::int64_t appliance_frames_total = -1;    // last device_health_t.frames_total (since bring-up)
   std::int64_t appliance_reconnects = -1;
   std::vector<float> publish_latency_us;   // device time -> published
   std::vector<float> arrival_latency_us;   // device time -> received by this subscriber

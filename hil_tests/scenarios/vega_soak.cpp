@@ -52,9 +52,12 @@ static int main_body(int argc, char** argv) {
   std::this_thread::sleep_for(std::chrono::duration<double>(warmup_s));
   run.monitor().reset();
   const std::int64_t start_us = arnav::monotonic_us();
+  const std::int64_t frames_at_start = run.monitor().snapshot().appliance_frames_total;
   std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
   const double measured_s = static_cast<double>(arnav::monotonic_us() - start_us) * 1e-6;
+  std::this_thread::sleep_for(std::chrono::milliseconds(1200));  // one more health message (1 Hz)
   const VegaStats s = run.monitor().snapshot();
+  const std::int64_t lost = s.appliance_dropped_frames;  // since bring-up, warm-up included
   const int appliance_rc = run.stop_appliance();
   run.stop_simulator();
 
@@ -62,9 +65,12 @@ static int main_body(int argc, char** argv) {
   j["rate_hz"] = o.rate_hz;
   j["tools"] = o.tools;
   j["measured_s"] = measured_s;
-  j["frames"] = s.frames;
+  j["frames_published"] = s.frames;  // new frame numbers of tool1 seen by the subscriber in the window
   j["expected_frames"] = static_cast<std::uint64_t>(measured_s * o.rate_hz);
-  j["lost"] = s.lost;
+  j["appliance_frames_total"] = s.appliance_frames_total;  // since bring-up
+  j["appliance_frames_in_window"] = s.appliance_frames_total - frames_at_start;  // health is 1 Hz: +-1 s of frames
+  j["lost"] = lost;
+  j["lcm_gaps"] = s.lcm_gaps;
   j["repeated"] = s.repeated;
   j["poses"] = s.poses;
   j["not_valid"] = s.not_valid;
@@ -83,9 +89,9 @@ static int main_body(int argc, char** argv) {
   std::filesystem::copy_file(run.dir() + "/appliance.log", out_dir + "/appliance.log", std::filesystem::copy_options::overwrite_existing);
   std::filesystem::copy_file(run.dir() + "/sim.log", out_dir + "/sim.log", std::filesystem::copy_options::overwrite_existing);
   std::cout << j.dump(2) << "\n";
-  std::printf("vega soak: %llu frames, %llu lost, p99 latency %.0f us\n", static_cast<unsigned long long>(s.frames),
-              static_cast<unsigned long long>(s.lost), percentile(s.publish_latency_us, 99));
-  const bool ok = s.frames > 0 && s.lost == 0 && s.repeated == 0 && s.not_valid == 0 && s.bad_device_time == 0 && appliance_rc == 0;
+  std::printf("vega soak: %lld frames, %lld lost, p99 latency %.0f us\n", static_cast<long long>(s.appliance_frames_total),
+              static_cast<long long>(lost), percentile(s.publish_latency_us, 99));
+  const bool ok = s.frames > 0 && lost == 0 && s.repeated == 0 && s.not_valid == 0 && s.bad_device_time == 0 && appliance_rc == 0;
   return ok ? 0 : 1;
 }
 
