@@ -1,6 +1,7 @@
 // arnav-vega-sim: a simulated NDI Polaris Vega (Ethernet tracker) on TCP (docs/hil.md).
 //   arnav-vega-sim [--port N] [--scenario FILE] [--tool NAME=ROM]... [--rate HZ] [--fault AT_S:KIND]...
 // prints "READY 127.0.0.1:<port>" once it listens and serves until SIGTERM/SIGINT.
+#include <algorithm>
 #include <atomic>
 #include <csignal>
 #include <iostream>
@@ -66,6 +67,14 @@ static int main_body(int argc, char** argv) {
     std::cerr << "arnav-vega-sim: stopped: " << s.connections << " connections, " << s.commands << " commands, "
               << s.stream_packets << " stream packets, " << s.frames_skipped << " frame numbers skipped, " << s.resets
               << " connection resets, " << s.faults << " faults\n";
+    // The simulator's own share of device time -> published: frame due -> handed to the kernel.
+    std::vector<float> late = server.send_lateness_us();
+    if (!late.empty()) {
+      std::sort(late.begin(), late.end());
+      auto at = [&](double q) { return late[std::min(late.size() - 1, static_cast<std::size_t>(q * static_cast<double>(late.size())))]; };
+      std::cerr << "arnav-vega-sim: send lateness (frame due -> sent) over " << late.size() << " frames: p50 " << at(0.5)
+                << " us, p99 " << at(0.99) << " us, p99.9 " << at(0.999) << " us, max " << late.back() << " us\n";
+    }
   } catch (const std::exception& e) {
     std::cerr << "arnav-vega-sim: " << e.what() << "\n";
     return 1;

@@ -30,6 +30,7 @@ constexpr std::uint8_t kInvalidMode = 0x0C;
 constexpr std::uint8_t kOutOfRange = 0x23;
 constexpr std::size_t kMaxLine = 4096;
 constexpr double kSplitGapS = 0.0005;  // between the halves of a split packet
+constexpr std::size_t kMaxLatenessSamples = 4'000'000;  // ~2.8 h at 400 Hz
 
 double mono_s() { return static_cast<double>(monotonic_us()) * 1e-6; }
 
@@ -156,16 +157,16 @@ void VegaServer::close_client(bool reset) {
   stall_until_s_ = -1.0;
 }
 
-void VegaServer::queue(Bytes bytes, double now) {
+void VegaServer::queue(Bytes bytes, double now, double frame_time_s) {
   const double due = std::max(now, output_.empty() ? now : output_.back().due_s);
   if (split_left_ > 0 && bytes.size() > 2) {
     --split_left_;
     const auto half = static_cast<std::ptrdiff_t>(bytes.size() / 2);
     output_.push_back({due, Bytes(bytes.begin(), bytes.begin() + half)});
-    output_.push_back({due + kSplitGapS, Bytes(bytes.begin() + half, bytes.end())});
+    output_.push_back({due + kSplitGapS, Bytes(bytes.begin() + half, bytes.end()), frame_time_s});
     return;
   }
-  output_.push_back({due, std::move(bytes)});
+  output_.push_back({due, std::move(bytes), frame_time_s});
 }
 
 void VegaServer::flush(double now) {
@@ -182,6 +183,8 @@ void VegaServer::flush(double now) {
       p.bytes.erase(p.bytes.begin(), p.bytes.begin() + n);
       return;
     }
+    if (p.frame_time_s >= 0.0 && send_lateness_us_.size() < kMaxLatenessSamples)
+      send_lateness_us_.push_back(static_cast<float>((now_s() - p.frame_time_s) * 1e6));
     output_.pop_front();
   }
 }
@@ -252,8 +255,9 @@ void VegaServer::emit_frame(std::uint32_t frame, double now) {
   }
   const int copies = duplicate_left_ > 0 ? 2 : 1;
   if (duplicate_left_ > 0) --duplicate_left_;
+  const double frame_time_s = model_.frame_time_mono_s(frame) - t0_mono_s_;
   for (int i = 0; i < copies; ++i) {
-    queue(stream_packet(stream_id_, reply), now);
+    queue(stream_packet(stream_id_, reply), now, frame_time_s);
     ++stats_.stream_packets;
   }
 }

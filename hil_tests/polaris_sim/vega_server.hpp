@@ -59,11 +59,16 @@ class VegaServer {
   };
   // Read after run() returned (or from the thread that runs it).
   const Stats& stats() const { return stats_; }
+  // How late each streamed frame was handed to the kernel after its device timestamp (us):
+  // the simulator's own share of a device time -> published latency (a real device sends
+  // on its own clock). Read after run() returned.
+  const std::vector<float>& send_lateness_us() const { return send_lateness_us_; }
 
  private:
   struct Pending {
     double due_s;
     Bytes bytes;
+    double frame_time_s = -1.0;  // a frame's last piece: its device time (s since start)
   };
   double now_s() const;
   void accept_client();
@@ -74,7 +79,7 @@ class VegaServer {
   void handle_ustream(const std::string& params, double now);
   void send_due_frames(double now);
   void emit_frame(std::uint32_t frame, double now);
-  void queue(Bytes bytes, double now);
+  void queue(Bytes bytes, double now, double frame_time_s = -1.0);
   void flush(double now);
   void run_timeline(double now);
   double next_wakeup_s(double now) const;
@@ -95,6 +100,7 @@ class VegaServer {
   double stall_until_s_ = -1.0;
   int bad_crc_left_ = 0, split_left_ = 0, duplicate_left_ = 0;
   Stats stats_;
+  std::vector<float> send_lateness_us_;
 };
 
 }  // namespace arnav::hil
