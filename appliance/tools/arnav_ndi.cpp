@@ -85,7 +85,9 @@ int cmd_probe(const std::string& port, int baud) {
     std::cerr << "arnav-ndi: probe of " << port << " failed: " << s.detail() << "\n";
     return 1;
   }
-  std::cout << "port:          " << port << "\nbaud:          " << r.baud << "\nfirmware:      " << r.firmware
+  std::cout << "port:          " << port << "\n"
+            << (port.rfind("tcp:", 0) == 0 ? std::string("link:          TCP (no baud rate)") : "baud:          " + std::to_string(r.baud))
+            << "\nfirmware:      " << r.firmware
             << "\nserial number: " << r.serial_number << "\nversion text:\n";
   for (const auto& l : r.version_lines) std::cout << "  " << l << "\n";
   std::cout << "port handles:  " << r.handles.size() << "\n";
