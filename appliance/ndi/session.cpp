@@ -232,7 +232,10 @@ bool Session::start() {
   }
   state_ = LinkState::Tracking;
   consecutive_bad_ = consecutive_timeouts_ = 0;
-  have_last_frame_ = false;
+  // On a network link the unit keeps tracking while the connection is down: frames it made
+  // meanwhile are lost frames, counted from the gap when frames come again. (A device reset
+  // restarts the counter: a lower number is not a gap. Serial links start afresh.)
+  if (!transport_->is_network()) have_last_frame_ = false;
   std::string names;
   for (const auto& t : tools_) names += (names.empty() ? "" : ", ") + t.config.name + "=" + hex2(t.handle);
   emit(Severity::Info, "NDI_TRACKING_STARTED",

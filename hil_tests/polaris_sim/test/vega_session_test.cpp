@@ -178,9 +178,12 @@ TEST(VegaSession, ConnectionResetIsRecoveredAndStreamingResumes) {
   ASSERT_TRUE(back) << s->detail() << "\n" << bench.events();
   EXPECT_TRUE(s->streaming());
   EXPECT_EQ(s->counters().reconnects, 1);
+  const std::int64_t dropped_before = s->counters().dropped_frames;
   const Tally t = track(*s, 0.3);
   EXPECT_GT(t.new_frames, 30);
   EXPECT_EQ(t.failed, 0);
+  // The unit tracked on while the link was down: those frames are counted as lost.
+  EXPECT_GT(s->counters().dropped_frames, dropped_before);
   s->stop();
   bench.stop();
   EXPECT_EQ(bench.stats().connections, 2u);
