@@ -6,6 +6,20 @@
 #include "calibration/lib/point_registration.hpp"
 
 namespace arnav::host {
+namespace {
+
+// The start's prior: a given pose (file or identity) with the isotropic uncertainty, else
+// the landmark fit's covariance; none without either.
+std::optional<PosePrior> make_prior(const Scene& scene, const RegistrationRequest& rq, const RegistrationResult& r) {
+  const Eigen::Vector3d centre = scene.problem.mesh.rest_positions_World_mm.rowwise().mean();
+  if (rq.X_IntraopModel_initial)
+    return isotropic_pose_prior(*rq.X_IntraopModel_initial, centre, rq.prior.rotation_deg, rq.prior.translation_mm, r.initialisation);
+  if (r.landmarks)
+    return landmark_pose_prior(rq.landmarks, r.landmarks->X_IntraopModel, r.landmarks->fit.fre_rms_mm, centre, rq.prior.landmark_error_mm);
+  return std::nullopt;
+}
+
+}  // namespace
 
 RegistrationResult register_patient(const Scene& scene, const RegistrationRequest& rq) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -20,17 +34,40 @@ RegistrationResult register_patient(const Scene& scene, const RegistrationReques
   }
   if (rq.X_IntraopModel_initial) {
     start = *rq.X_IntraopModel_initial;
-    r.initialisation = "initial pose";
+    r.initialisation = rq.initial_pose_name.empty() ? "initial pose" : rq.initial_pose_name;
   }
   r.X_IntraopModel = start;
+  r.kept_reason = "no stage changed the " + r.initialisation + " pose";
+  if (rq.prior.enabled) r.prior = make_prior(scene, rq, r);
+  if (rq.estimate_noise) {
+    const double est = estimate_point_noise_mm(rq.points_Intraop_mm);
+    r.noise_estimated = est > 0;
+    r.noise_mm = std::max(rq.min_estimated_noise_mm, est > 0 ? est : rq.nonrigid.noise_mm);
+    r.notes.push_back("point noise estimated from the data (distance to the local plane of 16 neighbours): " + std::to_string(est) + " mm; used " +
+                      std::to_string(r.noise_mm) + " mm");
+  } else {
+    r.noise_mm = rq.nonrigid.noise_mm;
+  }
   r.icp = icp_point_to_plane(scene.organ_surface.positions_World_mm, scene.organ_surface.tris, rq.points_Intraop_mm, rq.normals_Intraop,
-                             start, rq.icp);
+                             start, rq.icp, r.prior ? &*r.prior : nullptr);
+  r.posterior = r.icp.posterior;
   if (r.icp.summary.termination == "no data") {
     r.notes.push_back("no surface points: the rigid result is the " + r.initialisation + " pose");
   } else if (r.icp.summary.termination.rfind("too few inliers", 0) == 0 || r.icp.summary.termination == "numerical failure") {
     r.notes.push_back("surface ICP failed (" + r.icp.summary.termination + "): the rigid result is the " + r.initialisation + " pose");
+    r.kept_reason = "surface ICP failed (" + r.icp.summary.termination + ")";
+  } else if (r.icp.start_kept) {
+    r.notes.push_back("surface rigid: the ICP pose did not lower the MAP objective against the " + r.prior->source + " prior (" +
+                      std::to_string(r.icp.objective_result) + " against " + std::to_string(r.icp.objective_start) + " at the start): the " +
+                      r.initialisation + " pose is kept");
+    r.kept_reason = "the surface-rigid pose was not supported against the prior (MAP objective " + std::to_string(r.icp.objective_result) +
+                    " >= " + std::to_string(r.icp.objective_start) + ")";
   } else {
     r.X_IntraopModel = r.icp.X_IntraopModel;
+    r.kept_stage = "surface_rigid";
+    r.kept_reason = r.prior ? "the surface-rigid pose lowers the MAP objective against the " + r.prior->source + " prior (" +
+                                  std::to_string(r.icp.objective_start) + " -> " + std::to_string(r.icp.objective_result) + ")"
+                            : "surface-rigid ICP (" + r.icp.summary.termination + "; no prior to judge it against)";
   }
   if (!rq.rigid_only && rq.nonrigid_method == "loads") {
     const Eigen::Matrix3Xd data_Model = r.X_IntraopModel.inverse() * rq.points_Intraop_mm;
@@ -40,7 +77,18 @@ RegistrationResult register_patient(const Scene& scene, const RegistrationReques
     const std::shared_ptr<const LoadBasis> built = rq.prebuilt_basis ? nullptr : std::make_shared<const LoadBasis>(build_load_basis(scene, rq.basis));
     const LoadBasis& basis = rq.prebuilt_basis ? *rq.prebuilt_basis : *built;
     LoadFitOptions o = rq.loads;
-    o.noise_mm = rq.nonrigid.noise_mm;
+    o.noise_mm = r.noise_mm;
+    if (r.prior) {
+      // The prior on the total pose, written for the correction D of the data already
+      // mapped into Model by the rigid result: X' = X_rigid^-1 * X_prior.
+      PosePrior pd = *r.prior;
+      pd.X_IntraopModel = r.X_IntraopModel.inverse() * r.prior->X_IntraopModel;
+      o.pose_prior = pd;
+      if (rq.X_IntraopModel_initial && !scene.problem.fixed_vertices.empty() && rq.prior.support_sigma_mm > 0) {
+        o.support_sigma_mm = rq.prior.support_sigma_mm;
+        r.supports_held = true;
+      }
+    }
     o.keep_fraction = rq.nonrigid.keep_fraction;
     o.max_distance_mm = rq.nonrigid.max_distance_mm;
     o.min_improvement = rq.nonrigid.min_improvement;
@@ -75,6 +123,12 @@ RegistrationResult register_patient(const Scene& scene, const RegistrationReques
       r.X_IntraopModel = r.X_IntraopModel * fit.D.inverse();
       r.x_Model_mm = fit.x_Model_mm;
       r.deformed = true;
+      r.kept_stage = "nonrigid";
+      r.kept_reason = "the load fit lowers the surface misfit and the MAP objective (" + std::to_string(fit.objective_rigid) + " -> " +
+                      std::to_string(fit.objective_fit) + (r.prior ? ", with the pose prior" : "") + (r.supports_held ? " and held supports" : "") + ")";
+      if (fit.posterior.valid) r.posterior = fit.posterior;
+    } else {
+      r.kept_reason += "; non-rigid not kept: " + fit.message;
     }
     r.notes.push_back("non-rigid (load basis, " + std::to_string(basis.modes()) + " modes, " +
                       (rq.prebuilt_basis ? std::string("prebuilt") : "built in " + std::to_string(basis.build_time_s) + " s") + "): " + fit.message);
@@ -86,11 +140,15 @@ RegistrationResult register_patient(const Scene& scene, const RegistrationReques
     const Eigen::Matrix3Xd data_Model = r.X_IntraopModel.inverse() * rq.points_Intraop_mm;
     std::vector<LandmarkPair> lm;
     for (const auto& l : rq.landmarks) lm.push_back({l.p_Model_mm, r.X_IntraopModel.inverse() * l.p_Intraop_mm});
-    r.nonrigid = register_nonrigid(scene, data_Model, lm, rq.nonrigid);
+    NonrigidOptions eo = rq.nonrigid;
+    eo.noise_mm = r.noise_mm;
+    r.nonrigid = register_nonrigid(scene, data_Model, lm, eo);
     r.notes.push_back("non-rigid: " + r.nonrigid->message);
     if (r.nonrigid->accepted) {
       r.x_Model_mm = r.nonrigid->x_Model_mm;
       r.deformed = true;
+      r.kept_stage = "nonrigid";
+      r.kept_reason = "the energy method lowered the surface misfit (the pose prior is not used by --method energy)";
     }
     const std::vector<int>& fixed = scene.problem.fixed_vertices;
     if (rq.nonrigid.anchored_boundary && !rq.nonrigid.scene_boundary && r.deformed && fixed.size() >= 3) {

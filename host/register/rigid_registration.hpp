@@ -13,6 +13,7 @@
 
 #include "calibration/lib/point_registration.hpp"
 #include "host/register/point_files.hpp"
+#include "host/register/pose_prior.hpp"
 
 namespace arnav::host {
 
@@ -58,14 +59,25 @@ struct IcpSummary {
 struct IcpResult {
   Eigen::Isometry3d X_IntraopModel = Eigen::Isometry3d::Identity();
   IcpSummary summary;
+  // The pose's posterior (the data's information at the result, plus the prior's when one
+  // was given), the data's robust scale it was weighed with, and the MAP objective
+  // (robust data term / scale^2 + prior) at the start and at the result.
+  PosePosterior posterior;
+  double robust_scale_mm = 0.0;
+  double objective_start = 0.0, objective_result = 0.0;
+  bool start_kept = false;  // the result did not lower the objective: the start is returned
 };
 
 // Model surface (positions in Model, triangles outward), data points in Intraop (and
 // optional unit normals, 0 columns when none), initial pose. Empty data returns the
-// initial pose with termination "no data".
+// initial pose with termination "no data". With a pose prior (pose_prior.hpp) every
+// Gauss-Newton step is the MAP step: the prior's term, weighted by the data's robust
+// scale squared, joins the normal equations, so directions the data do not constrain stay
+// at the prior's mean; the result replaces the start only when it lowers the MAP
+// objective (robust data term plus prior; without a prior the data term alone).
 IcpResult icp_point_to_plane(const Eigen::Matrix3Xd& model_positions_mm, const std::vector<std::array<int, 3>>& model_tris,
                              const Eigen::Matrix3Xd& data_Intraop_mm, const Eigen::Matrix3Xd& data_normals_Intraop,
-                             const Eigen::Isometry3d& X_IntraopModel_initial, const IcpOptions& options = {});
+                             const Eigen::Isometry3d& X_IntraopModel_initial, const IcpOptions& options = {}, const PosePrior* prior = nullptr);
 
 // Rotation angle (deg) and translation (mm) of a transform, for reports.
 double rotation_angle_deg(const Eigen::Isometry3d& X);
