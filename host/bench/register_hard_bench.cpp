@@ -280,7 +280,7 @@ std::vector<RegisterHardRow> run_register_hard_bench(const RegisterHardOptions& 
           rq.prior.enabled = prior;
           const RegistrationResult res = register_patient(reg, rq);
           const std::string sfx = prior ? "_prior" : "";
-          add("surface_rigid" + sfx, res.icp.start_kept ? res.icp.X_IntraopModel * t_rest : res.icp.X_IntraopModel * t_rest, res.icp.summary.wall_time_s,
+          add("surface_rigid" + sfx, res.icp.X_IntraopModel * t_rest, res.icp.summary.wall_time_s,
               res.noise_mm, res.icp.summary.termination + (res.icp.start_kept ? "; start kept" : ""));
           std::string note = "kept " + res.kept_stage + ": " + res.kept_reason;
           for (const auto& t : res.posterior.unconstrained_text) note += "; unconstrained: " + t;

@@ -78,23 +78,49 @@ RegistrationResult register_patient(const Scene& scene, const RegistrationReques
     const LoadBasis& basis = rq.prebuilt_basis ? *rq.prebuilt_basis : *built;
     LoadFitOptions o = rq.loads;
     o.noise_mm = r.noise_mm;
-    if (r.prior) {
-      // The prior on the total pose, written for the correction D of the data already
-      // mapped into Model by the rigid result: X' = X_rigid^-1 * X_prior.
-      PosePrior pd = *r.prior;
-      pd.X_IntraopModel = r.X_IntraopModel.inverse() * r.prior->X_IntraopModel;
-      o.pose_prior = pd;
-      if (rq.X_IntraopModel_initial && !scene.problem.fixed_vertices.empty() && rq.prior.support_sigma_mm > 0) {
-        o.support_sigma_mm = rq.prior.support_sigma_mm;
-        r.supports_held = true;
-      }
+    if (r.prior && rq.X_IntraopModel_initial && !scene.problem.fixed_vertices.empty() && rq.prior.support_sigma_mm > 0) {
+      o.support_sigma_mm = rq.prior.support_sigma_mm;
+      r.supports_held = true;
     }
     o.keep_fraction = rq.nonrigid.keep_fraction;
     o.max_distance_mm = rq.nonrigid.max_distance_mm;
     o.min_improvement = rq.nonrigid.min_improvement;
-    std::vector<LandmarkPair> lm;
-    for (const auto& l : rq.landmarks) lm.push_back({l.p_Model_mm, r.X_IntraopModel.inverse() * l.p_Intraop_mm});
-    LoadFitResult fit = fit_load_basis(scene, basis, data_Model, lm, o);
+    // The load fit from a rigid start X_start (the data mapped into Model by it); the prior
+    // on the total pose is written for the fit's correction D: X' = X_start^-1 * X_prior.
+    auto fit_from = [&](const Eigen::Isometry3d& X_start) {
+      LoadFitOptions oo = o;
+      if (r.prior) {
+        PosePrior pd = *r.prior;
+        pd.X_IntraopModel = X_start.inverse() * r.prior->X_IntraopModel;
+        oo.pose_prior = pd;
+      }
+      std::vector<LandmarkPair> lm;
+      for (const auto& l : rq.landmarks) lm.push_back({l.p_Model_mm, X_start.inverse() * l.p_Intraop_mm});
+      return fit_load_basis(scene, basis, X_start.inverse() * rq.points_Intraop_mm, lm, oo);
+    };
+    LoadFitResult fit = fit_from(r.X_IntraopModel);
+    if (r.prior && pose_deviation(*r.prior, r.X_IntraopModel.inverse()).norm() > 1e-9) {
+      // The surface-rigid pose left the prior's mean: fit also from the mean and keep the
+      // candidate (each start, rigid or fitted) with the lowest MAP objective - a pose the
+      // partial surface pulled along a local dent is judged against the prior with the
+      // deformation that explains the dent.
+      const LoadFitResult alt = fit_from(r.prior->X_IntraopModel);
+      const double from_rigid = fit.accepted ? fit.objective_fit : fit.objective_rigid;
+      const double from_prior = alt.accepted ? alt.objective_fit : alt.objective_rigid;
+      r.notes.push_back("load fit from the surface-rigid pose: MAP objective " + std::to_string(from_rigid) + (fit.accepted ? " (fitted)" : " (rigid)") +
+                        "; from the " + r.prior->source + " prior's mean: " + std::to_string(from_prior) + (alt.accepted ? " (fitted)" : " (rigid)"));
+      if (from_prior < from_rigid) {
+        const double t = fit.wall_time_s;
+        fit = alt;
+        fit.wall_time_s += t;
+        r.X_IntraopModel = r.prior->X_IntraopModel;
+        r.kept_stage = "start";
+        r.kept_reason = "the " + r.prior->source + " pose (with the load fit from it) has a lower MAP objective than the surface-rigid pose";
+        r.posterior = alt.posterior.valid ? alt.posterior : pose_posterior(&*r.prior, r.X_IntraopModel.inverse(), r.prior->centre_Model_mm, Matrix6d::Zero(), 1.0);
+      } else {
+        fit.wall_time_s += alt.wall_time_s;
+      }
+    }
     r.basis_modes = basis.modes();
     r.basis_time_s = rq.prebuilt_basis ? 0.0 : basis.build_time_s;
     NonrigidResult nr;
