@@ -48,8 +48,10 @@ RegistrationResult register_patient(const Scene& scene, const RegistrationReques
   } else {
     r.noise_mm = rq.nonrigid.noise_mm;
   }
+  IcpOptions icp_options = rq.icp;
+  if (icp_options.noise_mm <= 0) icp_options.noise_mm = r.noise_mm;
   r.icp = icp_point_to_plane(scene.organ_surface.positions_World_mm, scene.organ_surface.tris, rq.points_Intraop_mm, rq.normals_Intraop,
-                             start, rq.icp, r.prior ? &*r.prior : nullptr);
+                             start, icp_options, r.prior ? &*r.prior : nullptr);
   r.posterior = r.icp.posterior;
   if (r.icp.summary.termination == "no data") {
     r.notes.push_back("no surface points: the rigid result is the " + r.initialisation + " pose");
@@ -57,11 +59,9 @@ RegistrationResult register_patient(const Scene& scene, const RegistrationReques
     r.notes.push_back("surface ICP failed (" + r.icp.summary.termination + "): the rigid result is the " + r.initialisation + " pose");
     r.kept_reason = "surface ICP failed (" + r.icp.summary.termination + ")";
   } else if (r.icp.start_kept) {
-    r.notes.push_back("surface rigid: the ICP pose did not lower the MAP objective against the " + r.prior->source + " prior (" +
-                      std::to_string(r.icp.objective_result) + " against " + std::to_string(r.icp.objective_start) + " at the start): the " +
+    r.notes.push_back("surface rigid: not supported against the " + r.prior->source + " prior: " + r.icp.start_kept_reason + "; the " +
                       r.initialisation + " pose is kept");
-    r.kept_reason = "the surface-rigid pose was not supported against the prior (MAP objective " + std::to_string(r.icp.objective_result) +
-                    " >= " + std::to_string(r.icp.objective_start) + ")";
+    r.kept_reason = "the surface-rigid pose was not supported against the prior: " + r.icp.start_kept_reason;
   } else {
     r.X_IntraopModel = r.icp.X_IntraopModel;
     r.kept_stage = "surface_rigid";
@@ -99,7 +99,29 @@ RegistrationResult register_patient(const Scene& scene, const RegistrationReques
       return fit_load_basis(scene, basis, X_start.inverse() * rq.points_Intraop_mm, lm, oo);
     };
     LoadFitResult fit = fit_from(r.X_IntraopModel);
-    if (r.prior && pose_deviation(*r.prior, r.X_IntraopModel.inverse()).norm() > 1e-9) {
+    // The other rigid candidate: the ICP pose when the start was kept, the prior's mean
+    // when the ICP pose was.
+    const bool icp_usable = r.icp.summary.iterations > 0 && r.icp.summary.termination != "numerical failure" &&
+                            r.icp.summary.termination.rfind("too few inliers", 0) != 0;
+    const bool kept_start = r.prior && pose_deviation(*r.prior, r.X_IntraopModel.inverse()).norm() <= 1e-9;
+    const Eigen::Isometry3d X_icp = r.icp.X_IntraopModel_fit;
+    if (kept_start && icp_usable && pose_deviation(*r.prior, X_icp.inverse()).norm() > 1e-9) {
+      const LoadFitResult alt = fit_from(X_icp);
+      const double from_start = fit.accepted ? fit.objective_fit : fit.objective_rigid;
+      const double from_icp = alt.accepted ? alt.objective_fit : alt.objective_rigid;
+      r.notes.push_back("load fit from the " + r.prior->source + " pose: MAP objective " + std::to_string(from_start) + (fit.accepted ? " (fitted)" : " (rigid)") +
+                        "; from the surface-rigid pose: " + std::to_string(from_icp) + (alt.accepted ? " (fitted)" : " (rigid)"));
+      if (alt.accepted && from_icp < from_start) {
+        const double t = fit.wall_time_s;
+        fit = alt;
+        fit.wall_time_s += t;
+        r.X_IntraopModel = X_icp;
+        r.kept_stage = "surface_rigid";
+        r.kept_reason = "the surface-rigid pose with the load fit from it has a lower MAP objective than the " + r.prior->source + " pose";
+      } else {
+        fit.wall_time_s += alt.wall_time_s;
+      }
+    } else if (r.prior && !kept_start) {
       // The surface-rigid pose left the prior's mean: fit also from the mean and keep the
       // candidate (each start, rigid or fitted) with the lowest MAP objective - a pose the
       // partial surface pulled along a local dent is judged against the prior with the

@@ -31,8 +31,8 @@ Eigen::Isometry3d exp_se3(const Eigen::Matrix<double, 6, 1>& xi) {
   return T;
 }
 
-// The robust data term at pose T (data -> Model): Huber on the distance to the surface
-// over the closest keep_fraction within max_distance, over scale^2.
+// The robust data term at pose T (data -> Model) over scale^2: Tukey's biweight on the
+// distance to the surface (the kernel of the MAP steps with a prior).
 double icp_objective(const SurfaceIndex& index, const Eigen::Matrix3Xd& data, const Eigen::Isometry3d& T, const IcpOptions& o, double scale) {
   const int n = static_cast<int>(data.cols());
   std::vector<double> d(static_cast<std::size_t>(n));
@@ -41,15 +41,16 @@ double icp_objective(const SurfaceIndex& index, const Eigen::Matrix3Xd& data, co
     const SurfaceHit h = index.closest(T * data.col(i), o.max_distance_mm);
     d[static_cast<std::size_t>(i)] = h.tri >= 0 ? h.distance_mm : o.max_distance_mm;
   }
-  // Every point counts, capped at max_distance (a pose that pushes points out of the kept
-  // set is not rewarded for it); Huber beyond huber_sigmas * scale.
-  const double c = o.huber_sigmas * scale;
+  // Every point counts (a pose that pushes points out of the kept set is not rewarded for
+  // it): rho(r) = c^2/6 (1 - (1 - (r/c)^2)^3), c^2/6 beyond c.
+  const double c = o.tukey_sigmas * scale;
   double sum = 0.0;
   for (double di : d) {
-    const double r = std::min(di, o.max_distance_mm);
-    sum += r <= c ? r * r : 2.0 * c * r - c * c;
+    const double u = std::min(di / c, 1.0);
+    const double v = 1.0 - u * u;
+    sum += c * c / 6.0 * (1.0 - v * v * v);
   }
-  return sum / (scale * scale);
+  return 2.0 * sum / (scale * scale);  // 2 rho: r^2 near zero, as the Gauss-Newton data term
 }
 
 double prior_term(const PosePrior& prior, const Eigen::Isometry3d& T) {
@@ -91,6 +92,7 @@ IcpResult icp_point_to_plane(const Eigen::Matrix3Xd& model_positions_mm, const s
   IcpResult res;
   res.X_IntraopModel = X_IntraopModel_initial;
   const int n = static_cast<int>(data_Intraop_mm.cols());
+  res.X_IntraopModel_fit = X_IntraopModel_initial;
   if (n == 0) {
     res.summary.termination = "no data";
     return res;
@@ -147,6 +149,7 @@ IcpResult icp_point_to_plane(const Eigen::Matrix3Xd& model_positions_mm, const s
       if (keep[static_cast<std::size_t>(i)]) abs_r.push_back(std::abs(r[static_cast<std::size_t>(i)]));
     const double sigma = std::max(o.min_sigma_mm, 1.4826 * median_of(abs_r));
     const double c = o.huber_sigmas * sigma;
+    const double c_tukey = o.tukey_sigmas * sigma;
     Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
     Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();
     double ss = 0.0;
@@ -160,7 +163,11 @@ IcpResult icp_point_to_plane(const Eigen::Matrix3Xd& model_positions_mm, const s
       const Eigen::Vector3d q = T * data_Intraop_mm.col(i) - centre;
       const Eigen::Vector3d& nm = hit[static_cast<std::size_t>(i)].normal;
       const double ri = r[static_cast<std::size_t>(i)];
-      const double w = std::abs(ri) <= c ? 1.0 : c / std::abs(ri);
+      double w = std::abs(ri) <= c ? 1.0 : c / std::abs(ri);
+      if (prior) {
+        const double u = std::abs(ri) / c_tukey;
+        w = u < 1.0 ? (1.0 - u * u) * (1.0 - u * u) : 0.0;
+      }
       Eigen::Matrix<double, 6, 1> J;
       J << q.cross(nm), nm;
       H += w * J * J.transpose();
@@ -219,6 +226,7 @@ IcpResult icp_point_to_plane(const Eigen::Matrix3Xd& model_positions_mm, const s
     res.summary.final_max_mm = mx;
   }
   res.X_IntraopModel = T.inverse();
+  res.X_IntraopModel_fit = res.X_IntraopModel;
   res.robust_scale_mm = sigma_last;
   if (sigma_last > 0) {
     res.posterior = pose_posterior(prior, T_last, centre_last, H_last, sigma_last * sigma_last);
@@ -230,8 +238,14 @@ IcpResult icp_point_to_plane(const Eigen::Matrix3Xd& model_positions_mm, const s
       res.objective_result = icp_objective(index, data_Intraop_mm, T, o, sigma_last) + prior_term(*prior, T);
       if (!(res.objective_result < res.objective_start)) {
         res.start_kept = true;
-        res.X_IntraopModel = X_IntraopModel_initial;
+        res.start_kept_reason = "the ICP pose does not lower the MAP objective (" + std::to_string(res.objective_result) + " against " +
+                                std::to_string(res.objective_start) + " at the start)";
+      } else if (o.noise_mm > 0 && res.summary.final_rms_mm > o.model_error_ratio * o.noise_mm) {
+        res.start_kept = true;
+        res.start_kept_reason = "the rigid model leaves model error (residual " + std::to_string(res.summary.final_rms_mm) + " mm RMS against " +
+                                std::to_string(o.noise_mm) + " mm noise): a deformed organ biases a rigid fit on a partial surface";
       }
+      if (res.start_kept) res.X_IntraopModel = X_IntraopModel_initial;
     }
   }
   res.summary.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

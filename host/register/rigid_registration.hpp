@@ -36,6 +36,17 @@ struct IcpOptions {
   double min_sigma_mm = 0.3;           // floor of the robust residual scale
   double max_normal_angle_deg = 60.0;  // with data normals: reject pairs whose normals disagree more
   double step_tolerance_mm = 1e-4;     // stop when the update moves no point more than this
+  // With a pose prior: a redescending kernel (Tukey's biweight, zero weight beyond
+  // tukey_sigmas robust sigmas) instead of Huber: a local deformation in the patch (a
+  // tool's dent) then has no pull on the pose, which the prior keeps well-posed.
+  double tukey_sigmas = 4.685;
+  // With a pose prior and the point noise known (given or estimated from the points; 0:
+  // unknown), the result replaces the start only when the rigid model explains the data:
+  // its trimmed residual at most model_error_ratio x the noise. A larger residual is model
+  // error (the organ is deformed), which biases a rigid fit on a partial patch (it turns
+  // the organ to fit a dent): the start is kept and the non-rigid stage decides.
+  double noise_mm = 0.0;
+  double model_error_ratio = 1.5;
 };
 
 struct IcpIteration {
@@ -65,7 +76,9 @@ struct IcpResult {
   PosePosterior posterior;
   double robust_scale_mm = 0.0;
   double objective_start = 0.0, objective_result = 0.0;
-  bool start_kept = false;  // the result did not lower the objective: the start is returned
+  Eigen::Isometry3d X_IntraopModel_fit = Eigen::Isometry3d::Identity();  // ICP's own result, kept or not
+  bool start_kept = false;  // the result was not supported against the prior: the start is returned
+  std::string start_kept_reason;
 };
 
 // Model surface (positions in Model, triangles outward), data points in Intraop (and
