@@ -130,6 +130,8 @@ static int main_body(int argc, char** argv) {
   reg->add_option("--export", reg_options.export_dir, "write the first case's inputs for arnav-register (surface.xyz, landmarks.csv, targets.csv, truth_targets.csv)");
   reg->add_option("--updates", reg_options.updates_per_level, "correspondence updates per level")->check(CLI::PositiveNumber);
   reg->add_option("--steps", reg_options.steps_per_update, "model steps per correspondence update")->check(CLI::PositiveNumber);
+  reg->add_flag("--pose-prior", reg_options.pose_prior, "the start's uncertainty (the landmark fit's covariance) as a prior of the surface fits (issue 22)");
+  reg->add_flag("--estimate-noise", reg_options.estimate_noise, "the noise estimated from the points instead of told");
   bool reg_hard = false;
   RegisterHardOptions hard_options;
   reg->add_flag("--hard", reg_hard,
