@@ -89,7 +89,10 @@ RegistrationResult register_patient(const Scene& scene, const RegistrationReques
     // on the total pose is written for the fit's correction D: X' = X_start^-1 * X_prior.
     auto fit_from = [&](const Eigen::Isometry3d& X_start) {
       LoadFitOptions oo = o;
-      if (r.prior) {
+      // A landmark prior is not added when the fit uses the landmarks themselves (its
+      // landmark term): they would be counted twice.
+      const bool landmarks_in_fit = o.landmark_error_mm > 0 && !rq.landmarks.empty();
+      if (r.prior && !(r.prior->source == "landmarks" && landmarks_in_fit)) {
         PosePrior pd = *r.prior;
         pd.X_IntraopModel = X_start.inverse() * r.prior->X_IntraopModel;
         oo.pose_prior = pd;
