@@ -236,7 +236,8 @@ IcpResult icp_point_to_plane(const Eigen::Matrix3Xd& model_positions_mm, const s
       const Eigen::Isometry3d T0 = X_IntraopModel_initial.inverse();
       res.objective_start = icp_objective(index, data_Intraop_mm, T0, o, sigma_last) + prior_term(*prior, T0);
       res.objective_result = icp_objective(index, data_Intraop_mm, T, o, sigma_last) + prior_term(*prior, T);
-      if (!(res.objective_result < res.objective_start)) {
+      // (equal within rounding: ICP stayed at the start, nothing to judge)
+      if (!(res.objective_result <= res.objective_start * (1.0 + 1e-12))) {
         res.start_kept = true;
         res.start_kept_reason = "the ICP pose does not lower the MAP objective (" + std::to_string(res.objective_result) + " against " +
                                 std::to_string(res.objective_start) + " at the start)";
