@@ -142,7 +142,7 @@ TEST(Replay, DeterministicOverlayWithBannersFromAnLcmLoggerLog) {
 // two replays cut the same organ (identical cut columns, events).
 TEST(Replay, DeterministicWithCuttingAndThePedal) {
   SessionFolder f("replay_cut");
-  const std::string session = f.write("cut.yaml", "arnav_session_version: 1\nlcm_url: \"memq://\"\nscene: " + data_dir() +
+  const std::string session = f.write("cut.yaml", "arnav_session_version: 1\nlcm_url: \"memq://\"\nsecurity: off\nscene: " + data_dir() +
                                                       "/liver/liver_coarse_cut.scene.yaml\nregistration: X_RefModel.yaml\n"
                                                       "tools:\n  reference: {name: liver_marker, stale_after_ms: 100}\n"
                                                       "  scalpel: {name: scalpel, stale_after_ms: 100, blade: {tip_mm: [0, 0, 0], heel_mm: [0, 0, 60]}}\n"
@@ -224,7 +224,7 @@ TEST(Replay, DeterministicWithCuttingAndThePedal) {
 TEST(Replay, ModelStepsSeeOnlyThePosesReceivedBeforeThem) {
   SessionFolder f("replay_grasp");
   const std::string scene_path = data_dir() + "/liver/liver_coarse.scene.yaml";
-  const std::string session = f.write("grasp.yaml", "arnav_session_version: 1\nlcm_url: \"memq://\"\nscene: " + scene_path +
+  const std::string session = f.write("grasp.yaml", "arnav_session_version: 1\nlcm_url: \"memq://\"\nsecurity: off\nscene: " + scene_path +
                                                         "\nregistration: X_RefModel.yaml\n"
                                                         "tools:\n  reference: {name: liver_marker, stale_after_ms: 100}\n"
                                                         "  grasper: {name: grasper, stale_after_ms: 100, radius_mm: 10, grasp: {always: true}}\n"
