@@ -73,9 +73,13 @@ TEST_F(Fixture, EveryBitFlipIsRejected) {
       EXPECT_TRUE(plain.empty());
       rejected += v != Verdict::Accepted;
       // Flips in the ciphertext and tag, with the header intact, are tampering.
-      if (byte >= kHeaderBytes) EXPECT_EQ(v, Verdict::Tampered) << "byte " << byte;
-      if (byte < 4) EXPECT_EQ(v, Verdict::Unsealed);
-      if (byte >= 4 && byte < 8) EXPECT_EQ(v, Verdict::Malformed);
+      if (byte >= kHeaderBytes) {
+        EXPECT_EQ(v, Verdict::Tampered) << "byte " << byte;
+      } else if (byte < 4) {
+        EXPECT_EQ(v, Verdict::Unsealed);
+      } else if (byte < 8) {
+        EXPECT_EQ(v, Verdict::Malformed);
+      }
     }
   }
   EXPECT_EQ(rejected, env.size() * 8);
