@@ -52,7 +52,7 @@ class SealedLcm {
   void subscribe(const std::string& channel_regex, void (Handler::*method)(const lcm::ReceiveBuffer*, const std::string&, const Msg*), Handler* handler) {
     add_subscription(channel_regex, [this, method, handler](const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
       Msg msg;
-      if (msg.decode(rbuf->data, 0, rbuf->data_size) != static_cast<int>(rbuf->data_size)) {
+      if (msg.decode(rbuf->data, 0, rbuf->data_size) < 0) {
         ++undecodable_;
         return;
       }
