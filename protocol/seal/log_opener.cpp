@@ -28,7 +28,7 @@ std::optional<std::span<const std::uint8_t>> LogOpener::open(const lcm::LogEvent
   counters_ = opener_->counters();
   if (last_ == Verdict::Forged && opener_->last_header().key_id != security_.key->key_id()) {
     const auto parsed = parse_envelope(bytes);
-    if (parsed.envelope) foreign_key_ids_.insert(parsed.envelope->header.key_id);
+    if (parsed.envelope) ++foreign_key_ids_[parsed.envelope->header.key_id];
   }
   if (last_ != Verdict::Accepted) return std::nullopt;
   return std::span<const std::uint8_t>(plain_.data(), plain_.size());
@@ -43,10 +43,16 @@ std::string LogOpener::problem(const std::string& log_path) const {
     return "";
   }
   if (!foreign_key_ids_.empty() && counters_.forged > 0) {
-    std::string ids;
-    for (const auto id : foreign_key_ids_) ids += (ids.empty() ? "" : ", ") + key_id_hex(id);
-    return log_path + ": wrong key: the log was sealed with key id " + ids + ", the key given has key id " + security_.key->key_id_hex() +
-           ": give the key the session was recorded with";
+    // The key most messages were sealed with first; others (an attacker's, another OR's) after it.
+    std::vector<std::pair<std::uint64_t, std::uint32_t>> by_count;
+    for (const auto& [id, n] : foreign_key_ids_) by_count.emplace_back(n, id);
+    std::sort(by_count.rbegin(), by_count.rend());
+    std::string others;
+    for (std::size_t i = 1; i < by_count.size(); ++i)
+      others += (others.empty() ? " (also " : ", ") + key_id_hex(by_count[i].second) + ": " + std::to_string(by_count[i].first);
+    if (!others.empty()) others += ")";
+    return log_path + ": wrong key: the log was sealed with key id " + key_id_hex(by_count[0].second) + " (" + std::to_string(by_count[0].first) +
+           " messages)" + others + ", the key given has key id " + security_.key->key_id_hex() + ": give the key the session was recorded with";
   }
   if (counters_.unsealed > 0 && counters_.dropped() == counters_.unsealed)
     return log_path + ": the log is not sealed (an old log, or one recorded with security: off): read it with 'security: off' (or --security off)";

@@ -8,7 +8,7 @@
 
 #include <cstdint>
 #include <optional>
-#include <set>
+#include <map>
 #include <span>
 #include <string>
 #include <vector>
@@ -38,7 +38,7 @@ class LogOpener {
   OpenCounters counters_;
   Verdict last_ = Verdict::Unsealed;
   std::uint64_t sealed_without_key_ = 0;
-  std::set<std::uint32_t> foreign_key_ids_;
+  std::map<std::uint32_t, std::uint64_t> foreign_key_ids_;  // key id -> messages
 };
 
 }  // namespace arnav::seal

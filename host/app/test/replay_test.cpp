@@ -142,13 +142,13 @@ TEST(Replay, DeterministicOverlayWithBannersFromAnLcmLoggerLog) {
 // two replays cut the same organ (identical cut columns, events).
 TEST(Replay, DeterministicWithCuttingAndThePedal) {
   SessionFolder f("replay_cut");
-  const std::string session = f.write("cut.yaml", "arnav_session_version: 1\nlcm_url: \"memq://\"\nsecurity: off\nscene: " + data_dir() +
+  const std::string session = f.write("cut.yaml", "arnav_session_version: 1\nlcm_url: \"memq://\"\nscene: " + data_dir() +
                                                       "/liver/liver_coarse_cut.scene.yaml\nregistration: X_RefModel.yaml\n"
                                                       "tools:\n  reference: {name: liver_marker, stale_after_ms: 100}\n"
                                                       "  scalpel: {name: scalpel, stale_after_ms: 100, blade: {tip_mm: [0, 0, 0], heel_mm: [0, 0, 60]}}\n"
                                                       "inputs: {cut_enable: pedal_right}\n"
                                                       "camera:\n  name: cam0\n  intrinsics: camera.yaml\n  pose_from: reference\n"
-                                                      "model: {rate_hz: 60, gravity: false}\n");
+                                                      "model: {rate_hz: 60, gravity: false}\nsecurity: off\n");
   const std::string log_path = (f.dir / "cut.lcmlog").string();
   constexpr std::int64_t kWall = 1'700'000'000'000'000;
   {
@@ -224,12 +224,12 @@ TEST(Replay, DeterministicWithCuttingAndThePedal) {
 TEST(Replay, ModelStepsSeeOnlyThePosesReceivedBeforeThem) {
   SessionFolder f("replay_grasp");
   const std::string scene_path = data_dir() + "/liver/liver_coarse.scene.yaml";
-  const std::string session = f.write("grasp.yaml", "arnav_session_version: 1\nlcm_url: \"memq://\"\nsecurity: off\nscene: " + scene_path +
+  const std::string session = f.write("grasp.yaml", "arnav_session_version: 1\nlcm_url: \"memq://\"\nscene: " + scene_path +
                                                         "\nregistration: X_RefModel.yaml\n"
                                                         "tools:\n  reference: {name: liver_marker, stale_after_ms: 100}\n"
                                                         "  grasper: {name: grasper, stale_after_ms: 100, radius_mm: 10, grasp: {always: true}}\n"
                                                         "camera:\n  name: cam0\n  intrinsics: camera.yaml\n  pose_from: reference\n"
-                                                        "model: {rate_hz: 60, gravity: false}\n");
+                                                        "model: {rate_hz: 60, gravity: false}\nsecurity: off\n");
   // The grasper's tip on the organ's surface (the vertex nearest to the underside's middle).
   const Scene scene = load_scene(scene_path);
   const Eigen::Matrix3Xd surface = scene.organ_embedding.apply(scene.problem.mesh, scene.problem.mesh.rest_positions_World_mm);
