@@ -155,11 +155,18 @@ int run_replay(const Cli& cli, arnav::host::NavigationSession& session, const st
   const auto starts = [](const std::string& s, std::string_view p) { return s.compare(0, p.size(), p) == 0; };
   // The log holds the bus's sealed bytes: each event is opened with the key, and what the
   // live receiver would have dropped (forged, tampered, replayed, stale) is dropped here too.
+  // Only the channels the live session subscribes to are opened (and counted), as live.
   arnav::seal::LogOpener opener(security);
+  const auto reads = [&](const std::string& ch) {
+    return starts(ch, arnav::channels::kPosePrefix) || starts(ch, arnav::channels::kHealthPrefix) || ch == arnav::channels::kEvents ||
+           ch == arnav::channels::kInput || ch == arnav::channels::kInputState || (!session.swab_channel().empty() && ch == session.swab_channel()) ||
+           (!frame_channel.empty() && ch == frame_channel);
+  };
   while (!g_stop.load()) {
     const lcm::LogEvent* raw_ev = log.readNextEvent();
     if (!raw_ev) break;
     ++messages;
+    if (!reads(raw_ev->channel)) continue;
     const auto opened = opener.open(*raw_ev);
     if (!opened) continue;
     lcm::LogEvent plain_ev = *raw_ev;

@@ -103,8 +103,12 @@ static int main_body(int argc, char** argv) {
   }
   std::cout << "arnav-lcm-decode: " << log_path << ": " << sec.describe() << "\n";
   arnav::seal::LogOpener opener(sec);
-  long long printed = 0, events = 0;
+  long long printed = 0, events = 0, self_tests = 0;
   while (const lcm::LogEvent* ev = log.readNextEvent()) {
+    if (ev->channel == "LCM_SELF_TEST") {  // LCM's own start-up check (udpm): not a message of the bus's programs
+      ++self_tests;
+      continue;
+    }
     ++events;
     const auto plain = opener.open(*ev);
     const bool accepted = plain.has_value();
@@ -120,7 +124,7 @@ static int main_body(int argc, char** argv) {
     if (accepted) std::cout << ": " << gist(ev->channel, *plain);
     std::cout << "\n";
   }
-  std::cout << "arnav-lcm-decode: " << events << " messages: ";
+  std::cout << "arnav-lcm-decode: " << events << " messages (" << self_tests << " LCM self-test messages skipped): ";
   if (sec.sealed()) std::cout << arnav::seal::format_counters(opener.counters()) << "\n";
   else std::cout << opener.counters().accepted << " read, " << opener.sealed_without_key() << " sealed (no key given)\n";
   if (const std::string p = opener.problem(log_path); !p.empty() && events > 0) {
