@@ -18,6 +18,13 @@ bool InputTracker::on_input(const input_event_t& msg, std::int64_t now_us) {
   // already held when the session started does not (no accept from a button held at start).
   const bool edge = pressed && (snapshot ? (l.known && !l.pressed) : (!l.known || !l.pressed));
   if (snapshot && l.known && l.pressed != pressed) ++l.resyncs;
+  if (!l.known || l.pressed != pressed) {
+    // Forced releases (device or link lost) carry no frame time: the decision's time.
+    const std::int64_t t = msg.decided_time_mono_us > 0 ? msg.decided_time_mono_us : msg.publish_time_mono_us;
+    l.changes_device_us.emplace_back(t, pressed);
+    constexpr std::size_t kHistory = 256;
+    if (l.changes_device_us.size() > kHistory) l.changes_device_us.pop_front();
+  }
   l.known = true;
   l.pressed = pressed;
   l.last_seen_us = std::max(l.last_seen_us, now_us);
@@ -37,6 +44,17 @@ HeldState InputTracker::held(const std::string& input, double stale_after_ms, st
 const InputLevel* InputTracker::level(const std::string& input) const {
   const auto it = levels_.find(input);
   return it == levels_.end() ? nullptr : &it->second;
+}
+
+bool InputTracker::pressed_at(const std::string& input, std::int64_t device_time_us) const {
+  const auto it = levels_.find(input);
+  if (it == levels_.end()) return false;
+  bool pressed = false;
+  for (const auto& [t, p] : it->second.changes_device_us) {
+    if (t > device_time_us) break;
+    pressed = p;
+  }
+  return pressed;
 }
 
 }  // namespace arnav::host

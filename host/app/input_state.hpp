@@ -26,6 +26,9 @@ struct InputLevel {
   std::int64_t presses = 0;
   std::int64_t resyncs = 0;      // snapshots that corrected the level (a change was lost)
   std::int8_t last_cause = -1;
+  // Level changes on the appliance's clock (decided_time_mono_us), oldest first, the last
+  // kHistory: what the level was when the tracker measured a tool (pressed_at).
+  std::deque<std::pair<std::int64_t, bool>> changes_device_us;
 };
 
 enum class HeldState { kHeld, kReleased, kStale, kNeverSeen };
@@ -37,6 +40,9 @@ class InputTracker {
   // Held with a state no older than stale_after_ms at now_us.
   HeldState held(const std::string& input, double stale_after_ms, std::int64_t now_us) const;
   const InputLevel* level(const std::string& input) const;
+  // The level at a device time (the appliance's clock): the newest change decided at or
+  // before it (false before the first). Freshness is held()'s business.
+  bool pressed_at(const std::string& input, std::int64_t device_time_us) const;
   const std::map<std::string, InputLevel>& levels() const { return levels_; }
   std::int64_t messages() const { return messages_; }
 

@@ -33,8 +33,14 @@ Eigen::Vector3d closed_centroid(const TriMesh& m) {
 }  // namespace
 
 ModelRunner::ModelRunner(const Scene& scene, double rate_hz, bool gravity, double margin_mm, int nice,
-                         std::optional<cut::CutSessionSettings> cutting)
-    : scene_(scene), rate_hz_(rate_hz), margin_mm_(margin_mm), nice_(nice) {
+                         std::optional<cut::CutSessionSettings> cutting, const ModelClockSettings& clock)
+    : scene_(scene),
+      rate_hz_(rate_hz),
+      margin_mm_(margin_mm),
+      nice_(nice),
+      clock_(rate_hz, clock.input_wait_ms, clock.catch_up_ms, clock.tool_gap_ms),
+      blade_stale_us_(std::llround(clock.blade_stale_ms * 1e3)),
+      path_meter_(static_cast<int>(120 * rate_hz)) {  // two minutes of cutting at one sweep a step
   if (cutting) {
     Scene copy = scene;
     if (!gravity) copy.problem.gravity_World_mm_s2.setZero();
@@ -44,7 +50,7 @@ ModelRunner::ModelRunner(const Scene& scene, double rate_hz, bool gravity, doubl
     if (!gravity) problem.gravity_World_mm_s2.setZero();
     model_ = make_tissue_model(problem, scene.model);
   }
-  step_once(-1);  // the rest state, before the first step
+  step_once(nullptr, -1);  // the rest state, before the first step
   steps_ = 0;
   step_ms_.clear();
 }
@@ -63,15 +69,20 @@ void ModelRunner::start() {
       std::lock_guard lock(mutex_);
       pin_error_ = e;
     }
-    const auto period = std::chrono::duration<double>(1.0 / rate_hz_);
-    auto next = std::chrono::steady_clock::now();
+    // Steps when the clock says a step is due (its inputs arrived, or waited for long
+    // enough); between steps it sleeps until the next push or the step's deadline.
+    std::unique_lock lock(mutex_);
     while (!stop_.load()) {
-      step_once(monotonic_us());
-      next += std::chrono::duration_cast<std::chrono::steady_clock::duration>(period);
-      const auto now = std::chrono::steady_clock::now();
-      if (next < now) next = now;  // overrun: no catch-up burst
-      std::unique_lock lock(mutex_);
-      cv_.wait_until(lock, next, [this] { return stop_.load(); });
+      const std::int64_t now = monotonic_us();
+      if (const std::optional<std::int64_t> t = clock_.due(now)) {
+        const ModelStepInputs in = clock_.take(*t, now);
+        lock.unlock();
+        step_once(&in, now);
+        lock.lock();
+        continue;
+      }
+      const auto wait_us = std::max<std::int64_t>(0, clock_.deadline_host_us(now) - now);
+      cv_.wait_for(lock, std::chrono::microseconds(wait_us));
     }
   });
 }
@@ -83,31 +94,64 @@ void ModelRunner::stop() {
 }
 
 int ModelRunner::advance_to(std::int64_t now_us, int max_steps) {
-  const auto period_us = static_cast<std::int64_t>(1e6 / rate_hz_);
-  if (next_step_us_ < 0) next_step_us_ = now_us;
   int done = 0;
-  while (next_step_us_ <= now_us && done < max_steps) {
-    step_once(next_step_us_);
-    next_step_us_ += period_us;
+  while (done < max_steps) {
+    ModelStepInputs in;
+    {
+      std::lock_guard lock(mutex_);
+      const std::optional<std::int64_t> t = clock_.due(now_us);
+      if (!t) break;
+      in = clock_.take(*t, now_us);
+    }
+    step_once(&in, now_us);
     ++done;
   }
-  if (next_step_us_ <= now_us) next_step_us_ = now_us + period_us;  // behind: drop the backlog
   return done;
 }
 
-void ModelRunner::set_scalpel(const std::optional<std::array<Eigen::Vector3d, 2>>& blade, bool cutting_enabled) {
+void ModelRunner::expect_blade() {
   std::lock_guard lock(mutex_);
-  scalpel_ = blade;
-  cutting_enabled_ = cutting_enabled;
+  clock_.require_blade();
+}
+
+void ModelRunner::push_blade(const BladeSample& sample, std::int64_t now_us) {
+  {
+    std::lock_guard lock(mutex_);
+    clock_.push_blade(sample, now_us);
+  }
+  cv_.notify_all();
+}
+
+void ModelRunner::push_grasp(const GraspSample& sample, std::int64_t now_us) {
+  {
+    std::lock_guard lock(mutex_);
+    clock_.push_grasp(sample, now_us);
+  }
+  cv_.notify_all();
+}
+
+void ModelRunner::tracker_at(std::int64_t device_time_us, std::int64_t now_us) {
+  {
+    std::lock_guard lock(mutex_);
+    clock_.tracker_at(device_time_us, now_us);
+  }
+  cv_.notify_all();
+}
+
+bool ModelRunner::has_inputs() const {
+  std::lock_guard lock(mutex_);
+  return clock_.has_inputs();
+}
+
+ModelClockCounters ModelRunner::clock_counters() const {
+  std::lock_guard lock(mutex_);
+  return clock_.counters();
 }
 
 void ModelRunner::enable_grasper(const GrasperRole& role) {
   grasp_ = std::make_unique<GraspCoupling>(role, scene_);
-}
-
-void ModelRunner::set_grasper(const GraspCommand& cmd) {
   std::lock_guard lock(mutex_);
-  grasp_cmd_ = cmd;
+  clock_.require_grasp();
 }
 
 GraspStatus ModelRunner::grasp_status() const {
@@ -117,9 +161,9 @@ GraspStatus ModelRunner::grasp_status() const {
 
 std::shared_ptr<const ModelSnapshot> ModelRunner::snapshot_at(std::int64_t device_time_us) const {
   std::lock_guard lock(mutex_);
-  if (!grasp_ || recent_.empty()) return snapshot_;
+  if (!clock_.has_inputs() || recent_.empty()) return snapshot_;
   for (auto it = recent_.rbegin(); it != recent_.rend(); ++it)
-    if ((*it)->grasper_device_time_us <= device_time_us) return *it;
+    if ((*it)->step_device_time_us <= device_time_us) return *it;
   return recent_.front();
 }
 
@@ -140,6 +184,17 @@ std::shared_ptr<const ModelSnapshot> ModelRunner::snapshot() const {
   return snapshot_;
 }
 
+std::vector<ModelRunner::CutVertex> ModelRunner::cut_vertices() const {
+  std::vector<CutVertex> out;
+  if (!cut_) return out;
+  const cut::TetCutter& cutter = cut_->cutter();
+  const Eigen::Matrix3Xd& rest = cutter.mesh().rest_positions_World_mm;
+  const Eigen::Matrix3Xd x = cut_->positions_World_mm();
+  for (Eigen::Index v = 0; v < rest.cols(); ++v)
+    if (cutter.on_cut(static_cast<int>(v))) out.push_back({static_cast<int>(v), rest.col(v), x.col(v)});
+  return out;
+}
+
 std::string ModelRunner::pin_error() const {
   std::lock_guard lock(mutex_);
   return pin_error_;
@@ -150,185 +205,129 @@ std::vector<double> ModelRunner::step_times_ms() const {
   return step_ms_;
 }
 
-void ModelRunner::record_material_sweep(const cut::SweptSurface& sweep) {
-  cut::TetCutter& cutter = cut_->cutter();
-  const Eigen::Matrix3Xd x = cut_->positions_World_mm();
-  const Eigen::Matrix3Xd& rest = cutter.mesh().rest_positions_World_mm;
-  // The pull-back is affine per tet; over a blade segment that spans tets of different
-  // strain (the tissue the blade pushed before cutting, a grasp nearby) the segment's image
-  // is curved: the lines are resampled every ~1 mm (at most 64 segments) so the chords stay on it.
-  const int strips = sweep.strips;
-  const double length = (sweep.to.heel_World_mm - sweep.to.tip_World_mm).norm();
-  const int n = std::clamp(static_cast<int>(std::ceil(length / 1.0)), strips, 64);
-  const bool carried = sweep.from_points.size() == static_cast<std::size_t>(strips + 1);
-  // The blade's start (carried with the tissue) and end lines, tip first: 2 (n + 1) points.
-  std::vector<Eigen::Vector3d> p(static_cast<std::size_t>(2 * (n + 1)));
-  for (int i = 0; i <= n; ++i) {
-    const double u = static_cast<double>(i) / n;
-    if (carried) {
-      const double f = u * strips;
-      const int j = std::min(static_cast<int>(std::floor(f)), strips - 1);
-      const double a = f - j;
-      p[static_cast<std::size_t>(i)] = (1 - a) * sweep.from_points[static_cast<std::size_t>(j)] + a * sweep.from_points[static_cast<std::size_t>(j + 1)];
-    } else {
-      p[static_cast<std::size_t>(i)] = (1 - u) * sweep.from.tip_World_mm + u * sweep.from.heel_World_mm;
-    }
-    p[static_cast<std::size_t>(n + 1 + i)] = (1 - u) * sweep.to.tip_World_mm + u * sweep.to.heel_World_mm;
-  }
-  // Pull back: rest = the barycentric combination of the rest positions of the tet holding
-  // the point now; a point outside the tissue (or in the opening of a cut) keeps the
-  // displacement of the nearest mapped point of its line (the blade's part outside the
-  // organ cuts nothing).
-  std::vector<Eigen::Vector3d> r(p.size());
-  std::vector<char> mapped(p.size(), 0);
-  bool refit = true;
-  for (std::size_t k = 0; k < p.size(); ++k) {
-    Eigen::Vector4d w;
-    const int t = cutter.locate(p[k], x, w, refit);
-    refit = false;
-    if (t < 0 || w.minCoeff() < -1e-6) continue;  // outside the tissue (or in a cut's opening)
-    const auto& tet = cutter.mesh().tets[static_cast<std::size_t>(t)];
-    r[k].setZero();
-    for (int j = 0; j < 4; ++j) r[k] += w[j] * rest.col(tet[static_cast<std::size_t>(j)]);
-    mapped[k] = 1;
-  }
-  for (int line = 0; line < 2; ++line) {
-    const int base = line * (n + 1);
-    for (int i = 0; i <= n; ++i) {
-      const auto k = static_cast<std::size_t>(base + i);
-      if (mapped[k]) continue;
-      int nearest = -1;
-      for (int j = 0; j <= n; ++j)
-        if (mapped[static_cast<std::size_t>(base + j)] && (nearest < 0 || std::abs(j - i) < std::abs(nearest - i))) nearest = j;
-      if (nearest < 0) return;  // a whole line outside the tissue: nothing swept in the material
-      const auto m = static_cast<std::size_t>(base + nearest);
-      r[k] = p[k] + (r[m] - p[m]);
-    }
-  }
-  Sweep sw;
-  for (int i = 0; i < n; ++i) {
-    const auto f0 = static_cast<std::size_t>(i), f1 = f0 + 1, t0 = static_cast<std::size_t>(n + 1 + i), t1 = t0 + 1;
-    sw.tris.push_back({r[f0], r[f1], r[t0]});
-    sw.tris.push_back({r[f1], r[t1], r[t0]});
-  }
-  for (const auto& t : sw.tris) {
-    sw.box.extend(t.a);
-    sw.box.extend(t.b);
-    sw.box.extend(t.c);
-  }
-  sweeps_.push_back(std::move(sw));
-  if (sweeps_.size() > static_cast<std::size_t>(120 * rate_hz_)) sweeps_.pop_front();  // two minutes of cutting
-}
-
-int ModelRunner::measure_new_cut_vertices(double& worst_mm) {
-  const cut::TetCutter& cutter = cut_->cutter();
-  const Eigen::Matrix3Xd& rest = cutter.mesh().rest_positions_World_mm;
-  on_cut_seen_.resize(static_cast<std::size_t>(rest.cols()), 0);
-  int fresh = 0;
-  worst_mm = -1.0;
-  for (Eigen::Index v = 0; v < rest.cols(); ++v) {
-    if (on_cut_seen_[static_cast<std::size_t>(v)] || !cutter.on_cut(static_cast<int>(v))) continue;
-    on_cut_seen_[static_cast<std::size_t>(v)] = 1;
-    ++fresh;
-    double best = 1e300;
-    const Eigen::Vector3d p = rest.col(v);
-    for (auto it = sweeps_.rbegin(); it != sweeps_.rend(); ++it) {
-      if (it->box.exteriorDistance(p) >= best) continue;  // newest first: the bound tightens fast
-      for (const auto& t : it->tris) best = std::min(best, cut::point_triangle_distance(p, t));
-    }
-    if (best < 1e299) worst_mm = std::max(worst_mm, best);
-  }
-  return fresh;
-}
-
-void ModelRunner::apply_grasp(GraspBody& body, std::int64_t now_us) {
-  GraspCommand cmd;
-  {
-    std::lock_guard lock(mutex_);
-    cmd = grasp_cmd_;
-  }
-  grasp_->apply(body, cmd, now_us);
-  grasper_device_time_us_ = cmd.device_time_us;
+void ModelRunner::apply_grasp(GraspBody& body, const ModelStepInputs& in) {
+  if (in.grasp) grasp_cmd_ = *in.grasp;
+  // The grasper pose's age is judged on the device clock, at the step's time.
+  grasp_->apply(body, grasp_cmd_, in.device_time_us);
+  grasper_device_time_us_ = grasp_cmd_.device_time_us;
   std::lock_guard lock(mutex_);
   grasp_status_ = grasp_->status();
 }
 
-void ModelRunner::step_once(std::int64_t now_us) {
+void ModelRunner::apply_blade_sample(const BladeSample& b, std::vector<ModelCutEvent>& events, std::optional<CutStepRecord>& record) {
+  if (!b.blade_Model_mm) {
+    blade_gap_ = true;
+    return;
+  }
+  const bool cuts = b.cutting && !blade_gap_;
+  const cut::CutFrameReport cr = cut_->apply_blade(cut::BladeSegment{(*b.blade_Model_mm)[0], (*b.blade_Model_mm)[1]}, cuts);
+  blade_gap_ = false;
+  // Cut-path fidelity, in the material: the surface this sample's blade swept (as the
+  // cutter used it), pulled back into the rest configuration at this instant; every vertex
+  // put on the cut is compared with those surfaces at its rest position.
+  if (cuts && cut_->last_sweep()) path_meter_.record_sweep(cut_->cutter(), cut_->positions_World_mm(), *cut_->last_sweep());
+  for (const auto& e : cr.events) events.push_back({0, 0, e});
+  if (cr.cut.vertices_snapped > 0) cut_marks_changed_ = true;
+  const auto ensure = [&record]() -> CutStepRecord& {
+    if (!record) record = CutStepRecord{};
+    return *record;
+  };
+  if (cr.cut.topology_changed) {
+    CutStepRecord& r = ensure();
+    r.cutter_path_error_mm = std::max(r.cutter_path_error_mm, cr.cut.max_path_deviation_mm);
+    r.update_ms += cr.cut.update_ms;
+    r.rebuild_ms += cr.rebuild_ms;
+    r.tets_cut += cr.cut.tets_cut;
+  }
+  if (cr.cut.topology_changed || cr.cut.vertices_snapped > 0) {
+    double worst = -1.0;
+    if (const int fresh = path_meter_.measure_new_cut_vertices(cut_->cutter(), worst); fresh > 0) {
+      CutStepRecord& r = ensure();
+      r.new_cut_vertices += fresh;
+      r.path_error_mm = std::max(r.path_error_mm, worst);
+    }
+  }
+}
+
+void ModelRunner::apply_blades(const ModelStepInputs& in, std::vector<ModelCutEvent>& events, std::optional<CutStepRecord>& record) {
+  if (in.blades.empty()) {
+    // No new sample: the blade stays where it was while it is fresh (the tissue may move
+    // across it); older, the scalpel is lost and the next sample only places itself.
+    if (last_blade_ && last_blade_->blade_Model_mm && in.device_time_us - last_blade_->device_time_us <= blade_stale_us_)
+      apply_blade_sample(*last_blade_, events, record);
+    else
+      blade_gap_ = true;
+    return;
+  }
+  for (const BladeSample& b : in.blades) apply_blade_sample(b, events, record);
+  last_blade_ = in.blades.back();
+}
+
+void ModelRunner::step_once(const ModelStepInputs* in, std::int64_t now_us) {
   auto snap = std::make_shared<ModelSnapshot>();
   std::vector<ModelCutEvent> new_events;
   std::optional<CutStepRecord> cut_record;
-  if (now_us >= 0) {
+  if (in) {
     const auto t0 = std::chrono::steady_clock::now();
     StepSummary s;
     if (cut_) {
-      std::optional<std::array<Eigen::Vector3d, 2>> blade;
-      bool enabled = false;
-      {
-        std::lock_guard lock(mutex_);
-        blade = scalpel_;
-        enabled = cutting_enabled_;
-      }
-      if (blade) {
-        const bool cuts = enabled && !blade_gap_;
-        const cut::CutFrameReport cr = cut_->apply_blade(cut::BladeSegment{(*blade)[0], (*blade)[1]}, cuts);
-        // Cut-path fidelity, in the material: the surface this frame's blade swept (as the
-        // cutter used it), pulled back into the rest configuration at this instant; every
-        // vertex put on the cut is compared with those surfaces at its rest position (below).
-        if (cuts && cut_->last_sweep()) record_material_sweep(*cut_->last_sweep());
-        if (cr.cut.topology_changed || cr.cut.vertices_snapped > 0) {
-          double worst = -1.0;
-          const int fresh = measure_new_cut_vertices(worst);
-          if (fresh > 0) {
-            cut_path_.emplace_back(fresh, worst);
-          }
-        }
-        previous_blade_ = blade;
-        blade_gap_ = false;
-        for (const auto& e : cr.events) new_events.push_back({0, now_us, e});
-        if (cr.cut.vertices_snapped > 0) cut_marks_changed_ = true;
-        if (cr.cut.topology_changed) {
-          cut_record = CutStepRecord{};
-          cut_record->cutter_path_error_mm = cr.cut.max_path_deviation_mm;
-          cut_record->update_ms = cr.cut.update_ms;
-          cut_record->rebuild_ms = cr.rebuild_ms;
-          cut_record->tets_cut = cr.cut.tets_cut;
-        }
-        if (!cut_path_.empty()) {
-          if (!cut_record) cut_record = CutStepRecord{};
-          cut_record->new_cut_vertices = cut_path_.back().first;
-          cut_record->path_error_mm = cut_path_.back().second;
-          cut_path_.clear();
-        }
-      } else {
-        blade_gap_ = true;
-        previous_blade_.reset();
-      }
+      apply_blades(*in, new_events, cut_record);
       if (grasp_) {  // after the blade: the grasp holds the tissue as the cut left it
-        cut::CutSession& session = *cut_;
-        CutSessionBody body(session);
-        apply_grasp(body, now_us);
+        CutSessionBody body(*cut_);
+        apply_grasp(body, *in);
       }
       s = cut_->step(1.0 / rate_hz_);
     } else {
       if (grasp_) {
         TissueModelBody body(*model_);
-        apply_grasp(body, now_us);
+        apply_grasp(body, *in);
       }
       s = model_->step(1.0 / rate_hz_);
     }
     snap->step_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     snap->healthy = s.healthy;
     snap->warning = s.warning;
+    snap->step_device_time_us = in->device_time_us;
+    for (auto& e : new_events) e.step_done_mono_us = now_us;
   }
+  fill_snapshot(*snap);
+  snap->step_done_mono_us = now_us;
+  std::lock_guard lock(mutex_);
+  snap->step = steps_.load() + (in ? 1 : 0);
+  for (auto& e : new_events) {
+    e.step = snap->step;
+    events_.push_back(std::move(e));
+  }
+  if (cut_record) {
+    cut_record->step = snap->step;
+    cut_steps_.push_back(*cut_record);
+  }
+  snap->events_total = static_cast<std::int64_t>(events_.size());
+  snap->cut_steps_total = static_cast<std::int64_t>(cut_steps_.size());
+  snap->clock = clock_.counters();
+  if (in) {
+    ++steps_;
+    step_ms_.push_back(snap->step_ms);
+  }
+  if (clock_.has_inputs()) {
+    snap->grasper_device_time_us = grasper_device_time_us_;
+    recent_.push_back(snap);
+    while (recent_.size() > static_cast<std::size_t>(rate_hz_) + 1) recent_.pop_front();
+  }
+  snapshot_ = std::move(snap);
+}
+
+// What the overlay draws, from the model's state now.
+void ModelRunner::fill_snapshot(ModelSnapshot& snap) {
   if (cut_) {
     // The cut volume: its boundary (cut faces included) is the organ drawn; the tumours and
     // vessels are carried through the cuts by the cut session.
     const Eigen::Matrix3Xd x = cut_->positions_World_mm();
     const TetMesh& mesh = cut_->mesh();
     const auto& surface = cut_->surface_tris();
-    snap->cutting = true;
-    snap->organ.tris = surface;
-    snap->organ.positions_World_mm = x;
+    snap.cutting = true;
+    snap.organ.tris = surface;
+    snap.organ.positions_World_mm = x;
     if (cut_->surface_version() != cut_surface_version_ || cut_marks_changed_) {
       // The boundary changed (or vertices were put on the cut): its cut faces (all three
       // vertices on a cut) and the rim (cut-face edges shared with an uncut face), found
@@ -358,69 +357,46 @@ void ModelRunner::step_once(std::int64_t now_us) {
     cut_faces.tris = cut_face_tris_;
     double area2 = 0.0;
     for (const auto& f : cut_faces.tris) area2 += (x.col(f[1]) - x.col(f[0])).cross(x.col(f[2]) - x.col(f[0])).norm();
-    for (const auto& [a, b] : cut_rim_) snap->cut_rim_mm.push_back({x.col(a), x.col(b)});
-    snap->cut_faces = static_cast<int>(cut_faces.tris.size());
-    snap->cut_area_mm2 = 0.25 * area2;  // half of each face's |cross|, half of the faces (two sides)
-    if (!cut_faces.tris.empty()) snap->cut_surface = std::move(cut_faces);
+    for (const auto& [a, b] : cut_rim_) snap.cut_rim_mm.push_back({x.col(a), x.col(b)});
+    snap.cut_faces = static_cast<int>(cut_faces.tris.size());
+    snap.cut_area_mm2 = 0.25 * area2;  // half of each face's |cross|, half of the faces (two sides)
+    if (!cut_faces.tris.empty()) snap.cut_surface = std::move(cut_faces);
     for (std::size_t i = 0; i < cut_->tumours().size(); ++i) {
       TriMesh t;
       t.tris = cut_->tumour_tris()[i];  // split along the cut (closed again)
       t.positions_World_mm = cut_->tumours()[i].embedding.apply(mesh, x);
-      snap->margins.push_back(overlay::offset_surface(t, margin_mm_));
-      snap->tumour_centroids_mm.push_back(closed_centroid(t));
-      snap->tumours.push_back(std::move(t));
+      snap.margins.push_back(overlay::offset_surface(t, margin_mm_));
+      snap.tumour_centroids_mm.push_back(closed_centroid(t));
+      snap.tumours.push_back(std::move(t));
     }
     if (scene_.vessels && cut_->vessels()) {
       VesselTree v;  // split along the cut: new nodes take the radius of the node they came from
       v.nodes_World_mm = cut_->vessels()->embedding.apply(mesh, x);
       v.segments = cut_->vessel_segments();
       for (int src : cut_->vessel_node_source()) v.radius_mm.push_back(scene_.vessels->rest.radius_mm[static_cast<std::size_t>(src)]);
-      snap->vessels = std::move(v);
+      snap.vessels = std::move(v);
     }
-    snap->volume_positions_mm = x;
+    snap.volume_positions_mm = x;
   } else {
     const Eigen::Matrix3Xd& x = model_->positions_World_mm();
     const TetMesh& mesh = scene_.problem.mesh;
-    snap->organ.tris = scene_.organ_surface.tris;
-    snap->organ.positions_World_mm = scene_.organ_embedding.apply(mesh, x);
+    snap.organ.tris = scene_.organ_surface.tris;
+    snap.organ.positions_World_mm = scene_.organ_embedding.apply(mesh, x);
     for (std::size_t i = 0; i < scene_.tumours.size(); ++i) {
       TriMesh t;
       t.tris = scene_.tumours[i].rest.tris;
       t.positions_World_mm = scene_.tumours[i].embedding.apply(mesh, x);
-      snap->margins.push_back(overlay::offset_surface(t, margin_mm_));
-      snap->tumours.push_back(std::move(t));
-      snap->tumour_centroids_mm.push_back(tumour_centroid_World_mm(scene_, static_cast<int>(i), x));
+      snap.margins.push_back(overlay::offset_surface(t, margin_mm_));
+      snap.tumours.push_back(std::move(t));
+      snap.tumour_centroids_mm.push_back(tumour_centroid_World_mm(scene_, static_cast<int>(i), x));
     }
     if (scene_.vessels) {
       VesselTree v = scene_.vessels->rest;
       v.nodes_World_mm = scene_.vessels->embedding.apply(mesh, x);
-      snap->vessels = std::move(v);
+      snap.vessels = std::move(v);
     }
-    snap->volume_positions_mm = x;
+    snap.volume_positions_mm = x;
   }
-  snap->step_done_mono_us = now_us;
-  std::lock_guard lock(mutex_);
-  snap->step = steps_.load() + (now_us >= 0 ? 1 : 0);
-  for (auto& e : new_events) {
-    e.step = snap->step;
-    events_.push_back(std::move(e));
-  }
-  if (cut_record) {
-    cut_record->step = snap->step;
-    cut_steps_.push_back(*cut_record);
-  }
-  snap->events_total = static_cast<std::int64_t>(events_.size());
-  snap->cut_steps_total = static_cast<std::int64_t>(cut_steps_.size());
-  if (now_us >= 0) {
-    ++steps_;
-    step_ms_.push_back(snap->step_ms);
-  }
-  if (grasp_) {
-    snap->grasper_device_time_us = grasper_device_time_us_;
-    recent_.push_back(snap);
-    while (recent_.size() > static_cast<std::size_t>(rate_hz_) + 1) recent_.pop_front();
-  }
-  snapshot_ = std::move(snap);
 }
 
 }  // namespace arnav::host

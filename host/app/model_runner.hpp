@@ -4,13 +4,20 @@
 // an immutable snapshot of what the overlay draws (organ surface, tumours and their margin
 // shells, vessel centerlines), all in Model (the scene frame, mm).
 //
+// Inputs and clock (host/app/model_input_clock.hpp): the scalpel's blade samples and the
+// grasper's commands are handed in with the device time the tracker measured them
+// (push_blade, push_grasp); the model steps on a grid of device times and each step takes
+// the samples measured by its time, every blade sample applied on its own. So the model's
+// result depends on what the tracker measured, not on when this thread ran.
+//
 // Cutting (the scene declares `cutting:` and the session has a scalpel): the model is a
-// host/cut CutSession (make_cut_session). The scalpel blade in Model and whether cutting is
-// enabled (pedal held) are handed in with set_scalpel(); before every step the blade is
-// applied (cutting: the swept surface cuts the volume; not cutting: the blade pushes the
-// tissue). The snapshot then draws the cut volume's boundary as the organ, the cut faces as
+// host/cut CutSession (make_cut_session). Each blade sample in Model carries whether cutting
+// was enabled (pedal held) at its time; it is applied before the step (cutting: the swept
+// surface cuts the volume; not cutting: the blade pushes the tissue). A step without a new
+// sample holds the last blade where it was while it is fresh (the tissue may move across
+// it). The snapshot then draws the cut volume's boundary as the organ, the cut faces as
 // ModelSnapshot::cut_surface, and carries cut statistics and margin/vessel events. A blade
-// that was missing (scalpel stale or lost) only re-places itself on its first step back,
+// that was missing (scalpel stale or lost) only re-places itself on its first sample back,
 // so a tracking gap never sweeps a cut across the organ.
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -27,7 +34,9 @@
 #include <vector>
 
 #include "host/app/grasp_coupling.hpp"
+#include "host/app/model_input_clock.hpp"
 #include "host/cut/cut_session.hpp"
+#include "host/cut/material_path.hpp"
 #include "host/scene/scene.hpp"
 #include "host/sim/tissue_model.hpp"
 
@@ -36,6 +45,7 @@ namespace arnav::host {
 struct ModelSnapshot {
   std::int64_t step = 0;
   std::int64_t step_done_mono_us = 0;   // session clock when the step finished
+  std::int64_t step_device_time_us = -1;  // the step's time on the device clock (-1: the rest state)
   double step_ms = 0.0;                 // wall time of the step
   bool healthy = true;
   std::string warning;
@@ -55,6 +65,7 @@ struct ModelSnapshot {
   std::int64_t cut_steps_total = 0;     // steps that cut (topology changed)
   // Grasper sessions: the device time (appliance clock) of the grasper pose this step used.
   std::int64_t grasper_device_time_us = -1;
+  ModelClockCounters clock;             // the input clock's counters after this step
 };
 
 // A margin/vessel event raised by the cut session, with the model step it came from.
@@ -84,12 +95,22 @@ struct CutStepRecord {
   int tets_cut = 0;
 };
 
+// How long a step waits for late inputs, how far behind the model may fall before it skips
+// grid steps (model_input_clock.hpp), and how old the last blade sample may be for a step
+// without a new one to hold it.
+struct ModelClockSettings {
+  double input_wait_ms = 500.0;
+  double catch_up_ms = 1000.0;
+  double blade_stale_ms = 100.0;
+  double tool_gap_ms = 100.0;   // the tracker going on this long without a tool's pose: not waited for
+};
+
 class ModelRunner {
  public:
   // Builds the scene's tissue model (gravity per `gravity`). `nice` > 0 lowers the model
   // thread's scheduling priority (Linux nice, per thread). Throws std::invalid_argument.
   ModelRunner(const Scene& scene, double rate_hz, bool gravity, double margin_mm, int nice = 0,
-              std::optional<cut::CutSessionSettings> cutting = std::nullopt);
+              std::optional<cut::CutSessionSettings> cutting = std::nullopt, const ModelClockSettings& clock = {});
   ~ModelRunner();
   ModelRunner(const ModelRunner&) = delete;
   ModelRunner& operator=(const ModelRunner&) = delete;
@@ -102,36 +123,56 @@ class ModelRunner {
   // Live: steps on a thread every 1/rate_hz until stop().
   void start();
   void stop();
-  // Replay: performs the steps due up to now_us (session clock), at most max_steps.
-  int advance_to(std::int64_t now_us, int max_steps = 10);
+  // Unthreaded (replay, tests): performs the steps due at now_us (session clock), at most max_steps.
+  int advance_to(std::int64_t now_us, int max_steps = 1000);
 
-  // Blade {tip, heel} in Model (nullopt: not tracked now) and whether it cuts.
-  void set_scalpel(const std::optional<std::array<Eigen::Vector3d, 2>>& blade_Model_mm, bool cutting_enabled = false);
   bool cutting() const { return cut_ != nullptr; }
+  // A cutting model driven by a scalpel: its blade samples, in the order the tracker
+  // measured them (now_us: the session clock at arrival). Call expect_blade() before start().
+  void expect_blade();
+  void push_blade(const BladeSample& sample, std::int64_t now_us);
   // A tracked grasper coupled to the model (host/app/grasp_coupling.hpp), also on a cutting
-  // model (its springs kept through cuts and rebuilds, applied after the blade). set_grasper
-  // hands in its newest pose and request; the model thread grasps, follows or releases
-  // before each step.
+  // model (its springs kept through cuts and rebuilds, applied after the blade). push_grasper
+  // hands in its pose and request as of a tracker frame; the model thread grasps, follows or
+  // releases before each step with the newest measured by the step's time.
   void enable_grasper(const GrasperRole& role);
-  void set_grasper(const GraspCommand& cmd);
+  void push_grasp(const GraspSample& sample, std::int64_t now_us);
+  // The tracker reached device_time_us (another tool's pose; in the order handed to the model).
+  void tracker_at(std::int64_t device_time_us, std::int64_t now_us);
   bool has_grasper() const { return grasp_ != nullptr; }
+  bool has_inputs() const;
   GraspStatus grasp_status() const;
-  // Grasper sessions: the newest of the last second's snapshots whose grasper pose was
-  // measured no later than device_time_us (a camera frame's capture time, same appliance
-  // clock), so a frame is drawn with the model as the tool had it when the image was taken;
-  // the oldest kept when none is that old; snapshot() when there is no grasper.
+  ModelClockCounters clock_counters() const;
+  // Sessions with inputs: the newest of the last second's snapshots whose step time is no
+  // later than device_time_us (a camera frame's capture time, same appliance clock), so a
+  // frame is drawn with the model as the tools had it when the image was taken; the oldest
+  // kept when none is that old; snapshot() when the model has no inputs.
   std::shared_ptr<const ModelSnapshot> snapshot_at(std::int64_t device_time_us) const;
   // Events and cutting steps from index `from` on (for the rendering thread to consume in order).
   std::vector<ModelCutEvent> events(std::size_t from) const;
   std::vector<CutStepRecord> cut_steps(std::size_t from) const;
   std::shared_ptr<const ModelSnapshot> snapshot() const;
+  // Cutting models, after stop() (or unthreaded): every vertex on a cut, where in the
+  // material (rest) the cut put it and where it is now (Model, mm); the run's cut, for
+  // comparing runs (docs/overlay.md, "Model clock").
+  struct CutVertex {
+    int id = 0;
+    Eigen::Vector3d rest_mm;
+    Eigen::Vector3d now_mm;
+  };
+  std::vector<CutVertex> cut_vertices() const;
   std::int64_t steps() const { return steps_.load(); }
   // Wall times of every step (ms), for the summary.
   std::vector<double> step_times_ms() const;
 
  private:
-  void step_once(std::int64_t now_us);
-  void apply_grasp(GraspBody& body, std::int64_t now_us);
+  // One step with its inputs (null: the rest state, before the first step).
+  void step_once(const ModelStepInputs* in, std::int64_t now_us);
+  // The step's blade samples (or the last one held), applied in order; cut statistics and events.
+  void apply_blades(const ModelStepInputs& in, std::vector<ModelCutEvent>& events, std::optional<CutStepRecord>& record);
+  void apply_blade_sample(const BladeSample& b, std::vector<ModelCutEvent>& events, std::optional<CutStepRecord>& record);
+  void apply_grasp(GraspBody& body, const ModelStepInputs& in);
+  void fill_snapshot(ModelSnapshot& snap);
   const Scene& scene_;
   double rate_hz_;
   double margin_mm_;
@@ -141,24 +182,17 @@ class ModelRunner {
   std::unique_ptr<TissueModel> model_;
   std::unique_ptr<cut::CutSession> cut_;
   std::unique_ptr<GraspCoupling> grasp_;  // model thread
-  GraspCommand grasp_cmd_;                // guarded by mutex_
+  GraspCommand grasp_cmd_;                // model thread: the newest taken from the clock
   GraspStatus grasp_status_;              // guarded by mutex_ (copy after each step)
-  std::deque<std::shared_ptr<const ModelSnapshot>> recent_;  // grasper sessions: the last second's snapshots (mutex_)
+  ModelInputClock clock_;                 // guarded by mutex_
+  std::int64_t blade_stale_us_;
+  std::optional<BladeSample> last_blade_;  // model thread: the newest applied
+  std::deque<std::shared_ptr<const ModelSnapshot>> recent_;  // sessions with inputs: the last second's snapshots (mutex_)
   std::int64_t grasper_device_time_us_ = -1;                 // model thread
-  bool cutting_enabled_ = false;
   bool blade_gap_ = true;  // no blade applied yet, or it was missing: the next one only places itself
   std::vector<ModelCutEvent> events_;
   std::vector<CutStepRecord> cut_steps_;
-  std::optional<std::array<Eigen::Vector3d, 2>> previous_blade_;
-  struct Sweep {
-    Eigen::AlignedBox3d box;
-    std::vector<cut::Triangle> tris;
-  };
-  std::deque<Sweep> sweeps_;                        // swept triangles of the cutting steps (last 2 min of cutting), in the material (rest) frame
-  std::vector<char> on_cut_seen_;                   // vertex already measured on the cut
-  std::vector<std::pair<int, double>> cut_path_;    // this step: vertices new on the cut, their largest distance (mm)
-  void record_material_sweep(const cut::SweptSurface& sweep);
-  int measure_new_cut_vertices(double& worst_mm);
+  cut::MaterialPathMeter path_meter_;               // the cut-path error in the material (host/cut/material_path.hpp)
   // Cut faces and the cut's rim on the organ surface: found again only when the cut session's
   // boundary changed or vertices were put on the cut (not every step).
   int cut_surface_version_ = -1;
@@ -167,10 +201,8 @@ class ModelRunner {
   std::vector<std::pair<int, int>> cut_rim_;
   mutable std::mutex mutex_;
   std::shared_ptr<const ModelSnapshot> snapshot_;
-  std::optional<std::array<Eigen::Vector3d, 2>> scalpel_;
   std::vector<double> step_ms_;
   std::atomic<std::int64_t> steps_{0};
-  std::int64_t next_step_us_ = -1;
   std::thread thread_;
   std::atomic<bool> stop_{false};
   std::condition_variable cv_;

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
 #include <sstream>
 
 #include <opencv2/calib3d.hpp>
@@ -100,8 +101,15 @@ NavigationSession::NavigationSession(const SessionConfig& config, std::unique_pt
   }
   if (scene_) {
     try {
+      ModelClockSettings clock;
+      clock.input_wait_ms = config_.model.input_wait_ms;
+      clock.catch_up_ms = std::max(1000.0, 2.0 * config_.model.input_wait_ms);
+      if (config_.scalpel) clock.blade_stale_ms = config_.scalpel->stale_after_ms;
+      clock.tool_gap_ms = std::max(config_.scalpel ? config_.scalpel->stale_after_ms : 0.0, config_.grasper ? config_.grasper->stale_after_ms : 0.0);
+      if (clock.tool_gap_ms <= 0.0) clock.tool_gap_ms = 100.0;
       model_ = std::make_unique<ModelRunner>(*scene_, config_.model.rate_hz, config_.model.gravity, config_.overlay.margin_mm,
-                                             config_.model.nice, cutting);
+                                             config_.model.nice, cutting, clock);
+      if (config_.scalpel && model_->cutting()) model_->expect_blade();
     } catch (const std::exception& e) {
       throw SessionError(at_scene + "the tissue model cannot be built: " + e.what());
     }
@@ -264,7 +272,22 @@ void NavigationSession::stop() {
     auto rec = std::move(recorder_);
     recorded_files_ = rec->close();
     video_frames_skipped_ = rec->video_frames_skipped();
+    if (model_ && model_->cutting()) recorded_files_.push_back(write_cut_vertices());
   }
+}
+
+std::string NavigationSession::write_cut_vertices() const {
+  const std::string path = options_.record_dir + "/cut_vertices.csv";
+  std::ofstream out(path);
+  out << "vertex,rest_x_mm,rest_y_mm,rest_z_mm,x_Model_mm,y_Model_mm,z_Model_mm\n";
+  char line[256];
+  for (const auto& v : model_->cut_vertices()) {
+    std::snprintf(line, sizeof line, "%d,%.9f,%.9f,%.9f,%.9f,%.9f,%.9f\n", v.id, v.rest_mm.x(), v.rest_mm.y(), v.rest_mm.z(), v.now_mm.x(),
+                  v.now_mm.y(), v.now_mm.z());
+    out << line;
+  }
+  if (!out) throw SessionError("--record " + options_.record_dir + ": cannot write " + path + " (disk full or not writable?)");
+  return path;
 }
 
 void NavigationSession::on_pose(const tool_pose_t& msg, std::int64_t now_us) {
@@ -273,10 +296,9 @@ void NavigationSession::on_pose(const tool_pose_t& msg, std::int64_t now_us) {
   PoseHistory& h = poses_[msg.tool_name];
   h.recent.push_back({msg, now_us});
   if (h.recent.size() > kHistory) h.recent.pop_front();
-  // Without a camera the scalpel's poses themselves drive the cutting stage.
-  if (!config_.camera && config_.scalpel && model_ && model_->cutting() && msg.tool_name == config_.scalpel->name)
-    blade_without_camera(msg, now_us);
-  if (config_.grasper && model_) msg.tool_name == config_.grasper->name ? grasper_pose(msg, now_us) : drain_grasp();
+  // The scalpel's and the grasper's poses drive the model, at the time they were measured.
+  if (model_) queue_model_pose(msg, now_us);
+  if (config_.grasper && model_) drain_grasp();
 }
 
 void NavigationSession::on_health(const device_health_t& msg, std::int64_t now_us) {
@@ -386,32 +408,6 @@ void NavigationSession::drain_cut(FrameRow* row) {
     say(text);
     cut_events_.push_back(e);
   }
-}
-
-void NavigationSession::blade_without_camera(const tool_pose_t& msg, std::int64_t now_us) {
-  std::optional<std::array<Eigen::Vector3d, 2>> blade;
-  if (msg.status == tool_pose_t::STATUS_VALID && X_RefModel_) {
-    std::optional<Eigen::Isometry3d> X_RefTool;
-    if (msg.frame_parent == "Ref") {
-      X_RefTool = get_pose(msg);
-    } else if (auto it = poses_.find(config_.reference->name); it != poses_.end()) {
-      const PoseSample* best = nullptr;
-      for (const auto& r : it->second.recent) {
-        if (r.msg.status != tool_pose_t::STATUS_VALID || r.msg.frame_parent != msg.frame_parent || r.arrival_us > now_us) continue;
-        if (!best || std::llabs(r.msg.receive_time_mono_us - msg.receive_time_mono_us) < std::llabs(best->msg.receive_time_mono_us - msg.receive_time_mono_us))
-          best = &r;
-      }
-      if (best && std::llabs(best->msg.receive_time_mono_us - msg.receive_time_mono_us) <= 50'000)
-        X_RefTool = get_pose(best->msg).inverse() * get_pose(msg);
-    }
-    if (X_RefTool) {
-      const Eigen::Isometry3d X_ModelTool = X_RefModel_->inverse() * *X_RefTool;
-      blade = std::array<Eigen::Vector3d, 2>{X_ModelTool * config_.scalpel->tip_Tool_mm, X_ModelTool * config_.scalpel->heel_Tool_mm};
-    }
-  }
-  const bool enabled = cutting_armed(now_us, nullptr) && blade.has_value();
-  if (enabled) ++cutting_frames_;
-  model_->set_scalpel(blade, enabled);
 }
 
 void NavigationSession::on_input(const input_event_t& msg, std::int64_t now_us) {
@@ -670,7 +666,7 @@ FrameResult NavigationSession::render_decoded(const image_frame_t& msg, cv::Mat 
   last_capture_us_ = msg.capture_time_mono_us;
   // With a grasper the model moves with the tool: the state as the tool was when the frame was captured.
   std::shared_ptr<const ModelSnapshot> snap = !model_ ? nullptr
-                                              : model_->has_grasper() ? model_->snapshot_at(msg.capture_time_mono_us)
+                                              : model_->has_inputs() ? model_->snapshot_at(msg.capture_time_mono_us)
                                                                       : model_->snapshot();
   out.row.pose_time_mono_us = r.pose_time_us;
   if (snap) out.row.model_step_time_mono_us = snap->step_done_mono_us;
@@ -723,7 +719,6 @@ FrameResult NavigationSession::render_decoded(const image_frame_t& msg, cv::Mat 
     const Eigen::Isometry3d X_ModelTool = X_RefModel->inverse() * *r.X_RefScalpel;
     blade_Model = std::array<Eigen::Vector3d, 2>{X_ModelTool * config_.scalpel->tip_Tool_mm, X_ModelTool * config_.scalpel->heel_Tool_mm};
   }
-  if (model_ && config_.scalpel) model_->set_scalpel(blade_Model, cutting_enabled && blade_Model.has_value());
   if (cut_model) {
     out.row.cutting = cutting_enabled && blade_Model.has_value();
     if (*out.row.cutting) ++cutting_frames_;
@@ -893,6 +888,13 @@ nlohmann::json NavigationSession::summary_json(double run_s) {
                   {"rate_hz", run_s > 0 ? static_cast<double>(steps.size()) / run_s : 0.0},
                   {"step_ms_p50", percentile(steps, 0.5)},
                   {"step_ms_p99", percentile(steps, 0.99)}};
+    if (model_->has_inputs()) {
+      // The model's clock (docs/overlay.md, "Model clock"): steps run without a late input,
+      // grid steps skipped to catch up, samples that came after their step, the largest lag.
+      const ModelClockCounters c = model_->clock_counters();
+      j["model"]["clock"] = {{"steps", c.steps}, {"waited_out", c.steps_waited_out}, {"skipped", c.steps_skipped},
+                             {"late_samples", c.late_samples}, {"max_lag_ms", c.max_lag_ms}};
+    }
   }
   if (model_ && model_->has_grasper()) j["grasper"] = grasp_summary();
   if (model_ && model_->cutting()) {

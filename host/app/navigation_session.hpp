@@ -151,6 +151,21 @@ class NavigationSession {
   struct PoseHistory {
     std::deque<PoseSample> recent;     // newest last
   };
+  // Poses on their way to the model, in the order measured (navigation_session_inputs.cpp):
+  // the scalpel's (cutting model) and the grasper's as inputs, the others as the tracker's
+  // progress; all with mutex_ held.
+  std::deque<PoseSample> model_poses_;
+  bool is_blade_tool(const tool_pose_t& msg) const;
+  bool is_grasper_tool(const tool_pose_t& msg) const;
+  void queue_model_pose(const tool_pose_t& msg, std::int64_t now_us);
+  void resolve_model_poses(std::int64_t now_us);
+  // X_Ref<tool> at the pose's device time; decided = false: the reference measured at that
+  // time may still come (wait).
+  std::optional<Eigen::Isometry3d> X_RefTool_at(const PoseSample& p, std::int64_t now_us, bool& decided);
+  // The cut pedal held at a device time (and its state fresh now).
+  bool cut_pedal_at(std::int64_t device_time_us, std::int64_t now_us) const;
+  void hand_blade(const tool_pose_t& msg, const std::optional<Eigen::Isometry3d>& X_RefTool, std::int64_t now_us);
+  void hand_grasp(const tool_pose_t& msg, const std::optional<Eigen::Isometry3d>& X_RefTool, std::int64_t now_us);
   struct Resolved;
   Resolved resolve_poses(const image_frame_t& msg, std::int64_t now_us);
   FrameResult render_decoded(const image_frame_t& msg, cv::Mat image, double decode_ms, std::int64_t now_us);
@@ -158,6 +173,8 @@ class NavigationSession {
   // The renderer for frames of width x height (intrinsics scaled when they differ).
   overlay::OverlayCamera ensure_renderer(int width, int height);
   void note_flags(const FrameRow& row);
+  // --record with a cutting model: DIR/cut_vertices.csv (ModelRunner::cut_vertices); its path.
+  std::string write_cut_vertices() const;
   void say(const std::string& text);  // with mutex_ held
   // Cutting armed now (mode always, or cut_enable held with a fresh state); sets *banner
   // when the input is stale; counts disarms. With mutex_ held.
@@ -165,12 +182,9 @@ class NavigationSession {
   // Takes the model's cutting steps and events since the last call (rendering thread, or
   // the caller's without a camera); fills row's cut columns when given.
   void drain_cut(FrameRow* row);
-  // No camera: every scalpel pose hands the blade to the model (with mutex_ held).
-  void blade_without_camera(const tool_pose_t& msg, std::int64_t now_us);
   std::vector<TipSample> pointer_tips_Ref(std::int64_t now_us);  // with mutex_ held
   // tools.grasper (navigation_session_grasp.cpp): its poses in Model and the grasp request
   // handed to the model (with mutex_ held); banners/flags for a frame; messages to say().
-  void grasper_pose(const tool_pose_t& msg, std::int64_t now_us);
   void grasp_request(std::int64_t now_us);
   void grasp_frame(std::string& flags, std::vector<std::string>& banners);
   void drain_grasp();  // with mutex_ held

@@ -21,41 +21,7 @@ void NavigationSession::grasp_request(std::int64_t now_us) {
                          : h == HeldState::kHeld   ? std::string()
                                                    : "input '" + b.input + "' stale";
   }
-  model_->set_grasper(grasp_cmd_);
   drain_grasp();  // what the model thread did with the previous ones (sessions without a camera too)
-}
-
-void NavigationSession::grasper_pose(const tool_pose_t& msg, std::int64_t now_us) {
-  // An invalid pose changes nothing: the last valid one ages, and past stale_after_ms the
-  // model releases the grasp.
-  if (msg.status == tool_pose_t::STATUS_VALID && X_RefModel_) {
-    std::optional<Eigen::Isometry3d> X_RefTool;
-    if (msg.frame_parent == "Ref") {
-      X_RefTool = get_pose(msg);
-    } else if (auto it = poses_.find(config_.reference->name); it != poses_.end()) {
-      // The reference in the same parent frame that is fresh now (arrived within its own
-      // stale_after_ms, the overlay's rule), nearest in device time. A camera-measured
-      // reference arrives after the camera's latency (~0.1-0.2 s on the bench), later than
-      // the tracker's grasper poses: the newest fresh one is used, never a stale one.
-      const PoseSample* best = nullptr;
-      const auto limit_us = static_cast<std::int64_t>(config_.reference->stale_after_ms * 1000.0);
-      for (const auto& r : it->second.recent) {
-        if (r.msg.status != tool_pose_t::STATUS_VALID || r.msg.frame_parent != msg.frame_parent || r.arrival_us > now_us ||
-            now_us - r.arrival_us > limit_us)
-          continue;
-        if (!best || std::llabs(r.msg.receive_time_mono_us - msg.receive_time_mono_us) <
-                         std::llabs(best->msg.receive_time_mono_us - msg.receive_time_mono_us))
-          best = &r;
-      }
-      if (best) X_RefTool = get_pose(best->msg).inverse() * get_pose(msg);
-    }
-    if (X_RefTool) {
-      grasp_cmd_.X_ModelTool = X_RefModel_->inverse() * *X_RefTool;
-      grasp_cmd_.pose_time_us = now_us;
-      grasp_cmd_.device_time_us = msg.receive_time_mono_us;
-    }
-  }
-  grasp_request(now_us);
 }
 
 void NavigationSession::drain_grasp() {

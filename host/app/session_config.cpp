@@ -292,8 +292,9 @@ SessionConfig parse_session(const std::string& text, const std::string& source, 
   }
 
   if (const YAML::Node m = root["model"]) {
-    r.only(m, "model", {"rate_hz", "gravity", "nice", "cpu_partition"});
+    r.only(m, "model", {"rate_hz", "gravity", "nice", "cpu_partition", "input_wait_ms"});
     c.model.rate_hz = r.number(m, "model", "rate_hz", c.model.rate_hz, 1.0, 1000.0);
+    c.model.input_wait_ms = r.number(m, "model", "input_wait_ms", c.model.input_wait_ms, 0.0, 10000.0);
     c.model.gravity = r.boolean(m, "model", "gravity", c.model.gravity);
     c.model.nice = r.integer(m, "model", "nice", c.model.nice, 0, 19);
     c.model.cpu_partition = r.text(m, "model", "cpu_partition", c.model.cpu_partition);

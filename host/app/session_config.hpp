@@ -58,6 +58,10 @@ struct ModelSettings {
   // at start is below that count (a machine busy with other work: off).
   std::string cpu_partition = "auto";
   int cpu_partition_line = 0;
+  // The model steps on the tracker's clock (docs/overlay.md, "Model clock"): a step waits
+  // this long (host clock) past its device time for tool poses that are late (the camera's
+  // reference, a stalled link) before it runs without them.
+  double input_wait_ms = 500.0;
 };
 
 // Where the overlay is shown besides the recording: a window (GLFW) on a workstation's

@@ -94,7 +94,7 @@ static int main_body(int argc, char** argv) {
                   "step the scene's own model settings instead of the recommended real-time ones");
   CutBenchOptions cut_options;
   cut_options.data_dir = ARNAV_DEFAULT_DATA_DIR;
-  CLI::App* cut = app.add_subcommand("cut", "the scalpel cutting the liver: topology update, frame time, quality, volume, path fidelity");
+  CLI::App* cut = app.add_subcommand("cut", "the scalpel cutting the liver: topology update, frame time, quality, volume, cut-path error in the material");
   cut->add_flag("--quick", cut_options.quick, "CI smoke run: coarse mesh, XPBD, right-lobe path, 150 frames");
   cut->add_option("-o,--out", out_dir, "output folder for cut.csv and cut_frames.csv (per frame)");
   cut->add_option("--data", cut_options.data_dir, "data folder with liver/*.scene.yaml and liver/scalpel_*.csv");
@@ -254,7 +254,7 @@ static int main_body(int argc, char** argv) {
                 << "\",\"background_rebuild\":" << (r.background ? "true" : "false") << ",\"frames\":" << r.frames << ",\"topology_p99_ms\":" << r.topology_p99_ms << ",\"frame_median_ms\":" << r.frame_median_ms
                 << ",\"frame_p99_ms\":" << r.frame_p99_ms << ",\"min_dihedral_deg\":" << r.min_dihedral_deg << ",\"min_dihedral_active_deg\":" << r.min_dihedral_active_deg
                 << ",\"embedded_tets\":" << r.embedded_tets << ",\"embedded_volume_fraction\":" << r.embedded_volume_fraction << ",\"volume_change_rel\":"
-                << r.volume_change_rel << ",\"path_fidelity_mm\":" << r.path_fidelity_mm << ",\"completion_deviation_mm\":" << r.completion_deviation_mm << ",\"pieces\":" << r.pieces << ",\"tumours_freed\":" << r.tumours_freed << ",\"tumours_separated\":" << r.tumours_separated << ",\"freed_drop_mm\":" << r.freed_drop_mm << ",\"organ_drift_mm\":" << r.organ_drift_mm << ",\"local_updates\":" << r.local_updates << ",\"rebuilds\":" << r.rebuilds
+                << r.volume_change_rel << ",\"path_error_mm\":{\"p50\":" << r.path_error_p50_mm << ",\"p95\":" << r.path_error_p95_mm << ",\"max\":" << r.path_error_max_mm << ",\"vertices\":" << r.cut_vertices_measured << "},\"cutter_snap_deviation_mm\":" << r.path_fidelity_mm << ",\"completion_deviation_mm\":" << r.completion_deviation_mm << ",\"pieces\":" << r.pieces << ",\"tumours_freed\":" << r.tumours_freed << ",\"tumours_separated\":" << r.tumours_separated << ",\"freed_drop_mm\":" << r.freed_drop_mm << ",\"organ_drift_mm\":" << r.organ_drift_mm << ",\"local_updates\":" << r.local_updates << ",\"rebuilds\":" << r.rebuilds
                 << ",\"local_updates_enabled\":" << (r.local_updates_enabled ? "true" : "false") << ",\"local_median_ms\":" << r.local_median_ms
                 << ",\"local_p99_ms\":" << r.local_p99_ms << ",\"rebuild_median_ms\":" << r.rebuild_median_ms << ",\"rebuild_p99_ms\":" << r.rebuild_p99_ms
                 << ",\"state_diff_max_mm\":" << r.state_diff_max_mm << ",\"state_diff_final_mm\":" << r.state_diff_final_mm

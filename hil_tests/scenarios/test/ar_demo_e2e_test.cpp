@@ -13,12 +13,18 @@
 // overlay that ignores the deformation, the camera fault and its recovery, the CSV complete.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <sstream>
+#include <csignal>
+#include <cstdint>
+#include <vector>
+
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <nlohmann/json.hpp>
@@ -42,13 +48,76 @@ std::vector<std::string> split(const std::string& line) {
   return cells;
 }
 
+// One busy process per core for as long as it lives (the session's timing-sensitive parts,
+// model thread, cutting, LCM and rendering, are tested while the machine is busy).
+class CpuHog {
+ public:
+  CpuHog() {
+    const long cores = std::max(1L, ::sysconf(_SC_NPROCESSORS_ONLN));
+    for (long i = 0; i < cores; ++i) {
+      const pid_t pid = ::fork();
+      if (pid == 0) {
+        volatile std::uint64_t x = 0;
+        for (;;) x = x + 1;
+      }
+      if (pid > 0) pids_.push_back(pid);
+    }
+  }
+  ~CpuHog() { stop(); }
+  void stop() {
+    for (pid_t pid : pids_) {
+      ::kill(pid, SIGKILL);
+      ::waitpid(pid, nullptr, 0);
+    }
+    pids_.clear();
+  }
+  std::size_t processes() const { return pids_.size(); }
+
+ private:
+  std::vector<pid_t> pids_;
+};
+
+struct CutVertexRow {
+  int id = 0;
+  double values[6] = {};
+};
+
+std::vector<CutVertexRow> read_cut_vertices(const std::filesystem::path& path) {
+  std::vector<CutVertexRow> rows;
+  std::ifstream in(path);
+  std::string line;
+  std::getline(in, line);  // header
+  while (std::getline(in, line)) {
+    const auto cells = split(line);
+    if (cells.size() != 7) {
+      ADD_FAILURE() << path << ": " << line;
+      break;
+    }
+    CutVertexRow r;
+    r.id = std::stoi(cells[0]);
+    for (int k = 0; k < 6; ++k) r.values[k] = std::stod(cells[static_cast<std::size_t>(k + 1)]);
+    rows.push_back(r);
+  }
+  return rows;
+}
+
+// The cut-path error in the material (docs/overlay.md): p95 and max of the per-step worst
+// new cut vertex against the surfaces the blade swept, live and replayed.
+void expect_cut_on_the_blades_path(const nlohmann::json& cutting, const char* run) {
+  EXPECT_GT(cutting["cut_faces"].get<int>(), 20) << run << ": " << cutting.dump();
+  EXPECT_LE(cutting["path_error_mm"]["p95"].get<double>(), 1.0) << run << ": " << cutting.dump();
+  EXPECT_LE(cutting["path_error_mm"]["max"].get<double>(), 3.0) << run << ": " << cutting.dump();
+}
+
 TEST(ArDemoSession, LiveRegistrationRingCutFaultAndRecording) {
   if (::geteuid() != 0) GTEST_SKIP() << "needs root for a private network namespace (unshare --net)";
   const std::filesystem::path out = std::filesystem::temp_directory_path() / ("arnav-ar-demo-" + std::to_string(::getpid()));
   std::filesystem::remove_all(out);
   const std::string src = env("ARNAV_SOURCE_DIR", ".");
-  const std::string cmd = src + "/hil_tests/scenarios/ar_session.sh " + env("ARNAV_BINARY_DIR", ".") + " " + out.string() + " >" +
-                          (out.string() + ".log") + " 2>&1";
+  const std::string build = env("ARNAV_BINARY_DIR", ".");
+  const std::string cmd = src + "/hil_tests/scenarios/ar_session.sh " + build + " " + out.string() + " >" + (out.string() + ".log") + " 2>&1";
+  CpuHog hog;  // the whole session, live and its replay, on a machine with every core busy
+  std::cerr << "[ar demo] " << hog.processes() << " busy processes alongside the session\n";
   const int rc = std::system(cmd.c_str());
   std::ifstream log_in(out.string() + ".log");
   std::stringstream log;
@@ -117,16 +186,30 @@ TEST(ArDemoSession, LiveRegistrationRingCutFaultAndRecording) {
               << rep["ar_error_mm"]["p95"].get<double>() << " mm, not held to 2 mm\n";
   }
   EXPECT_LT(rep["ar_error_mm"]["mean"].get<double>(), 0.5 * rep["rigid_overlay"]["ar_error_mm"]["mean"].get<double>()) << rep.dump();
-  // The replay's cut, measured in the material (docs/overlay.md): the tissue's motion after
-  // the cut (the grasper's pull, the ring's plug) is not path error. The median is at the
-  // cutter's path tolerance. The tail: live p95 2.2-2.9 mm; the replay used to show p95 up to
-  // 9.3 mm / max 14.9 mm because its model stepped only at camera frames, each step with the
-  // grasper pose of up to a frame later (docs/benchmarks.md, "Fifth round"); stepped by the
-  // log's clock it reproduces the live figures (2.78 / 2.83 mm on that log).
-  const nlohmann::json& replay_cut = replay_nav["cutting"];
-  EXPECT_GT(replay_cut["cut_faces"].get<int>(), 20) << replay_cut.dump();
-  EXPECT_LT(replay_cut["path_error_mm"]["p50"].get<double>(), 0.5) << replay_cut.dump();
-  EXPECT_LT(replay_cut["path_error_mm"]["p95"].get<double>(), 4.0) << replay_cut.dump();
+  // The cut, measured in the material (docs/overlay.md): the tissue's motion after the cut
+  // (the grasper's pull, the ring's plug) is not path error; a cut put where the blade was
+  // not is. Live and replayed, both with every core busy (issue 20: the tail reached 11 /
+  // 23.7 mm in a replay under load when the model took the blade at camera frames and
+  // stepped on the host's clock).
+  expect_cut_on_the_blades_path(replay_nav["cutting"], "replay");
+  expect_cut_on_the_blades_path(nav["cutting"], "live");
+  // The model steps on the tracker's clock (docs/overlay.md, "Model clock"): the same log
+  // replayed with every core busy (above) and without the hog gives the same cut.
+  hog.stop();
+  const std::string replay_again = build + "/host/app/arnav-host " + (out / "session.yaml").string() + " --replay " +
+                                   (out / "session.lcmlog").string() + " --replay-speed 0 --quiet --record " + (out / "replay_idle").string() +
+                                   " >" + (out / "replay_idle.log").string() + " 2>&1";
+  ASSERT_EQ(std::system(replay_again.c_str()), 0) << replay_again;
+  const auto cut_loaded = read_cut_vertices(out / "replay" / "cut_vertices.csv");
+  const auto cut_idle = read_cut_vertices(out / "replay_idle" / "cut_vertices.csv");
+  ASSERT_GT(cut_loaded.size(), 20u);
+  ASSERT_EQ(cut_idle.size(), cut_loaded.size());
+  double worst_mm = 0.0;
+  for (std::size_t i = 0; i < cut_idle.size(); ++i) {
+    ASSERT_EQ(cut_idle[i].id, cut_loaded[i].id);
+    for (int k = 0; k < 6; ++k) worst_mm = std::max(worst_mm, std::abs(cut_idle[i].values[k] - cut_loaded[i].values[k]));
+  }
+  EXPECT_LE(worst_mm, 1e-6) << "the replay's cut depends on the machine's load";
   EXPECT_EQ(ar["invisible_with_overlay"].get<int>(), 0) << ar.dump();
   // The CSV holds every frame the camera made that the host displayed (the host may drop a
   // few under load; its own count says how many).

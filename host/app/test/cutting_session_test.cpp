@@ -484,9 +484,10 @@ TEST(SessionConfig, BadInputsCuttingAndLiveRegistrationNameFileLineAndFix) {
 TEST(ModelRunnerCut, SnapshotDrawsTheTumourAndVesselsSplitAlongTheCut) {
   const Scene scene = load_scene(data_dir() + "/liver/liver_coarse_cut.scene.yaml");
   ModelRunner runner(scene, 60.0, false, 5.0, 0, cut::CutSessionSettings{});
-  std::int64_t t = 1'000'000;
+  runner.expect_blade();
+  std::int64_t t = 60 * 16'667;  // on the model's grid of device times
   for (int f = 0; f <= 45; ++f, t += 16'667) {  // vertical blade at x = 71.3 through the tumour, y 125 .. 215
-    runner.set_scalpel(std::array<Eigen::Vector3d, 2>{Eigen::Vector3d(71.3, 125 + 2 * f, 100), Eigen::Vector3d(71.3, 125 + 2 * f, 200)}, true);
+    runner.push_blade({t, std::array<Eigen::Vector3d, 2>{Eigen::Vector3d(71.3, 125 + 2 * f, 100), Eigen::Vector3d(71.3, 125 + 2 * f, 200)}, true}, t);
     runner.advance_to(t, 1);
   }
   const auto snap = runner.snapshot();

@@ -4,6 +4,9 @@
 // it; the session file's errors; the navigation session drives it from tracked poses.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cstdio>
+
 #include "arnav/input_event_t.hpp"
 #include "host/app/grasp_coupling.hpp"
 #include "host/app/navigation_session.hpp"
@@ -49,6 +52,7 @@ class Grasp : public ::testing::Test {
     GraspCommand c;
     c.X_ModelTool = Eigen::Isometry3d(Eigen::Translation3d(tip));
     c.pose_time_us = t_us;
+    c.device_time_us = t_us;
     c.requested = requested;
     if (!requested) c.why_not = "input 'pedal_left' released";
     return c;
@@ -249,6 +253,10 @@ TEST_F(Grasp, SessionCouplesTheTrackedGrasperThroughTheRegistration) {
   EXPECT_NEAR(s.grasp_status()->tip_travel_mm, pull.norm(), 0.05) << "the tip, through the registration, in Model";
   pedal_down = false;
   s.on_input(pedal(false, ++seq, 1'000'000 + k * 16'667), 1'000'000 + k * 16'667);
+  // The release goes with the next grasper pose; the model step that takes it runs once the
+  // tracker's next frame shows nothing measured by its time is still coming (docs/overlay.md,
+  // "Model clock"): two tracker frames.
+  tick(k++, p0 + pull);
   tick(k++, p0 + pull);
   EXPECT_FALSE(s.grasp_status()->grasping);
   EXPECT_EQ(s.grasp_status()->releases, 1);
@@ -282,8 +290,8 @@ namespace arnav::host {
 namespace {
 
 // With a grasper the overlay draws the model as the tool had it when the frame was
-// captured: snapshot_at(device time) picks the newest snapshot whose grasper pose was
-// measured by then.
+// captured: snapshot_at(device time) picks the newest snapshot whose step's device time
+// (and so its grasper pose) is no later than the capture.
 TEST_F(Grasp, SnapshotAtTheFramesCaptureTimeFollowsTheGrasperPoseTime) {
   ModelRunner runner(*scene_, 60.0, false, 5.0);
   GrasperRole g = role(true);
@@ -291,18 +299,18 @@ TEST_F(Grasp, SnapshotAtTheFramesCaptureTimeFollowsTheGrasperPoseTime) {
   const int v0 = surface_vertex_near({70, 160, 60});
   const Eigen::Vector3d p0 = scene_->organ_embedding.apply(scene_->problem.mesh, scene_->problem.mesh.rest_positions_World_mm).col(v0);
   std::int64_t t = 1'000'000;
+  const std::int64_t device0 = 3000 * 16'667;  // the tracker's clock, on the model's grid
   for (int k = 0; k < 40; ++k, t += 16'667) {
-    GraspCommand c = at(p0 + std::min(1.0, k / 20.0) * Eigen::Vector3d(0, 0, -8), t, true);
-    c.device_time_us = 50'000'000 + k * 16'667;  // the tracker's clock
-    runner.set_grasper(c);
+    GraspCommand c = at(p0 + std::min(1.0, k / 20.0) * Eigen::Vector3d(0, 0, -8), device0 + k * 16'667, true);
+    runner.push_grasp({device0 + k * 16'667, c}, t);
     runner.advance_to(t, 1);
   }
   ASSERT_TRUE(runner.grasp_status().grasping);
   const auto newest = runner.snapshot();
-  EXPECT_EQ(newest->grasper_device_time_us, 50'000'000 + 39 * 16'667);
+  EXPECT_EQ(newest->grasper_device_time_us, device0 + 39 * 16'667);
   EXPECT_EQ(runner.snapshot_at(60'000'000)->step, newest->step);
-  const auto earlier = runner.snapshot_at(50'000'000 + 10 * 16'667 + 5);  // a frame captured when the tool was at pose 10
-  EXPECT_EQ(earlier->grasper_device_time_us, 50'000'000 + 10 * 16'667);
+  const auto earlier = runner.snapshot_at(device0 + 10 * 16'667 + 5);  // a frame captured when the tool was at pose 10
+  EXPECT_EQ(earlier->grasper_device_time_us, device0 + 10 * 16'667);
   EXPECT_LT(earlier->step, newest->step);
   // The tumour drawn for that frame is where the model had it then, not now.
   EXPECT_GT((earlier->tumour_centroids_mm[0] - newest->tumour_centroids_mm[0]).norm(), 0.05);
@@ -323,6 +331,7 @@ TEST(GraspCutting, GraspHoldsThroughCutsAndReleasesForGood) {
   settings.tumour_margin_mm = scene.cutting->tumour_margin_mm;
   ModelRunner runner(scene, 60.0, false, 5.0, 0, settings);
   ASSERT_TRUE(runner.cutting());
+  runner.expect_blade();
   GrasperRole g;
   g.name = "grasper";
   g.stale_after_ms = 100;
@@ -341,7 +350,7 @@ TEST(GraspCutting, GraspHoldsThroughCutsAndReleasesForGood) {
     c.device_time_us = t;
     c.requested = requested;
     if (!requested) c.why_not = "released by the test";
-    runner.set_grasper(c);
+    runner.push_grasp({t, c}, t);
   };
   // The blade: vertical (tip below the organ, heel 60 mm up), 35 mm beside the grasp in x,
   // drawn along y at 20 mm/s through the underside while the grasper pulls.
@@ -349,12 +358,12 @@ TEST(GraspCutting, GraspHoldsThroughCutsAndReleasesForGood) {
     return std::array<Eigen::Vector3d, 2>{Eigen::Vector3d(p0.x() + 35, y, p0.z() - 20), Eigen::Vector3d(p0.x() + 35, y, p0.z() + 40)};
   };
   const Eigen::Vector3d pull(6, 3, -10.4);
-  std::int64_t t = 1'000'000;
+  std::int64_t t = 60 * 16'667;  // on the model's grid of device times
   int k = 0;
   for (; k < 240; ++k, t += 16'667) {
     grasp(p0 + std::min(1.0, k / 60.0) * pull, t, true);
     const double y = std::clamp(p0.y() - 40 + 20.0 * (k - 30) / 60.0, p0.y() - 40, p0.y() + 40);
-    runner.set_scalpel(blade(y), k >= 30);
+    runner.push_blade({t, blade(y), k >= 30}, t);
     runner.advance_to(t, 1);
   }
   auto snap = runner.snapshot();
@@ -384,9 +393,9 @@ TEST(GraspCutting, GraspHoldsThroughCutsAndReleasesForGood) {
     grasp(p0 + pull, t, false);
     const double y = std::clamp(p0.y() + 40 - 20.0 * r / 60.0, p0.y() - 40, p0.y() + 40);
     if (r < 120)
-      runner.set_scalpel(blade(y), true);
+      runner.push_blade({t, blade(y), true}, t);
     else
-      runner.set_scalpel(std::nullopt);  // the scalpel taken away (a blade left in the slot would push)
+      runner.push_blade({t, std::nullopt, false}, t);  // the scalpel taken away (a blade left in the slot would push)
     runner.advance_to(t, 1);
     if (r == 119) cut_steps_while_released = runner.snapshot()->cut_steps_total;
   }
@@ -396,6 +405,89 @@ TEST(GraspCutting, GraspHoldsThroughCutsAndReleasesForGood) {
   EXPECT_FALSE(st.grasping);
   EXPECT_EQ(st.releases, 1);
   EXPECT_LT((surface_at(*snap) - p0).norm(), 0.25 * pull.norm()) << "released: no spring holds the organ any more";
+}
+
+// A stroke while the grasper pulls the tissue across the blade's path: the scalpel is
+// sampled at 240 Hz (four samples per model step), the grasper at 60 Hz. Every vertex the
+// cut puts on a cut face is checked against the surfaces the blade swept, in the material
+// (ModelRunner's cut-path error). The same samples handed in as a loaded machine would (the
+// model thread late, stepping in bursts of six) give the same cut, vertex by vertex.
+struct PulledStroke {
+  std::vector<double> path_error_mm;        // per step with new cut vertices
+  std::vector<ModelRunner::CutVertex> cut;  // the cut at the end
+  bool healthy = false;
+};
+
+PulledStroke pulled_stroke(const Scene& scene, int burst) {
+  cut::CutSessionSettings settings;
+  settings.cut.snap_fraction = scene.cutting->snap_fraction;
+  settings.sweep_strips = scene.cutting->sweep_strips;
+  settings.tumour_margin_mm = scene.cutting->tumour_margin_mm;
+  ModelRunner runner(scene, 60.0, false, 5.0, 0, settings);
+  runner.expect_blade();
+  GrasperRole g;
+  g.name = "grasper";
+  g.stale_after_ms = 100;
+  g.radius_mm = 15;
+  g.grasp_always = true;
+  runner.enable_grasper(g);
+  const Eigen::Matrix3Xd rest = scene.organ_embedding.apply(scene.problem.mesh, scene.problem.mesh.rest_positions_World_mm);
+  Eigen::Index v0 = 0;
+  (rest.colwise() - Eigen::Vector3d(70, 160, 60)).colwise().squaredNorm().minCoeff(&v0);
+  const Eigen::Vector3d p0 = rest.col(v0);
+  // The grasp 30 mm beside the blade's line pulls toward and along it (x and y) and down.
+  const Eigen::Vector3d pull(-12, 8, -8);
+  const auto blade = [&](double y) {
+    return std::array<Eigen::Vector3d, 2>{Eigen::Vector3d(p0.x() + 30, y, p0.z() - 20), Eigen::Vector3d(p0.x() + 30, y, p0.z() + 40)};
+  };
+  const std::int64_t t0 = 60 * 16'667;
+  const int steps = 180;
+  std::int64_t host = t0;
+  for (int k = 0; k < steps; ++k) {
+    const std::int64_t t = t0 + k * 16'667;
+    GraspCommand c;
+    c.X_ModelTool = Eigen::Isometry3d(Eigen::Translation3d(p0 + std::min(1.0, k / 90.0) * pull));
+    c.pose_time_us = c.device_time_us = t;
+    c.requested = true;
+    for (int j = 0; j < 4; ++j) {  // 240 Hz scalpel: 30 mm/s along y from step 30 on
+      const std::int64_t ts = t + j * 4'167;
+      const double y = p0.y() - 45 + 30.0 * std::max(0.0, (ts - t0) * 1e-6 - 0.5);
+      runner.push_blade({ts, blade(y), k >= 30}, ts + 1'000);
+    }
+    runner.push_grasp({t, c}, t + 1'000);
+    host = t + 1'000;
+    if ((k + 1) % burst == 0) runner.advance_to(host + 50'000);  // burst > 1: the model thread ran late
+  }
+  runner.advance_to(host + 50'000);
+  PulledStroke out;
+  for (const auto& r : runner.cut_steps(0))
+    if (r.new_cut_vertices > 0) out.path_error_mm.push_back(r.path_error_mm);
+  out.cut = runner.cut_vertices();
+  out.healthy = runner.snapshot()->healthy;
+  return out;
+}
+
+TEST(GraspCutting, CutVerticesLieOnTheSweptSurfaceInTheMaterialWhileTheTissueIsPulled) {
+  Scene scene = load_scene(data_dir() + "/liver/liver_coarse_cut.scene.yaml");
+  ASSERT_TRUE(scene.cutting.has_value());
+  const PulledStroke idle = pulled_stroke(scene, 1);
+  ASSERT_TRUE(idle.healthy);
+  ASSERT_GT(idle.path_error_mm.size(), 10u);
+  std::vector<double> e = idle.path_error_mm;
+  std::sort(e.begin(), e.end());
+  const double p95 = e[static_cast<std::size_t>(0.95 * static_cast<double>(e.size() - 1))];
+  std::printf("[pulled stroke] cut-path error in the material over %zu steps: p50 %.3f mm, p95 %.3f mm, max %.3f mm; %zu cut vertices\n",
+              e.size(), e[e.size() / 2], p95, e.back(), idle.cut.size());
+  EXPECT_LE(p95, 1.0);
+  EXPECT_LE(e.back(), 3.0);
+  const PulledStroke loaded = pulled_stroke(scene, 6);
+  ASSERT_EQ(loaded.cut.size(), idle.cut.size()) << "the late model thread cut differently";
+  double worst = 0.0;
+  for (std::size_t i = 0; i < idle.cut.size(); ++i) {
+    ASSERT_EQ(loaded.cut[i].id, idle.cut[i].id);
+    worst = std::max({worst, (loaded.cut[i].rest_mm - idle.cut[i].rest_mm).norm(), (loaded.cut[i].now_mm - idle.cut[i].now_mm).norm()});
+  }
+  EXPECT_LE(worst, 1e-6) << "same samples, same cut, whatever the thread's timing";
 }
 
 }  // namespace
