@@ -185,7 +185,7 @@ TEST(Publisher, PosesInTheReferenceFrame) {
 }
 
 TEST(Publisher, DeviceTimestampOfABx2FrameIsCarriedIntoThePose) {
-  lcm::LCM lcm("memq://");
+  seal::SealedLcm lcm("memq://", test_security());
   ASSERT_TRUE(lcm.good());
   Sink sink;
   lcm.subscribe("ARNAV_POSE_.*", &Sink::on_pose, &sink);
