@@ -74,6 +74,9 @@ TEST(IgtlReplay, RecordedSessionServedAtItsPace) {
   ASSERT_NE(igtl, nullptr);
   char line[256] = {};
   ASSERT_NE(std::fgets(line, sizeof line, igtl), nullptr);
+  // arnav-igtl announces the bus's security first (stderr, folded in here: docs/protocol.md).
+  EXPECT_NE(std::string(line).find("security: OFF"), std::string::npos) << line;
+  ASSERT_NE(std::fgets(line, sizeof line, igtl), nullptr);
   int port = 0;
   ASSERT_EQ(std::sscanf(line, "READY %d", &port), 1) << line;
   test::TestClient client(port);
