@@ -18,7 +18,7 @@ using Reader = yaml::YamlReader<ConfigError>;
 
 const std::set<std::string> kKeys = {"camera", "frames", "port", "ndi", "baud", "rate_hz", "device_rate_hz", "lcm_url", "reply_mode",
                                      "tx_firmware", "bx_failures_before_tx", "tracking_timeout_ms",
-                                     "setup_timeout_ms", "reset_wait_ms", "health_rate_hz", "tools", "sim_command", "sim_args", "realtime", "can", "swab"};
+                                     "setup_timeout_ms", "reset_wait_ms", "health_rate_hz", "tools", "sim_command", "sim_args", "realtime", "can", "swab", "security"};
 
 // ndi: {host: P9-B0103.local, port: 8765, stream: true, connect_timeout_ms: 3000}
 void parse_ndi_section(const Reader& r, const YAML::Node& n, AppConfig& c) {
@@ -62,6 +62,11 @@ AppConfig parse_config(const std::string& text, const std::string& source, const
   r.only(root, "", kKeys);
   AppConfig c;
   c.source = source;
+  try {
+    c.security = seal::parse_security(root["security"], source, base_dir);
+  } catch (const seal::SecurityError& e) {
+    throw ConfigError(e.what());
+  }
   // camera: and frames: are read by appliance/markers/camera_config (docs/camera.md),
   // can: by appliance/can/can_config (docs/can.md), swab: by appliance/app/swab (docs/register.md).
   if (!root["port"] && !root["ndi"] && (root["camera"] || root["can"]) && !root["tools"]) {  // camera and/or CAN, no NDI

@@ -8,6 +8,7 @@
 
 #include "appliance/app/realtime.hpp"
 #include "appliance/ndi/session.hpp"
+#include "protocol/seal/security_config.hpp"
 
 namespace arnav::app {
 
@@ -39,6 +40,7 @@ struct AppConfig {
   std::vector<ndi::ToolConfig> tools;
   std::string sim_command;    // port: sim -> program to run (default: arnav-polaris-sim)
   std::vector<std::string> sim_args;
+  seal::SecuritySettings security;  // `security:` (docs/protocol.md, "Sealed bus"); resolved at start
   RealtimeConfig realtime;    // `realtime:` (CPU latency request, polling-thread priority)
   std::filesystem::path source;  // the file read
 

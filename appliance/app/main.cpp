@@ -23,8 +23,10 @@
 #include "appliance/ndi/posix_transport.hpp"
 #include "appliance/ndi/serial_transport.hpp"
 #include "appliance/ndi/tcp_transport.hpp"
+#include "protocol/seal/sealed_lcm.hpp"
 #include "protocol/clock.hpp"
 #include "protocol/guarded_main.hpp"
+#include "protocol/seal/security_config.hpp"
 
 namespace {
 
@@ -100,10 +102,23 @@ static int main_body(int argc, char** argv) {
   } catch (const can::CanConfigError& e) {
     return config_error(e);
   }
+  // The sealed bus (docs/protocol.md, "Sealed bus"): a key file only its owner can read, or
+  // `security: off` said in so many words; announced at start and on every health line.
+  seal::BusSecurity security;
+  auto resolve_security = [&]() -> bool {
+    try {
+      security = seal::resolve_security(cfg.security);
+    } catch (const seal::SecurityError& e) {
+      std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
+      return false;
+    }
+    if (!check_only) std::cerr << "arnav-appliance: " << security.describe() << "\n";
+    return true;
+  };
   auto start_camera = [&]() -> bool {
     if (!cam) return true;
     try {
-      cam->start(cfg.lcm_url);
+      cam->start(cfg.lcm_url, security);
     } catch (const camera::CameraConfigError& e) {
       std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
       return false;
@@ -114,7 +129,7 @@ static int main_body(int argc, char** argv) {
   auto start_can = [&]() -> bool {
     if (!can_bus) return true;
     try {
-      can_bus->start(cfg.lcm_url, cfg.health_rate_hz);
+      can_bus->start(cfg.lcm_url, security, cfg.health_rate_hz);
     } catch (const can::CanConfigError& e) {
       std::cerr << "arnav-appliance: configuration error: " << e.what() << "\n";
       return false;
@@ -123,9 +138,10 @@ static int main_body(int argc, char** argv) {
     return true;
   };
   if (!cfg.ndi_enabled) {
+    if (!resolve_security()) return 2;
     if (check_only) {
       std::cout << "configuration OK: " << (cam ? cam->summary() : std::string()) << (cam && can_bus ? "; " : "")
-                << (can_bus ? can_bus->summary() : std::string()) << ", no NDI\n";
+                << (can_bus ? can_bus->summary() : std::string()) << ", no NDI; " << security.describe() << "\n";
       return 0;
     }
     install_signals();
@@ -188,17 +204,18 @@ static int main_body(int argc, char** argv) {
       return 2;
     }
   }
+  if (!resolve_security()) return 2;
   if (check_only) {
     std::cout << "configuration OK: " << cfg.tools.size() << " tool(s), port " << cfg.port
               << (cam ? "; " + cam->summary() : std::string()) << (can_bus ? "; " + can_bus->summary() : std::string())
               << (swab_config ? "; swab: tip of " + swab_config->tool + (swab_config->continuous ? " continuously" : " while " + swab_config->input + " is held") +
                                     " on " + swab_config->channel()
                               : std::string())
-              << "\n";
+              << "; " << security.describe() << "\n";
     return 0;
   }
 
-  lcm::LCM lcm(cfg.lcm_url);
+  seal::SealedLcm lcm(cfg.lcm_url, security);
   if (!lcm.good()) {
     std::cerr << "arnav-appliance: configuration error: " << cfg.source.string() << ": key 'lcm_url': cannot open LCM at '"
               << cfg.lcm_url << "'\n";
@@ -299,14 +316,14 @@ static int main_body(int argc, char** argv) {
     if (print_health) {
       std::fprintf(stderr,
                    "arnav-appliance: health %s %d baud %.1f Hz frames %lld crc %lld timeouts %lld resyncs %lld "
-                   "garbage %lld errors %lld resets %lld reconnects %lld dropped %lld latency p50 %.1f p99 %.1f max %.1f us\n",
+                   "garbage %lld errors %lld resets %lld reconnects %lld dropped %lld latency p50 %.1f p99 %.1f max %.1f us; %s\n",
                    std::string(ndi::to_string(session->state())).c_str(), h.baud, static_cast<double>(h.frame_rate_hz),
                    static_cast<long long>(h.frames_total), static_cast<long long>(h.crc_errors),
                    static_cast<long long>(h.timeouts), static_cast<long long>(h.resyncs),
                    static_cast<long long>(h.garbage_bytes), static_cast<long long>(h.error_replies),
                    static_cast<long long>(h.resets), static_cast<long long>(h.reconnects),
                    static_cast<long long>(h.dropped_frames), static_cast<double>(h.latency_p50_us),
-                   static_cast<double>(h.latency_p99_us), static_cast<double>(h.latency_max_us));
+                   static_cast<double>(h.latency_p99_us), static_cast<double>(h.latency_max_us), security.describe().c_str());
     }
     frames_in_window = 0;
     window_start = now;

@@ -30,7 +30,7 @@ void Publisher::set_reference_frames(std::shared_ptr<const frames::ReferenceFram
   frames_ = std::move(reference_frames);
 }
 
-Publisher::Publisher(lcm::LCM& lcm, const std::vector<ndi::ToolConfig>& tools, double device_rate_hz)
+Publisher::Publisher(seal::SealedLcm& lcm, const std::vector<ndi::ToolConfig>& tools, double device_rate_hz)
     : lcm_(lcm), device_rate_hz_(device_rate_hz), health_channel_(channels::health("ndi")) {
   for (const auto& t : tools) {
     channels_.push_back(channels::pose(t.name));

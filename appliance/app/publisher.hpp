@@ -19,12 +19,13 @@
 #include "arnav/appliance_event_t.hpp"
 #include "arnav/device_health_t.hpp"
 #include "arnav/tool_pose_t.hpp"
+#include "protocol/seal/sealed_lcm.hpp"
 
 namespace arnav::app {
 
 class Publisher {
  public:
-  Publisher(lcm::LCM& lcm, const std::vector<ndi::ToolConfig>& tools, double device_rate_hz);
+  Publisher(seal::SealedLcm& lcm, const std::vector<ndi::ToolConfig>& tools, double device_rate_hz);
 
   // Publishes every configured tool's pose for one new frame; returns the latency (us).
   float publish_frame(const ndi::Session& session, const ndi::TrackingReply& reply, std::int64_t receive_mono_us);
@@ -38,7 +39,7 @@ class Publisher {
   void set_reference_frames(std::shared_ptr<const frames::ReferenceFrames> reference_frames);
 
  private:
-  lcm::LCM& lcm_;
+  seal::SealedLcm& lcm_;
   double device_rate_hz_;
   std::vector<std::string> channels_;
   std::vector<tool_pose_t> poses_;

@@ -76,7 +76,7 @@ std::optional<SwabConfig> load_swab_config(const std::string& path, const std::v
   return parse_swab_config(read_config_text(path), path, tool_names, input_names);
 }
 
-SwabSampler::SwabSampler(lcm::LCM& lcm, SwabConfig config) : lcm_(lcm), config_(std::move(config)), channel_(config_.channel()) {
+SwabSampler::SwabSampler(seal::SealedLcm& lcm, SwabConfig config) : lcm_(lcm), config_(std::move(config)), channel_(config_.channel()) {
   msg_.source = config_.source;
   msg_.num_points = msg_.num_normals = msg_.num_ids = 0;
 }

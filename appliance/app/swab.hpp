@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "arnav/point_cloud_t.hpp"
+#include "protocol/seal/sealed_lcm.hpp"
 
 namespace arnav::app {
 
@@ -51,7 +52,7 @@ std::optional<SwabConfig> load_swab_config(const std::string& path, const std::v
 
 class SwabSampler {
  public:
-  SwabSampler(lcm::LCM& lcm, SwabConfig config);
+  SwabSampler(seal::SealedLcm& lcm, SwabConfig config);
   const SwabConfig& config() const { return config_; }
 
   // The swab input changed (any thread; the CAN thread calls it).
@@ -68,7 +69,7 @@ class SwabSampler {
   std::int64_t messages_published() const { return sequence_; }
 
  private:
-  lcm::LCM& lcm_;
+  seal::SealedLcm& lcm_;
   SwabConfig config_;
   std::string channel_;
   std::atomic<bool> pressed_{false};

@@ -55,7 +55,7 @@ std::unique_ptr<CanTransport> open_transport(const CanConfig& c) {
   return std::make_unique<SlcanTransport>(std::move(port), c.interface, o);
 }
 
-CanService::CanService(CanConfig config, lcm::LCM& lcm, TransportFactory factory, double health_rate_hz)
+CanService::CanService(CanConfig config, seal::SealedLcm& lcm, TransportFactory factory, double health_rate_hz)
     : config_(std::move(config)),
       lcm_(lcm),
       factory_(std::move(factory)),
@@ -311,8 +311,8 @@ std::string CanRuntime::summary() const {
   return "CAN " + config_.interface + ": " + std::to_string(config_.inputs.size()) + " input(s), " + std::to_string(config_.nodes.size()) + " device(s)";
 }
 
-void CanRuntime::start(const std::string& lcm_url, double health_rate_hz) {
-  lcm_ = std::make_unique<lcm::LCM>(lcm_url);
+void CanRuntime::start(const std::string& lcm_url, const seal::BusSecurity& security, double health_rate_hz) {
+  lcm_ = std::make_unique<seal::SealedLcm>(lcm_url, security);
   if (!lcm_->good()) throw CanConfigError(config_.source + ": key 'lcm_url': cannot open LCM at '" + lcm_url + "'");
   const CanConfig cfg = config_;
   service_ = std::make_unique<CanService>(config_, *lcm_, [cfg] { return open_transport(cfg); }, health_rate_hz);

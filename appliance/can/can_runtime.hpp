@@ -18,6 +18,8 @@
 
 #include <lcm/lcm-cpp.hpp>
 
+#include "protocol/seal/sealed_lcm.hpp"
+
 #include "appliance/app/latency_stats.hpp"
 #include "appliance/can/can_config.hpp"
 #include "appliance/can/can_transport.hpp"
@@ -36,7 +38,7 @@ std::unique_ptr<CanTransport> open_transport(const CanConfig& config);
 
 class CanService final : private DecoderSink {
  public:
-  CanService(CanConfig config, lcm::LCM& lcm, TransportFactory factory, double health_rate_hz = 1.0);
+  CanService(CanConfig config, seal::SealedLcm& lcm, TransportFactory factory, double health_rate_hz = 1.0);
   ~CanService() override;
 
   // One step: waits at most max_wait for a frame or a deadline.
@@ -63,7 +65,7 @@ class CanService final : private DecoderSink {
   device_health_t fill_health(const app::LatencySummary& l, double rate) const;
 
   CanConfig config_;
-  lcm::LCM& lcm_;
+  seal::SealedLcm& lcm_;
   TransportFactory factory_;
   InputDecoder decoder_;
   std::unique_ptr<CanTransport> transport_;
@@ -97,14 +99,14 @@ class CanRuntime {
   const CanConfig& config() const { return config_; }
   std::string summary() const;
   // Opens LCM (throws CanConfigError naming lcm_url) and starts the thread.
-  void start(const std::string& lcm_url, double health_rate_hz = 1.0);
+  void start(const std::string& lcm_url, const seal::BusSecurity& security, double health_rate_hz = 1.0);
   // Set before start(): told every input change (the CAN thread calls it).
   void set_input_listener(std::function<void(const std::string& input, bool pressed)> listener) { input_listener_ = std::move(listener); }
   void stop();
 
  private:
   CanConfig config_;
-  std::unique_ptr<lcm::LCM> lcm_;
+  std::unique_ptr<seal::SealedLcm> lcm_;
   std::unique_ptr<CanService> service_;
   std::function<void(const std::string&, bool)> input_listener_;
   std::atomic<bool> stop_{false};

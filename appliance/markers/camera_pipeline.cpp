@@ -38,8 +38,8 @@ float percentile(std::vector<float> v, double q) {
   return v[k];
 }
 
-std::shared_ptr<lcm::LCM> open_lcm(const std::string& url) {
-  auto lcm = std::make_shared<lcm::LCM>(url);
+std::shared_ptr<seal::SealedLcm> open_lcm(const std::string& url, const seal::BusSecurity& security) {
+  auto lcm = std::make_shared<seal::SealedLcm>(url, security);
   if (!lcm->good()) throw CameraConfigError("camera: cannot open LCM at '" + url + "'");
   return lcm;
 }
@@ -69,8 +69,8 @@ struct CameraPipeline::Impl {
 
   CameraConfig cfg;
   std::shared_ptr<frames::ReferenceFrames> frames;
-  std::shared_ptr<lcm::LCM> lcm_ptr;
-  lcm::LCM& lcm;
+  std::shared_ptr<seal::SealedLcm> lcm_ptr;
+  seal::SealedLcm& lcm;
   std::unique_ptr<capture::Capture> capture;
   markers::TagDetector detector;
   std::vector<Tool> tools;
@@ -83,7 +83,7 @@ struct CameraPipeline::Impl {
   mutable std::mutex stats_mutex;
   PipelineStats stats;
 
-  Impl(CameraConfig c, std::shared_ptr<frames::ReferenceFrames> f, std::shared_ptr<lcm::LCM> l)
+  Impl(CameraConfig c, std::shared_ptr<frames::ReferenceFrames> f, std::shared_ptr<seal::SealedLcm> l)
       : cfg(std::move(c)), frames(std::move(f)), lcm_ptr(std::move(l)), lcm(*lcm_ptr), detector(cfg.detector) {
     if (!lcm.good()) throw CameraConfigError(cfg.source_file + ": cannot open LCM");
     if (!frames) frames = std::make_shared<frames::ReferenceFrames>(frames::Reference::Cam, std::nullopt, "", 0.05);
@@ -253,11 +253,11 @@ struct CameraPipeline::Impl {
 };
 
 CameraPipeline::CameraPipeline(CameraConfig config, std::shared_ptr<frames::ReferenceFrames> frames,
-                               const std::string& lcm_url)
-    : CameraPipeline(std::move(config), std::move(frames), open_lcm(lcm_url)) {}
+                               const std::string& lcm_url, const seal::BusSecurity& security)
+    : CameraPipeline(std::move(config), std::move(frames), open_lcm(lcm_url, security)) {}
 
 CameraPipeline::CameraPipeline(CameraConfig config, std::shared_ptr<frames::ReferenceFrames> frames,
-                               std::shared_ptr<lcm::LCM> lcm)
+                               std::shared_ptr<seal::SealedLcm> lcm)
     : impl_(std::make_unique<Impl>(std::move(config), std::move(frames), std::move(lcm))) {}
 
 CameraPipeline::~CameraPipeline() { stop(); }

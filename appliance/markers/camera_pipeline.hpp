@@ -10,6 +10,8 @@
 // Latency in health: capture timestamp -> all poses of the frame published.
 #include <lcm/lcm-cpp.hpp>
 
+#include "protocol/seal/sealed_lcm.hpp"
+
 #include <atomic>
 #include <memory>
 #include <mutex>
@@ -35,9 +37,10 @@ class CameraPipeline {
   // Throws CameraConfigError when the LCM URL cannot be opened or the source not built.
   // frames: null means reference Cam without hand-eye. The pipeline opens its own LCM
   // instance (publishing from two threads through one instance is not relied upon).
-  CameraPipeline(CameraConfig config, std::shared_ptr<frames::ReferenceFrames> frames, const std::string& lcm_url);
+  CameraPipeline(CameraConfig config, std::shared_ptr<frames::ReferenceFrames> frames, const std::string& lcm_url,
+                 const seal::BusSecurity& security);
   // Publishes through a given instance (tests: memq:// shared with the subscriber).
-  CameraPipeline(CameraConfig config, std::shared_ptr<frames::ReferenceFrames> frames, std::shared_ptr<lcm::LCM> lcm);
+  CameraPipeline(CameraConfig config, std::shared_ptr<frames::ReferenceFrames> frames, std::shared_ptr<seal::SealedLcm> lcm);
   ~CameraPipeline();
   CameraPipeline(const CameraPipeline&) = delete;
   CameraPipeline& operator=(const CameraPipeline&) = delete;

@@ -49,9 +49,9 @@ std::string CameraRuntime::summary() const {
          frames::to_string(frames_->reference());
 }
 
-void CameraRuntime::start(const std::string& lcm_url) {
+void CameraRuntime::start(const std::string& lcm_url, const seal::BusSecurity& security) {
   if (pipeline_) return;
-  pipeline_ = std::make_unique<CameraPipeline>(config_, frames_, lcm_url);
+  pipeline_ = std::make_unique<CameraPipeline>(config_, frames_, lcm_url, security);
   pipeline_->start();
 }
 

@@ -27,7 +27,7 @@ class CameraRuntime {
   std::string summary() const;  // one line for --check and the log
 
   // Opens LCM and the source, starts the thread. Throws CameraConfigError.
-  void start(const std::string& lcm_url);
+  void start(const std::string& lcm_url, const seal::BusSecurity& security);
   void stop();
   // A finite source (file, folder, synthetic with a frame count) has ended.
   bool finished() const { return pipeline_ && pipeline_->finished(); }

@@ -7,7 +7,7 @@
 
 namespace arnav::hil {
 
-LcmCapture::LcmCapture(const std::string& url) : bus_(url) {
+LcmCapture::LcmCapture(const std::string& url, const seal::BusSecurity& security) : bus_(url, security) {
   good_ = bus_.good();
   if (!good_) return;
   bus_.subscribe(std::string(channels::kPoseRegex), &LcmCapture::on_pose, this);

@@ -16,6 +16,7 @@
 #include "arnav/device_health_t.hpp"
 #include "arnav/point_cloud_t.hpp"
 #include "arnav/tool_pose_t.hpp"
+#include "protocol/seal/sealed_lcm.hpp"
 
 namespace arnav::hil {
 
@@ -27,7 +28,8 @@ struct Received {
 
 class LcmCapture {
  public:
-  explicit LcmCapture(const std::string& url);
+  // security: the bus key when the appliance seals (docs/protocol.md), off otherwise.
+  explicit LcmCapture(const std::string& url, const seal::BusSecurity& security = seal::BusSecurity::off());
   ~LcmCapture();
   bool good() const { return good_; }
 
@@ -52,7 +54,7 @@ class LcmCapture {
   void on_event(const lcm::ReceiveBuffer*, const std::string&, const appliance_event_t* m);
   void on_cloud(const lcm::ReceiveBuffer*, const std::string&, const point_cloud_t* m);
 
-  lcm::LCM bus_;
+  seal::SealedLcm bus_;
   bool good_ = false;
   std::atomic<bool> stop_{false};
   mutable std::mutex mutex_;

@@ -99,7 +99,7 @@ fi
 
 period=5
 [ "$seconds" -gt 120 ] && period=60
-"$host" --lcm-url "$lcm_url" --duration "$seconds" --print-period "$period" --stale-after-ms 250 --summary \
+"$host" --lcm-url "$lcm_url" --security off --duration "$seconds" --print-period "$period" --stale-after-ms 250 --summary \
   --summary-json "$out/host.json" | tee "$out/host.log"
 
 kill -TERM "$app_pid"

@@ -139,7 +139,7 @@ std::string CanRun::start(const CanRunOptions& o) {
   config_path_ = dir_ + "/appliance.yaml";
   {
     std::ofstream cfg(config_path_);
-    cfg << "lcm_url: \"" << kLcmUrl << "\"\nhealth_rate_hz: 5\n"
+    cfg << "lcm_url: \"" << kLcmUrl << "\"\nhealth_rate_hz: 5\nsecurity: off\n"
         << "can:\n  interface: " << bus_name() << "\n  priority: " << o.appliance_priority << "\n";
     if (o.path == CanPath::Slcan) cfg << "  bitrate: 500000\n  status_poll_ms: " << o.status_poll_ms << "\n";
     cfg << "  nodes:\n"

@@ -44,14 +44,15 @@ std::string HilRun::start(const HilRunOptions& o) {
   const auto ready = sim_->read_line(30.0);
   if (!ready || ready->rfind("READY ", 0) != 0) throw std::runtime_error("simulator did not get ready:\n" + sim_->log_tail());
 
-  lcm_ = std::make_unique<LcmCapture>(kLcmUrl);
+  lcm_ = std::make_unique<LcmCapture>(kLcmUrl, o.key_file.empty() ? seal::BusSecurity::off() : seal::security_from_cli(o.key_file, "", "HilRun"));
   if (!lcm_->good()) throw std::runtime_error(std::string("cannot open LCM ") + kLcmUrl + " in the bench namespace");
 
   // Appliance: production configuration, serial port /dev/ttyS0 (libserialport path).
   {
     std::ofstream cfg(dir_ + "/appliance.yaml");
     cfg << "port: /dev/ttyS0\nbaud: 115200\nrate_hz: " << o.rate_hz << "\nlcm_url: \"" << kLcmUrl << "\"\nreply_mode: " << o.reply_mode
-        << "\nrealtime: {cpu_latency_us: " << o.cpu_latency_us << ", priority: " << o.priority << "}\ntools:\n";
+        << "\nrealtime: {cpu_latency_us: " << o.cpu_latency_us << ", priority: " << o.priority << "}\n"
+        << (o.key_file.empty() ? std::string("security: off\n") : "security: {key_file: " + o.key_file + "}\n") << "tools:\n";
     for (const auto& [name, rom] : o.tools) cfg << "  - name: " << name << "\n    rom: " << roms << rom << "\n";
     cfg << o.extra_config;
   }

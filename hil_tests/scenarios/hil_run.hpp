@@ -25,6 +25,9 @@ struct HilRunOptions {
   // SCHED_FIFO priority of the simulator (0: normal). A real Polaris is hardware with its own
   // clock; on a loaded bench machine a normally scheduled simulator answers late.
   int sim_priority = 0;
+  // The bus key (docs/protocol.md, "Sealed bus"): the appliance seals and the capture opens
+  // with it; empty: `security: off` in the appliance configuration.
+  std::string key_file;
   // Appended to the appliance configuration (e.g. a `can:` section, docs/can.md).
   std::string extra_config;
 };

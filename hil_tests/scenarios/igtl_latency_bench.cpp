@@ -104,7 +104,7 @@ int run(int argc, char** argv) {
   }
   const std::string dir = arnav::hil::make_temp_dir("arnav-igtl-latency");
   const char* exe_env = std::getenv("ARNAV_IGTL_EXE");
-  arnav::hil::ChildProcess igtl({exe_env && *exe_env ? exe_env : ARNAV_IGTL_EXE, "--lcm", kLcmUrl, "--port", "0", "--stats-json", dir + "/stats.json"},
+  arnav::hil::ChildProcess igtl({exe_env && *exe_env ? exe_env : ARNAV_IGTL_EXE, "--lcm", kLcmUrl, "--security", "off", "--port", "0", "--stats-json", dir + "/stats.json"},
                                 {}, dir + "/igtl.log", true);
   const auto ready = igtl.read_line(30.0);
   if (!ready || ready->rfind("READY ", 0) != 0) {

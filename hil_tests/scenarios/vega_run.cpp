@@ -142,7 +142,7 @@ std::string VegaRun::start(const VegaRunOptions& o) {
   {
     std::ofstream cfg(dir_ + "/appliance.yaml");
     cfg << "ndi: {host: " << address.substr(0, colon) << ", port: " << address.substr(colon + 1) << "}\nrate_hz: " << o.rate_hz
-        << "\nlcm_url: \"" << kLcmUrl << "\"\nrealtime: {cpu_latency_us: " << o.cpu_latency_us << ", priority: " << o.priority
+        << "\nlcm_url: \"" << kLcmUrl << "\"\nsecurity: off\nrealtime: {cpu_latency_us: " << o.cpu_latency_us << ", priority: " << o.priority
         << "}\ntools:\n";
     for (const auto& [name, rom] : tools) cfg << "  - name: " << name << "\n    rom: " << rom << "\n";
   }

@@ -26,6 +26,8 @@
 #include "protocol/channels.hpp"
 #include "protocol/clock.hpp"
 #include "protocol/guarded_main.hpp"
+#include "protocol/seal/log_opener.hpp"
+#include "protocol/seal/sealed_lcm.hpp"
 
 namespace {
 
@@ -88,7 +90,29 @@ nlohmann::json summary(const arnav::host::ToolFreshnessTracker& tracker, double 
   return j;
 }
 
+// What the bus's receiver did with every message (docs/protocol.md, "Sealed bus").
+nlohmann::json security_json(const arnav::seal::BusSecurity& security, const arnav::seal::OpenCounters& c, std::uint64_t sealed_without_key) {
+  nlohmann::json j = {{"mode", security.sealed() ? "sealed" : "off"}, {"accepted", c.accepted}, {"dropped", c.dropped()},
+                      {"forged", c.forged},     {"tampered", c.tampered}, {"replayed", c.replayed}, {"stale", c.stale},
+                      {"unsealed", c.unsealed}, {"malformed", c.malformed}, {"sealed_without_key", sealed_without_key}};
+  if (security.sealed()) j["key_id"] = security.key->key_id_hex();
+  return j;
+}
+
+// The session file's `security:`, with the key loaded; prints why not (exit 2) otherwise.
+std::optional<arnav::seal::BusSecurity> session_security(const arnav::host::SessionConfig& config) {
+  try {
+    arnav::seal::BusSecurity s = arnav::seal::resolve_security(config.security);
+    std::cout << "arnav-host: " << s.describe() << std::endl;
+    return s;
+  } catch (const arnav::seal::SecurityError& e) {
+    std::cerr << "arnav-host: " << e.what() << "\n";
+    return std::nullopt;
+  }
+}
+
 struct Cli {
+  std::string key_file, security;  // the status monitor's --key / --security off
   std::string session_path, record_dir, replay_log;
   double replay_speed = 1.0;
   std::string lcm_url = "udpm://239.255.76.67:7667?ttl=0";
@@ -118,7 +142,8 @@ int write_summary(const Cli& cli, const nlohmann::json& j) {
 // never looked stale. On the demo's ring cut under the grasper's pull that put the replay's
 // cut-path tail at p95 9.3 / max 14.9 mm against the live 2.8 / 2.8; docs/benchmarks.md,
 // "Fifth round".)
-int run_replay(const Cli& cli, arnav::host::NavigationSession& session, const std::string& frame_channel) {
+int run_replay(const Cli& cli, arnav::host::NavigationSession& session, const std::string& frame_channel,
+               const arnav::seal::BusSecurity& security) {
   lcm::LogFile log(cli.replay_log, "r");
   if (!log.good()) {
     std::cerr << "arnav-host: --replay " << cli.replay_log << ": cannot open the log (an lcm-logger file)\n";
@@ -128,10 +153,26 @@ int run_replay(const Cli& cli, arnav::host::NavigationSession& session, const st
   std::int64_t first_ts = -1, last_now = 0, next_print = -1, undecodable = 0, messages = 0;
   const auto wall0 = std::chrono::steady_clock::now();
   const auto starts = [](const std::string& s, std::string_view p) { return s.compare(0, p.size(), p) == 0; };
+  // The log holds the bus's sealed bytes: each event is opened with the key, and what the
+  // live receiver would have dropped (forged, tampered, replayed, stale) is dropped here too.
+  // Only the channels the live session subscribes to are opened (and counted), as live.
+  arnav::seal::LogOpener opener(security);
+  const auto reads = [&](const std::string& ch) {
+    return starts(ch, arnav::channels::kPosePrefix) || starts(ch, arnav::channels::kHealthPrefix) || ch == arnav::channels::kEvents ||
+           ch == arnav::channels::kInput || ch == arnav::channels::kInputState || (!session.swab_channel().empty() && ch == session.swab_channel()) ||
+           (!frame_channel.empty() && ch == frame_channel);
+  };
   while (!g_stop.load()) {
-    const lcm::LogEvent* ev = log.readNextEvent();
-    if (!ev) break;
+    const lcm::LogEvent* raw_ev = log.readNextEvent();
+    if (!raw_ev) break;
     ++messages;
+    if (!reads(raw_ev->channel)) continue;
+    const auto opened = opener.open(*raw_ev);
+    if (!opened) continue;
+    lcm::LogEvent plain_ev = *raw_ev;
+    plain_ev.data = const_cast<std::uint8_t*>(opened->data());
+    plain_ev.datalen = static_cast<std::int32_t>(opened->size());
+    const lcm::LogEvent* ev = &plain_ev;
     if (first_ts < 0) first_ts = ev->timestamp;
     if (cli.replay_speed > 0) {
       const auto due = wall0 + std::chrono::microseconds(static_cast<std::int64_t>(static_cast<double>(ev->timestamp - first_ts) / cli.replay_speed));
@@ -184,10 +225,16 @@ int run_replay(const Cli& cli, arnav::host::NavigationSession& session, const st
     if (offset_us && !cli.quiet) {
       if (next_print < 0) next_print = last_now;
       if (last_now >= next_print) {
-        std::cout << session.status_table(last_now) << std::endl;
+        std::cout << session.status_table(last_now) << "\n" << security.describe() << "; " << arnav::seal::format_counters(opener.counters())
+                  << std::endl;
         next_print += static_cast<std::int64_t>(cli.print_period_s * 1e6);
       }
     }
+  }
+  if (const std::string problem = opener.problem(cli.replay_log); !problem.empty() && messages > 0) {
+    std::cerr << "arnav-host: --replay " << problem << "\n";
+    session.stop();
+    return 2;
   }
   if (undecodable > 0)
     std::cerr << "arnav-host: --replay " << cli.replay_log << ": " << undecodable << " of " << messages
@@ -195,12 +242,14 @@ int run_replay(const Cli& cli, arnav::host::NavigationSession& session, const st
   session.stop();
   const double run_s = first_ts >= 0 && offset_us ? static_cast<double>(last_now - (first_ts + *offset_us)) * 1e-6 : 0.0;
   const auto tracker = session.tracker_at(last_now);
-  std::cout << format_status_table(tracker, last_now) << std::flush;
+  std::cout << format_status_table(tracker, last_now) << "arnav-host: replay " << security.describe() << "; "
+            << arnav::seal::format_counters(opener.counters()) << std::endl;
   if (cli.print_summary) std::cout << format_summary(tracker, run_s) << session.format_summary(run_s) << std::flush;
   for (const auto& f : session.recorded_files()) std::cout << "recorded: " << f << "\n";
   nlohmann::json j = summary(tracker, run_s);
   j["navigation"] = session.summary_json(run_s);
   j["replay"] = {{"log", cli.replay_log}, {"messages", messages}, {"undecodable", undecodable}};
+  j["security"] = security_json(security, opener.counters(), opener.sealed_without_key());
   return write_summary(cli, j);
 }
 
@@ -220,6 +269,8 @@ int run_session(const Cli& cli) {
     std::cerr << "arnav-host: " << e.what() << "\n";
     return 2;
   }
+  const std::optional<arnav::seal::BusSecurity> security = session_security(config);
+  if (!security) return 2;
   arnav::host::SessionOptions options;
   options.threaded = cli.replay_log.empty();
   options.record_dir = cli.record_dir;
@@ -240,10 +291,10 @@ int run_session(const Cli& cli) {
       std::cerr << "arnav-host: " << e.what() << "\n";
       return 2;
     }
-    return run_replay(cli, *session, config.camera ? arnav::channels::frame(config.camera->name) : std::string());
+    return run_replay(cli, *session, config.camera ? arnav::channels::frame(config.camera->name) : std::string(), *security);
   }
 
-  lcm::LCM bus(config.lcm_url);
+  arnav::seal::SealedLcm bus(config.lcm_url, *security);
   if (!bus.good()) {
     std::cerr << "arnav-host: " << config.source << ": cannot open LCM at '" << config.lcm_url
               << "': check lcm_url (udpm needs a multicast route, e.g. 224.0.0.0/4 on the interface)\n";
@@ -282,7 +333,7 @@ int run_session(const Cli& cli) {
       return 1;
     }
     if (!cli.quiet && now >= next_print) {
-      std::cout << session->status_table(now) << std::endl;
+      std::cout << session->status_table(now) << "\n" << bus.status_line() << std::endl;
       next_print += static_cast<std::int64_t>(config.print_period_s * 1e6);
     }
     if (cli.duration_s > 0 && now - t0 >= static_cast<std::int64_t>(cli.duration_s * 1e6)) break;
@@ -300,7 +351,7 @@ int run_session(const Cli& cli) {
   const std::int64_t now = arnav::monotonic_us();
   const double run_s = static_cast<double>(now - t0) * 1e-6;
   const auto tracker = session->tracker_at(now);
-  std::cout << format_status_table(tracker, now) << std::flush;
+  std::cout << format_status_table(tracker, now) << bus.status_line() << std::endl;
   if (cli.print_summary) {
     std::cout << format_summary(tracker, run_s);
     if (config.camera || session->has_model()) std::cout << session->format_summary(run_s);
@@ -309,6 +360,8 @@ int run_session(const Cli& cli) {
   for (const auto& f : session->recorded_files()) std::cout << "recorded: " << f << "\n";
   nlohmann::json j = summary(tracker, run_s);
   if (config.camera || session->has_model()) j["navigation"] = session->summary_json(run_s);
+  const arnav::seal::BusCounters bc = bus.counters();
+  j["security"] = security_json(*security, bc.open, bc.sealed_on_off_bus);
   return write_summary(cli, j);
 }
 
@@ -335,6 +388,8 @@ static int main_body(int argc, char** argv) {
   app.add_flag("--quiet", quiet, "no periodic table (final table only)");
   app.add_flag("--events", events, "print appliance events as they arrive");
   app.add_flag("--summary", print_summary, "print a summary at exit (rates, outages, device counters, latency, events)");
+  app.add_option("--key", cli.key_file, "status monitor: the bus key (arnav-keygen; docs/protocol.md)");
+  app.add_option("--security", cli.security, "status monitor: 'off' for a bus that is not sealed (bench only)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -345,9 +400,9 @@ static int main_body(int argc, char** argv) {
     return 2;
   }
   if (!cli.session_path.empty()) {
-    for (const char* opt : {"--lcm-url", "--stale-after-ms", "--print-period"})
+    for (const char* opt : {"--lcm-url", "--stale-after-ms", "--print-period", "--key", "--security"})
       if (app.count(opt) > 0) {
-        std::cerr << "arnav-host: " << opt << " belongs to the status monitor; with a session file set it there (lcm_url, stale_after_ms, print_period_s)\n";
+        std::cerr << "arnav-host: " << opt << " belongs to the status monitor; with a session file set it there (lcm_url, stale_after_ms, print_period_s, security)\n";
         return 2;
       }
     try {
@@ -357,7 +412,15 @@ static int main_body(int argc, char** argv) {
       return 1;
     }
   }
-  lcm::LCM bus(lcm_url);
+  arnav::seal::BusSecurity security;
+  try {
+    security = arnav::seal::security_from_cli(cli.key_file, cli.security, "arnav-host");
+  } catch (const arnav::seal::SecurityError& e) {
+    std::cerr << e.what() << "\n";
+    return 2;
+  }
+  std::cout << "arnav-host: " << security.describe() << std::endl;
+  arnav::seal::SealedLcm bus(lcm_url, security);
   if (!bus.good()) {
     std::cerr << "arnav-host: cannot open LCM at '" << lcm_url
               << "': check the URL (udpm needs a multicast route, e.g. 224.0.0.0/4 on the interface)\n";
@@ -382,7 +445,7 @@ static int main_body(int argc, char** argv) {
     const std::int64_t now = arnav::monotonic_us();
     tracker.update(now);
     if (!quiet && now >= next_print) {
-      std::cout << format_status_table(tracker, now) << std::endl;
+      std::cout << format_status_table(tracker, now) << bus.status_line() << std::endl;
       next_print += static_cast<std::int64_t>(print_period_s * 1e6);
     }
     if (duration_s > 0 && now - t0 >= static_cast<std::int64_t>(duration_s * 1e6)) break;
@@ -390,11 +453,14 @@ static int main_body(int argc, char** argv) {
   const std::int64_t now = arnav::monotonic_us();
   tracker.update(now);
   const double run_s = static_cast<double>(now - t0) * 1e-6;
-  std::cout << format_status_table(tracker, now) << std::flush;
+  std::cout << format_status_table(tracker, now) << bus.status_line() << std::endl;
   if (print_summary) std::cout << format_summary(tracker, run_s) << std::flush;
   if (!summary_path.empty()) {
+    nlohmann::json j = summary(tracker, run_s);
+    const arnav::seal::BusCounters bc = bus.counters();
+    j["security"] = security_json(security, bc.open, bc.sealed_on_off_bus);
     std::ofstream out(summary_path);
-    out << summary(tracker, run_s).dump(2) << "\n";
+    out << j.dump(2) << "\n";
     if (!out) {
       std::cerr << "arnav-host: cannot write " << summary_path << "\n";
       return 1;

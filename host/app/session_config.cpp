@@ -166,9 +166,14 @@ SessionConfig parse_session(const std::string& text, const std::string& source, 
   const Reader r(source);
   const YAML::Node root = r.load_root(text);
   r.only(root, "", {"arnav_session_version", "lcm_url", "stale_after_ms", "print_period_s", "scene", "registration", "tools",
-                    "camera", "model", "overlay", "record", "inputs", "cutting", "display"});
+                    "camera", "model", "overlay", "record", "inputs", "cutting", "display", "security"});
   SessionConfig c;
   c.source = source;
+  try {  // `security:` (docs/protocol.md, "Sealed bus"); the key is loaded when the bus opens
+    c.security = seal::parse_security(root["security"], source, base_dir);
+  } catch (const seal::SecurityError& e) {
+    throw SessionError(e.what());
+  }
   if (!root["arnav_session_version"]) r.fail(root, "arnav_session_version", "missing: add 'arnav_session_version: 1' at the top");
   if (r.integer(root, "", "arnav_session_version", 1, 1, 1000) != 1)
     r.fail(root["arnav_session_version"], "arnav_session_version", "this arnav-host reads version 1");

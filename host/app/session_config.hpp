@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "calibration/lib/camera_intrinsics.hpp"
+#include "protocol/seal/security_config.hpp"
 
 namespace arnav::host {
 
@@ -152,6 +153,7 @@ struct GrasperRole : ToolRole {
 struct SessionConfig {
   std::string source;                        // the session file
   std::string lcm_url = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304";
+  seal::SecuritySettings security;           // `security:`; arnav-host refuses a live bus or a log without it
   double stale_after_ms = 250.0;             // status table freshness (every tool)
   double print_period_s = 1.0;
   std::optional<std::string> scene_path;

@@ -17,6 +17,7 @@
 #include <lcm/lcm-cpp.hpp>
 #include <nlohmann/json.hpp>
 
+#include "protocol/seal/sealed_lcm.hpp"
 #include "host/igtl/bridge.hpp"
 #include "protocol/channels.hpp"
 #include "protocol/clock.hpp"
@@ -104,7 +105,9 @@ int run(int argc, char** argv) {
   arnav::igtl::BridgeOptions bridge_options;
   std::vector<std::string> names, tips;
   bool exit_at_end = false;
-  std::string stats_path;
+  std::string stats_path, key_file, security;
+  app.add_option("--key", key_file, "the sealed bus's key (arnav-keygen; docs/protocol.md \"Sealed bus\"), also for a sealed log");
+  app.add_option("--security", security, "'off': read a bus or log that is not sealed (bench, old logs)");
   app.add_option("--lcm", lcm_url, "LCM URL: the live bus (default: the appliance's, TTL 0) or a recorded session, file://LOG?speed=1");
   app.add_option("--bind", server_options.bind_address, "IPv4 address to listen on (default 127.0.0.1; 0.0.0.0 for every interface)");
   app.add_option("--port", server_options.port, "TCP port (default 18944, OpenIGTLink's; 0: any free port)")->check(CLI::Range(0, 65535));
@@ -128,7 +131,15 @@ int run(int argc, char** argv) {
   }
   if (const int rc = parse_tool_options(names, tips, bridge_options); rc != 0) return rc;
 
-  lcm::LCM bus(lcm_url);
+  arnav::seal::BusSecurity bus_security;
+  try {
+    bus_security = arnav::seal::security_from_cli(key_file, security, "arnav-igtl");
+  } catch (const arnav::seal::SecurityError& e) {
+    std::cerr << e.what() << "\n";
+    return 2;
+  }
+  log_line(bus_security.describe());
+  arnav::seal::SealedLcm bus(lcm_url, bus_security);
   if (!bus.good()) {
     std::cerr << "arnav-igtl: --lcm '" << lcm_url
               << "': cannot open LCM there (udpm needs a multicast route, e.g. 224.0.0.0/4 on the interface; a file:// log must exist)\n";

@@ -38,13 +38,22 @@ ndi::SessionConfig fast_session(std::vector<ndi::ToolConfig> tools) {
   return c;
 }
 
-void drain(lcm::LCM& lcm) {
+// The appliance publishes on a sealed bus; the sink opens with the same key (docs/protocol.md).
+seal::BusSecurity test_security() {
+  std::array<std::uint8_t, seal::kKeyBytes> b{};
+  b.fill(0x5a);
+  seal::BusSecurity s;
+  s.key = std::make_shared<const seal::SessionKey>(b);
+  return s;
+}
+
+void drain(seal::SealedLcm& lcm) {
   while (lcm.handleTimeout(10) > 0) {
   }
 }
 
 TEST(Publisher, PosesHealthAndEventsOverLcm) {
-  lcm::LCM lcm("memq://");
+  seal::SealedLcm lcm("memq://", test_security());
   ASSERT_TRUE(lcm.good());
   Sink sink;
   lcm.subscribe("ARNAV_POSE_.*", &Sink::on_pose, &sink);
@@ -66,6 +75,8 @@ TEST(Publisher, PosesHealthAndEventsOverLcm) {
   }
   pub.publish_health(session, "fake0", 60.0);
   drain(lcm);
+  EXPECT_EQ(lcm.counters().open.dropped(), 0u);  // sealed by the publisher, opened by the sink
+  EXPECT_GE(lcm.counters().open.accepted, 11u);
 
   ASSERT_EQ(sink.poses.size(), 10u);
   const tool_pose_t& last = sink.poses.back();
@@ -101,7 +112,7 @@ TEST(Publisher, PosesHealthAndEventsOverLcm) {
 }
 
 TEST(Publisher, OutOfVolumeAndMissingTools) {
-  lcm::LCM lcm("memq://");
+  seal::SealedLcm lcm("memq://", test_security());
   Sink sink;
   lcm.subscribe("ARNAV_POSE_.*", &Sink::on_pose, &sink);
   const ndi::SessionConfig c = fast_session({{"pointer", rom("8700340.rom")}});
@@ -133,7 +144,7 @@ TEST(Publisher, OutOfVolumeAndMissingTools) {
 // With frames.reference: Ref, NDI poses go out as X_RefTool computed from the same device
 // frame; the reference tool itself stays X_NdiRef; without the reference, X_NdiTool.
 TEST(Publisher, PosesInTheReferenceFrame) {
-  lcm::LCM lcm("memq://");
+  seal::SealedLcm lcm("memq://", test_security());
   Sink sink;
   lcm.subscribe("ARNAV_POSE_.*", &Sink::on_pose, &sink);
   const ndi::SessionConfig c = fast_session({{"pointer", rom("8700340.rom")}, {"reference", rom("8700339.rom")}});
@@ -174,7 +185,7 @@ TEST(Publisher, PosesInTheReferenceFrame) {
 }
 
 TEST(Publisher, DeviceTimestampOfABx2FrameIsCarriedIntoThePose) {
-  lcm::LCM lcm("memq://");
+  seal::SealedLcm lcm("memq://", test_security());
   ASSERT_TRUE(lcm.good());
   Sink sink;
   lcm.subscribe("ARNAV_POSE_.*", &Sink::on_pose, &sink);

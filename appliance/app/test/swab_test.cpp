@@ -88,7 +88,7 @@ TEST(SwabConfig, ErrorsNameFileLineAndKey) {
 }
 
 TEST(SwabSampler, PublishesTheTipWhileTheInputIsHeld) {
-  lcm::LCM lcm("memq://");
+  seal::SealedLcm lcm("memq://", seal::BusSecurity::off());
   ASSERT_TRUE(lcm.good());
   Received rx;
   lcm.subscribe("ARNAV_CLOUD_pointer", &Received::on, &rx);
@@ -146,7 +146,7 @@ TEST(SwabSampler, PublishesTheTipWhileTheInputIsHeld) {
 }
 
 TEST(SwabSampler, ContinuousSamplesWithoutAnInput) {
-  lcm::LCM lcm("memq://");
+  seal::SealedLcm lcm("memq://", seal::BusSecurity::off());
   Received rx;
   lcm.subscribe("ARNAV_CLOUD_pointer", &Received::on, &rx);
   SwabConfig c;

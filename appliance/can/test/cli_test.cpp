@@ -22,11 +22,11 @@ std::filesystem::path temp_file(const std::string& name, const std::string& cont
 }
 
 TEST(ApplianceCan, CheckCanOnlyAndNdiPlusCan) {
-  const auto only = temp_file("only.yaml", arnav::can::test::kPedalConfig);
+  const auto only = temp_file("only.yaml", std::string("security: off\n") + arnav::can::test::kPedalConfig);
   Result r = run(bin("appliance/app/arnav-appliance") + " --check " + only.string());
   EXPECT_EQ(r.code, 0) << r.output;
   EXPECT_NE(r.output.find("CAN vcan0: 4 input(s), 2 device(s), no NDI"), std::string::npos) << r.output;
-  const auto both = temp_file("both.yaml", "port: sim\ntools:\n  - name: p\n    rom: " + data_dir() + "/ndi_roms/8700340.rom\n" +
+  const auto both = temp_file("both.yaml", "security: off\nport: sim\ntools:\n  - name: p\n    rom: " + data_dir() + "/ndi_roms/8700340.rom\n" +
                                                arnav::can::test::kPedalConfig);
   r = run(bin("appliance/app/arnav-appliance") + " --check " + both.string());
   EXPECT_EQ(r.code, 0) << r.output;

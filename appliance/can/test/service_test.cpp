@@ -14,7 +14,7 @@ namespace arnav::can {
 namespace {
 
 struct Bus {
-  lcm::LCM lcm{"memq://"};
+  seal::SealedLcm lcm{"memq://", seal::BusSecurity::off()};
   std::vector<input_event_t> inputs;
   std::vector<appliance_event_t> events;
   std::vector<device_health_t> health;

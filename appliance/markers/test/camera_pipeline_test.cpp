@@ -47,7 +47,7 @@ struct Collector {
 TEST(CameraPipeline, PublishesCameraPosesThatMatchGroundTruth) {
   auto cfg = parse_camera_config(kConfig, "test.yaml", ".");
   ASSERT_TRUE(cfg);
-  auto lcm = std::make_shared<lcm::LCM>("memq://");
+  auto lcm = std::make_shared<seal::SealedLcm>("memq://", seal::BusSecurity::off());
   ASSERT_TRUE(lcm->good());
   Collector col;
   lcm->subscribe("ARNAV_POSE_pointer", &Collector::pose, &col);
@@ -101,7 +101,7 @@ TEST(CameraPipeline, ReferenceFrameAppliedAndMissingReferenceReported) {
   Eigen::Isometry3d X_NdiCam = Eigen::Isometry3d::Identity();
   X_NdiCam.translation() = Eigen::Vector3d(100, -50, -1200);
   auto frames = std::make_shared<frames::ReferenceFrames>(frames::Reference::Ndi, X_NdiCam, "", 0.05);
-  auto lcm = std::make_shared<lcm::LCM>("memq://");
+  auto lcm = std::make_shared<seal::SealedLcm>("memq://", seal::BusSecurity::off());
   Collector col;
   lcm->subscribe("ARNAV_POSE_pointer", &Collector::pose, &col);
   capture::SyntheticSource truth(*cfg->synthetic);
@@ -120,7 +120,7 @@ TEST(CameraPipeline, ReferenceFrameAppliedAndMissingReferenceReported) {
   // Ref without any reference pose: every pose is MISSING and the reason is an event.
   auto ref = std::make_shared<frames::ReferenceFrames>(frames::Reference::Ref, X_NdiCam, "ref", 0.05);
   Collector col2;
-  auto lcm2 = std::make_shared<lcm::LCM>("memq://");
+  auto lcm2 = std::make_shared<seal::SealedLcm>("memq://", seal::BusSecurity::off());
   lcm2->subscribe("ARNAV_POSE_pointer", &Collector::pose, &col2);
   lcm2->subscribe("ARNAV_EVENT", &Collector::event, &col2);
   CameraPipeline p2(*cfg, ref, lcm2);

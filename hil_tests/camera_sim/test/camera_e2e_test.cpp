@@ -137,6 +137,7 @@ TEST(CameraEndToEnd, ApplianceWithSyntheticCameraPublishesPosesMatchingGroundTru
   std::filesystem::create_directories(dir);
   calib::write_board_layout(dir / "marker_board.yaml", calib::make_marker_board("tag36h11", 35.0, 25.0, 10, 8.0));
   std::ofstream(dir / "appliance.yaml") << "lcm_url: \"" << kUrl << R"("
+security: off
 camera:
   name: bench
   source: synthetic
@@ -240,6 +241,7 @@ TEST(CameraEndToEnd, CameraPosesInTheReferenceToolFrameWithTheSimulatedPolaris) 
   rec.date = "2026-11-21T11:00:00Z";
   calib::write_transform(dir / "X_CamNdi.yaml", rec);
   std::ofstream(dir / "appliance.yaml") << "lcm_url: \"" << kUrl << R"("
+security: off
 port: sim
 rate_hz: 60
 tools:

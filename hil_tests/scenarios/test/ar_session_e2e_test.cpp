@@ -69,7 +69,7 @@ struct Bench {
   }
   std::string appliance(int fps, int frames) const {
     const auto p = dir / "appliance.yaml";
-    std::ofstream(p) << "lcm_url: \"" << kUrl << "\"\n"
+    std::ofstream(p) << "lcm_url: \"" << kUrl << "\"\nsecurity: off\n"
                      << "camera:\n  name: bench\n  source: synthetic\n  fps: " << fps << "\n  intrinsics: camera.yaml\n"
                      << "  detector: {family: tag36h11, decimate: 2, threads: 1}\n"
                      << "  publish_frames: {every: 1, jpeg_quality: 80}\n"
@@ -82,7 +82,7 @@ struct Bench {
   }
   std::string session() const {
     const auto p = dir / "session.yaml";
-    std::ofstream(p) << "arnav_session_version: 1\nlcm_url: \"" << kUrl << "\"\n"
+    std::ofstream(p) << "arnav_session_version: 1\nlcm_url: \"" << kUrl << "\"\nsecurity: off\n"
                      << "scene: " << data("liver/liver_coarse.scene.yaml") << "\n"
                      << "registration: X_RefModel.yaml\n"
                      << "tools:\n  reference: {name: liver_marker, stale_after_ms: 150}\n"

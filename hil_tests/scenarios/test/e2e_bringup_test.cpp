@@ -87,7 +87,7 @@ TEST(HilBringUp, HostSeesFreshToolsWithoutGaps) {
   if (!why.empty()) GTEST_SKIP() << "HIL bench not available: " << why;
   ASSERT_TRUE(run.wait_all_valid(30, t0, 90.0)) << run.logs();
   const std::string summary = run.dir() + "/host.json";
-  ChildProcess host({host_exe(), "--lcm-url", HilRun::kLcmUrl, "--duration", "4", "--quiet", "--stale-after-ms", "500",
+  ChildProcess host({host_exe(), "--lcm-url", HilRun::kLcmUrl, "--security", "off", "--duration", "4", "--quiet", "--stale-after-ms", "500",
                      "--summary-json", summary},
                     {}, run.dir() + "/host.log");
   ASSERT_EQ(host.wait(60.0).value_or(-1), 0) << host.log_tail();

@@ -71,7 +71,7 @@ TEST(HostCanE2e, ThePedalHeldOnTheCanBusArmsCuttingInTheSession) {
   calib::write_transform(dir / "X_RefModel.yaml", reg);
   {
     std::ofstream s(dir / "session.yaml");
-    s << "arnav_session_version: 1\nlcm_url: \"" << CanRun::kLcmUrl << "\"\n"
+    s << "arnav_session_version: 1\nlcm_url: \"" << CanRun::kLcmUrl << "\"\nsecurity: off\n"
       << "scene: " << data("liver/liver_coarse_cut.scene.yaml") << "\nregistration: X_RefModel.yaml\n"
       << "tools:\n  reference: {name: liver_marker}\n  scalpel: {name: scalpel, blade: {tip_mm: [0, 0, 0], heel_mm: [0, 0, 60]}}\n"
       << "inputs: {cut_enable: {input: pedal_cut, state_stale_after_ms: 1500}}\nmodel: {rate_hz: 60, gravity: false}\n";
@@ -148,7 +148,7 @@ TEST(HostCanE2e, LiveLandmarkRegistrationAcceptedByTheCanPedal) {
   }
   {
     std::ofstream s(dir / "session.yaml");
-    s << "arnav_session_version: 1\nlcm_url: \"" << CanRun::kLcmUrl << "\"\n"
+    s << "arnav_session_version: 1\nlcm_url: \"" << CanRun::kLcmUrl << "\"\nsecurity: off\n"
       << "scene: " << data("liver/liver_coarse.scene.yaml") << "\n"
       << "registration:\n  live: {landmarks: landmarks.csv, pointer: pointer, accept: pedal_accept, window_ms: 150}\n"
       << "tools:\n  reference: {name: liver_marker}\n  pointer: {name: pointer}\nmodel: {rate_hz: 30}\n";

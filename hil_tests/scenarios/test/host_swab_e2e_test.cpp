@@ -248,7 +248,7 @@ TEST(HostSwabE2e, PedalHeldSwabRefinesTheLandmarkRegistration) {
   }
   {
     std::ofstream s(dir / "session.yaml");
-    s << "arnav_session_version: 1\nlcm_url: \"" << CanRun::kLcmUrl << "\"\nscene: " << scene_path << "\n"
+    s << "arnav_session_version: 1\nlcm_url: \"" << CanRun::kLcmUrl << "\"\nsecurity: off\nscene: " << scene_path << "\n"
       << "registration:\n  live:\n    landmarks: landmarks.csv\n    pointer: pointer\n    accept: pedal_accept\n    window_ms: 150\n"
       << "    swab: {source: pointer, accept: pedal_accept, min_points: 150}\n"
       << "tools:\n  reference: {name: reference}\n  pointer: {name: pointer}\nmodel: {rate_hz: 30}\n";

@@ -112,7 +112,7 @@ TEST(HilIgtl, SlicerAndPackagedClientsOnTheBench) {
   ASSERT_TRUE(run.wait_all_valid(30, t0, 90.0)) << "no tracking within 90 s\n" << run.logs();
 
   const std::string dir = run.dir();
-  ChildProcess igtl({env_or("ARNAV_IGTL_EXE", ARNAV_IGTL_EXE), "--lcm", HilRun::kLcmUrl, "--port", "0", "--stats-json", dir + "/igtl_stats.json"},
+  ChildProcess igtl({env_or("ARNAV_IGTL_EXE", ARNAV_IGTL_EXE), "--lcm", HilRun::kLcmUrl, "--security", "off", "--port", "0", "--stats-json", dir + "/igtl_stats.json"},
                     {}, dir + "/igtl.log", true);
   const auto ready = igtl.read_line(30.0);
   ASSERT_TRUE(ready && ready->rfind("READY ", 0) == 0) << igtl.log_tail();
@@ -215,7 +215,7 @@ TEST(HilIgtl, CameraFramesBecomeImagesForThePackagedClient) {
   if (const std::string why = run.start(o); !why.empty()) GTEST_SKIP() << "HIL bench not available: " << why;
   ASSERT_TRUE(run.wait_all_valid(10, t0, 90.0)) << "no tracking within 90 s\n" << run.logs();
   const std::string dir = run.dir();
-  ChildProcess igtl({env_or("ARNAV_IGTL_EXE", ARNAV_IGTL_EXE), "--lcm", std::string(HilRun::kLcmUrl) + "&recv_buf_size=4194304", "--port", "0",
+  ChildProcess igtl({env_or("ARNAV_IGTL_EXE", ARNAV_IGTL_EXE), "--lcm", std::string(HilRun::kLcmUrl) + "&recv_buf_size=4194304", "--security", "off", "--port", "0",
                      "--image-downscale", "2", "--stats-json", dir + "/igtl_stats.json"},
                     {}, dir + "/igtl.log", true);
   const auto ready = igtl.read_line(30.0);

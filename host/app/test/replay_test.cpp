@@ -148,7 +148,7 @@ TEST(Replay, DeterministicWithCuttingAndThePedal) {
                                                       "  scalpel: {name: scalpel, stale_after_ms: 100, blade: {tip_mm: [0, 0, 0], heel_mm: [0, 0, 60]}}\n"
                                                       "inputs: {cut_enable: pedal_right}\n"
                                                       "camera:\n  name: cam0\n  intrinsics: camera.yaml\n  pose_from: reference\n"
-                                                      "model: {rate_hz: 60, gravity: false}\n");
+                                                      "model: {rate_hz: 60, gravity: false}\nsecurity: off\n");
   const std::string log_path = (f.dir / "cut.lcmlog").string();
   constexpr std::int64_t kWall = 1'700'000'000'000'000;
   {
@@ -229,7 +229,7 @@ TEST(Replay, ModelStepsSeeOnlyThePosesReceivedBeforeThem) {
                                                         "tools:\n  reference: {name: liver_marker, stale_after_ms: 100}\n"
                                                         "  grasper: {name: grasper, stale_after_ms: 100, radius_mm: 10, grasp: {always: true}}\n"
                                                         "camera:\n  name: cam0\n  intrinsics: camera.yaml\n  pose_from: reference\n"
-                                                        "model: {rate_hz: 60, gravity: false}\n");
+                                                        "model: {rate_hz: 60, gravity: false}\nsecurity: off\n");
   // The grasper's tip on the organ's surface (the vertex nearest to the underside's middle).
   const Scene scene = load_scene(scene_path);
   const Eigen::Matrix3Xd surface = scene.organ_embedding.apply(scene.problem.mesh, scene.problem.mesh.rest_positions_World_mm);

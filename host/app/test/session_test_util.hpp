@@ -109,7 +109,7 @@ struct SessionFolder {
                                  "  intrinsics: camera.yaml\n"
                                  "  pose_from: reference\n"
                                  "model: {rate_hz: 60, gravity: false}\n"
-                                 "overlay: {margin_mm: 5, warn_mm: 5}\n" + extra);
+                                 "overlay: {margin_mm: 5, warn_mm: 5}\n" + extra + "security: off\n");
   }
 };
 

@@ -483,7 +483,7 @@ TEST_F(SwabSession, ReplayOfALogRegistersTheSwabTheSameWay) {
   const std::string session = f_.write("replay.yaml", "arnav_session_version: 1\nscene: " + data_dir() +
                                                          "/liver/liver_coarse.scene.yaml\n"
                                                          "registration:\n  live: {initial_pose: prior.yaml, swab: {source: pointer, accept: pedal_swab}}\n"
-                                                         "tools:\n  reference: {name: liver_marker}\nmodel: {rate_hz: 30}\n");
+                                                         "tools:\n  reference: {name: liver_marker}\nmodel: {rate_hz: 30}\nsecurity: off\n");
   const std::string log_path = (f_.dir / "swab.lcmlog").string();
   {
     lcm::LogFile log(log_path, "w");

@@ -69,10 +69,13 @@ TEST(IgtlReplay, RecordedSessionServedAtItsPace) {
     }
   }
   const std::string cmd = "'" + testing::binary_path("host/igtl/arnav-igtl") + "' --lcm 'file://" + log_path +
-                          "?speed=1' --port 0 --exit-at-end 2>&1";
+                          "?speed=1' --security off --port 0 --exit-at-end 2>&1";
   FILE* igtl = ::popen(cmd.c_str(), "r");
   ASSERT_NE(igtl, nullptr);
   char line[256] = {};
+  ASSERT_NE(std::fgets(line, sizeof line, igtl), nullptr);
+  // arnav-igtl announces the bus's security first (stderr, folded in here: docs/protocol.md).
+  EXPECT_NE(std::string(line).find("security: OFF"), std::string::npos) << line;
   ASSERT_NE(std::fgets(line, sizeof line, igtl), nullptr);
   int port = 0;
   ASSERT_EQ(std::sscanf(line, "READY %d", &port), 1) << line;

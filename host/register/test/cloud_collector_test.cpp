@@ -149,7 +149,7 @@ TEST(CloudCollector, ArnavRegisterRegistersAReplayedSwab) {
     }
   }
   const std::string reg = std::string(bin) + "/host/register/arnav-register";
-  const std::string cmd = "OMP_WAIT_POLICY=PASSIVE '" + reg + "' '" + scene_path + "' --lcm 'file://" + log + "?speed=0' --swab-seconds 5 --rigid-only --out '" +
+  const std::string cmd = "OMP_WAIT_POLICY=PASSIVE '" + reg + "' '" + scene_path + "' --lcm 'file://" + log + "?speed=0' --security off --swab-seconds 5 --rigid-only --out '" +
                           dir + "/out' > '" + dir + "/stdout.txt' 2> '" + dir + "/stderr.txt'";
   const int rc = std::system(cmd.c_str());
   std::ifstream err(dir + "/stderr.txt");
@@ -164,7 +164,7 @@ TEST(CloudCollector, ArnavRegisterRegistersAReplayedSwab) {
   EXPECT_EQ(back.size(), pts.cols());
 
   // nothing on the channel: exit 2 naming the channel
-  const std::string cmd2 = "'" + reg + "' '" + scene_path + "' --lcm 'file://" + log + "?speed=0' --cloud-channel ARNAV_CLOUD_stereo --swab-wait-seconds 1 --out '" +
+  const std::string cmd2 = "'" + reg + "' '" + scene_path + "' --lcm 'file://" + log + "?speed=0' --security off --cloud-channel ARNAV_CLOUD_stereo --swab-wait-seconds 1 --out '" +
                            dir + "/out2' > /dev/null 2> '" + dir + "/stderr2.txt'";
   const int rc2 = std::system(cmd2.c_str());
   ASSERT_TRUE(WIFEXITED(rc2));

@@ -30,6 +30,7 @@
 #include "host/scene/mesh_io.hpp"
 #include "host/scene/scene.hpp"
 #include "protocol/guarded_main.hpp"
+#include "protocol/seal/sealed_lcm.hpp"
 
 namespace {
 
@@ -39,6 +40,7 @@ using nlohmann::json;
 struct Inputs {
   std::string scene_path, surface_path, landmarks_path, pose_path, targets_path, out_dir;
   std::string lcm_url, cloud_channel = "ARNAV_CLOUD_pointer", cloud_frame;
+  std::string key_file, security;  // with --lcm: the bus key, or "off" (docs/protocol.md, "Sealed bus")
   double swab_seconds = 30.0, swab_wait_seconds = 60.0;
   bool rigid_only = false;
 };
@@ -64,7 +66,14 @@ json matrix_json(const Eigen::Isometry3d& X) {
 // message for swab_seconds (or until a replayed log ends). Throws LoadError naming the
 // URL and channel when nothing usable arrives.
 PointCloud collect_swab(const Inputs& in) {
-  lcm::LCM lcm(in.lcm_url);
+  arnav::seal::BusSecurity security;
+  try {
+    security = arnav::seal::security_from_cli(in.key_file, in.security, "arnav-register --lcm");
+  } catch (const arnav::seal::SecurityError& e) {
+    throw LoadError(e.what());
+  }
+  std::cerr << "arnav-register: " << security.describe() << "\n";
+  arnav::seal::SealedLcm lcm(in.lcm_url, security);
   if (!lcm.good())
     throw LoadError("--lcm '" + in.lcm_url + "': cannot open LCM there. Fix: check the URL (udpm://GROUP:PORT?ttl=0, file://LOG?speed=0)");
   PointCloudCollector collector(in.cloud_frame);
@@ -116,6 +125,8 @@ static int main_body(int argc, char** argv) {
   auto* surface_opt = app.add_option("--surface", in.surface_path, "intraoperative points: .xyz/.txt/.csv, .ply, .obj or .vtk (mm, Intraop frame)");
   auto* lcm_opt = app.add_option("--lcm", in.lcm_url, "register from a live swab: collect arnav.point_cloud_t messages from this LCM URL (e.g. udpm://239.255.76.67:7667?ttl=0, or file://LOG?speed=0 to replay a log)");
   surface_opt->excludes(lcm_opt);
+  app.add_option("--key", in.key_file, "with --lcm: the bus key (arnav-keygen; docs/protocol.md)");
+  app.add_option("--security", in.security, "with --lcm: 'off' for a bus or log that is not sealed");
   app.add_option("--cloud-channel", in.cloud_channel, "with --lcm: the point_cloud_t channel (default ARNAV_CLOUD_pointer)");
   app.add_option("--cloud-frame", in.cloud_frame, "with --lcm: the frame the points must be in (default: the first message's)");
   app.add_option("--swab-seconds", in.swab_seconds, "with --lcm: collect this long after the first message (default 30)")->check(CLI::Range(0.1, 3600.0));
