@@ -16,9 +16,29 @@ namespace {
 
 using Reader = yaml::YamlReader<ConfigError>;
 
-const std::set<std::string> kKeys = {"camera", "frames", "port", "baud", "rate_hz", "device_rate_hz", "lcm_url", "reply_mode",
+const std::set<std::string> kKeys = {"camera", "frames", "port", "ndi", "baud", "rate_hz", "device_rate_hz", "lcm_url", "reply_mode",
                                      "tx_firmware", "bx_failures_before_tx", "tracking_timeout_ms",
                                      "setup_timeout_ms", "reset_wait_ms", "health_rate_hz", "tools", "sim_command", "sim_args", "realtime", "can", "swab"};
+
+// ndi: {host: P9-B0103.local, port: 8765, stream: true, connect_timeout_ms: 3000}
+void parse_ndi_section(const Reader& r, const YAML::Node& n, AppConfig& c) {
+  if (!n.IsMap()) r.fail(n, "ndi", "expected a mapping such as {host: 192.168.1.50, port: 8765}");
+  r.only(n, "ndi", {"host", "port", "stream", "connect_timeout_ms"});
+  if (!n["host"]) r.fail(n, "ndi.host", "missing: the tracker's IP address or name (e.g. P9-B0103.local)");
+  c.ndi_host = r.get<std::string>(n["host"], "ndi.host", "a string");
+  if (c.ndi_host.empty()) r.fail(n["host"], "ndi.host", "empty");
+  if (n["port"]) {
+    c.ndi_port = r.get<int>(n["port"], "ndi.port", "an integer");
+    if (c.ndi_port < 1 || c.ndi_port > 65535) r.fail(n["port"], "ndi.port", "must be a TCP port, 1 to 65535 (NDI's default is 8765)");
+  }
+  if (n["stream"]) c.ndi_stream = r.get<bool>(n["stream"], "ndi.stream", "true or false");
+  if (n["connect_timeout_ms"]) {
+    c.connect_timeout_ms = r.get<int>(n["connect_timeout_ms"], "ndi.connect_timeout_ms", "an integer");
+    if (c.connect_timeout_ms < 10 || c.connect_timeout_ms > 60000) r.fail(n["connect_timeout_ms"], "ndi.connect_timeout_ms", "must be between 10 and 60000");
+  }
+  c.port = "tcp:" + c.ndi_host + ":" + std::to_string(c.ndi_port);
+  c.port_line = n.Mark().line + 1;
+}
 
 }  // namespace
 
@@ -32,6 +52,7 @@ ndi::SessionConfig AppConfig::session_config() const {
   c.tracking_timeout = std::chrono::milliseconds(tracking_timeout_ms);
   c.setup_timeout = std::chrono::milliseconds(setup_timeout_ms);
   c.reset_wait = std::chrono::milliseconds(reset_wait_ms);
+  c.stream = ndi_stream;
   return c;
 }
 
@@ -43,7 +64,7 @@ AppConfig parse_config(const std::string& text, const std::string& source, const
   c.source = source;
   // camera: and frames: are read by appliance/markers/camera_config (docs/camera.md),
   // can: by appliance/can/can_config (docs/can.md), swab: by appliance/app/swab (docs/register.md).
-  if (!root["port"] && (root["camera"] || root["can"]) && !root["tools"]) {  // camera and/or CAN, no NDI
+  if (!root["port"] && !root["ndi"] && (root["camera"] || root["can"]) && !root["tools"]) {  // camera and/or CAN, no NDI
     c.ndi_enabled = false;
     if (root["lcm_url"]) c.lcm_url = r.get<std::string>(root["lcm_url"], "lcm_url", "a string");
     if (root["health_rate_hz"]) {  // the CAN path's health rate
@@ -54,10 +75,16 @@ AppConfig parse_config(const std::string& text, const std::string& source, const
       r.fail(root["realtime"], "realtime", "applies to the NDI polling thread, and this configuration has no NDI 'port' (camera or CAN only)");
     return c;
   }
-  if (!root["port"]) r.fail(root, "port", "missing: give a serial port path (e.g. /dev/ttyUSB0) or 'sim'");
-  c.port = r.get<std::string>(root["port"], "port", "a string");
-  c.port_line = root["port"].Mark().line + 1;
-  if (c.port.empty()) r.fail(root["port"], "port", "empty");
+  if (root["port"] && root["ndi"])
+    r.fail(root["ndi"], "ndi", "give either 'port' (serial tracker) or 'ndi: {host: ...}' (Ethernet tracker), not both");
+  if (const YAML::Node n = root["ndi"]) {
+    parse_ndi_section(r, n, c);
+  } else {
+    if (!root["port"]) r.fail(root, "port", "missing: give a serial port path (e.g. /dev/ttyUSB0) or 'sim', or an 'ndi: {host: ...}' section");
+    c.port = r.get<std::string>(root["port"], "port", "a string");
+    c.port_line = root["port"].Mark().line + 1;
+    if (c.port.empty()) r.fail(root["port"], "port", "empty");
+  }
   if (root["baud"]) {
     c.baud = r.get<int>(root["baud"], "baud", "an integer");
     if (!ndi::baud_code(c.baud))

@@ -18,8 +18,13 @@ class ConfigError : public std::runtime_error {
 
 struct AppConfig {
   bool ndi_enabled = true;    // false: no 'port' and a 'camera:' section (camera-only, docs/camera.md)
-  std::string port;           // serial port path, or "sim"
+  std::string port;           // serial port path, or "sim"; "tcp:HOST:PORT" with an ndi: section
   int port_line = 1;          // line of the port key (for errors found later)
+  // ndi: {host, port, stream, connect_timeout_ms}: an Ethernet tracker (Polaris Vega, Lyra)
+  std::string ndi_host;       // empty: serial (port:)
+  int ndi_port = 8765;
+  bool ndi_stream = true;     // STREAM BX2 when the device's API revision allows it
+  int connect_timeout_ms = 3000;
   int baud = 115200;          // COMM target rate
   double rate_hz = 60.0;      // polling rate (the device frame rate)
   double device_rate_hz = 60.0;  // frame counter rate, for device_time_us

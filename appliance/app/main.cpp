@@ -22,6 +22,7 @@
 #include "appliance/markers/camera_runtime.hpp"
 #include "appliance/ndi/posix_transport.hpp"
 #include "appliance/ndi/serial_transport.hpp"
+#include "appliance/ndi/tcp_transport.hpp"
 #include "protocol/clock.hpp"
 #include "protocol/guarded_main.hpp"
 
@@ -158,7 +159,13 @@ static int main_body(int argc, char** argv) {
   // libserialport does not list (a pty given by path).
   ndi::TransportFactory factory;
   std::string port_label = cfg.port;
-  if (cfg.port != "sim") {
+  if (!cfg.ndi_host.empty()) {
+    ndi::TcpOptions tcp;
+    tcp.host = cfg.ndi_host;
+    tcp.port = cfg.ndi_port;
+    tcp.connect_timeout = std::chrono::milliseconds(cfg.connect_timeout_ms);
+    factory = [tcp] { return std::unique_ptr<ndi::Transport>(new ndi::TcpTransport(tcp)); };
+  } else if (cfg.port != "sim") {
     bool serial = false;
     try {
       serial = ndi::port_exists(cfg.port);
@@ -308,6 +315,10 @@ static int main_body(int argc, char** argv) {
   // Bring-up and recovery take seconds: health keeps coming at its rate meanwhile.
   session->set_idle_callback(health_if_due);
   std::int64_t next_start_attempt = 0;
+  // Reconnect backoff: 100 ms after the first failed bring-up, doubling to at most 2 s, so a
+  // link that comes back is picked up at once and a dead one is not hammered.
+  constexpr std::int64_t kFirstRetryUs = 100'000, kMaxRetryUs = 2'000'000;
+  std::int64_t retry_us = kFirstRetryUs;
   std::int64_t next_poll = 0;
   ndi::TrackingReply reply;
 
@@ -315,7 +326,12 @@ static int main_body(int argc, char** argv) {
     std::int64_t now = monotonic_us();
     if (session->state() != ndi::LinkState::Tracking) {
       if (now >= next_start_attempt) {
-        if (!session->start()) next_start_attempt = monotonic_us() + 1'000'000;  // retry each second
+        if (!session->start()) {
+          next_start_attempt = monotonic_us() + retry_us;
+          retry_us = std::min(kMaxRetryUs, retry_us * 2);
+        } else {
+          retry_us = kFirstRetryUs;
+        }
         next_poll = monotonic_us();
       } else {
         std::this_thread::sleep_for(std::chrono::milliseconds(20));
@@ -332,9 +348,11 @@ static int main_body(int argc, char** argv) {
           ++frames_in_window;
           // Next frame is due one device period after this one was read; poll a little
           // early and re-poll quickly if the device has no new frame yet.
-          next_poll = receive_us + period_us * 9 / 10;
+          next_poll = session->streaming() ? monotonic_us() : receive_us + period_us * 9 / 10;  // a stream is not paced
           break;
-        case ndi::PollResult::SameFrame: next_poll = monotonic_us() + std::min<std::int64_t>(1000, period_us / 10); break;
+        case ndi::PollResult::SameFrame:
+          next_poll = monotonic_us() + (session->streaming() ? 0 : std::min<std::int64_t>(1000, period_us / 10));
+          break;
         case ndi::PollResult::Failed: next_poll = monotonic_us(); break;
       }
     }

@@ -77,7 +77,9 @@ float Publisher::publish_frame(const ndi::Session& session, const ndi::TrackingR
     }
     const std::uint32_t fn = r && r->has_status ? r->frame_number : reply.frame_number();
     msg.device_frame_number = fn;
-    msg.device_time_us = static_cast<std::int64_t>(static_cast<double>(fn) * 1e6 / device_rate_hz_);
+    // BX2 carries the device's own timestamp of the frame; BX/TX only the frame counter.
+    msg.device_time_us = reply.has_device_time ? reply.device_time_ns / 1000
+                                               : static_cast<std::int64_t>(static_cast<double>(fn) * 1e6 / device_rate_hz_);
     msg.receive_time_mono_us = receive_mono_us;
     msg.receive_time_wall_us = receive_wall_us;
     msg.publish_time_mono_us = monotonic_us();

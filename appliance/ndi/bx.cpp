@@ -45,6 +45,7 @@ ParseError check_bx_header(std::span<const std::uint8_t> header, std::uint16_t& 
 
 ParseError parse_bx(std::span<const std::uint8_t> frame, TrackingReply& out, BxCrc crc) {
   out.count = 0;
+  out.has_frame = out.has_device_time = false;
   std::uint16_t length = 0;
   if (crc == BxCrc::Check) {
     if (auto e = check_bx_header(frame, length); e != ParseError::None) return e;

@@ -11,8 +11,16 @@ namespace arnav::ndi {
 namespace {
 
 constexpr std::array<std::string_view, 4> kAsciiStarts = {"ERROR", "WARNING", "RESET", "OKAY"};
+constexpr std::size_t kExtendedHeaderBytes = 6;
+constexpr std::size_t kStreamFixedBytes = 6;  // start (2) + id length (2) + CRC (2)
 
 bool printable(std::uint8_t b) { return (b >= 0x20 && b < 0x7F) || b == '\n'; }
+
+std::uint16_t u16(const std::uint8_t* p) { return static_cast<std::uint16_t>(p[0] | (p[1] << 8)); }
+std::uint32_t u32(const std::uint8_t* p) {
+  return static_cast<std::uint32_t>(p[0]) | (static_cast<std::uint32_t>(p[1]) << 8) |
+         (static_cast<std::uint32_t>(p[2]) << 16) | (static_cast<std::uint32_t>(p[3]) << 24);
+}
 
 // How well bytes[0..] matches an ASCII reply start that the device sends while BX is
 // expected: 2 = full keyword, 1 = a prefix of one (need more bytes), 0 = no.
@@ -23,6 +31,13 @@ int ascii_start_match(std::span<const std::uint8_t> bytes) {
       return n == kw.size() ? 2 : 1;
   }
   return 0;
+}
+
+// 2 = bytes start with first,second; 1 = with first and nothing follows yet; 0 = no.
+int pair_match(std::span<const std::uint8_t> bytes, std::size_t pos, std::uint8_t first, std::uint8_t second) {
+  if (bytes[pos] != first) return 0;
+  if (pos + 1 == bytes.size()) return 1;
+  return bytes[pos + 1] == second ? 2 : 0;
 }
 
 }  // namespace
@@ -55,75 +70,134 @@ void FrameReader::clear() {
   start_ = 0;
 }
 
+std::size_t FrameReader::find_start(std::span<const std::uint8_t> avail, bool& partial) const {
+  partial = false;
+  for (std::size_t pos = 0; pos < avail.size(); ++pos) {
+    int m = pair_match(avail, pos, kStreamStart0, kStreamStart1);
+    if (expect_binary_) {
+      m = std::max(m, pair_match(avail, pos, kBxStart0, kBxStart1));
+      if (expect_extended_) m = std::max(m, pair_match(avail, pos, kExtendedStart0, kBxStart1));
+      const int a = ascii_start_match(avail.subspan(pos));
+      if (a == 2) return pos;
+      if (a == 1 && pos + 8 > avail.size()) m = std::max(m, 1);  // keyword cut off at the end of the buffer
+    } else if (printable(avail[pos])) {
+      return pos;
+    }
+    if (m == 2) return pos;
+    if (m == 1) {
+      partial = true;
+      return pos;
+    }
+  }
+  return avail.size();
+}
+
+FrameReader::Step FrameReader::reply_at(std::span<const std::uint8_t> bytes, bool binary_allowed, bool extended_allowed,
+                                        Frame& out, std::size_t& used) {
+  used = 1;
+  if (binary_allowed && bytes[0] == kBxStart0) {
+    if (bytes.size() < kBxHeaderBytes) return Step::NeedMore;
+    std::uint16_t length = 0;
+    if (check_bx_header(bytes, length) != ParseError::None) {
+      counters_.crc_errors += 1;  // header corrupt: its length cannot be trusted
+      return Step::Corrupt;
+    }
+    const std::size_t total = kBxHeaderBytes + length + 2u;
+    if (bytes.size() < total) return Step::NeedMore;
+    out.kind = Frame::Kind::Binary;
+    out.bytes = bytes.first(total);
+    // Body CRC only; the full parse is the caller's.
+    const std::uint8_t* body = bytes.data() + kBxHeaderBytes;
+    out.crc_ok = crc16(std::span(body, length)) == u16(body + length);
+    if (!out.crc_ok) counters_.crc_errors += 1;
+    used = total;
+    return Step::Done;
+  }
+  if (binary_allowed && extended_allowed && bytes[0] == kExtendedStart0) {
+    if (bytes.size() < kExtendedHeaderBytes) return Step::NeedMore;
+    const std::uint32_t length = u32(bytes.data() + 2);
+    if (bytes[1] != kBxStart1 || length == 0 || length > kMaxExtendedReply) {
+      counters_.crc_errors += 1;
+      return Step::Corrupt;
+    }
+    const std::size_t total = kExtendedHeaderBytes + length;
+    if (bytes.size() < total) return Step::NeedMore;
+    out.kind = Frame::Kind::Extended;
+    out.bytes = bytes.first(total);
+    out.crc_ok = true;  // nothing to check: callers never take poses from these
+    used = total;
+    return Step::Done;
+  }
+  // ASCII reply up to CR.
+  auto cr = std::find(bytes.begin(), bytes.end(), static_cast<std::uint8_t>('\r'));
+  if (cr == bytes.end()) {
+    if (bytes.size() <= kMaxAsciiReply) return Step::NeedMore;
+    used = bytes.size();  // a run this long without CR is not a reply
+    return Step::Corrupt;
+  }
+  const std::size_t len = static_cast<std::size_t>(cr - bytes.begin());
+  out.kind = Frame::Kind::Ascii;
+  out.bytes = bytes.first(len);
+  std::string_view body;
+  out.crc_ok = check_ascii_reply(out.text(), body) == ParseError::None;
+  if (!out.crc_ok) counters_.crc_errors += 1;
+  used = len + 1;
+  return Step::Done;
+}
+
+FrameReader::Step FrameReader::stream_at(std::span<const std::uint8_t> bytes, Frame& out, std::size_t& used) {
+  used = 1;
+  if (bytes.size() < 4) return Step::NeedMore;
+  const std::size_t id_length = u16(bytes.data() + 2);
+  if (id_length == 0 || id_length > kMaxStreamId) {
+    counters_.crc_errors += 1;
+    return Step::Corrupt;
+  }
+  const std::size_t header = kStreamFixedBytes + id_length;
+  if (bytes.size() < header) return Step::NeedMore;
+  if (crc16(bytes.first(4 + id_length)) != u16(bytes.data() + 4 + id_length)) {
+    counters_.crc_errors += 1;  // header corrupt: neither the id nor what follows is trusted
+    return Step::Corrupt;
+  }
+  const auto inner = bytes.subspan(header);
+  if (inner.empty()) return Step::NeedMore;
+  const bool binary = inner[0] == kBxStart0 || inner[0] == kExtendedStart0;
+  if (!binary && !printable(inner[0])) {
+    counters_.crc_errors += 1;  // the header checked but no reply follows it
+    used = header;
+    return Step::Corrupt;
+  }
+  std::size_t inner_used = 0;
+  const Step s = reply_at(inner, true, true, out, inner_used);
+  if (s == Step::NeedMore) return s;
+  if (s == Step::Corrupt) {
+    used = header;  // drop the packet header; what follows is resynchronised
+    return s;
+  }
+  out.stream_id = bytes.subspan(4, id_length);
+  used = header + inner_used;
+  return Step::Done;
+}
+
 bool FrameReader::next(Frame& out) {
   for (;;) {
     std::span<const std::uint8_t> avail(buf_.data() + start_, buf_.size() - start_);
     if (avail.empty()) return false;
-
-    if (expect_binary_) {
-      // Find the first position that can start a reply: C4 A5 or an ASCII keyword.
-      std::size_t pos = 0;
-      bool partial = false;
-      for (; pos < avail.size(); ++pos) {
-        if (avail[pos] == kBxStart0 && (pos + 1 == avail.size() || avail[pos + 1] == kBxStart1)) {
-          partial = pos + 1 == avail.size();
-          break;
-        }
-        int m = ascii_start_match(avail.subspan(pos));
-        if (m == 2) break;
-        if (m == 1 && pos + 8 > avail.size()) {  // keyword cut off at the end of the buffer
-          partial = true;
-          break;
-        }
-      }
-      skip(pos);
-      if (partial || pos == avail.size()) return false;
-      avail = avail.subspan(pos);
-      if (avail[0] == kBxStart0) {
-        if (avail.size() < kBxHeaderBytes) return false;
-        std::uint16_t length = 0;
-        if (check_bx_header(avail, length) != ParseError::None) {
-          counters_.crc_errors += 1;  // header corrupt: its length cannot be trusted
-          skip(1);
-          continue;
-        }
-        const std::size_t total = kBxHeaderBytes + length + 2u;
-        if (avail.size() < total) return false;
-        out.kind = Frame::Kind::Binary;
-        out.bytes = avail.first(total);
-        // Body CRC only; the full parse is the caller's.
-        const std::uint8_t* body = avail.data() + kBxHeaderBytes;
-        const auto want = static_cast<std::uint16_t>(body[length] | (body[length + 1] << 8));
-        out.crc_ok = crc16(std::span(body, length)) == want;
-        if (!out.crc_ok) counters_.crc_errors += 1;
-        consume(total);
-        return true;
-      }
-    } else {
-      // ASCII: skip bytes that can never be part of a reply.
-      std::size_t pos = 0;
-      while (pos < avail.size() && !printable(avail[pos])) ++pos;
-      skip(pos);
-      avail = avail.subspan(pos);
-      if (avail.empty()) return false;
+    bool partial = false;
+    const std::size_t pos = find_start(avail, partial);
+    skip(pos);
+    if (partial || pos == avail.size()) return false;
+    avail = avail.subspan(pos);
+    out.stream_id = {};
+    std::size_t used = 0;
+    const Step s = avail[0] == kStreamStart0 ? stream_at(avail, out, used)
+                                             : reply_at(avail, expect_binary_, expect_binary_ && expect_extended_, out, used);
+    if (s == Step::NeedMore) return false;
+    if (s == Step::Corrupt) {
+      skip(used);
+      continue;
     }
-
-    // ASCII reply up to CR.
-    auto cr = std::find(avail.begin(), avail.end(), static_cast<std::uint8_t>('\r'));
-    if (cr == avail.end()) {
-      if (avail.size() > kMaxAsciiReply) {
-        skip(avail.size());
-        continue;
-      }
-      return false;
-    }
-    const std::size_t len = static_cast<std::size_t>(cr - avail.begin());
-    out.kind = Frame::Kind::Ascii;
-    out.bytes = avail.first(len);
-    std::string_view body;
-    out.crc_ok = check_ascii_reply(out.text(), body) == ParseError::None;
-    if (!out.crc_ok) counters_.crc_errors += 1;
-    consume(len + 1);
+    consume(used);
     return true;
   }
 }

@@ -25,6 +25,7 @@ class RecordingTransport final : public Transport {
   void send_break(std::chrono::milliseconds duration) override;
   void drain_input() override { inner_->drain_input(); }
   std::string name() const override { return inner_->name(); }
+  bool is_network() const override { return inner_->is_network(); }
 
  private:
   std::int64_t now_us() const;

@@ -161,6 +161,7 @@ ParseError parse_transform(std::string_view s, HandleRecord& out) {
 
 ParseError parse_tx(std::string_view body, TrackingReply& out) {
   out.count = 0;
+  out.has_frame = out.has_device_time = false;
   if (body.size() < 2 + 4) return ParseError::TooShort;
   auto count = parse_hex<std::uint8_t>(body.substr(0, 2));
   if (!count) return ParseError::BadField;

@@ -4,6 +4,7 @@
 #include <thread>
 
 #include "appliance/ndi/bx.hpp"
+#include "appliance/ndi/bx2.hpp"
 #include "appliance/ndi/command.hpp"
 #include "appliance/ndi/error_codes.hpp"
 #include "protocol/clock.hpp"
@@ -32,6 +33,22 @@ std::string_view to_string(LinkState s) {
   return "?";
 }
 
+std::string_view to_string(ReplyMode m) {
+  switch (m) {
+    case ReplyMode::Bx: return "BX";
+    case ReplyMode::Tx: return "TX";
+    case ReplyMode::Bx2: return "BX2";
+    case ReplyMode::StreamedBx2: return "streamed BX2";
+  }
+  return "?";
+}
+
+ReplyMode Session::reply_mode() const {
+  if (streaming_) return ReplyMode::StreamedBx2;
+  if (use_bx2_) return ReplyMode::Bx2;
+  return use_bx_ ? ReplyMode::Bx : ReplyMode::Tx;
+}
+
 Session::Session(SessionConfig config, TransportFactory open_port, EventSink on_event)
     : config_(std::move(config)), open_port_(std::move(open_port)), on_event_(std::move(on_event)) {
   // Every ROM is read and checked before any serial traffic.
@@ -41,6 +58,7 @@ Session::Session(SessionConfig config, TransportFactory open_port, EventSink on_
   use_bx_ = config_.use_bx;
   bx_command_ = encode_command("BX", "0801");  // transforms + tools outside the volume
   tx_command_ = encode_command("TX", "0801");
+  bx2_command_ = encode_command("BX2", "--6d=tools");
 }
 
 Session::~Session() = default;
@@ -80,7 +98,10 @@ Session::Outcome Session::transact(std::string_view command_bytes, std::chrono::
     transport_->write(std::span(reinterpret_cast<const std::uint8_t*>(command_bytes.data()), command_bytes.size()));
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   for (;;) {
-    if (reader_.next(frame)) return frame.crc_ok ? Outcome::Reply : Outcome::Corrupt;
+    // Stream packets are the stream's, never a command's reply (e.g. after USTREAM).
+    bool got = false;
+    while ((got = reader_.next(frame)) && frame.streamed()) ++counters_.stray_stream_packets;
+    if (got) return frame.crc_ok ? Outcome::Reply : Outcome::Corrupt;
     if (cancel_ && *cancel_ && !stopping_) {
       reader_.clear();
       return Outcome::Timeout;
@@ -211,11 +232,15 @@ bool Session::start() {
   }
   state_ = LinkState::Tracking;
   consecutive_bad_ = consecutive_timeouts_ = 0;
-  have_last_frame_ = false;
+  // On a network link the unit keeps tracking while the connection is down: frames it made
+  // meanwhile are lost frames, counted from the gap when frames come again. (A device reset
+  // restarts the counter: a lower number is not a gap. Serial links start afresh.)
+  if (!transport_->is_network()) have_last_frame_ = false;
   std::string names;
   for (const auto& t : tools_) names += (names.empty() ? "" : ", ") + t.config.name + "=" + hex2(t.handle);
   emit(Severity::Info, "NDI_TRACKING_STARTED",
-       "tracking on " + port_name_ + " at " + std::to_string(baud_) + " baud with " + (use_bx_ ? "BX" : "TX") +
+       "tracking on " + port_name_ + (transport_->is_network() ? std::string() : " at " + std::to_string(baud_) + " baud") +
+           " with " + std::string(to_string(reply_mode())) +
            "; tools " + names);
   if (recovering) {
     emit(Severity::Info, "NDI_RECOVERED",
@@ -226,10 +251,13 @@ bool Session::start() {
 }
 
 bool Session::bring_up() {
+  streaming_ = stream_wanted_ = use_bx2_ = false;
+  api_major_ = 0;
   if (!establish_contact()) return false;
   if (state_ != LinkState::Recovering) state_ = LinkState::Initialising;
   if (!negotiate_baud()) return false;
   if (firmware_.empty() && !read_version()) return false;
+  if (transport_->is_network()) choose_network_mode();
   free_stale_handles();
   for (auto& tool : tools_)
     if (!load_tool(tool)) return false;
@@ -247,7 +275,83 @@ bool Session::bring_up() {
   }
   previous_handles_.clear();
   for (const auto& t : tools_) previous_handles_.push_back(t.handle);
-  return expect_ok("TSTART", "", config_.setup_timeout);
+  if (!expect_ok("TSTART", "", config_.setup_timeout)) return false;
+  return !stream_wanted_ || start_stream();
+}
+
+// ---- network links (TCP) --------------------------------------------------------------
+
+bool Session::contact_network() {
+  // No break and no baud rate on TCP. The device may still be tracking (and streaming) for
+  // a connection that was lost: stop both before INIT. Errors are expected here.
+  firmware_.clear();
+  transport_->drain_input();
+  reader_.clear();
+  command("USTREAM", "--id=" + config_.stream_id, config_.setup_timeout, false);
+  command("TSTOP", "", config_.setup_timeout, false);
+  return init_device();
+}
+
+bool Session::choose_network_mode() {
+  // APIREV: "G.003.005" (interface letter, major, minor). BX2 and STREAM need major >= 3.
+  CmdResult r = command("APIREV", "", config_.setup_timeout, false);
+  api_major_ = 0;
+  if (r.status == CmdResult::Ok) {
+    const auto dot = r.body.find('.');
+    if (dot != std::string::npos) {
+      int revision = 0;
+      std::size_t i = dot + 1;
+      for (; i < r.body.size() && i < dot + 4 && r.body[i] >= '0' && r.body[i] <= '9'; ++i) revision = revision * 10 + (r.body[i] - '0');
+      if (i > dot + 1) api_major_ = revision;
+    }
+  }
+  use_bx2_ = use_bx_ && api_major_ >= 3;
+  stream_wanted_ = use_bx2_ && config_.stream;
+  emit(Severity::Info, "NDI_API_REVISION",
+       port_name_ + ": API revision '" + (r.status == CmdResult::Ok ? r.body : std::string("unknown")) + "': " +
+           (stream_wanted_ ? "streaming BX2" : use_bx2_ ? "polling BX2" : use_bx_ ? "polling BX" : "polling TX"));
+  return true;
+}
+
+bool Session::start_stream() {
+  CmdResult r = command("STREAM", "--id=" + config_.stream_id + " BX2 --6d=tools", config_.setup_timeout);
+  if (r.status == CmdResult::Ok) {
+    streaming_ = true;
+    return true;
+  }
+  if (r.status == CmdResult::Error) {
+    emit(Severity::Warning, "NDI_STREAM_REFUSED",
+         "STREAM refused on " + port_name_ + " (" + error_text(r.error_code) + "): polling BX2 instead");
+    return true;
+  }
+  fail_bring_up("STREAM on " + port_name_ + ": " + (r.status == CmdResult::Timeout ? "no reply" : "corrupt reply"));
+  return false;
+}
+
+Session::Outcome Session::read_stream_frame(Frame& frame) {
+  const auto deadline = std::chrono::steady_clock::now() + config_.tracking_timeout;
+  reader_.set_expect_binary(true);
+  for (;;) {
+    while (reader_.next(frame)) {
+      // Poses only from our stream's packets; a binary reply outside a packet (its packet
+      // header was damaged) or another stream's packet is set aside. ASCII replies outside
+      // packets (RESET, ERROR) go to the caller.
+      const bool ours = frame.streamed() && frame.stream() == config_.stream_id;
+      if (!ours && (frame.streamed() || frame.kind != Frame::Kind::Ascii)) {
+        ++counters_.stray_stream_packets;
+        continue;
+      }
+      return frame.crc_ok ? Outcome::Reply : Outcome::Corrupt;
+    }
+    if (cancel_ && *cancel_) return Outcome::Timeout;
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) return Outcome::Timeout;
+    const std::size_t n = transport_->read(read_buf_, left);
+    if (n > 0) {
+      last_read_mono_us_ = monotonic_us();
+      reader_.feed(std::span(read_buf_.data(), n));
+    }
+  }
 }
 
 bool Session::wait_for_reset() {
@@ -281,6 +385,7 @@ bool Session::probe_init(int baud) {
 }
 
 bool Session::establish_contact() {
+  if (transport_->is_network()) return contact_network();
   firmware_.clear();
   set_baud(9600);
   transport_->drain_input();
@@ -317,6 +422,7 @@ bool Session::init_device() {
 }
 
 bool Session::negotiate_baud() {
+  if (transport_->is_network()) return read_version();  // no COMM on TCP
   std::vector<int> candidates;
   for (int b : kDeviceBauds)
     if (b <= config_.target_baud && transport_->supports_baud(b) && !failed_bauds_.count(b)) candidates.push_back(b);
@@ -426,12 +532,17 @@ void Session::begin_recovery(std::string_view code, const std::string& why) {
 PollResult Session::poll(TrackingReply& out, std::int64_t& receive_mono_us) {
   out.count = 0;
   if (state_ != LinkState::Tracking || !transport_) return PollResult::Failed;
+  const std::string_view mode = to_string(reply_mode());  // no allocation per frame
   Frame frame;
   Outcome outcome;
   try {
-    outcome = transact(use_bx_ ? bx_command_ : tx_command_, config_.tracking_timeout, use_bx_, frame);
+    if (streaming_) outcome = read_stream_frame(frame);
+    else
+      outcome = transact(use_bx2_ ? bx2_command_ : use_bx_ ? bx_command_ : tx_command_, config_.tracking_timeout,
+                         use_bx_ || use_bx2_, frame);
   } catch (const PortLost& e) {
     close_port();
+    streaming_ = false;
     begin_recovery("NDI_PORT_LOST", e.what());
     return PollResult::Failed;
   }
@@ -440,10 +551,9 @@ PollResult Session::poll(TrackingReply& out, std::int64_t& receive_mono_us) {
     ++counters_.timeouts;
     ++consecutive_timeouts_;
     if (consecutive_timeouts_ >= config_.timeouts_before_recovery) {
-      begin_recovery("NDI_TIMEOUT", std::to_string(consecutive_timeouts_) + " consecutive " + (use_bx_ ? "BX" : "TX") +
-                                        " replies missing on " + port_name_);
+      begin_recovery("NDI_TIMEOUT", std::to_string(consecutive_timeouts_) + " consecutive " + std::string(mode) + " replies missing on " + port_name_);
     } else {
-      emit(Severity::Warning, "NDI_TIMEOUT", std::string(use_bx_ ? "BX" : "TX") + " reply missing on " + port_name_);
+      emit(Severity::Warning, "NDI_TIMEOUT", std::string(mode) + " reply missing on " + port_name_);
     }
     return PollResult::Failed;
   }
@@ -451,35 +561,40 @@ PollResult Session::poll(TrackingReply& out, std::int64_t& receive_mono_us) {
   if (outcome == Outcome::Reply) {
     receive_mono_us = last_read_mono_us_;
     if (frame.kind == Frame::Kind::Binary) {
-      parse = parse_bx(frame.bytes, out, BxCrc::AlreadyChecked);  // the reader checked both CRCs
+      // The reader checked both CRCs.
+      parse = use_bx2_ ? parse_bx2(frame.bytes, out, true) : parse_bx(frame.bytes, out, BxCrc::AlreadyChecked);
+      if (parse != ParseError::None) ++counters_.bad_replies;
+    } else if (frame.kind == Frame::Kind::Extended) {
+      parse = ParseError::WrongKind;  // no CRC: never a source of poses
+      ++counters_.bad_replies;
     } else {
       AsciiReply a;
       parse = parse_ascii_reply(frame.text(), a);
       if (parse == ParseError::None && a.kind == AsciiKind::Reset) {
         ++counters_.resets;
+        streaming_ = false;
         begin_recovery("NDI_DEVICE_RESET", "the device reset itself (RESET received while tracking on " + port_name_ + ")");
         return PollResult::Failed;
       }
       if (parse == ParseError::None && a.kind == AsciiKind::Error) {
         ++counters_.error_replies;
-        emit(Severity::Warning, "NDI_ERROR_REPLY", std::string(use_bx_ ? "BX" : "TX") + ": " + error_text(a.error_code));
+        emit(Severity::Warning, "NDI_ERROR_REPLY", std::string(mode) + ": " + error_text(a.error_code));
         parse = ParseError::WrongKind;
       } else if (parse == ParseError::None) {
-        parse = use_bx_ ? ParseError::WrongKind : parse_tx(a.body, out);
+        parse = (use_bx_ || use_bx2_) ? ParseError::WrongKind : parse_tx(a.body, out);
       }
       if (parse != ParseError::None && a.kind != AsciiKind::Error) ++counters_.bad_replies;
     }
-    if (parse != ParseError::None && frame.kind == Frame::Kind::Binary) ++counters_.bad_replies;
   }
   if (outcome == Outcome::Corrupt || parse != ParseError::None) {
     out.count = 0;  // never a pose from a corrupt or unparsable reply
+    out.has_frame = out.has_device_time = false;
     ++consecutive_bad_;
     if (outcome == Outcome::Corrupt)
-      emit(Severity::Warning, "NDI_CRC_ERROR", std::string(use_bx_ ? "BX" : "TX") + " reply failed its CRC on " + port_name_);
+      emit(Severity::Warning, "NDI_CRC_ERROR", std::string(mode) + " reply failed its CRC on " + port_name_);
     else if (parse != ParseError::WrongKind)
-      emit(Severity::Warning, "NDI_BAD_REPLY",
-           std::string(use_bx_ ? "BX" : "TX") + " reply did not parse: " + std::string(to_string(parse)));
-    if (use_bx_ && consecutive_bad_ >= config_.bx_failures_before_tx) {
+      emit(Severity::Warning, "NDI_BAD_REPLY", std::string(mode) + " reply did not parse: " + std::string(to_string(parse)));
+    if (use_bx_ && !use_bx2_ && consecutive_bad_ >= config_.bx_failures_before_tx) {
       use_bx_ = false;
       bx_unreliable_ = true;
       consecutive_bad_ = 0;
@@ -487,12 +602,18 @@ PollResult Session::poll(TrackingReply& out, std::int64_t& receive_mono_us) {
            std::to_string(config_.bx_failures_before_tx) + " consecutive bad BX replies on " + port_name_ +
                ": polling with TX from now on");
     } else if (consecutive_bad_ >= config_.bad_replies_before_recovery) {
+      streaming_ = false;
       begin_recovery("NDI_LINK_UNRELIABLE", std::to_string(consecutive_bad_) + " consecutive bad replies on " + port_name_);
     }
     return PollResult::Failed;
   }
   consecutive_bad_ = 0;
+  return finish_frame(out);
+}
 
+// Frame bookkeeping: system status changes, repeated frames, and frames lost, counted
+// from gaps in the device's frame numbers (not from host timing).
+PollResult Session::finish_frame(TrackingReply& out) {
   const std::uint32_t fn = out.frame_number();
   if (out.system_status != last_system_status_) {
     if (out.system_status != 0) {
@@ -551,6 +672,11 @@ void Session::stop() {
     return;
   }
   try {
+    if (streaming_) {
+      // Stream packets may still arrive before USTREAM's OKAY: transact() sets them aside.
+      command("USTREAM", "--id=" + config_.stream_id, config_.setup_timeout);
+      streaming_ = false;
+    }
     command("TSTOP", "", config_.setup_timeout);
     if (baud_ != 9600) {
       CmdResult r = command("COMM", "00000", config_.setup_timeout);
@@ -559,7 +685,8 @@ void Session::stop() {
         set_baud(9600);
       }
     }
-    emit(Severity::Info, "NDI_TRACKING_STOPPED", "tracking stopped on " + port_name_ + ", device back at 9600 baud");
+    emit(Severity::Info, "NDI_TRACKING_STOPPED",
+         "tracking stopped on " + port_name_ + (transport_->is_network() ? std::string() : ", device back at 9600 baud"));
   } catch (const std::exception& e) {
     emit(Severity::Warning, "NDI_STOP_FAILED", std::string("could not stop cleanly: ") + e.what());
   }

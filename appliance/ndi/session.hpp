@@ -46,7 +46,15 @@ struct SessionConfig {
   std::chrono::milliseconds reset_wait{3000};       // RESET after a break
   std::chrono::milliseconds comm_settle{100};       // after COMM's OKAY, before switching
   int pvwr_retries = 3;
+  // Network links (TCP) with API revision G.003+: the device pushes BX2 frames after
+  // `STREAM --id=<stream_id> BX2 --6d=tools`; false: BX2 is polled. Older API revisions
+  // are polled with BX.
+  bool stream = true;
+  std::string stream_id = "ARNAV";
 };
+
+enum class ReplyMode : std::uint8_t { Bx, Tx, Bx2, StreamedBx2 };
+std::string_view to_string(ReplyMode m);
 
 enum class LinkState : std::uint8_t { Down, Connecting, Initialising, Tracking, Recovering };
 std::string_view to_string(LinkState s);
@@ -70,6 +78,7 @@ struct SessionCounters {
   std::int64_t reconnects = 0;
   std::int64_t dropped_frames = 0;
   std::int64_t bad_replies = 0;  // CRC-good replies that did not parse
+  std::int64_t stray_stream_packets = 0;  // stream packets with another id, or while a command waited
 };
 
 struct LoadedTool {
@@ -131,6 +140,11 @@ class Session {
   SessionCounters counters() const;
   int baud() const { return baud_; }
   bool using_bx() const { return use_bx_; }
+  ReplyMode reply_mode() const;
+  // The device pushes frames: poll() only waits for the next one (no pacing by the owner).
+  bool streaming() const { return streaming_; }
+  // API revision major number (APIREV "G.003.005" -> 3); 0 when not asked (serial links).
+  int api_major() const { return api_major_; }
   const std::string& firmware() const { return firmware_; }
   const std::string& serial_number() const { return serial_; }
   const std::string& port_name() const { return port_name_; }
@@ -161,6 +175,11 @@ class Session {
   bool init_device();
   bool negotiate_baud();
   bool read_version();
+  bool contact_network();
+  bool choose_network_mode();
+  bool start_stream();
+  Outcome read_stream_frame(Frame& frame);
+  PollResult finish_frame(TrackingReply& out);
   void free_stale_handles();
   bool load_tool(LoadedTool& tool);
   void fail_bring_up(const std::string& why);
@@ -187,7 +206,11 @@ class Session {
   int baud_ = 9600;
   std::string firmware_, serial_, port_name_, detail_;
   std::vector<std::string> version_lines_;
-  std::string bx_command_, tx_command_;
+  std::string bx_command_, tx_command_, bx2_command_;
+  bool use_bx2_ = false;
+  bool streaming_ = false;
+  bool stream_wanted_ = false;
+  int api_major_ = 0;
 
   SessionCounters counters_;
   int consecutive_timeouts_ = 0;

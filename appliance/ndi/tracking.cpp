@@ -3,6 +3,7 @@
 namespace arnav::ndi {
 
 std::uint32_t TrackingReply::frame_number() const {
+  if (has_frame) return frame;
   for (std::size_t i = 0; i < count; ++i)
     if (handles[i].has_status) return handles[i].frame_number;
   return 0;

@@ -53,8 +53,15 @@ struct TrackingReply {
   std::size_t count = 0;
   std::array<HandleRecord, kMaxHandles> handles{};
   std::uint16_t system_status = 0;
+  // BX2 (GBF) replies carry the frame number and the device's timestamp once per frame,
+  // also when no tool has new data; BX/TX leave these false.
+  bool has_frame = false;
+  std::uint32_t frame = 0;
+  bool has_device_time = false;
+  std::int64_t device_time_ns = 0;  // device clock: seconds * 1e9 + nanoseconds of the frame
 
-  // Frame number of the first handle that carries one; 0 when none does.
+  // The reply's frame number (BX2), else that of the first handle that carries one; 0
+  // when none does.
   std::uint32_t frame_number() const;
   const HandleRecord* find(std::uint8_t handle) const;
 };

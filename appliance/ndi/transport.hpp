@@ -1,6 +1,7 @@
 #pragma once
 // Byte transport under the session: a serial port (libserialport), a pseudo-terminal
-// (POSIX termios; libserialport cannot open ptys), or an in-process peer in tests.
+// (POSIX termios; libserialport cannot open ptys), a TCP connection (Ethernet trackers
+// such as the Polaris Vega), or an in-process peer in tests.
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
@@ -41,6 +42,9 @@ class Transport {
   // Discards bytes received but not yet read.
   virtual void drain_input() = 0;
   virtual std::string name() const = 0;
+  // A network link (TCP): no baud rate, no break; the session skips COMM and resets the
+  // device with a command instead, and may ask it to stream.
+  virtual bool is_network() const { return false; }
 };
 
 // Opens (or reopens after PortLost) the transport; throws PortError.

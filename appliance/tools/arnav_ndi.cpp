@@ -1,4 +1,5 @@
-// arnav-ndi: technicians' tool for the NDI Polaris.
+// arnav-ndi: technicians' tool for the NDI Polaris (serial) and Vega/Lyra (Ethernet:
+// PORT tcp:HOST[:PORT]).
 //   ports                       list serial ports (USB VID:PID, description)
 //   probe PORT                  firmware, serial number, port handles
 //   track PORT --tool ROM...    print poses
@@ -20,6 +21,7 @@
 #include "appliance/ndi/recording_transport.hpp"
 #include "appliance/ndi/serial_transport.hpp"
 #include "appliance/ndi/session.hpp"
+#include "appliance/ndi/tcp_transport.hpp"
 #include "appliance/tools/decode.hpp"
 #include "protocol/clock.hpp"
 #include "protocol/guarded_main.hpp"
@@ -34,8 +36,14 @@ struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// libserialport for ports it knows; termios for other tty devices (e.g. a pty).
+// tcp:HOST[:PORT] for Ethernet trackers; libserialport for ports it knows; termios for
+// other tty devices (e.g. a pty).
 ndi::TransportFactory port_factory(const std::string& port) {
+  if (port.rfind("tcp:", 0) == 0) {
+    const auto tcp = ndi::parse_tcp_address(port);
+    if (!tcp) throw UsageError("'" + port + "' is not tcp:HOST or tcp:HOST:PORT (e.g. tcp:P9-B0103.local or tcp:192.168.1.50:8765)");
+    return [o = *tcp] { return std::unique_ptr<ndi::Transport>(new ndi::TcpTransport(o)); };
+  }
   bool known = false;
   try {
     known = ndi::port_exists(port);
@@ -77,7 +85,9 @@ int cmd_probe(const std::string& port, int baud) {
     std::cerr << "arnav-ndi: probe of " << port << " failed: " << s.detail() << "\n";
     return 1;
   }
-  std::cout << "port:          " << port << "\nbaud:          " << r.baud << "\nfirmware:      " << r.firmware
+  std::cout << "port:          " << port << "\n"
+            << (port.rfind("tcp:", 0) == 0 ? std::string("link:          TCP (no baud rate)") : "baud:          " + std::to_string(r.baud))
+            << "\nfirmware:      " << r.firmware
             << "\nserial number: " << r.serial_number << "\nversion text:\n";
   for (const auto& l : r.version_lines) std::cout << "  " << l << "\n";
   std::cout << "port handles:  " << r.handles.size() << "\n";
@@ -114,12 +124,14 @@ int run_tracking(ndi::Session& s, long frames) {
     const ndi::PollResult result = s.poll(reply, rx);
     if (result == ndi::PollResult::SameFrame) std::this_thread::sleep_for(std::chrono::milliseconds(1));
     if (result != ndi::PollResult::NewFrame) continue;
-    // As the appliance does: the next frame is due one period after this one.
+    // As the appliance does: the next frame is due one period after this one (a stream
+    // is paced by the device).
     const auto next = std::chrono::microseconds(rx + static_cast<std::int64_t>(0.9e6 / g_rate_hz) - arnav::monotonic_us());
-    if (next.count() > 0) std::this_thread::sleep_for(next);
+    if (!s.streaming() && next.count() > 0) std::this_thread::sleep_for(next);
     for (const auto& tool : s.tools()) {
       const ndi::HandleRecord* r = reply.find(tool.handle);
       std::printf("frame %u %-12s ", reply.frame_number(), tool.config.name.c_str());
+      if (reply.has_device_time) std::printf("t_dev_s %.6f ", static_cast<double>(reply.device_time_ns) * 1e-9);
       if (!r) {
         std::printf("not reported\n");
       } else if (r->state == ndi::HandleState::Valid) {
@@ -180,10 +192,10 @@ static int main_body(int argc, char** argv) {
 
   cli.add_subcommand("ports", "list serial ports with USB VID:PID and description");
   auto* probe = cli.add_subcommand("probe", "print firmware, serial number and port handles");
-  probe->add_option("PORT", port, "serial port (or a pty path)")->required();
+  probe->add_option("PORT", port, "serial port (or a pty path), or tcp:HOST[:PORT] for an Ethernet tracker")->required();
   probe->add_option("--baud", baud, "target baud rate")->capture_default_str();
   auto* track = cli.add_subcommand("track", "load tool ROMs and print poses until Ctrl-C");
-  track->add_option("PORT", port, "serial port")->required();
+  track->add_option("PORT", port, "serial port, or tcp:HOST[:PORT] for an Ethernet tracker")->required();
   track->add_option("--tool", roms, "tool definition (.rom), repeatable")->required()->check(CLI::ExistingFile);
   track->add_option("--baud", baud, "target baud rate")->capture_default_str();
   track->add_option("--frames", frames, "stop after this many frames (0: until Ctrl-C)");
@@ -191,7 +203,7 @@ static int main_body(int argc, char** argv) {
   auto* decode = cli.add_subcommand("decode", "decode raw reply bytes (as read from the wire) to JSON lines");
   decode->add_option("FILE", file, "file of raw bytes")->required()->check(CLI::ExistingFile);
   auto* record = cli.add_subcommand("record", "track and write a session transcript (docs/appliance.md)");
-  record->add_option("PORT", port, "serial port")->required();
+  record->add_option("PORT", port, "serial port, or tcp:HOST[:PORT] for an Ethernet tracker")->required();
   record->add_option("--tool", roms, "tool definition (.rom), repeatable")->required()->check(CLI::ExistingFile);
   record->add_option("--out", out_path, "transcript file to write")->required();
   record->add_option("--baud", baud, "target baud rate")->capture_default_str();

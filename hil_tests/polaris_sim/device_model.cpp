@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "appliance/ndi/bx2.hpp"
 #include "appliance/ndi/command.hpp"
 
 namespace arnav::hil {
@@ -130,7 +131,7 @@ PolarisModel::Reply PolarisModel::execute(const std::string& raw, double now_s) 
     if (params == "5") return reply(text_reply("031.001"));
     return reply(error_reply(kOutOfRange));
   }
-  if (name == "APIREV") return reply(text_reply("G.001.004"));
+  if (name == "APIREV") return reply(text_reply(api_revision_));
   if (name == "BEEP") return reply(text_reply(params.size() == 1 && params[0] >= '1' && params[0] <= '9' ? "1" : "0"));
   if (!initialised_) return reply(error_reply(kSystemNotInitialised));
 
@@ -258,6 +259,14 @@ PolarisModel::Reply PolarisModel::execute(const std::string& raw, double now_s) 
     return reply(okay_reply());
   }
   if (name == "TX" || name == "BX") return reply_tracking(name == "BX", params, now_s);
+  if (name == "BX2") {
+    if (api_revision_ < "G.003") return reply(error_reply(kInvalidCommand));
+    if (!tracking_) return reply(error_reply(kInvalidMode));
+    if (params.find("--6d=tools") == std::string::npos) return reply(error_reply(kOutOfRange));  // the simulator models 6D data only
+    Bytes out;
+    ndi::encode_bx2(bx2_frame(frame_at(now_s), now_s), out);
+    return reply(std::move(out));
+  }
   return reply(error_reply(kInvalidCommand));
 }
 
@@ -268,7 +277,26 @@ PolarisModel::Reply PolarisModel::reply_tracking(bool binary, const std::string&
   const unsigned option = parse_hex(opt);
   if ((option & ~(unsigned{kReplyTransforms} | kReplyOutOfVolume)) != 0 || !(option & kReplyTransforms))
     return reply(error_reply(kOutOfRange));  // the simulator models transform data only
-  const std::uint32_t frame = frame_at(now_s);
+  return reply(tracking_reply(tracking_frame(frame_at(now_s), now_s, (option & kReplyOutOfVolume) != 0), binary));
+}
+
+double PolarisModel::frame_time_mono_s(std::uint32_t frame) const {
+  return clock_origin_mono_s_ + boot_s_ + static_cast<double>(frame - scenario_.first_frame) / scenario_.frame_rate_hz;
+}
+
+ndi::TrackingReply PolarisModel::bx2_frame(std::uint32_t frame, double now_s) {
+  ndi::TrackingReply all = tracking_frame(frame, now_s, true);
+  ndi::TrackingReply out;
+  for (std::size_t i = 0; i < all.count; ++i)
+    if (all.handles[i].state != ndi::HandleState::Disabled) out.handles[out.count++] = all.handles[i];
+  out.has_frame = true;
+  out.frame = frame;
+  out.has_device_time = true;
+  out.device_time_ns = static_cast<std::int64_t>(std::llround(frame_time_mono_s(frame) * 1e9));
+  return out;
+}
+
+ndi::TrackingReply PolarisModel::tracking_frame(std::uint32_t frame, double now_s, bool include_out_of_volume) {
   const double t_s = motion_time_s(frame);
   ndi::TrackingReply out;
   for (const auto& [h, p] : ports_) {
@@ -281,6 +309,7 @@ PolarisModel::Reply PolarisModel::reply_tracking(bool binary, const std::string&
       continue;
     }
     r.state = ndi::HandleState::Missing;
+    r.has_status = true;
     r.port_status = ndi::kPortInitialised | ndi::kPortEnabled;
     const SimTool* tool = p.tool_index >= 0 ? &scenario_.tools[static_cast<std::size_t>(p.tool_index)] : nullptr;
     TruthRow truth;
@@ -295,7 +324,7 @@ PolarisModel::Reply PolarisModel::reply_tracking(bool binary, const std::string&
       const bool is_hidden = hidden != missing_until_.end() && now_s < hidden->second;
       const bool is_outside = outside != out_of_volume_until_.end() && now_s < outside->second;
       if (is_outside) r.port_status |= ndi::kPortOutOfVolume;
-      if (!is_hidden && (!is_outside || (option & kReplyOutOfVolume))) {
+      if (!is_hidden && (!is_outside || include_out_of_volume)) {
         r.state = ndi::HandleState::Valid;
         Eigen::Quaterniond q(truth.X_NdiTool.rotation());
         if (q.w() < 0) q.coeffs() *= -1.0;
@@ -309,7 +338,7 @@ PolarisModel::Reply PolarisModel::reply_tracking(bool binary, const std::string&
     truth.port_status = r.port_status;
     if (on_truth) on_truth(truth);
   }
-  return reply(tracking_reply(out, binary));
+  return out;
 }
 
 }  // namespace arnav::hil

@@ -44,6 +44,15 @@ class PolarisModel {
   Bytes reset(double now_s);
 
   int baud() const { return baud_; }
+  // APIREV answer. "G.001.004" (default) is a Polaris before BX2; an Ethernet Vega answers
+  // G.003 or later, which offers BX2 and STREAM (the Vega simulator sets it).
+  void set_api_revision(std::string revision) { api_revision_ = std::move(revision); }
+  // The tools' data for `frame` as BX2 reports it (Valid/Missing records of enabled
+  // handles, frame number, device time = the frame's CLOCK_MONOTONIC instant in ns).
+  // Ground truth goes to on_truth. Used for polled BX2 and for streamed frames.
+  ndi::TrackingReply bx2_frame(std::uint32_t frame, double now_s);
+  // The CLOCK_MONOTONIC instant (s) of frame `frame` on the device clock.
+  double frame_time_mono_s(std::uint32_t frame) const;
   void set_baud(int baud) { baud_ = baud; }
   bool tracking() const { return tracking_; }
   std::optional<double> first_tstart_s() const { return first_tstart_s_; }
@@ -77,9 +86,12 @@ class PolarisModel {
  private:
   Reply execute(const std::string& line, double now_s);
   Reply reply_tracking(bool binary, const std::string& params, double now_s);
+  // One frame's records; include_out_of_volume: report tools outside the volume as Valid.
+  ndi::TrackingReply tracking_frame(std::uint32_t frame, double now_s, bool include_out_of_volume);
   int identify_tool(const std::vector<std::uint8_t>& rom, std::uint16_t bytes_written) const;
 
   Scenario scenario_;
+  std::string api_revision_ = "G.001.004";
   std::string input_;
   int baud_ = 9600;
   bool initialised_ = false;

@@ -39,7 +39,8 @@ ModelRunner::ModelRunner(const Scene& scene, double rate_hz, bool gravity, doubl
       margin_mm_(margin_mm),
       nice_(nice),
       clock_(rate_hz, clock.input_wait_ms, clock.catch_up_ms, clock.tool_gap_ms),
-      blade_stale_us_(std::llround(clock.blade_stale_ms * 1e3)) {
+      blade_stale_us_(std::llround(clock.blade_stale_ms * 1e3)),
+      path_meter_(static_cast<int>(120 * rate_hz)) {  // two minutes of cutting at one sweep a step
   if (cutting) {
     Scene copy = scene;
     if (!gravity) copy.problem.gravity_World_mm_s2.setZero();
@@ -204,97 +205,6 @@ std::vector<double> ModelRunner::step_times_ms() const {
   return step_ms_;
 }
 
-void ModelRunner::record_material_sweep(const cut::SweptSurface& sweep) {
-  cut::TetCutter& cutter = cut_->cutter();
-  const Eigen::Matrix3Xd x = cut_->positions_World_mm();
-  const Eigen::Matrix3Xd& rest = cutter.mesh().rest_positions_World_mm;
-  // The pull-back is affine per tet; over a blade segment that spans tets of different
-  // strain (the tissue the blade pushed before cutting, a grasp nearby) the segment's image
-  // is curved: the lines are resampled every ~1 mm (at most 64 segments) so the chords stay on it.
-  const int strips = sweep.strips;
-  const double length = (sweep.to.heel_World_mm - sweep.to.tip_World_mm).norm();
-  const int n = std::clamp(static_cast<int>(std::ceil(length / 1.0)), strips, 64);
-  const bool carried = sweep.from_points.size() == static_cast<std::size_t>(strips + 1);
-  // The blade's start (carried with the tissue) and end lines, tip first: 2 (n + 1) points.
-  std::vector<Eigen::Vector3d> p(static_cast<std::size_t>(2 * (n + 1)));
-  for (int i = 0; i <= n; ++i) {
-    const double u = static_cast<double>(i) / n;
-    if (carried) {
-      const double f = u * strips;
-      const int j = std::min(static_cast<int>(std::floor(f)), strips - 1);
-      const double a = f - j;
-      p[static_cast<std::size_t>(i)] = (1 - a) * sweep.from_points[static_cast<std::size_t>(j)] + a * sweep.from_points[static_cast<std::size_t>(j + 1)];
-    } else {
-      p[static_cast<std::size_t>(i)] = (1 - u) * sweep.from.tip_World_mm + u * sweep.from.heel_World_mm;
-    }
-    p[static_cast<std::size_t>(n + 1 + i)] = (1 - u) * sweep.to.tip_World_mm + u * sweep.to.heel_World_mm;
-  }
-  // Pull back: rest = the barycentric combination of the rest positions of the tet holding
-  // the point now; a point outside the tissue (or in the opening of a cut) keeps the
-  // displacement of the nearest mapped point of its line (the blade's part outside the
-  // organ cuts nothing).
-  std::vector<Eigen::Vector3d> r(p.size());
-  std::vector<char> mapped(p.size(), 0);
-  bool refit = true;
-  for (std::size_t k = 0; k < p.size(); ++k) {
-    Eigen::Vector4d w;
-    const int t = cutter.locate(p[k], x, w, refit);
-    refit = false;
-    if (t < 0 || w.minCoeff() < -1e-6) continue;  // outside the tissue (or in a cut's opening)
-    const auto& tet = cutter.mesh().tets[static_cast<std::size_t>(t)];
-    r[k].setZero();
-    for (int j = 0; j < 4; ++j) r[k] += w[j] * rest.col(tet[static_cast<std::size_t>(j)]);
-    mapped[k] = 1;
-  }
-  for (int line = 0; line < 2; ++line) {
-    const int base = line * (n + 1);
-    for (int i = 0; i <= n; ++i) {
-      const auto k = static_cast<std::size_t>(base + i);
-      if (mapped[k]) continue;
-      int nearest = -1;
-      for (int j = 0; j <= n; ++j)
-        if (mapped[static_cast<std::size_t>(base + j)] && (nearest < 0 || std::abs(j - i) < std::abs(nearest - i))) nearest = j;
-      if (nearest < 0) return;  // a whole line outside the tissue: nothing swept in the material
-      const auto m = static_cast<std::size_t>(base + nearest);
-      r[k] = p[k] + (r[m] - p[m]);
-    }
-  }
-  Sweep sw;
-  for (int i = 0; i < n; ++i) {
-    const auto f0 = static_cast<std::size_t>(i), f1 = f0 + 1, t0 = static_cast<std::size_t>(n + 1 + i), t1 = t0 + 1;
-    sw.tris.push_back({r[f0], r[f1], r[t0]});
-    sw.tris.push_back({r[f1], r[t1], r[t0]});
-  }
-  for (const auto& t : sw.tris) {
-    sw.box.extend(t.a);
-    sw.box.extend(t.b);
-    sw.box.extend(t.c);
-  }
-  sweeps_.push_back(std::move(sw));
-  if (sweeps_.size() > static_cast<std::size_t>(120 * rate_hz_)) sweeps_.pop_front();  // two minutes of cutting
-}
-
-int ModelRunner::measure_new_cut_vertices(double& worst_mm) {
-  const cut::TetCutter& cutter = cut_->cutter();
-  const Eigen::Matrix3Xd& rest = cutter.mesh().rest_positions_World_mm;
-  on_cut_seen_.resize(static_cast<std::size_t>(rest.cols()), 0);
-  int fresh = 0;
-  worst_mm = -1.0;
-  for (Eigen::Index v = 0; v < rest.cols(); ++v) {
-    if (on_cut_seen_[static_cast<std::size_t>(v)] || !cutter.on_cut(static_cast<int>(v))) continue;
-    on_cut_seen_[static_cast<std::size_t>(v)] = 1;
-    ++fresh;
-    double best = 1e300;
-    const Eigen::Vector3d p = rest.col(v);
-    for (auto it = sweeps_.rbegin(); it != sweeps_.rend(); ++it) {
-      if (it->box.exteriorDistance(p) >= best) continue;  // newest first: the bound tightens fast
-      for (const auto& t : it->tris) best = std::min(best, cut::point_triangle_distance(p, t));
-    }
-    if (best < 1e299) worst_mm = std::max(worst_mm, best);
-  }
-  return fresh;
-}
-
 void ModelRunner::apply_grasp(GraspBody& body, const ModelStepInputs& in) {
   if (in.grasp) grasp_cmd_ = *in.grasp;
   // The grasper pose's age is judged on the device clock, at the step's time.
@@ -315,7 +225,7 @@ void ModelRunner::apply_blade_sample(const BladeSample& b, std::vector<ModelCutE
   // Cut-path fidelity, in the material: the surface this sample's blade swept (as the
   // cutter used it), pulled back into the rest configuration at this instant; every vertex
   // put on the cut is compared with those surfaces at its rest position.
-  if (cuts && cut_->last_sweep()) record_material_sweep(*cut_->last_sweep());
+  if (cuts && cut_->last_sweep()) path_meter_.record_sweep(cut_->cutter(), cut_->positions_World_mm(), *cut_->last_sweep());
   for (const auto& e : cr.events) events.push_back({0, 0, e});
   if (cr.cut.vertices_snapped > 0) cut_marks_changed_ = true;
   const auto ensure = [&record]() -> CutStepRecord& {
@@ -331,7 +241,7 @@ void ModelRunner::apply_blade_sample(const BladeSample& b, std::vector<ModelCutE
   }
   if (cr.cut.topology_changed || cr.cut.vertices_snapped > 0) {
     double worst = -1.0;
-    if (const int fresh = measure_new_cut_vertices(worst); fresh > 0) {
+    if (const int fresh = path_meter_.measure_new_cut_vertices(cut_->cutter(), worst); fresh > 0) {
       CutStepRecord& r = ensure();
       r.new_cut_vertices += fresh;
       r.path_error_mm = std::max(r.path_error_mm, worst);

@@ -36,6 +36,7 @@
 #include "host/app/grasp_coupling.hpp"
 #include "host/app/model_input_clock.hpp"
 #include "host/cut/cut_session.hpp"
+#include "host/cut/material_path.hpp"
 #include "host/scene/scene.hpp"
 #include "host/sim/tissue_model.hpp"
 
@@ -191,15 +192,7 @@ class ModelRunner {
   bool blade_gap_ = true;  // no blade applied yet, or it was missing: the next one only places itself
   std::vector<ModelCutEvent> events_;
   std::vector<CutStepRecord> cut_steps_;
-  struct Sweep {
-    Eigen::AlignedBox3d box;
-    std::vector<cut::Triangle> tris;
-  };
-  std::deque<Sweep> sweeps_;                        // swept triangles of the cutting steps (last 2 min of cutting), in the material (rest) frame
-  std::vector<char> on_cut_seen_;                   // vertex already measured on the cut
-  std::vector<std::pair<int, double>> cut_path_;    // this step: vertices new on the cut, their largest distance (mm)
-  void record_material_sweep(const cut::SweptSurface& sweep);
-  int measure_new_cut_vertices(double& worst_mm);
+  cut::MaterialPathMeter path_meter_;               // the cut-path error in the material (host/cut/material_path.hpp)
   // Cut faces and the cut's rim on the organ surface: found again only when the cut session's
   // boundary changed or vertices were put on the cut (not every step).
   int cut_surface_version_ = -1;

@@ -19,8 +19,55 @@
 #include "host/bench/deform_bench.hpp"
 #include "host/bench/pareto_plot.hpp"
 #include "host/bench/register_bench.hpp"
+#include "host/bench/register_hard_bench.hpp"
 #include "host/scene/load_error.hpp"
 #include "protocol/guarded_main.hpp"
+
+// arnav-bench register --hard: the cases of register_hard_bench.hpp; prints per split and
+// method the mean TRE, the worst case and the cases worse than the reference.
+static int run_hard(const arnav::host::RegisterBenchOptions& ro, arnav::host::RegisterHardOptions ho, const std::string& out_dir) {
+  using namespace arnav::host;
+  ho.data_dir = ro.data_dir;
+  ho.scene_dir = ro.scene_dir;
+  ho.registration_scene = ro.registration_scene;
+  ho.truth_scene = ro.truth_scene;
+  ho.quick = ro.quick;
+  try {
+    const std::vector<RegisterHardRow> rows = run_register_hard_bench(ho);
+    std::filesystem::create_directories(out_dir);
+    write_register_hard_csv(out_dir + "/register_hard.csv", rows);
+    std::cout << "{\"csv\":\"" << out_dir << "/register_hard.csv\",\"methods\":[";
+    bool first = true;
+    for (const std::string split : {"dev", "held-out"})
+      for (const bool aligned : {true, false})
+        for (const std::string m : {"none", "landmark_rigid", "surface_rigid", "surface_rigid_prior", "loads", "loads_prior"}) {
+          double mean = 0, worst = 0, wall = 0, ref = 0;
+          int n = 0, worse = 0;
+          for (const auto& r : rows)
+            if (r.split == split && r.aligned == aligned && r.method == m) {
+              mean += r.tre.mean;
+              ref += r.reference_mean_mm;
+              worst = std::max(worst, r.tre.mean);
+              wall += r.wall_s;
+              worse += r.tre.mean > r.reference_mean_mm + 1e-9 ? 1 : 0;
+              ++n;
+            }
+          if (n == 0) continue;
+          std::cout << (first ? "" : ",") << "{\"split\":\"" << split << "\",\"aligned\":" << (aligned ? "true" : "false") << ",\"method\":\"" << m
+                    << "\",\"cases\":" << n << ",\"tre_mean_mm\":" << mean / n << ",\"reference_mean_mm\":" << ref / n
+                    << ",\"worst_case_mean_mm\":" << worst << ",\"worse_than_reference\":" << worse << ",\"wall_s\":" << wall / n << "}";
+          first = false;
+        }
+    std::cout << "]}\n";
+  } catch (const LoadError& e) {
+    std::cerr << "arnav-bench: " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "arnav-bench: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}
 
 static int main_body(int argc, char** argv) {
   using namespace arnav::host;
@@ -83,6 +130,15 @@ static int main_body(int argc, char** argv) {
   reg->add_option("--export", reg_options.export_dir, "write the first case's inputs for arnav-register (surface.xyz, landmarks.csv, targets.csv, truth_targets.csv)");
   reg->add_option("--updates", reg_options.updates_per_level, "correspondence updates per level")->check(CLI::PositiveNumber);
   reg->add_option("--steps", reg_options.steps_per_update, "model steps per correspondence update")->check(CLI::PositiveNumber);
+  reg->add_flag("--pose-prior", reg_options.pose_prior, "the start's uncertainty (the landmark fit's covariance) as a prior of the surface fits (issue 22)");
+  reg->add_flag("--estimate-noise", reg_options.estimate_noise, "the noise estimated from the points instead of told");
+  bool reg_hard = false;
+  RegisterHardOptions hard_options;
+  reg->add_flag("--hard", reg_hard,
+                "cases the method cannot share (issue 22): perturbed preoperative shape, other supports, a 20-40 mm local push, 15-25 % "
+                "coverage, aligned and misaligned, noise not told; development and held-out cases (register_hard.csv)");
+  reg->add_option("--hard-dev", hard_options.dev_cases, "--hard: development cases (seeds 1..)")->check(CLI::Range(0, 50));
+  reg->add_option("--hard-heldout", hard_options.heldout_cases, "--hard: held-out cases (seeds 1001..)")->check(CLI::Range(0, 50));
   RegisterBenchOptions track_options;
   track_options.data_dir = ARNAV_DEFAULT_DATA_DIR;
   int track_frames = 600;
@@ -94,7 +150,7 @@ static int main_body(int argc, char** argv) {
                   "step the scene's own model settings instead of the recommended real-time ones");
   CutBenchOptions cut_options;
   cut_options.data_dir = ARNAV_DEFAULT_DATA_DIR;
-  CLI::App* cut = app.add_subcommand("cut", "the scalpel cutting the liver: topology update, frame time, quality, volume, path fidelity");
+  CLI::App* cut = app.add_subcommand("cut", "the scalpel cutting the liver: topology update, frame time, quality, volume, cut-path error in the material");
   cut->add_flag("--quick", cut_options.quick, "CI smoke run: coarse mesh, XPBD, right-lobe path, 150 frames");
   cut->add_option("-o,--out", out_dir, "output folder for cut.csv and cut_frames.csv (per frame)");
   cut->add_option("--data", cut_options.data_dir, "data folder with liver/*.scene.yaml and liver/scalpel_*.csv");
@@ -191,6 +247,7 @@ static int main_body(int argc, char** argv) {
       reg_options.truth_scene = reg_patient.substr(slash + 1) + ".scene.yaml";
       reg_options.registration_scene = reg_patient.substr(slash + 1) + "_coarse.scene.yaml";
     }
+    if (reg_hard) return run_hard(reg_options, hard_options, out_dir);
     try {
       const std::vector<RegisterBenchRow> rows = run_register_bench(reg_options);
       std::filesystem::create_directories(out_dir);
@@ -254,7 +311,7 @@ static int main_body(int argc, char** argv) {
                 << "\",\"background_rebuild\":" << (r.background ? "true" : "false") << ",\"frames\":" << r.frames << ",\"topology_p99_ms\":" << r.topology_p99_ms << ",\"frame_median_ms\":" << r.frame_median_ms
                 << ",\"frame_p99_ms\":" << r.frame_p99_ms << ",\"min_dihedral_deg\":" << r.min_dihedral_deg << ",\"min_dihedral_active_deg\":" << r.min_dihedral_active_deg
                 << ",\"embedded_tets\":" << r.embedded_tets << ",\"embedded_volume_fraction\":" << r.embedded_volume_fraction << ",\"volume_change_rel\":"
-                << r.volume_change_rel << ",\"path_fidelity_mm\":" << r.path_fidelity_mm << ",\"completion_deviation_mm\":" << r.completion_deviation_mm << ",\"pieces\":" << r.pieces << ",\"tumours_freed\":" << r.tumours_freed << ",\"tumours_separated\":" << r.tumours_separated << ",\"freed_drop_mm\":" << r.freed_drop_mm << ",\"organ_drift_mm\":" << r.organ_drift_mm << ",\"local_updates\":" << r.local_updates << ",\"rebuilds\":" << r.rebuilds
+                << r.volume_change_rel << ",\"path_error_mm\":{\"p50\":" << r.path_error_p50_mm << ",\"p95\":" << r.path_error_p95_mm << ",\"max\":" << r.path_error_max_mm << ",\"vertices\":" << r.cut_vertices_measured << "},\"cutter_snap_deviation_mm\":" << r.path_fidelity_mm << ",\"completion_deviation_mm\":" << r.completion_deviation_mm << ",\"pieces\":" << r.pieces << ",\"tumours_freed\":" << r.tumours_freed << ",\"tumours_separated\":" << r.tumours_separated << ",\"freed_drop_mm\":" << r.freed_drop_mm << ",\"organ_drift_mm\":" << r.organ_drift_mm << ",\"local_updates\":" << r.local_updates << ",\"rebuilds\":" << r.rebuilds
                 << ",\"local_updates_enabled\":" << (r.local_updates_enabled ? "true" : "false") << ",\"local_median_ms\":" << r.local_median_ms
                 << ",\"local_p99_ms\":" << r.local_p99_ms << ",\"rebuild_median_ms\":" << r.rebuild_median_ms << ",\"rebuild_p99_ms\":" << r.rebuild_p99_ms
                 << ",\"state_diff_max_mm\":" << r.state_diff_max_mm << ",\"state_diff_final_mm\":" << r.state_diff_final_mm

@@ -10,6 +10,7 @@
 
 #include "host/bench/cut_reference.hpp"
 #include "host/cut/cut_session.hpp"
+#include "host/cut/material_path.hpp"
 #include "host/cut/mesh_checks.hpp"
 #include "host/cut/ring_path.hpp"
 #include "host/cut/scalpel_path.hpp"
@@ -32,6 +33,19 @@ double thread_cpu_ms() {
   timespec t{};
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
   return static_cast<double>(t.tv_sec) * 1e3 + static_cast<double>(t.tv_nsec) * 1e-6;
+}
+
+// After a frame's blade (before the step: the tissue as the cutter cut it), the cut-path error
+// in the material of the vertices the frame put on the cut; returns the time it took (ms).
+double measure_path(cut::CutSession& session, bool cutting, const cut::CutFrameReport& cr, cut::MaterialPathMeter& meter,
+                    std::vector<double>& path_error_mm) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (cutting && session.last_sweep()) meter.record_sweep(session.cutter(), session.positions_World_mm(), *session.last_sweep());
+  if (cr.cut.topology_changed || cr.cut.vertices_snapped > 0) {
+    double worst = -1.0;
+    meter.measure_new_cut_vertices(session.cutter(), worst, &path_error_mm);
+  }
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
 bool selected(const std::string& label, const std::vector<std::string>& prefixes) {
@@ -107,7 +121,8 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
         bool parted = false;
         row.tets_before = scene.problem.mesh.num_tets();
         row.min_dihedral_input_deg = input.min_dihedral_deg;
-        std::vector<double> topology, frame, rebuild, local, frame_cpu;
+        std::vector<double> topology, frame, rebuild, local, frame_cpu, path_error;
+        cut::MaterialPathMeter meter(1 << 20);  // the cut-path error in the material, every sweep of the run
         ScalpelPath path = csv_path;
         int first = 1;  // frames before it: the organ settling under gravity (derived ring)
         RingPath ring;
@@ -153,9 +168,10 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
           const auto t0 = std::chrono::steady_clock::now();
           const double cpu0 = thread_cpu_ms();
           const CutFrameReport cr = session.apply_blade(s.blade, s.cutting);
+          const double meter_ms = measure_path(session, s.cutting, cr, meter, path_error);  // not the frame's time
           const StepSummary step = session.step(scene.time_step_s);
-          frame.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
-          frame_cpu.push_back(thread_cpu_ms() - cpu0);
+          frame.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() - meter_ms);
+          frame_cpu.push_back(thread_cpu_ms() - cpu0 - meter_ms);
           // ring_follow: once the block is free the surgeon stops following it (outside the
           // frame's timing: an O(tets) check of the tumour's piece after topology changes).
           if (tracking && cr.cut.topology_changed && piece_is_free(session.mesh(), session.tumours().front().embedding.tet.front(), session.fixed_vertices()))
@@ -199,6 +215,10 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
         row.tets_after = session.mesh().num_tets();
         row.vertices_after = session.mesh().num_vertices();
         row.new_tets = row.tets_after - row.tets_before;
+        row.path_error_p50_mm = percentile(path_error, 0.5);
+        row.path_error_p95_mm = percentile(path_error, 0.95);
+        row.path_error_max_mm = percentile(path_error, 1.0);
+        row.cut_vertices_measured = static_cast<int>(path_error.size());
         row.topology_median_ms = percentile(topology, 0.5);
         row.topology_p99_ms = percentile(topology, 0.99);
         row.topology_max_ms = percentile(topology, 1.0);
@@ -290,7 +310,8 @@ void write_cut_csv(const std::string& path, const std::vector<CutBenchRow>& rows
          "topology_max_ms,frame_median_ms,frame_p99_ms,rebuild_median_ms,rebuild_p99_ms,min_dihedral_input_deg,min_dihedral_deg,"
          "min_dihedral_bound_deg,min_dihedral_active_deg,embedded_tets,embedded_volume_fraction,driven_vertices,rigid_groups,"
          "volume_change_rel,path_fidelity_mm,completion_deviation_mm,completed_tets,pieces,free_pieces,tumours_freed,tumours_separated,freed_drop_mm,organ_drift_mm,ring_radius_mm,local_updates,local_median_ms,local_p99_ms,rebuilds,events,mesh_valid,healthy,warning,"
-         "local_updates_enabled,state_diff_max_mm,state_diff_final_mm,state_compared_frames,frame_thread_cpu_median_ms,frame_thread_cpu_p99_ms\n";
+         "local_updates_enabled,state_diff_max_mm,state_diff_final_mm,state_compared_frames,frame_thread_cpu_median_ms,frame_thread_cpu_p99_ms,"
+         "path_error_p50_mm,path_error_p95_mm,path_error_max_mm,cut_vertices_measured\n";
   for (const auto& r : rows) {
     std::string warning = r.warning;
     std::replace(warning.begin(), warning.end(), ',', ';');
@@ -302,7 +323,8 @@ void write_cut_csv(const std::string& path, const std::vector<CutBenchRow>& rows
         << ',' << r.volume_change_rel << ',' << r.path_fidelity_mm << ','
         << r.completion_deviation_mm << ',' << r.completed_tets << ',' << r.pieces << ',' << r.free_pieces << ',' << r.tumours_freed << ',' << r.tumours_separated << ',' << r.freed_drop_mm << ',' << r.organ_drift_mm << ',' << r.ring_radius_mm << ',' << r.local_updates << ',' << r.local_median_ms << ',' << r.local_p99_ms << ',' << r.rebuilds << ',' << r.events << ',' << (r.mesh_valid ? 1 : 0) << ','
         << (r.healthy ? 1 : 0) << ',' << warning << ',' << (r.local_updates_enabled ? 1 : 0) << ',' << r.state_diff_max_mm << ','
-        << r.state_diff_final_mm << ',' << r.state_compared_frames << ',' << r.frame_thread_cpu_median_ms << ',' << r.frame_thread_cpu_p99_ms << '\n';
+        << r.state_diff_final_mm << ',' << r.state_compared_frames << ',' << r.frame_thread_cpu_median_ms << ',' << r.frame_thread_cpu_p99_ms << ','
+        << r.path_error_p50_mm << ',' << r.path_error_p95_mm << ',' << r.path_error_max_mm << ',' << r.cut_vertices_measured << '\n';
   }
 }
 

@@ -73,7 +73,11 @@ struct CutBenchRow {
   int embedded_tets = 0, driven_vertices = 0, rigid_groups = 0;
   double embedded_volume_fraction = 0;
   double volume_change_rel = 0;                      // rest volume after / before - 1
-  double path_fidelity_mm = 0;                       // largest distance of a cut point from the swept surface (same instant)
+  double path_fidelity_mm = 0;                       // the cutter's own: largest distance of a cut point from this frame's sweep (bounded by path_tolerance_mm)
+  // The cut-path error in the material (host/cut/material_path.hpp): every vertex put on the
+  // cut against the surfaces the blade swept, at its rest position; percentiles over vertices.
+  double path_error_p50_mm = 0, path_error_p95_mm = 0, path_error_max_mm = 0;
+  int cut_vertices_measured = 0;
   double completion_deviation_mm = 0;                // completed tets: largest distance of a point from their recorded points' plane
   int completed_tets = 0;                            // tets completed from vertex sides (tissue moved)
   int pieces = 1, free_pieces = 0, events = 0;

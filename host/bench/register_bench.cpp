@@ -346,6 +346,8 @@ std::vector<RegisterBenchRow> run_register_bench(const RegisterBenchOptions& o) 
         if (o.landmark_error_mm >= 0) rq.loads.landmark_error_mm = o.landmark_error_mm;
         if (o.prior_strain >= 0) rq.loads.prior_strain = o.prior_strain;
         rq.prebuilt_basis = basis;
+        rq.prior.enabled = o.pose_prior;
+        rq.estimate_noise = o.estimate_noise;
         bool rigid_rows = false;
         for (const std::string& method : o.methods) {
           rq.nonrigid_method = method;

@@ -32,6 +32,8 @@ struct RegisterBenchOptions {
   double prior_strain = -1.0;                           // loads: MAP prior strain (0: discrepancy principle; < 0: the library default)
   double landmark_error_mm = -1.0;                      // loads: landmark term's error (0: off; < 0: the library default)
   bool prebuilt_basis = false;                          // loads: build the basis once per run (before surgery), not per case
+  bool pose_prior = false;                              // the landmark fit's covariance as the pose prior (issue 22)
+  bool estimate_noise = false;                          // the noise estimated from the points, not told
   std::string model_kind;                               // registering model (empty: the scene's)
   std::vector<double> schedule;                         // data-weight schedule (empty: default)
   bool scene_boundary = false;

@@ -345,6 +345,45 @@ LoadFitResult fit_load_basis(const Scene& scene, const LoadBasis& basis, const E
       return res;
     }
   }
+  // Held supports: the support modes (prescribed translations of support clusters, 1 mm
+  // each) get a Gaussian prior of support_sigma_mm.
+  std::vector<int> support_modes;
+  if (o.support_sigma_mm > 0)
+    for (int j = 0; j < m; ++j)
+      if (basis.mode_kind[static_cast<std::size_t>(j)].rfind("support", 0) == 0) support_modes.push_back(j);
+  const bool map_strain = o.prior_strain > 0 && basis.stiffness_volume > 0;
+  // The MAP objective in units of noise^2 (docs/register.md, "Never worse, judged against
+  // the prior"): robust data term over all points (capped), strain prior, pose prior, held supports.
+  auto objective = [&](const Eigen::Isometry3d& Dc, const Eigen::VectorXd& a, const Eigen::Matrix3Xd& xc) {
+    const SurfaceIndex idx(xc, mesh.surface_tris);
+    const Eigen::Matrix3Xd q = Dc * data;
+    const int n = static_cast<int>(q.cols());
+    std::vector<double> d(static_cast<std::size_t>(n));
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; ++i) {
+      const SurfaceHit h = idx.closest(q.col(i), o.max_distance_mm);
+      d[static_cast<std::size_t>(i)] = h.tri >= 0 ? std::min(h.distance_mm, o.max_distance_mm) : o.max_distance_mm;
+    }
+    const double c = o.huber_sigmas * noise;
+    double sum = 0.0;
+    for (double r : d) sum += r <= c ? r * r : 2.0 * c * r - c * c;
+    sum /= noise * noise;
+    if (map_strain) sum += a.dot(basis.G * a) / (basis.stiffness_volume * o.prior_strain * o.prior_strain);
+    if (o.pose_prior) {
+      const Vector6d xi = pose_deviation(*o.pose_prior, Dc);
+      sum += xi.dot(o.pose_prior->information() * xi);
+    }
+    for (int j : support_modes) sum += a[j] * a[j] / (o.support_sigma_mm * o.support_sigma_mm);
+    for (int l = 0; l < nl; ++l) {
+      const Eigen::Vector3d e = Dc * lms[static_cast<std::size_t>(l)].target - lms[static_cast<std::size_t>(l)].p_rest - lm_U[static_cast<std::size_t>(l)] * a;
+      sum += e.squaredNorm() / (s_axis * s_axis);
+    }
+    return sum;
+  };
+  res.objective_rigid = objective(Eigen::Isometry3d::Identity(), Eigen::VectorXd::Zero(m), rest);
+  Matrix6d H_pose = Matrix6d::Zero();
+  Eigen::Vector3d centre_pose = Eigen::Vector3d::Zero();
+  double scale_pose = 0.0;
   const double gtrace = basis.G.trace();
   Eigen::VectorXd alpha = Eigen::VectorXd::Zero(m);
   Eigen::Isometry3d D = Eigen::Isometry3d::Identity();
@@ -421,6 +460,22 @@ LoadFitResult fit_load_basis(const Scene& scene, const LoadBasis& basis, const E
         A.noalias() += wl * Jl.transpose() * Jl;
         rhs.noalias() -= wl * Jl.transpose() * e;
       }
+    }
+    if (np) {
+      H_pose = H.topLeftCorner(6, 6);
+      centre_pose = centre;
+      scale_pose = std::max(sigma, o.noise_mm);
+    }
+    if (np && o.pose_prior) {
+      // MAP: the pose prior weighted by the data's scale squared (as the landmark term).
+      const double s_data = std::max(sigma, o.noise_mm);
+      add_pose_prior(*o.pose_prior, D, centre, s_data * s_data, A.topLeftCorner(6, 6), rhs.head(6));
+    }
+    for (int j : support_modes) {
+      const double s_data = std::max(sigma, o.noise_mm);
+      const double ws = s_data * s_data / (o.support_sigma_mm * o.support_sigma_mm);
+      A(np + j, np + j) += ws;
+      rhs[np + j] -= ws * alpha[j];
     }
     A.bottomRightCorner(m, m) += lambda * hscale * basis.G;
     A.diagonal().array() += 1e-10 * A.diagonal().maxCoeff();
@@ -548,7 +603,10 @@ LoadFitResult fit_load_basis(const Scene& scene, const LoadBasis& basis, const E
   res.final_rms_mm = pf.rms;
   res.wall_time_s = seconds_since(t0);
   const double final_chi = chi(pf, landmark_rms(D, alpha));
-  if (static_cast<int>(pf.kept.size()) >= kMinPoints && final_chi < rigid_chi * (1.0 - o.min_improvement) && x.allFinite()) {
+  res.objective_fit = objective(D, alpha, x);
+  if (np && scale_pose > 0) res.posterior = pose_posterior(o.pose_prior ? &*o.pose_prior : nullptr, D, centre_pose, H_pose, scale_pose * scale_pose);
+  const bool objective_lower = res.objective_fit < res.objective_rigid;
+  if (static_cast<int>(pf.kept.size()) >= kMinPoints && final_chi < rigid_chi * (1.0 - o.min_improvement) && x.allFinite() && objective_lower) {
     res.accepted = true;
     res.x_Model_mm = x;
     res.D = D;
@@ -566,7 +624,9 @@ LoadFitResult fit_load_basis(const Scene& scene, const LoadBasis& basis, const E
     res.message = stop;
   } else {
     res.message = "data does not support a non-rigid fit (surface residual " + std::to_string(res.rigid_rms_mm) + " mm rigid, " +
-                  std::to_string(pf.rms) + " mm with the load basis; " + stop + "); the rigid result is kept";
+                  std::to_string(pf.rms) + " mm with the load basis; MAP objective " + std::to_string(res.objective_rigid) + " rigid, " +
+                  std::to_string(res.objective_fit) + " fitted" + (objective_lower ? "" : " (not lower against the priors)") + "; " + stop +
+                  "); the rigid result is kept";
     res.final_rms_mm = res.rigid_rms_mm;
   }
   return res;

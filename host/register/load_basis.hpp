@@ -25,11 +25,13 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "host/register/load_basis_types.hpp"
 #include "host/register/nonrigid_registration.hpp"
+#include "host/register/pose_prior.hpp"
 #include "host/scene/scene.hpp"
 
 namespace arnav::host {
@@ -75,6 +77,15 @@ struct LoadFitOptions {
   // sqrt 3))^2 per coordinate, Huber beyond 2 landmark errors. <= 0: landmarks not used.
   double landmark_error_mm = 3.0;
   double time_budget_s = 0.0;     // 0: none
+  // Pose prior on the correction D (pose_prior.hpp: its mean is the D that puts the data
+  // at the prior's pose, i.e. X = X_rigid^-1 * X_prior when the data were mapped into
+  // Model by X_rigid): joins the normal equations weighted by the data's scale squared,
+  // so directions the data do not constrain stay at the prior. Absent: D is free.
+  std::optional<PosePrior> pose_prior;
+  // Held supports (> 0): the support modes' translations (mm) get a Gaussian prior of this
+  // sigma: the ligaments stay put unless the data demand otherwise. 0: only the strain
+  // energy regularises them.
+  double support_sigma_mm = 0.0;
 };
 
 struct LoadFitIteration {
@@ -108,6 +119,13 @@ struct LoadFitResult {
   double lambda = 0.0;            // the level kept (relative units)
   double prior_lambda = 0.0;      // with prior_strain: the MAP weight in relative units (0: discrepancy principle)
   double wall_time_s = 0.0;       // fit only (the basis is timed by build_time_s)
+  // The MAP objective (data term over noise^2, Huber, all points capped at max_distance;
+  // plus the strain prior energy / E0 with prior_strain; plus the pose prior's and the held
+  // supports' terms) at the rigid start and at the fit: the fit is accepted only when it
+  // is lower (and the residual rule above holds).
+  double objective_rigid = 0.0, objective_fit = 0.0;
+  // The pose's posterior at the result (data information at the last step plus the prior).
+  PosePosterior posterior;
 };
 
 // data_Model_mm: the intraoperative points mapped into Model by the rigid result;

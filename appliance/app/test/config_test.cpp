@@ -76,5 +76,23 @@ TEST(Config, NonNdiRomIsAConfigError) {
   std::filesystem::remove(bad);
 }
 
+TEST(Config, EthernetTrackerSection) {
+  AppConfig c = parse("ndi: {host: 192.168.1.50, port: 9000, stream: false, connect_timeout_ms: 500}\n" + kTools);
+  EXPECT_EQ(c.ndi_host, "192.168.1.50");
+  EXPECT_EQ(c.ndi_port, 9000);
+  EXPECT_FALSE(c.ndi_stream);
+  EXPECT_EQ(c.connect_timeout_ms, 500);
+  EXPECT_EQ(c.port, "tcp:192.168.1.50:9000");
+  EXPECT_FALSE(c.session_config().stream);
+  c = parse("ndi:\n  host: P9-B0103.local\n" + kTools);
+  EXPECT_EQ(c.ndi_port, 8765);
+  EXPECT_TRUE(c.session_config().stream);
+  expect_error("port: sim\nndi: {host: a}\n" + kTools, "cfg.yaml:2: key 'ndi': give either 'port'");
+  expect_error("ndi: {port: 8765}\n" + kTools, "cfg.yaml:1: key 'ndi.host': missing");
+  expect_error("ndi: {host: a, port: 70000}\n" + kTools, "cfg.yaml:1: key 'ndi.port': must be a TCP port");
+  expect_error("ndi: {host: a, streem: true}\n" + kTools, "key 'ndi.streem': unknown key");
+  expect_error("ndi: 192.168.1.50\n" + kTools, "cfg.yaml:1: key 'ndi': expected a mapping");
+}
+
 }  // namespace
 }  // namespace arnav::app

@@ -173,5 +173,28 @@ TEST(Publisher, PosesInTheReferenceFrame) {
   EXPECT_TRUE(get_pose(sink.poses[2]).isApprox(X_NdiPointer, 1e-9));
 }
 
+TEST(Publisher, DeviceTimestampOfABx2FrameIsCarriedIntoThePose) {
+  lcm::LCM lcm("memq://");
+  ASSERT_TRUE(lcm.good());
+  Sink sink;
+  lcm.subscribe("ARNAV_POSE_.*", &Sink::on_pose, &sink);
+  ndi::SessionConfig c = fast_session({{"pointer", rom("8700340.rom")}});
+  auto dev = std::make_shared<ndi::test::FakeDevice>();
+  Publisher pub(lcm, c.tools, 60.0);
+  ndi::Session session(c, ndi::test::fake_factory(dev), nullptr);
+  ASSERT_TRUE(session.start());
+  ndi::TrackingReply reply;
+  std::int64_t rx = 0;
+  ASSERT_EQ(session.poll(reply, rx), ndi::PollResult::NewFrame);
+  pub.publish_frame(session, reply, rx);  // BX: frame counter / rate
+  reply.has_device_time = true;           // as parse_bx2 sets it
+  reply.device_time_ns = 7'123'456'789;
+  pub.publish_frame(session, reply, rx);
+  drain(lcm);
+  ASSERT_EQ(sink.poses.size(), 2u);
+  EXPECT_EQ(sink.poses[0].device_time_us, static_cast<std::int64_t>(dev->frame * 1e6 / 60.0));
+  EXPECT_EQ(sink.poses[1].device_time_us, 7'123'456);
+}
+
 }  // namespace
 }  // namespace arnav::app

@@ -35,7 +35,9 @@ foreach(f targets.csv registered_organ.obj X_IntraopModel.yaml summary.json repo
 endforeach()
 file(READ ${OUT}/full/summary.json summary)
 foreach(key "\"stage\": \"landmarks\"" "\"stage\": \"surface_rigid\"" "\"stage\": \"nonrigid\"" "\"deformed\": true" "\"points_trimmed\""
-            "\"method\": \"loads\"" "\"basis_modes\"" "\"pose_correction_mm\"" "\"landmarks_used\": 3" "\"regularisation\"")
+            "\"method\": \"loads\"" "\"basis_modes\"" "\"pose_correction_mm\"" "\"landmarks_used\": 3" "\"regularisation\""
+            "\"source\": \"landmarks\"" "\"pose_posterior\"" "\"kept_stage\": \"nonrigid\"" "\"kept_reason\"" "\"noise_estimated\": false"
+            "\"supports_held\": false")
   if(NOT summary MATCHES "${key}")
     message(FATAL_ERROR "summary.json lacks ${key}: ${summary}")
   endif()
@@ -65,6 +67,23 @@ file(READ ${OUT}/rigid/summary.json summary)
 if(NOT summary MATCHES "\"initialisation\": \"initial pose\"" OR summary MATCHES "\"stage\": \"nonrigid\"")
   message(FATAL_ERROR "rigid-only summary: ${summary}")
 endif()
+
+# 2b. data already aligned (the scene's own surface as the cloud): --initial-pose identity
+# carries its uncertainty as the prior; the noise is estimated from the points; the
+# supports are held.
+run(0 identity ${scene} --surface ${SRC}/data/meshes/liver.vtk --initial-pose identity --pose-sigma-deg 2 --pose-sigma-mm 4 --out ${OUT}/identity)
+file(READ ${OUT}/identity/summary.json summary)
+foreach(key "\"initialisation\": \"identity\"" "\"source\": \"identity\"" "\"noise_estimated\": true" "\"pose_posterior\"" "\"kept_stage\""
+            "\"supports_held\": true" "\"exit_code\": 0")
+  if(NOT summary MATCHES "${key}")
+    message(FATAL_ERROR "identity: summary.json lacks ${key}: ${summary}")
+  endif()
+endforeach()
+file(READ ${OUT}/identity/report.txt report)
+if(NOT report MATCHES "pose prior: identity" OR NOT report MATCHES "point noise: .* \\(estimated from the points\\)" OR NOT report MATCHES "kept: ")
+  message(FATAL_ERROR "identity: report.txt: ${report}")
+endif()
+run(2 bad_sigma ${scene} --surface ${OUT}/case/surface.xyz --initial-pose identity --pose-sigma-mm 0 --out ${OUT}/x)
 
 # 3. empty cloud with landmarks: the landmark pose is kept, the non-rigid stage declines
 file(WRITE ${OUT}/empty.xyz "# nothing swabbed\n")

@@ -11,6 +11,7 @@
 #include <lcm/lcm-cpp.hpp>
 
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <optional>
 #include <fstream>
@@ -120,7 +121,19 @@ static int main_body(int argc, char** argv) {
   app.add_option("--swab-seconds", in.swab_seconds, "with --lcm: collect this long after the first message (default 30)")->check(CLI::Range(0.1, 3600.0));
   app.add_option("--swab-wait-seconds", in.swab_wait_seconds, "with --lcm: give up when no message came within this time (default 60)")->check(CLI::Range(0.1, 3600.0));
   app.add_option("--landmarks", in.landmarks_path, "CSV name,model_x,model_y,model_z,intraop_x,intraop_y,intraop_z (mm)");
-  app.add_option("--initial-pose", in.pose_path, "X_IntraopModel.yaml to start the surface registration from");
+  app.add_option("--initial-pose", in.pose_path,
+                 "X_IntraopModel.yaml to start the surface registration from, or 'identity' for data already in the scene's frame "
+                 "(aligned); the start carries the uncertainty --pose-sigma-deg / --pose-sigma-mm");
+  bool no_pose_prior = false;
+  app.add_flag("--no-pose-prior", no_pose_prior,
+               "do not use the start's uncertainty as a prior (before issue 22: the surface fits may then slide along a partial patch)");
+  app.add_option("--pose-sigma-deg", rq.prior.rotation_deg, "uncertainty (1 sigma, deg, about each axis) of a given pose or the identity (default 3)")
+      ->check(CLI::Range(0.01, 180.0));
+  app.add_option("--pose-sigma-mm", rq.prior.translation_mm, "uncertainty (1 sigma, mm, along each axis at the organ's centre) of a given pose or the identity (default 5)")
+      ->check(CLI::Range(0.01, 1000.0));
+  app.add_option("--hold-supports-mm", rq.prior.support_sigma_mm,
+                 "with a given pose and fixed vertices in the scene: the supports' motion prior (1 sigma, mm; default 2; 0: not held)")
+      ->check(CLI::Range(0.0, 100.0));
   app.add_option("--targets", in.targets_path, "CSV name,x_mm,y_mm,z_mm in the scene (Model) frame");
   app.add_flag("--rigid-only", in.rigid_only, "stop after the rigid registration");
   app.add_option("-o,--out", in.out_dir, "output folder")->required();
@@ -140,8 +153,10 @@ static int main_body(int argc, char** argv) {
                  "loads: RMS strain of the deformation prior (regularisation noise^2 / (sum(E V) strain^2)); 0: discrepancy principle")
       ->check(CLI::Range(0.0, 1.0));
   app.add_option("--model", rq.nonrigid.model_kind, "energy: tissue model for the non-rigid stage (default: the scene's)");
-  app.add_option("--noise-mm", noise_mm, "expected point noise (mm): sets the loads prior's regularisation (noise^2) and the residual the energy schedule stops at")
-      ->check(CLI::Range(0.0, 20.0));
+  auto* noise_opt = app.add_option("--noise-mm", noise_mm,
+                                   "expected point noise (mm): sets the loads prior's regularisation (noise^2) and the residual the energy schedule "
+                                   "stops at (default: estimated from the points, each point's distance to the plane of its neighbours)")
+                        ->check(CLI::Range(0.0, 20.0));
   app.add_flag("--scene-boundary", scene_boundary, "hold the scene's fixed vertices at their rest positions during the non-rigid stage");
   app.add_flag("--anchored-boundary", rq.nonrigid.anchored_boundary, "free fit, then the rigid part corrected by the fixed vertices' motion and a second fit holding them");
   app.add_flag("--gravity-change", rq.nonrigid.estimate_gravity_change, "with a held boundary: fit a change of gravity (3 numbers) before the non-rigid fit");
@@ -156,6 +171,9 @@ static int main_body(int argc, char** argv) {
     return app.exit(e) == 0 ? 0 : 2;
   }
   rq.nonrigid.noise_mm = noise_mm;
+  rq.estimate_noise = noise_opt->count() == 0;
+  rq.prior.enabled = !no_pose_prior;
+  rq.prior.landmark_error_mm = rq.loads.landmark_error_mm > 0 ? rq.loads.landmark_error_mm : 3.0;
   rq.nonrigid.keep_fraction = rq.icp.keep_fraction;
   rq.nonrigid.scene_boundary = scene_boundary;
   rq.nonrigid.self_contact = !no_self_contact;
@@ -189,7 +207,10 @@ static int main_body(int argc, char** argv) {
         throw_load_error(in.landmarks_path, 0, e.what(), "touch at least 3 landmarks that are not on one line");
       }
     }
-    if (!in.pose_path.empty()) {
+    if (in.pose_path == "identity") {
+      rq.X_IntraopModel_initial = Eigen::Isometry3d::Identity();
+      rq.initial_pose_name = "identity";
+    } else if (!in.pose_path.empty()) {
       try {
         rq.X_IntraopModel_initial = arnav::calib::read_transform(in.pose_path, "X_IntraopModel").X_ParentChild;
       } catch (const std::exception& e) {
@@ -263,9 +284,17 @@ static int main_body(int argc, char** argv) {
   int exit_code = 0;
   std::vector<std::string> problems;
   const bool have_points = cloud.size() > 0;
-  if (have_points && r.icp.summary.termination != "converged") {
-    problems.push_back("surface rigid registration did not converge: " + r.icp.summary.termination);
+  const std::string& term = r.icp.summary.termination;
+  const bool icp_failed = term.rfind("too few inliers", 0) == 0 || term == "numerical failure";
+  if (have_points && icp_failed) {
+    problems.push_back("surface rigid registration failed: " + term + "; the " + r.initialisation + " pose is kept");
     exit_code = 1;
+  } else if (have_points && term != "converged" && !r.prior) {
+    // without a prior nothing judges a pose that did not converge
+    problems.push_back("surface rigid registration did not converge: " + term);
+    exit_code = 1;
+  } else if (have_points && term != "converged") {
+    r.notes.push_back("surface rigid stopped (" + term + "); judged against the " + r.prior->source + " prior: " + r.kept_reason);
   }
   if (r.loads && r.loads->message.find("numerical failure") != std::string::npos) {
     problems.push_back("non-rigid (loads): the fit failed numerically; the rigid result is kept");
@@ -402,6 +431,31 @@ static int main_body(int argc, char** argv) {
       }
     }
     j["stages"] = stages;
+    j["kept_stage"] = r.kept_stage;
+    j["kept_reason"] = r.kept_reason;
+    j["noise_mm"] = r.noise_mm;
+    j["noise_estimated"] = r.noise_estimated;
+    j["supports_held"] = r.supports_held;
+    if (r.prior) {
+      json sd = json::array(), st = json::array();
+      for (int i = 0; i < 3; ++i) {
+        sd.push_back(std::sqrt(r.prior->covariance(i, i)) * 180.0 / 3.14159265358979323846);
+        st.push_back(std::sqrt(r.prior->covariance(i + 3, i + 3)));
+      }
+      j["pose_prior"] = {{"source", r.prior->source},
+                         {"rotation_sigma_deg", sd},
+                         {"translation_sigma_mm", st},
+                         {"centre_Model_mm", {r.prior->centre_Model_mm.x(), r.prior->centre_Model_mm.y(), r.prior->centre_Model_mm.z()}}};
+    } else {
+      j["pose_prior"] = nullptr;
+    }
+    if (r.posterior.valid) {
+      const PosePosterior& p = r.posterior;
+      j["pose_posterior"] = {{"rotation_sigma_deg", {p.rotation_sigma_deg.x(), p.rotation_sigma_deg.y(), p.rotation_sigma_deg.z()}},
+                             {"translation_sigma_mm", {p.translation_sigma_mm.x(), p.translation_sigma_mm.y(), p.translation_sigma_mm.z()}},
+                             {"deviation_from_prior_sigmas", p.deviation_sigmas},
+                             {"unconstrained_directions", p.unconstrained_text}};
+    }
     // the load basis: built here or loaded from --basis-cache (time: build, or read + check)
     j["basis"] = basis_source;
     j["basis_time_s"] = basis_time_s;
@@ -437,6 +491,19 @@ static int main_body(int argc, char** argv) {
     rep << "surface rigid (point-to-plane ICP): " << r.icp.summary.termination << " after " << r.icp.summary.iterations
         << " iterations, residual " << r.icp.summary.final_rms_mm << " mm RMS / " << r.icp.summary.final_max_mm << " mm max, "
         << r.icp.summary.points_used << " points used, " << r.icp.summary.points_trimmed << " trimmed, " << r.icp.summary.wall_time_s << " s\n";
+    if (r.prior)
+      rep << "pose prior: " << r.prior->source << ", 1 sigma " << std::sqrt(r.prior->covariance.topLeftCorner<3, 3>().trace() / 3.0) * 180.0 / 3.14159265358979323846
+          << " deg / " << std::sqrt(r.prior->covariance.bottomRightCorner<3, 3>().trace() / 3.0) << " mm (RMS over the axes)\n";
+    else
+      rep << "pose prior: none (" << (no_pose_prior ? "--no-pose-prior" : "no landmarks and no --initial-pose: the identity is only where ICP starts") << ")\n";
+    rep << "point noise: " << r.noise_mm << " mm" << (r.noise_estimated ? " (estimated from the points)" : " (given)") << "\n";
+    if (r.posterior.valid) {
+      rep << "pose posterior: rotation sigma " << r.posterior.rotation_sigma_deg.transpose() << " deg, translation sigma "
+          << r.posterior.translation_sigma_mm.transpose() << " mm; " << r.posterior.deviation_sigmas << " sigmas from the prior\n";
+      for (const auto& t : r.posterior.unconstrained_text)
+        rep << "  not constrained by the surface" << (r.prior ? " (held by the prior)" : "") << ": " << t << "\n";
+    }
+    rep << "kept: " << r.kept_stage << " - " << r.kept_reason << "\n";
     rep << "rigid pose X_IntraopModel: rotation " << rotation_angle_deg(r.X_IntraopModel) << " deg, translation "
         << r.X_IntraopModel.translation().transpose() << " mm\n";
     if (r.nonrigid) {

@@ -1,0 +1,156 @@
+#include "host/igtl/bridge.hpp"
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "protocol/pose_convert.hpp"
+
+namespace arnav::igtl {
+
+Bridge::Bridge(BridgeOptions options, Server& server, Server::Log log)
+    : options_(std::move(options)), server_(server), log_(std::move(log)), image_thread_([this] { image_loop(); }) {}
+
+Bridge::~Bridge() {
+  {
+    std::lock_guard lock(mutex_);
+    stopping_ = true;
+  }
+  image_wake_.notify_all();
+  image_thread_.join();
+}
+
+BridgeStats Bridge::stats() const {
+  std::lock_guard lock(mutex_);
+  return stats_;
+}
+
+const std::string* Bridge::device_name(const std::string& tool, const std::string& child, const std::string& parent) {
+  const std::string key = tool + "|" + child + "|" + parent;
+  if (auto it = names_.find(key); it != names_.end()) return &it->second;
+  if (unnamed_.count(key)) return nullptr;
+  std::string why;
+  std::optional<std::string> name = transform_device_name(child, parent, why);
+  if (name) return &names_.emplace(key, *name).first->second;
+  unnamed_.insert(key);
+  log_("tool " + tool + ": not sent: " + why);
+  return nullptr;
+}
+
+void Bridge::on_pose(const tool_pose_t& pose) {
+  std::lock_guard lock(mutex_);  // stats_ (uncontended: the image thread takes it briefly)
+  ++stats_.poses;
+  std::vector<TrackedElement> elements;
+  if (pose.status != tool_pose_t::STATUS_VALID) {
+    ++stats_.not_seen;  // Slicer's watchdog shows the tool stale: never resend a last pose as valid
+  } else {
+    const auto named = options_.device_names.find(pose.tool_name);
+    const std::string* name =
+        named != options_.device_names.end() ? &named->second : device_name(pose.tool_name, pose.tool_name, pose.frame_parent);
+    if (name == nullptr) {
+      ++stats_.unnamed;
+    } else {
+      const Eigen::Isometry3d X_ParentTool = get_pose(pose);
+      elements.push_back({*name, X_ParentTool});
+      if (auto tip = options_.tips_Tool_mm.find(pose.tool_name); tip != options_.tips_Tool_mm.end()) {
+        Eigen::Isometry3d X_ParentTip = X_ParentTool;
+        X_ParentTip.translate(tip->second);
+        if (const std::string* tip_name = device_name(pose.tool_name + "#tip", pose.tool_name + "_tip", pose.frame_parent))
+          elements.push_back({*tip_name, X_ParentTip});
+      }
+      for (const auto& e : elements) {
+        server_.publish(e.name, pack_transform(e.name, e.X_ParentChild_mm, pose.receive_time_wall_us));
+        ++stats_.transforms;
+      }
+    }
+  }
+  add_to_frame(pose, elements);
+}
+
+// One TDATA per tracker frame: the frame is complete when as many poses of this source
+// arrived as in its previous frame (no wait in steady state), or when the next frame starts.
+void Bridge::add_to_frame(const tool_pose_t& pose, const std::vector<TrackedElement>& elements) {
+  FrameGroup& g = frames_[pose.source];
+  if (g.open && g.frame_number != pose.device_frame_number) send_tdata(g);
+  if (!g.open) {
+    g.open = true;
+    g.frame_number = pose.device_frame_number;
+    g.wall_us = pose.receive_time_wall_us;
+    g.poses_seen = 0;
+    g.elements.clear();
+  }
+  ++g.poses_seen;
+  g.elements.insert(g.elements.end(), elements.begin(), elements.end());
+  if (g.poses_expected > 0 && g.poses_seen >= g.poses_expected) send_tdata(g);
+}
+
+void Bridge::send_tdata(FrameGroup& g) {
+  g.open = false;
+  g.poses_expected = g.poses_seen;
+  if (g.elements.empty()) return;
+  server_.publish_tdata(options_.tdata_device_name, pack_tdata(options_.tdata_device_name, g.elements, g.wall_us));
+  ++stats_.tdata;
+}
+
+void Bridge::flush() {
+  std::lock_guard lock(mutex_);
+  for (auto& [source, g] : frames_)
+    if (g.open) send_tdata(g);
+}
+
+void Bridge::on_frame(const image_frame_t& frame) {
+  {
+    std::lock_guard lock(mutex_);
+    ++stats_.frames;
+    if (options_.image_rate_hz > 0.0 && last_image_capture_us_ != 0 &&
+        static_cast<double>(frame.capture_time_mono_us - last_image_capture_us_) < 1e6 / options_.image_rate_hz) {
+      ++stats_.frames_rate_limited;
+      return;
+    }
+    last_image_capture_us_ = frame.capture_time_mono_us;
+    if (next_frame_) ++stats_.frames_replaced;
+    next_frame_ = frame;
+  }
+  image_wake_.notify_one();
+}
+
+void Bridge::image_loop() {
+  for (;;) {
+    image_frame_t frame;
+    {
+      std::unique_lock lock(mutex_);
+      image_wake_.wait(lock, [&] { return stopping_ || next_frame_.has_value(); });
+      if (stopping_) return;
+      frame = std::move(*next_frame_);
+      next_frame_.reset();
+    }
+    send_image(frame);
+  }
+}
+
+// Decoded at the reduced size directly when the downscale is 2, 4 or 8 (libjpeg scales in
+// the DCT: several times faster than decoding in full and resizing).
+void Bridge::send_image(const image_frame_t& frame) {
+  const int d = options_.image_downscale;
+  const int flags = d == 2 ? cv::IMREAD_REDUCED_COLOR_2 : d == 4 ? cv::IMREAD_REDUCED_COLOR_4 : d == 8 ? cv::IMREAD_REDUCED_COLOR_8 : cv::IMREAD_COLOR;
+  cv::Mat bgr;
+  if (frame.size > 0 && static_cast<std::size_t>(frame.size) == frame.data.size())
+    bgr = cv::imdecode(cv::Mat(1, frame.size, CV_8UC1, const_cast<std::uint8_t*>(frame.data.data())), flags);
+  if (bgr.empty()) {
+    std::lock_guard lock(mutex_);
+    if (stats_.frames_undecodable++ == 0)
+      log_("camera " + frame.camera_name + ": frame " + std::to_string(frame.sequence) + " cannot be decoded (encoding " +
+           std::to_string(frame.encoding) + ", " + std::to_string(frame.size) + " bytes): no IMAGE sent (reported once)");
+    return;
+  }
+  if (flags == cv::IMREAD_COLOR && d > 1)
+    cv::resize(bgr, bgr, cv::Size(bgr.cols / d, bgr.rows / d), 0, 0, cv::INTER_AREA);
+  cv::Mat rgb;
+  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+  if (!rgb.isContinuous()) rgb = rgb.clone();
+  server_.publish(options_.image_device_name,
+                  pack_image_rgb(options_.image_device_name, rgb.cols, rgb.rows, rgb.data, frame.capture_time_wall_us));
+  std::lock_guard lock(mutex_);
+  ++stats_.images;
+}
+
+}  // namespace arnav::igtl
