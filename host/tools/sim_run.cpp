@@ -168,6 +168,7 @@ SimRunResult run_scene(const Scene& scene, const SimRunOptions& o, std::ostream&
         << s.final_residual << ',' << s.termination << ',' << s.kinetic_energy << ',' << s.elastic_energy << ',' << (s.healthy ? 1 : 0)
         << ',' << result.max_displacement_mm << ',' << result.tumour_displacement_mm.x() << ',' << result.tumour_displacement_mm.y()
         << ',' << result.tumour_displacement_mm.z() << ',' << s.inverted_elements << ',' << warning << '\n';
+    if (s.warning.find("step control") != std::string::npos) ++result.step_control_frames;
     if (s.inverted_elements > 0) {
       ++result.frames_with_inverted;
       inverted_run_s += scene.time_step_s;
