@@ -1,6 +1,7 @@
 #include "host/sim/model_factory.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 #ifdef ARNAV_SIM_HAVE_MASS_SPRING
@@ -144,6 +145,25 @@ ModelConfig recommended_model_config(const std::string& kind) {
   if (std::find(kinds.begin(), kinds.end(), kind) == kinds.end())
     throw std::invalid_argument("model kind '" + kind + "' is not built in: this build offers " + join(kinds));
   return c;
+}
+
+void check_setting_holds(const SimProblem& problem, const ModelConfig& config, double dt_s) {
+  check_common(config);
+  if (!(dt_s > 0.0) || !std::isfinite(dt_s)) throw std::invalid_argument("time_step_s must be finite and > 0");
+#ifdef ARNAV_SIM_HAVE_MASS_SPRING
+  if (config.kind == "mass_spring" && config.integrator == "explicit") {
+    const MassSpringModel probe(problem, MassSpringModel::Integrator::kExplicit, config);
+    const double h_s = dt_s / config.substeps, h_max_s = probe.explicit_stable_substep_s();
+    if (h_s > h_max_s) {
+      const long needed = static_cast<long>(std::ceil(dt_s / h_max_s));
+      throw std::invalid_argument(
+          "model.substeps: " + std::to_string(config.substeps) + " substeps of the explicit mass-spring integrator give " +
+          std::to_string(h_s) + " s per substep, beyond its stability bound " + std::to_string(h_max_s) +
+          " s for the stiffest springs (every step would be refused): use model.substeps >= " + std::to_string(needed) +
+          " at time_step_s " + std::to_string(dt_s) + ", or model.integrator: semi_implicit or local_global");
+    }
+  }
+#endif
 }
 
 std::unique_ptr<TissueModel> make_tissue_model(const SimProblem& problem, const ModelConfig& config) {

@@ -15,6 +15,14 @@ namespace arnav::host {
 // non-positive iterations/substeps/threads) or the bad mesh element.
 std::unique_ptr<TissueModel> make_tissue_model(const SimProblem& problem, const ModelConfig& config);
 
+// Refuses at load a setting the model cannot hold at the time step dt_s (issue 29; docs/sim.md
+// "Step control"): throws std::invalid_argument naming the key, the reason and the setting
+// that would work. What the step control holds at run time (up to 8x the substeps) is not
+// refused. Refused today: the explicit mass-spring integrator with a substep beyond its
+// stability bound for the stiffest springs (every step would be refused). Cost: one model
+// build for that integrator, nothing for the others.
+void check_setting_holds(const SimProblem& problem, const ModelConfig& config, double dt_s);
+
 // One buildable model with its defaults: every kind and integrator compiled in. The
 // stability matrix and benchmarks iterate over this list, so a new model joins them by
 // being added here.

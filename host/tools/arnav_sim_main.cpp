@@ -101,6 +101,7 @@ static int main_body(int argc, char** argv) {
        << ",\"median_step_ms\":" << r.median_step_ms << ",\"max_displacement_mm\":" << r.max_displacement_mm
        << ",\"tumour_displacement_mm\":[" << r.tumour_displacement_mm.x() << "," << r.tumour_displacement_mm.y() << ","
        << r.tumour_displacement_mm.z() << "],\"frames_with_inverted\":" << r.frames_with_inverted
+       << ",\"step_control_frames\":" << r.step_control_frames
        << ",\"peak_inverted\":" << r.peak_inverted << ",\"worst_inverted_run_s\":" << r.worst_inverted_run_s
        << ",\"peak_strain\":" << r.peak_strain << ",\"mesh_quality\":{\"min_dihedral_deg\":" << scene.mesh_quality.min_dihedral_deg
        << ",\"p01_dihedral_deg\":" << scene.mesh_quality.p01_dihedral_deg << ",\"max_dihedral_deg\":" << scene.mesh_quality.max_dihedral_deg

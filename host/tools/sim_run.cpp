@@ -144,6 +144,7 @@ SimRunResult run_scene(const Scene& scene, const SimRunOptions& o, std::ostream&
     if (!scene.cutting) throw std::invalid_argument("a scalpel path needs the scene to declare a 'cutting:' section (docs/cut.md)");
     return run_scene_with_scalpel(scene, o, csv);
   }
+  check_setting_holds(scene.problem, scene.model, scene.time_step_s);  // refused at load, not stopped mid-run
   std::unique_ptr<TissueModel> model = make_tissue_model(scene.problem, scene.model);
   const Eigen::Matrix3Xd& rest = scene.problem.mesh.rest_positions_World_mm;
   const bool has_tumour = !scene.tumours.empty();
@@ -167,6 +168,7 @@ SimRunResult run_scene(const Scene& scene, const SimRunOptions& o, std::ostream&
         << s.final_residual << ',' << s.termination << ',' << s.kinetic_energy << ',' << s.elastic_energy << ',' << (s.healthy ? 1 : 0)
         << ',' << result.max_displacement_mm << ',' << result.tumour_displacement_mm.x() << ',' << result.tumour_displacement_mm.y()
         << ',' << result.tumour_displacement_mm.z() << ',' << s.inverted_elements << ',' << warning << '\n';
+    if (s.warning.find("step control") != std::string::npos) ++result.step_control_frames;
     if (s.inverted_elements > 0) {
       ++result.frames_with_inverted;
       inverted_run_s += scene.time_step_s;

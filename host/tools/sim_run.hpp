@@ -35,6 +35,9 @@ struct SimRunResult {
   int peak_inverted = 0;
   double worst_inverted_run_s = 0.0;
   double peak_strain = 0.0;  // largest principal Green strain of any tet, every 10th and the last frame
+  // Step control (docs/sim.md): frames whose step was redone or ran at a finer factor of the
+  // substeps (their warning names "step control").
+  int step_control_frames = 0;
   // With a scalpel path:
   int tets = 0, vertices = 0;        // of the cut mesh, last frame
   int pieces = 1;                    // face-connected pieces, last frame

@@ -827,30 +827,32 @@ StepSummary MassSpringModel::step(double dt_s) {
 }
 
 StepSummary MassSpringModel::semi_implicit_guarded(double dt_s) {
-  // Step control (docs/sim.md): one linearised backward-Euler step follows an element only
-  // while its motion in the step is small against its size. Elements far below the mesh's
-  // resolution (what a cut leaves between its sweeps) can move by their own size in a frame;
-  // the step then creates energy or inverts them. Such a step is undone and redone with 2,
-  // 4, ..., kMaxRetrySubsteps times the substeps; counted (retries()) and named in the warning.
-  x_before_step_ = x_;
-  v_before_step_ = v_;
-  const InversionMonitor inversions0 = inversions_;
-  StepSummary s = step_unguarded(dt_s);
+  // Step control (docs/sim.md, step_control.hpp): one linearised backward-Euler step follows an
+  // element only while its motion in the step is small against its size. Elements far below
+  // the mesh's resolution (what a cut leaves between its sweeps) can move by their own size in
+  // a frame; the step then creates energy or inverts them. Such a step is undone and redone
+  // with 2, 4, ..., kMaxRetrySubsteps times the substeps, the factor that held kept until the
+  // tissue calms; counted (retries(), step_control()) and named in the warning.
+  InversionMonitor inversions0;
   const int substeps = config_.substeps;
-  for (int factor = 2; !s.healthy && s.termination != "factorization_failed" && factor <= kMaxRetrySubsteps; factor *= 2) {
-    const std::string first = s.warning;
-    x_ = x_before_step_;
-    v_ = v_before_step_;
-    inversions_ = inversions0;
-    dv_.setZero();
-    config_.substeps = substeps * factor;
-    s = step_unguarded(dt_s);
-    config_.substeps = substeps;
-    ++retries_;
-    if (s.healthy)
-      report(s, "semi_implicit step redone with " + std::to_string(substeps * factor) + " substeps (" + first.substr(0, 160) + ")", false);
-  }
-  return s;
+  return control_.run(
+      [&] {
+        x_before_step_ = x_;
+        v_before_step_ = v_;
+        inversions0 = inversions_;
+      },
+      [&] {
+        x_ = x_before_step_;
+        v_ = v_before_step_;
+        inversions_ = inversions0;
+        dv_.setZero();
+      },
+      [&](int factor) {
+        config_.substeps = substeps * factor;
+        StepSummary s = step_unguarded(dt_s);
+        config_.substeps = substeps;
+        return s;
+      });
 }
 
 StepSummary MassSpringModel::step_guarded(double dt_s) {

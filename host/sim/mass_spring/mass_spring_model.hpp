@@ -44,6 +44,7 @@
 #include "host/sim/mass_spring/prefactored_system.hpp"
 #include "host/sim/mass_spring/spring_network.hpp"
 #include "host/sim/model_config.hpp"
+#include "host/sim/step_control.hpp"
 #include "host/sim/step_health.hpp"
 #include "host/sim/tet_geometry.hpp"
 #include "host/sim/tissue_model.hpp"
@@ -117,9 +118,11 @@ class MassSpringModel final : public TissueModel {
   // diverged (step() below; docs/sim.md).
   int fallbacks() const { return fallbacks_; }
   // semi_implicit (also the fallback): steps redone with more substeps after they ended
-  // unhealthy (energy created, non-finite), up to kMaxRetrySubsteps times the configured ones.
-  int retries() const { return retries_; }
-  static constexpr int kMaxRetrySubsteps = 8;
+  // unhealthy (energy created, non-finite), up to kMaxRetrySubsteps times the configured ones
+  // (step_control.hpp: the factor that held is kept until the tissue calms).
+  int retries() const { return control_.redone_steps(); }
+  const SubstepControl& step_control() const { return control_; }
+  static constexpr int kMaxRetrySubsteps = SubstepControl::kMaxFactor;
 
  private:
   StepSummary step_guarded(double dt_s);    // step() before the embedded vertices are driven
@@ -179,7 +182,7 @@ class MassSpringModel final : public TissueModel {
   InversionMonitor inversions_;  // inverted tets: counted warning (step_health.hpp)
   double fallback_left_s_ = 0.0;  // simulated time the semi-implicit fallback still runs
   int fallbacks_ = 0;
-  int retries_ = 0;
+  SubstepControl control_;  // semi-implicit steps: redone with more substeps when unhealthy
   // The state an undone step is redone from (step_guarded, semi_implicit_guarded; members: no
   // allocation per step).
   Eigen::Matrix3Xd x_before_step_, v_before_step_;

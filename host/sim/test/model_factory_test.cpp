@@ -81,3 +81,39 @@ TEST(ModelFactory, RejectsUnknownKindAndBadSettingsByName) {
 
 }  // namespace
 }  // namespace arnav::host
+
+namespace arnav::host {
+namespace {
+
+// check_setting_holds (issue 29): an explicit mass-spring setting beyond its stability bound is
+// refused before the run, naming the key and the substeps that hold; that count, and the
+// models the step control holds at run time, are accepted.
+TEST(ModelFactory, SettingThatCannotHoldIsRefusedAtLoadNamingTheFix) {
+  SimProblem p = small_problem();
+  p.region_materials[0].youngs_modulus_kPa = 5000.0;  // stiff: the explicit bound shrinks
+  for (const ModelVariant& v : model_variants()) {
+    if (v.label != "mass_spring/explicit") {
+      EXPECT_NO_THROW(check_setting_holds(p, v.config, 1.0 / 20.0)) << v.label;
+      continue;
+    }
+    ModelConfig c = v.config;
+    c.substeps = 1;
+    std::string message;
+    try {
+      check_setting_holds(p, c, 1.0 / 60.0);
+    } catch (const std::invalid_argument& e) {
+      message = e.what();
+    }
+    ASSERT_NE(message.find("model.substeps"), std::string::npos) << message;
+    const std::size_t at = message.find("model.substeps >= ");
+    ASSERT_NE(at, std::string::npos) << message;
+    c.substeps = std::stoi(message.substr(at + 18));
+    EXPECT_GT(c.substeps, 1);
+    EXPECT_NO_THROW(check_setting_holds(p, c, 1.0 / 60.0));
+    auto model = make_tissue_model(p, c);
+    EXPECT_TRUE(model->step(1.0 / 60.0).healthy);  // the named setting does hold
+  }
+}
+
+}  // namespace
+}  // namespace arnav::host

@@ -39,6 +39,7 @@
 #include "host/scene/test/test_paths.hpp"
 #include "host/sim/mass_spring/mass_spring_model.hpp"
 #include "host/sim/model_factory.hpp"
+#include "host/sim/xpbd/xpbd_model.hpp"
 
 namespace arnav::host {
 namespace {
@@ -216,6 +217,90 @@ TEST(PatientMeshFallback, DivergingMassSpringStepsAreRedoneSemiImplicitly) {
     EXPECT_GT(o.fallback_frames, 0) << variant.label << ": the case no longer diverges (pick another for this test)";
   }
   EXPECT_EQ(ran, 2);
+}
+
+// Step control (issue 29): XPBD at its real-time setting (1 sweep, 16 substeps) on another
+// patient's liver (data/patients/sksurgery_liver_coarse.scene.yaml: top quarter fixed,
+// gravity, a tumour region) with nearly incompressible tissue (nu 0.499 everywhere) went
+// unhealthy at frame 1 (energy created: the hydrostatic constraint does not converge in one
+// sweep). Now the unhealthy steps are redone with 2-8x the substeps and all 120 frames hold.
+TEST(PatientMeshStepControl, NearlyIncompressibleXpbdHoldsWithFinerSubsteps) {
+  Scene sc = load_scene(test::env_or("ARNAV_DATA_DIR", "data") + "/patients/sksurgery_liver_coarse.scene.yaml");
+  for (Material& m : sc.problem.region_materials) m.poisson_ratio = 0.499;
+  ModelConfig config;
+  config.kind = "xpbd";
+  config.iterations = 1;
+  config.substeps = 16;
+  config.tolerance = 0.0;
+  config.threads = 1;
+  XpbdModel model(sc.problem, config);
+  const Eigen::Matrix3Xd& rest = sc.problem.mesh.rest_positions_World_mm;
+  std::vector<double> wall_1x, wall_finer;
+  bool healthy = true;
+  std::string first_unhealthy;
+  for (int f = 1; f <= 120; ++f) {
+    const int redone = model.step_control().redone_steps();
+    const StepSummary s = model.step(sc.time_step_s);
+    const bool finer = model.step_control().factor() > 1 || model.step_control().redone_steps() > redone;
+    (finer ? wall_finer : wall_1x).push_back(s.wall_time_ms);
+    if (!s.healthy && healthy) {
+      healthy = false;
+      first_unhealthy = "frame " + std::to_string(f) + ": " + s.warning;
+    }
+  }
+  auto median = [](std::vector<double> v) {
+    if (v.empty()) return 0.0;
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
+  const double max_disp_mm = (model.positions_World_mm() - rest).colwise().norm().maxCoeff();
+  std::printf("[step_control] xpbd nu=0.499 16x1: %d tets, healthy=%d %s; median frame %.2f ms at 1x (%zu frames), "
+              "%.2f ms finer or redone (%zu frames); max_disp=%.1f mm %s\n",
+              sc.problem.mesh.num_tets(), healthy, model.step_control().counts().c_str(), median(wall_1x), wall_1x.size(),
+              median(wall_finer), wall_finer.size(), max_disp_mm, first_unhealthy.substr(0, 200).c_str());
+  EXPECT_TRUE(healthy) << first_unhealthy;
+  EXPECT_TRUE(model.positions_World_mm().allFinite());
+  EXPECT_GT(model.step_control().redone_steps(), 0) << "the case no longer needs the step control (pick a harder one)";
+  EXPECT_EQ(model.step_control().failed_steps(), 0);
+  const double size_mm = (rest.rowwise().maxCoeff() - rest.rowwise().minCoeff()).norm();
+  EXPECT_LT(max_disp_mm, 0.5 * size_mm);
+}
+
+// Mass-spring local/global (10 iterations, the factory's setting) on the same liver under
+// 10 g, the load under which issue 29 saw it stop at frame 9 on another liver (not in data/).
+// Here its semi-implicit fallback (whose steps run under the step control) holds all 120
+// frames; it held before the step control too (2 fallbacks, no redo): a guard, not a repro.
+TEST(PatientMeshStepControl, MassSpringLocalGlobalHoldsTenG) {
+  Scene sc = load_scene(test::env_or("ARNAV_DATA_DIR", "data") + "/patients/sksurgery_liver_coarse.scene.yaml");
+  sc.problem.gravity_World_mm_s2 *= 10.0;
+  ModelConfig config;
+  for (const ModelVariant& v : model_variants())
+    if (v.label == "mass_spring/local_global") config = v.config;
+  ASSERT_EQ(config.integrator, "local_global");
+  config.threads = 1;
+  MassSpringModel model(sc.problem, MassSpringModel::Integrator::kLocalGlobal, config);
+  const Eigen::Matrix3Xd& rest = sc.problem.mesh.rest_positions_World_mm;
+  bool healthy = true;
+  std::string first_unhealthy;
+  std::vector<double> wall;
+  int peak_inverted = 0;
+  for (int f = 1; f <= 120; ++f) {
+    const StepSummary s = model.step(sc.time_step_s);
+    wall.push_back(s.wall_time_ms);
+    peak_inverted = std::max(peak_inverted, s.inverted_elements);
+    if (!s.healthy && healthy) {
+      healthy = false;
+      first_unhealthy = "frame " + std::to_string(f) + ": " + s.warning;
+    }
+  }
+  std::nth_element(wall.begin(), wall.begin() + static_cast<std::ptrdiff_t>(wall.size() / 2), wall.end());
+  const double max_disp_mm = (model.positions_World_mm() - rest).colwise().norm().maxCoeff();
+  std::printf("[step_control] mass_spring/local_global 10 g: healthy=%d fallbacks=%d semi-implicit %s; peak_inverted=%d "
+              "median frame %.2f ms max_disp=%.1f mm %s\n",
+              healthy, model.fallbacks(), model.step_control().counts().c_str(), peak_inverted, wall[wall.size() / 2],
+              max_disp_mm, first_unhealthy.substr(0, 300).c_str());
+  EXPECT_TRUE(healthy) << first_unhealthy;
+  EXPECT_TRUE(model.positions_World_mm().allFinite());
 }
 
 class PatientMeshes : public ::testing::TestWithParam<PatientMesh> {};

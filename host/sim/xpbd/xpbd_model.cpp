@@ -810,7 +810,7 @@ void XpbdModel::set_state(const Eigen::Matrix3Xd& positions_World_mm, const Eige
   reset_ledger();
 }
 
-void XpbdModel::step_batches(double h, StepSummary& summary, bool& converged, double& energy, int& inverted) {
+void XpbdModel::step_batches(double h, int substeps, StepSummary& summary, bool& converged, double& energy, int& inverted) {
   // At most two threads: one per half of the mesh (build_batches).
   const int threads = std::min(config_.threads, 2);
   // Residual: RMS over the tets of |dF|, the change of F made by a sweep (strain units).
@@ -876,7 +876,7 @@ void XpbdModel::step_batches(double h, StepSummary& summary, bool& converged, do
       for (int i : vertices)
         for (int k = 0; k < 3; ++k) V[3 * i + k] = (X[3 * i + k] - XP[3 * i + k]) / h;
     };
-    for (int s = 0; s < config_.substeps && !stop; ++s) {
+    for (int s = 0; s < substeps && !stop; ++s) {
       for (int d = tid; d < 2; d += nt) {
         predict(group_vertices_[static_cast<std::size_t>(d)]);
         clear_multipliers(static_cast<std::size_t>(d));
@@ -889,7 +889,7 @@ void XpbdModel::step_batches(double h, StepSummary& summary, bool& converged, do
         // Phase 1: the two halves; phase 2: the two sides of the interface; phase 3:
         // the seam, the attachments and the residual on thread 0.
         const bool residual = config_.tolerance > 0.0 || (s == 0 && it == 0) ||
-                              (s == config_.substeps - 1 && it == config_.iterations - 1);
+                              (s == substeps - 1 && it == config_.iterations - 1);
         double correction = 0.0;
         for (int d = tid; d < 2; d += nt)
           correction += solve(static_cast<std::size_t>(d), residual);
@@ -953,15 +953,41 @@ void XpbdModel::solve_attachments(double h) {
 StepSummary XpbdModel::step(double dt_s) {
   check_dt(dt_s);
   const auto start = std::chrono::steady_clock::now();
+  // Step control (step_control.hpp): an unhealthy step is redone from the saved state with
+  // 2-8x the substeps. Saved: positions, velocities, the rotations' warm start, the inversion
+  // monitor (multipliers and x_prev_ restart every substep).
+  StepSummary summary = control_.run(
+      [&] {
+        x_saved_ = x_;
+        v_saved_ = v_;
+        rotation_saved_ = rotation_;
+        inversions_saved_ = inversions_;
+        inverted_saved_ = inverted_at_end_;
+      },
+      [&] {
+        x_ = x_saved_;
+        v_ = v_saved_;
+        rotation_ = rotation_saved_;
+        inversions_ = inversions_saved_;
+        inverted_at_end_ = inverted_saved_;
+      },
+      [&](int factor) { return step_once(dt_s, config_.substeps * factor); });
+  // Embedded vertices (massless here) follow their drivers; rigid groups move as bodies.
+  embedded_.drive(x_, v_, dt_s, gravity_);
+  summary.wall_time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return summary;
+}
+
+StepSummary XpbdModel::step_once(double dt_s, int substeps) {
   StepSummary summary;
   summary.termination = "max_iterations";
-  const double h = dt_s / config_.substeps;
+  const double h = dt_s / substeps;
   // The count at the end of the last step still holds unless set_state moved the vertices.
   const int inverted_at_start = inverted_at_end_ >= 0 ? inverted_at_end_ : count_inverted();
   bool converged = false;
   double energy = 0.0;
   int inverted = 0;
-  step_batches(h, summary, converged, energy, inverted);
+  step_batches(h, substeps, summary, converged, energy, inverted);
   if (converged) summary.termination = "converged";
   if (vessels_ignored_) {
     report(summary, "vessel tree ignored: this model has no beam coupling (model vessels as a stiff tet region, or use corotational_fem)", false);
@@ -981,9 +1007,6 @@ StepSummary XpbdModel::step(double dt_s) {
   summary.kinetic_energy = kinetic_energy(mass_, v_);
   summary.elastic_energy = energy;
   ledger_.check(summary.kinetic_energy + summary.elastic_energy, gravity_potential(mass_, x_, gravity_), summary);
-  // Embedded vertices (massless here) follow their drivers; rigid groups move as bodies.
-  embedded_.drive(x_, v_, dt_s, gravity_);
-  summary.wall_time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return summary;
 }
 

@@ -27,6 +27,7 @@
 
 #include "host/sim/attachment_set.hpp"
 #include "host/sim/model_config.hpp"
+#include "host/sim/step_control.hpp"
 #include "host/sim/step_health.hpp"
 #include "host/sim/tissue_model.hpp"
 #include "host/sim/xpbd/tet_batches.hpp"
@@ -86,6 +87,8 @@ class XpbdModel final : public TissueModel {
   double mean_lanes() const;
   // The energy in use: "neo_hookean" or "corotated".
   std::string energy() const { return neo_hookean_ ? "neo_hookean" : "corotated"; }
+  // Step control (step_control.hpp): redone steps, steps at 1x/2x/4x/8x the substeps.
+  const SubstepControl& step_control() const { return control_; }
 
  private:
   void build_batches(const SimProblem& problem);
@@ -103,7 +106,9 @@ class XpbdModel final : public TissueModel {
   void update_tet_mass_blocks();
   // One step (substeps, sweeps, attachments) in one parallel region; returns the elastic
   // energy of the tets and attachments and the inverted tets at its end.
-  void step_batches(double h, StepSummary& summary, bool& converged, double& energy, int& inverted);
+  void step_batches(double h, int substeps, StepSummary& summary, bool& converged, double& energy, int& inverted);
+  // One step of dt_s in `substeps` substeps with its health checks (step() redoes it).
+  StepSummary step_once(double dt_s, int substeps);
   void reset_rotations();
   void reset_ledger();
   int count_inverted() const;
@@ -137,6 +142,12 @@ class XpbdModel final : public TissueModel {
   InversionMonitor inversions_;   // inverted tets: counted warning (step_health.hpp)
   int inverted_at_end_ = -1;      // inverted tets after the last step; -1: unknown
   EnergyLedger ledger_;
+  SubstepControl control_;
+  // The state an unhealthy step is redone from (members: no allocation per step).
+  Eigen::Matrix3Xd x_saved_, v_saved_;
+  std::vector<double> rotation_saved_;
+  InversionMonitor inversions_saved_;
+  int inverted_saved_ = -1;
   // Local updates (apply_mesh_change), built at the first one: lane (batch * kLanes + lane)
   // of each tet, lanes of each vertex, the thread that owns each vertex (the index of its
   // group_vertices_ list), tets of groups 0, 2 and 3 at each vertex, per group the batches

@@ -81,10 +81,12 @@ struct HangingBar {
   }
   // Settled positions after 1.7 s of simulated time at 60 Hz (slowest mode ~20 Hz, damped).
   // `healthy` tells whether every step reported healthy.
-  Eigen::Matrix3Xd settle(int iterations, int substeps, bool* healthy, const std::string& energy) const {
+  // `redone`: steps the step control redid with more substeps (step_control.hpp).
+  Eigen::Matrix3Xd settle(int iterations, int substeps, bool* healthy, const std::string& energy, int* redone = nullptr) const {
     XpbdModel model(problem, config(iterations, substeps, 1, energy));
     *healthy = true;
     for (int k = 0; k < 100; ++k) *healthy = model.step(1.0 / 60.0).healthy && *healthy;
+    if (redone) *redone = model.step_control().redone_steps();
     return model.positions_World_mm();
   }
   double sag(const Eigen::Matrix3Xd& x) const {
@@ -109,11 +111,14 @@ TEST_P(XpbdEnergy, ConvergesTowardStaticSolutionAsIterationsGrow) {
   EXPECT_NEAR(sag, bar.analytic_sag_mm, 0.01 * bar.analytic_sag_mm);
   double previous = 1e9;
   for (int iterations : {2, 8, 32}) {
-    const Eigen::Matrix3Xd x = bar.settle(iterations, 4, &healthy, GetParam());
+    int redone = 0;
+    const Eigen::Matrix3Xd x = bar.settle(iterations, 4, &healthy, GetParam(), &redone);
     // Too little work settles in a wrong state that stores more energy than gravity put
-    // in: the energy ledger must report it.
+    // in: the energy ledger reports it and the step control redoes those steps with more
+    // substeps, so the run stays healthy (issue 29).
     if (iterations == 2) {
-      EXPECT_FALSE(healthy);
+      EXPECT_GT(redone, 0);
+      EXPECT_TRUE(healthy);
     }
     if (iterations == 32) {
       EXPECT_TRUE(healthy);

@@ -1,0 +1,49 @@
+#include "host/sim/step_control.hpp"
+
+namespace arnav::host {
+namespace {
+
+int level_of(int factor) {
+  int level = 0;
+  while ((1 << level) < factor && level + 1 < SubstepControl::kLevels) ++level;
+  return level;
+}
+
+}  // namespace
+
+int SubstepControl::start_factor() {
+  relaxing_ = factor_ > 1 && calm_ >= kCalmSteps;
+  return relaxing_ ? factor_ / 2 : factor_;
+}
+
+bool SubstepControl::retry_allowed(const StepSummary& s) {
+  // A configuration the model refuses outright, or a factorisation that failed, does not
+  // change with more substeps.
+  return s.termination != "refused_unstable_dt" && s.termination != "factorization_failed";
+}
+
+void SubstepControl::finish(StepSummary& s, int factor, const std::string& first_warning) {
+  ++steps_at_[static_cast<std::size_t>(level_of(factor))];
+  if (!s.healthy) {
+    ++failed_;
+    return;  // the caller's run stops here; the factor stays where it was
+  }
+  if (factor != factor_ || relaxing_) calm_ = 0;  // a new level, or a relaxed step that needed the finer one again
+  factor_ = factor;
+  ++calm_;
+  if (!first_warning.empty()) {
+    report(s, "step control: step redone with " + std::to_string(factor) + "x the substeps (" + first_warning +
+                  "); kept until " + std::to_string(kCalmSteps) + " calm steps",
+           false);
+  } else if (factor > 1) {
+    report(s, "step control: " + std::to_string(factor) + "x the substeps (" + counts() + ")", false);
+  }
+}
+
+std::string SubstepControl::counts() const {
+  std::string out = "steps at 1x/2x/4x/8x substeps: ";
+  for (int l = 0; l < kLevels; ++l) out += (l ? "/" : "") + std::to_string(steps_at_[static_cast<std::size_t>(l)]);
+  return out + ", redone " + std::to_string(redone_) + ", not held " + std::to_string(failed_);
+}
+
+}  // namespace arnav::host

@@ -1,0 +1,64 @@
+#pragma once
+// Step control shared by the tissue models (docs/sim.md, "Step control"): a step that ends
+// unhealthy (energy created, non-finite state, collapse) is undone and redone from the state
+// it started from with 2, 4, ..., kMaxFactor times the configured substeps. The factor that
+// held is kept for the following steps while they need it and halved after kCalmSteps
+// healthy steps at it (the tissue has calmed): a relaxed step that fails is redone at the
+// finer factor again. Only a step no factor up to kMaxFactor holds stays unhealthy. Counted
+// (redone steps, steps that no factor held, steps that ended at each factor) and named in the
+// step's warning.
+#include <array>
+#include <string>
+
+#include "host/sim/step_health.hpp"
+#include "host/sim/tissue_model.hpp"
+
+namespace arnav::host {
+
+class SubstepControl {
+ public:
+  static constexpr int kMaxFactor = 8;   // the budget: at most 8x the configured substeps
+  static constexpr int kLevels = 4;      // factors 1, 2, 4, 8
+  static constexpr int kCalmSteps = 30;  // healthy steps at a factor before it is halved (0.5 s at 60 Hz)
+
+  // One step: save() keeps the state it starts from, step(factor) runs it with factor times
+  // the configured substeps from the current state, restore() brings the saved state back
+  // before a redo. The returned summary is the last attempt's; its wall time is the caller's.
+  template <typename Save, typename Restore, typename Step>
+  StepSummary run(Save&& save, Restore&& restore, Step&& step) {
+    save();
+    int factor = start_factor();
+    StepSummary s = step(factor);
+    std::string first;
+    while (!s.healthy && retry_allowed(s) && factor < kMaxFactor) {
+      if (first.empty()) first = s.warning.substr(0, 160);
+      factor *= 2;
+      restore();
+      ++redone_;
+      s = step(factor);
+    }
+    finish(s, factor, first);
+    return s;
+  }
+
+  int factor() const { return factor_; }  // the factor the next step starts from
+  int redone_steps() const { return redone_; }
+  int failed_steps() const { return failed_; }
+  // Steps that ended at factor 1, 2, 4, 8 (healthy or not).
+  const std::array<long long, kLevels>& steps_at_factor() const { return steps_at_; }
+  // "steps at 1x/2x/4x/8x substeps: a/b/c/d, redone r, not held f".
+  std::string counts() const;
+
+ private:
+  int start_factor();
+  static bool retry_allowed(const StepSummary& s);
+  void finish(StepSummary& s, int factor, const std::string& first_warning);
+
+  int factor_ = 1;
+  int calm_ = 0;  // healthy steps at factor_ in a row
+  bool relaxing_ = false;
+  int redone_ = 0, failed_ = 0;
+  std::array<long long, kLevels> steps_at_{};
+};
+
+}  // namespace arnav::host

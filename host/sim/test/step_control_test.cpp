@@ -1,0 +1,102 @@
+// SubstepControl (step_control.hpp): redo with 2-8x substeps, keep the factor that held,
+// relax it after kCalmSteps healthy steps, count everything. The step here is a rule
+// "healthy iff factor >= need" over a state (a counter the step advances), so that what is
+// restored before a redo is checked too.
+#include <gtest/gtest.h>
+
+#include "host/sim/step_control.hpp"
+
+namespace arnav::host {
+namespace {
+
+struct RuleStep {
+  int need = 1;      // smallest factor that holds
+  int state = 0;     // advanced by every step attempt
+  int saved = 0;
+  int attempts = 0;
+  StepSummary step(int factor) {
+    ++attempts;
+    ++state;
+    StepSummary s;
+    if (factor < need) report(s, "energy balance violated", true);
+    return s;
+  }
+  StepSummary run(SubstepControl& c) {
+    return c.run([&] { saved = state; }, [&] { state = saved; }, [&](int f) { return step(f); });
+  }
+};
+
+TEST(SubstepControl, HealthyStepsStayAtTheConfiguredSubsteps) {
+  SubstepControl c;
+  RuleStep r;
+  for (int i = 0; i < 10; ++i) EXPECT_TRUE(r.run(c).healthy);
+  EXPECT_EQ(c.factor(), 1);
+  EXPECT_EQ(c.redone_steps(), 0);
+  EXPECT_EQ(c.steps_at_factor()[0], 10);
+  EXPECT_EQ(r.attempts, 10);
+}
+
+TEST(SubstepControl, UnhealthyStepIsRedoneFromTheSavedStateWithMoreSubsteps) {
+  SubstepControl c;
+  RuleStep r{.need = 4};
+  const StepSummary s = r.run(c);
+  EXPECT_TRUE(s.healthy) << s.warning;
+  EXPECT_NE(s.warning.find("step redone with 4x the substeps (energy balance violated"), std::string::npos) << s.warning;
+  EXPECT_EQ(r.attempts, 3);  // 1x, 2x, 4x
+  EXPECT_EQ(r.state, 1);     // each redo started from the saved state
+  EXPECT_EQ(c.redone_steps(), 2);
+  EXPECT_EQ(c.factor(), 4);
+  EXPECT_EQ(c.steps_at_factor()[2], 1);
+}
+
+TEST(SubstepControl, FinerFactorIsKeptWhileNeededAndRelaxedWhenCalm) {
+  SubstepControl c;
+  RuleStep r{.need = 2};
+  r.run(c);
+  ASSERT_EQ(c.factor(), 2);
+  // Still needed: kept, and the relaxed attempt after kCalmSteps is redone at 2x again.
+  for (int i = 1; i < SubstepControl::kCalmSteps; ++i) EXPECT_TRUE(r.run(c).healthy);
+  EXPECT_EQ(c.redone_steps(), 1);
+  EXPECT_TRUE(r.run(c).healthy);  // relaxed to 1x, failed, redone at 2x
+  EXPECT_EQ(c.redone_steps(), 2);
+  EXPECT_EQ(c.factor(), 2);
+  // Calm now: after kCalmSteps more healthy steps at 2x the next one runs at 1x and holds.
+  r.need = 1;
+  for (int i = 1; i < SubstepControl::kCalmSteps; ++i) r.run(c);
+  EXPECT_EQ(c.factor(), 2);
+  const StepSummary s = r.run(c);
+  EXPECT_TRUE(s.healthy);
+  EXPECT_EQ(c.factor(), 1);
+  EXPECT_EQ(c.redone_steps(), 2);
+  EXPECT_EQ(s.warning, "");
+  EXPECT_EQ(c.steps_at_factor()[0], 1);
+  EXPECT_EQ(c.steps_at_factor()[1], 2 * SubstepControl::kCalmSteps);
+}
+
+TEST(SubstepControl, StepNoFactorHoldsStaysUnhealthyAndIsCounted) {
+  SubstepControl c;
+  RuleStep r{.need = 16};
+  const StepSummary s = r.run(c);
+  EXPECT_FALSE(s.healthy);
+  EXPECT_EQ(r.attempts, 4);  // 1x, 2x, 4x, 8x: the budget
+  EXPECT_EQ(c.failed_steps(), 1);
+  EXPECT_EQ(c.steps_at_factor()[3], 1);
+  EXPECT_NE(c.counts().find("not held 1"), std::string::npos) << c.counts();
+}
+
+TEST(SubstepControl, RefusedConfigurationIsNotRedone) {
+  SubstepControl c;
+  int attempts = 0;
+  const StepSummary s = c.run([] {}, [] {}, [&](int) {
+    ++attempts;
+    StepSummary out;
+    out.termination = "refused_unstable_dt";
+    report(out, "substep beyond the stability bound", true);
+    return out;
+  });
+  EXPECT_FALSE(s.healthy);
+  EXPECT_EQ(attempts, 1);
+}
+
+}  // namespace
+}  // namespace arnav::host
