@@ -7,6 +7,7 @@
 // latency, later than the tracker's poses), or until it has waited model.input_wait_ms; the
 // poses go on in the order they were measured. So what the model is given does not depend on
 // which thread ran first or how busy the machine was.
+#include <algorithm>
 #include <cstdlib>
 
 #include "host/app/navigation_session.hpp"
@@ -66,8 +67,12 @@ std::optional<Eigen::Isometry3d> NavigationSession::X_RefTool_at(const PoseSampl
     decided = false;
     return std::nullopt;
   }
-  // The reference is good for its stale_after_ms around the tool's measurement.
-  const double limit_us = config_.reference->stale_after_ms * 1e3;
+  // The reference measured nearest to the tool's measurement, no farther from it than the
+  // longer of its stale_after_ms and the model's input wait (a camera-measured reference
+  // comes at the camera's rate, with gaps when frames are late: the bench's synthetic camera
+  // on a busy machine made 7-11 frames a second where 15 were due, and a 150 ms bound left
+  // the grasper's poses without a reference for 250 ms: the grasp was released as stale).
+  const double limit_us = std::max(config_.reference->stale_after_ms, config_.model.input_wait_ms) * 1e3;
   if (!best || static_cast<double>(std::llabs(best->msg.receive_time_mono_us - t)) > limit_us) return std::nullopt;
   return get_pose(best->msg).inverse() * get_pose(p.msg);
 }

@@ -45,19 +45,30 @@ void MaterialPathMeter::record_sweep(TetCutter& cutter, const Eigen::Matrix3Xd& 
     for (int j = 0; j < 4; ++j) r[k] += w[j] * rest.col(tet[static_cast<std::size_t>(j)]);
     mapped[k] = 1;
   }
+  // A point outside takes the displacement of the nearest mapped point of its own line, or,
+  // when its whole line lies outside (the blade entering from above the organ: its start
+  // line still outside, its end line inside), of the other line's point at the same place
+  // along the blade. Nothing mapped on either line: the sweep missed the tissue.
+  const auto nearest_mapped = [&](int base, int i) {
+    int nearest = -1;
+    for (int j = 0; j <= n; ++j)
+      if (mapped[static_cast<std::size_t>(base + j)] && (nearest < 0 || std::abs(j - i) < std::abs(nearest - i))) nearest = j;
+    return nearest < 0 ? -1 : base + nearest;
+  };
+  std::vector<Eigen::Vector3d> shift(p.size(), Eigen::Vector3d::Zero());
   for (int line = 0; line < 2; ++line) {
-    const int base = line * (n + 1);
+    const int base = line * (n + 1), other = (1 - line) * (n + 1);
     for (int i = 0; i <= n; ++i) {
       const auto k = static_cast<std::size_t>(base + i);
       if (mapped[k]) continue;
-      int nearest = -1;
-      for (int j = 0; j <= n; ++j)
-        if (mapped[static_cast<std::size_t>(base + j)] && (nearest < 0 || std::abs(j - i) < std::abs(nearest - i))) nearest = j;
-      if (nearest < 0) return;  // a whole line outside the tissue: nothing swept in the material
-      const auto m = static_cast<std::size_t>(base + nearest);
-      r[k] = p[k] + (r[m] - p[m]);
+      int m = nearest_mapped(base, i);
+      if (m < 0) m = nearest_mapped(other, i);
+      if (m < 0) return;
+      shift[k] = r[static_cast<std::size_t>(m)] - p[static_cast<std::size_t>(m)];
     }
   }
+  for (std::size_t k = 0; k < p.size(); ++k)
+    if (!mapped[k]) r[k] = p[k] + shift[k];
   Sweep sw;
   for (int i = 0; i < n; ++i) {
     const auto f0 = static_cast<std::size_t>(i), f1 = f0 + 1, t0 = static_cast<std::size_t>(n + 1 + i), t1 = t0 + 1;
