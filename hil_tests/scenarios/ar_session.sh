@@ -60,9 +60,6 @@ print("  reference: %s, %d vertices / %d tets, %d frames, median step %.0f ms; s
       % (j["model"], j["volume_vertices"], j["volume_tets"], j["frames"], j["median_step_ms"], j["max_surface_displacement_mm"], j["max_tumour_displacement_mm"]))
 PY
   fi
-  # ARNAV_AR_PREPARE_ONLY=1: the paths and the phantom only (a test then loads the machine
-  # for the session itself).
-  if [ "${ARNAV_AR_PREPARE_ONLY:-}" = "1" ]; then exit 0; fi
   export ARNAV_AR_INSIDE=1
   exec unshare --net "$0" "$@"
 fi
