@@ -221,8 +221,6 @@ void TetCutter::begin_stroke() {
   pending_normal_.clear();
   stroke_tris_.clear();
   stroke_chunks_.clear();
-  stroke_rest_tris_.clear();
-  stroke_rest_chunks_.clear();
   for (int w : sided_) side_[static_cast<std::size_t>(w)] = 0;
   sided_.clear();
   std::fill(tip_tet_.begin(), tip_tet_.end(), 0);
@@ -323,67 +321,6 @@ double TetCutter::stroke_distance(const Eigen::Vector3d& p) const {
   return best;
 }
 
-void TetCutter::record_stroke_in_material(const std::vector<Triangle>& tris, const Eigen::Matrix3Xd& x) {
-  // Each distinct corner located once (the bvh was refitted to x for this step's candidates).
-  // A corner outside the tissue (the blade's part above the organ) takes the affine map of
-  // the tet it lies least outside of; one outside every tet's box moves with the mean
-  // displacement of the mapped corners.
-  const Eigen::Matrix3Xd& rest = mesh_.rest_positions_World_mm;
-  std::vector<Eigen::Vector3d> corners, mapped;
-  std::vector<char> ok;
-  const auto index_of = [&](const Eigen::Vector3d& p) {
-    for (std::size_t i = 0; i < corners.size(); ++i)
-      if ((corners[i] - p).squaredNorm() == 0.0) return static_cast<int>(i);
-    corners.push_back(p);
-    Eigen::Vector4d w;
-    const int t = locate(p, x, w, false);
-    Eigen::Vector3d q = Eigen::Vector3d::Zero();
-    if (t >= 0)
-      for (int k = 0; k < 4; ++k) q += w[k] * rest.col(mesh_.tets[static_cast<std::size_t>(t)][static_cast<std::size_t>(k)]);
-    mapped.push_back(q);
-    ok.push_back(t >= 0 ? 1 : 0);
-    return static_cast<int>(corners.size()) - 1;
-  };
-  std::vector<std::array<int, 3>> ids;
-  for (const auto& tri : tris) ids.push_back({index_of(tri.a), index_of(tri.b), index_of(tri.c)});
-  Eigen::Vector3d shift = Eigen::Vector3d::Zero();
-  int n_ok = 0;
-  for (std::size_t i = 0; i < corners.size(); ++i)
-    if (ok[i]) shift += mapped[i] - corners[i], ++n_ok;
-  if (n_ok == 0) return;  // the sweep is nowhere near the tissue
-  shift /= n_ok;
-  for (std::size_t i = 0; i < corners.size(); ++i)
-    if (!ok[i]) mapped[i] = corners[i] + shift;
-  StrokeChunk chunk;
-  chunk.begin = static_cast<int>(stroke_rest_tris_.size());
-  for (const auto& c : ids) {
-    const Triangle tri{mapped[static_cast<std::size_t>(c[0])], mapped[static_cast<std::size_t>(c[1])], mapped[static_cast<std::size_t>(c[2])]};
-    chunk.box.extend(tri.a);
-    chunk.box.extend(tri.b);
-    chunk.box.extend(tri.c);
-    stroke_rest_tris_.push_back(tri);
-  }
-  chunk.end = static_cast<int>(stroke_rest_tris_.size());
-  stroke_rest_chunks_.push_back(chunk);
-}
-
-double TetCutter::material_crossing(int a, int b, double near) const {
-  const Eigen::Vector3d ra = mesh_.rest_positions_World_mm.col(a), rb = mesh_.rest_positions_World_mm.col(b);
-  Aabb edge_box;
-  edge_box.extend(ra);
-  edge_box.extend(rb);
-  double best = -1.0;
-  for (const auto& chunk : stroke_rest_chunks_) {
-    if (!chunk.box.overlaps(edge_box)) continue;
-    for (int i = chunk.begin; i < chunk.end; ++i) {
-      double u = 0.0;
-      if (segment_triangle_intersection(ra, rb, stroke_rest_tris_[static_cast<std::size_t>(i)], u) && (best < 0 || std::abs(u - near) < std::abs(best - near)))
-        best = u;
-    }
-  }
-  return best;
-}
-
 bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepReport& r) {
   const int pattern = side_pattern(t);
   if (pattern == 0) return false;
@@ -458,12 +395,6 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
     // edge to an end; a plane that misses the edge (the sides say it is crossed) gives the
     // point of the edge nearest to it (the deviation is measured below).
     double s = d0 != d1 ? std::clamp(d0 / (d0 - d1), 0.01, 0.99) : 0.5;
-    // Where the edge crosses the surface the blade swept, in the material: the tissue may
-    // have moved since (the plane through the recorded points is only a chord of it then).
-    if (const double u = material_crossing(a, b, s); u >= 0.0) {
-      added.emplace_back(edge_key(a, b), std::clamp(u, 0.01, 0.99));
-      continue;
-    }
     if (reach >= 0.0) {
       // Where the edge crosses the stroke's surface (as swept), when it does (a long edge
       // across a curved cut: the plane through the tet's points on the cut is a chord);
@@ -772,7 +703,6 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
     stroke_tris_.insert(stroke_tris_.end(), tris.begin(), tris.end());
     chunk.end = static_cast<int>(stroke_tris_.size());
     stroke_chunks_.push_back(chunk);
-    record_stroke_in_material(tris, x);
   }
   // 1. Vertices on the swept surface.
   std::unordered_set<int> seen_vertices;

@@ -160,9 +160,8 @@ class TetCutter {
   int complete_pattern(int t) const;
   // Crossed-edge bitmask implied by the sides of tet t's free vertices (0 when unknown).
   int side_pattern(int t) const;
-  // Adds the crossings missing from the side pattern of tet t: where its edges cross the
-  // stroke's surface in the material, else on the plane through the recorded ones; false
-  // when the sides are unknown or nothing is missing.
+  // Adds the crossings missing from the side pattern of tet t on the plane through the
+  // recorded ones; false when the sides are unknown or nothing is missing.
   bool complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepReport& r);
   // Side of free vertex w from the nearest point of this stroke's whole swept surface so far
   // (0: not across from it, or farther than an edge of its tets).
@@ -198,16 +197,6 @@ class TetCutter {
     int begin = 0, end = 0;
   };
   std::vector<StrokeChunk> stroke_chunks_;       // stroke_tris_ by frame, with their box
-  // The same triangles pulled back into the material (rest) configuration at the instant they
-  // were swept (vertex by vertex through the tet holding it then): where the blade went in the
-  // tissue, whatever the tissue did since. Tets completed after the blade left take their
-  // missing crossings from these (material_crossing).
-  std::vector<Triangle> stroke_rest_tris_;
-  std::vector<StrokeChunk> stroke_rest_chunks_;
-  void record_stroke_in_material(const std::vector<Triangle>& tris, const Eigen::Matrix3Xd& x);
-  // Where edge (a, b) crosses the stroke's surface in the material, nearest to parameter
-  // `near` (from a to b); -1 when it does not.
-  double material_crossing(int a, int b, double near) const;
   std::vector<Eigen::Vector3d> cut_normal_;      // per vertex on this stroke's cut: the sweep's unit normal there (0: unknown)
   std::vector<int> sided_;
   std::vector<std::array<int, 3>> undecided_faces_;  // on the cut, sides of their tets not known yet                       // vertices with a side (reset at the next stroke)
