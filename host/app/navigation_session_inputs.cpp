@@ -51,7 +51,8 @@ std::optional<Eigen::Isometry3d> NavigationSession::X_RefTool_at(const PoseSampl
   if (!is_blade_tool(p.msg) && !is_grasper_tool(p.msg)) return std::nullopt;  // another tool: only its time counts
   if (p.msg.status != tool_pose_t::STATUS_VALID || !X_RefModel_) return std::nullopt;
   if (p.msg.frame_parent == "Ref") return get_pose(p.msg);
-  const auto it = config_.reference ? poses_.find(config_.reference->name) : poses_.end();
+  if (!config_.reference) return std::nullopt;  // no reference comes to bring it into Ref
+  const auto it = poses_.find(config_.reference->name);
   const std::int64_t t = p.msg.receive_time_mono_us;
   const PoseSample* best = nullptr;
   bool measured_after = false;  // a reference sample measured at or after t has arrived
@@ -72,8 +73,9 @@ std::optional<Eigen::Isometry3d> NavigationSession::X_RefTool_at(const PoseSampl
   // comes at the camera's rate, with gaps when frames are late: the bench's synthetic camera
   // on a busy machine made 7-11 frames a second where 15 were due, and a 150 ms bound left
   // the grasper's poses without a reference for 250 ms: the grasp was released as stale).
+  if (!best) return std::nullopt;
   const double limit_us = std::max(config_.reference->stale_after_ms, config_.model.input_wait_ms) * 1e3;
-  if (!best || static_cast<double>(std::llabs(best->msg.receive_time_mono_us - t)) > limit_us) return std::nullopt;
+  if (static_cast<double>(std::llabs(best->msg.receive_time_mono_us - t)) > limit_us) return std::nullopt;
   return get_pose(best->msg).inverse() * get_pose(p.msg);
 }
 
