@@ -27,6 +27,17 @@ std::string hex64(std::uint64_t v) {
   throw LoadError(name + ": " + what + ". Fix: the load basis cache file is unusable; it is rebuilt (delete it, or the cache folder, if this repeats)");
 }
 
+// A whole number in [0, max] from the header. nlohmann converts a JSON float such as 3e76 to
+// an integer type without a range check (undefined behaviour), so only integer JSON values
+// are taken, and their range is checked here.
+std::uint64_t whole_field(const nlohmann::json& h, const char* key, std::uint64_t max, const std::string& name) {
+  const nlohmann::json& v = h.at(key);
+  if (v.is_number_unsigned() && v.get<std::uint64_t>() <= max) return v.get<std::uint64_t>();
+  if (v.is_number_integer() && v.get<std::int64_t>() >= 0 && static_cast<std::uint64_t>(v.get<std::int64_t>()) <= max)
+    return static_cast<std::uint64_t>(v.get<std::int64_t>());
+  bad(name, std::string("header field ") + key + " is " + v.dump() + ", not a whole number from 0 to " + std::to_string(max));
+}
+
 }  // namespace
 
 std::uint64_t fnv1a64(std::string_view bytes, std::uint64_t h) {
@@ -90,19 +101,19 @@ LoadBasis parse_load_basis(std::string_view bytes, const std::string& expected_k
   std::string checksum, key;
   try {
     if (!h.is_object() || h.value("format", std::string()) != "arnav load basis") bad(name, "header format is not 'arnav load basis'");
-    if (h.at("version").get<int>() != kBasisCacheVersion)
+    if (whole_field(h, "version", kMaxModes, name) != static_cast<std::uint64_t>(kBasisCacheVersion))
       bad(name, "format version " + h.at("version").dump() + ", this program reads " + std::to_string(kBasisCacheVersion) + " (stale)");
     key = h.at("key").get<std::string>();
-    dofs = h.at("dofs").get<std::uint64_t>();
-    m = h.at("modes").get<std::uint64_t>();
-    b.patches = h.at("patches").get<int>();
-    b.gravity = h.at("gravity").get<int>();
-    b.support = h.at("support").get<int>();
+    dofs = whole_field(h, "dofs", kMaxDofs, name);
+    m = whole_field(h, "modes", kMaxModes, name);
+    b.patches = static_cast<int>(whole_field(h, "patches", kMaxModes, name));
+    b.gravity = static_cast<int>(whole_field(h, "gravity", kMaxModes, name));
+    b.support = static_cast<int>(whole_field(h, "support", kMaxModes, name));
     b.supported = h.at("supported").get<bool>();
     b.stiffness_volume = h.at("stiffness_volume").get<double>();
     b.build_time_s = h.at("build_time_s").get<double>();
     b.mode_kind = h.at("mode_kind").get<std::vector<std::string>>();
-    payload_bytes = h.at("payload_bytes").get<std::uint64_t>();
+    payload_bytes = whole_field(h, "payload_bytes", ~std::uint64_t{0}, name);
     checksum = h.at("payload_checksum").get<std::string>();
   } catch (const nlohmann::json::exception& e) {
     bad(name, std::string("header field missing or of the wrong type (") + e.what() + ")");

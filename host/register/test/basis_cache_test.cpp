@@ -284,3 +284,28 @@ TEST(BasisCacheFile, FuzzSeedIsAValidFile) {
   EXPECT_EQ(b.patch_of_vertex, (std::vector<int>{0, 0, -1, 0}));
   EXPECT_EQ(serialize_load_basis(b, "seed").size(), bytes.size());
 }
+
+TEST(BasisCacheFile, SizesThatAreNotWholeNumbersAreRefusedByName) {
+  // A header whose sizes are floats, negative or huge (3e76 once reached an unchecked
+  // float-to-integer conversion in the JSON library) is refused naming the field.
+  const Scene s = bar();
+  const LoadBasis b = build_load_basis(s, opts());
+  const std::string good = serialize_load_basis(b, "abc");
+  const std::string dofs = "\"dofs\": " + std::to_string(b.dofs);
+  ASSERT_NE(good.find(dofs), std::string::npos);
+  for (const std::string v : {"3e76", "12.5", "-12", "1e400"}) {
+    std::string bytes = good;
+    bytes.replace(bytes.find(dofs), dofs.size(), "\"dofs\": " + v);
+    std::uint64_t hl = 0;  // the header length field follows the 8-byte magic
+    std::memcpy(&hl, bytes.data() + 8, 8);
+    hl += bytes.size() - good.size();
+    std::memcpy(bytes.data() + 8, &hl, 8);
+    try {
+      parse_load_basis(bytes, "abc", b.dofs, "x.bin");
+      ADD_FAILURE() << v;
+    } catch (const LoadError& e) {
+      const std::string what = e.what();
+      EXPECT_TRUE(what.find("header field dofs is") != std::string::npos || what.find("not valid JSON") != std::string::npos) << v << ": " << what;
+    }
+  }
+}
