@@ -28,6 +28,7 @@
 #include <nlohmann/json.hpp>
 
 #include "calibration/lib/rigid_transform_file.hpp"
+#include "hil_tests/bench/bench_required.hpp"
 
 namespace arnav::hil {
 namespace {
@@ -84,7 +85,7 @@ void expect_cut_on_the_blades_path(const nlohmann::json& cutting, const char* ru
 }
 
 TEST(ArDemoSession, LiveRegistrationRingCutFaultAndRecording) {
-  if (::geteuid() != 0) GTEST_SKIP() << "needs root for a private network namespace (unshare --net)";
+  ARNAV_BENCH_OR_SKIP(::geteuid() != 0 ? "needs root for a private network namespace (unshare --net)" : "");
   const std::filesystem::path out = std::filesystem::temp_directory_path() / ("arnav-ar-demo-" + std::to_string(::getpid()));
   std::filesystem::remove_all(out);
   const std::string src = env("ARNAV_SOURCE_DIR", ".");
