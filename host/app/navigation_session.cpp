@@ -904,7 +904,8 @@ nlohmann::json NavigationSession::summary_json(double run_s) {
     j["model"] = {{"steps", steps.size()},
                   {"rate_hz", run_s > 0 ? static_cast<double>(steps.size()) / run_s : 0.0},
                   {"step_ms_p50", percentile(steps, 0.5)},
-                  {"step_ms_p99", percentile(steps, 0.99)}};
+                  {"step_ms_p99", percentile(steps, 0.99)},
+                  {"step_control_steps", model_->step_control_steps()}};
     if (model_->has_inputs()) {
       // The model's clock (docs/overlay.md, "Model clock"): steps run without a late input,
       // grid steps skipped to catch up, samples that came after their step, the largest lag.
@@ -991,9 +992,10 @@ std::string NavigationSession::format_summary(double run_s) {
   os << line;
   }
   if (j.contains("model")) {
-    std::snprintf(line, sizeof line, "  model: %lld steps, %.1f Hz, step p50 %.2f ms, p99 %.2f ms\n",
+    std::snprintf(line, sizeof line, "  model: %lld steps, %.1f Hz, step p50 %.2f ms, p99 %.2f ms, %lld under step control\n",
                   static_cast<long long>(j["model"]["steps"].get<std::int64_t>()), j["model"]["rate_hz"].get<double>(),
-                  j["model"]["step_ms_p50"].get<double>(), j["model"]["step_ms_p99"].get<double>());
+                  j["model"]["step_ms_p50"].get<double>(), j["model"]["step_ms_p99"].get<double>(),
+                  static_cast<long long>(j["model"]["step_control_steps"].get<std::int64_t>()));
     os << line;
   }
   if (j.contains("registration") && j["registration"]["method"].get<std::string>().rfind("live landmarks", 0) == 0) {

@@ -68,13 +68,15 @@ int control_factor(const std::string& warning) {
 struct CaseResult {
   std::string outcome;  // held | refused_at_load | stopped
   std::string note;     // refusal or the stopping frame's warning
+  std::string named_outcome;  // refused: the outcome of the setting the refusal names (model.substeps >= N)
   int frames_run = 0, control_frames = 0, redone_frames = 0, max_factor = 1, fallback_frames = 0;
   std::vector<double> wall_ms, cpu_ms;
   double max_displacement_mm = 0.0;
   double build_ms = 0.0;
 };
 
-CaseResult run_case(const Scene& scene, const ModelConfig& config, const StressCase& c, const StressMatrixOptions& o) {
+CaseResult run_case(const Scene& scene, const ModelConfig& config, const StressCase& c, const StressMatrixOptions& o,
+                    bool try_named = true) {
   CaseResult r;
   const SimProblem problem = case_problem(scene, c);
   try {
@@ -82,6 +84,15 @@ CaseResult run_case(const Scene& scene, const ModelConfig& config, const StressC
   } catch (const std::invalid_argument& e) {
     r.outcome = "refused_at_load";
     r.note = e.what();
+    // Does the setting the refusal names hold? (Runs it: "no case refused that the model can hold".)
+    const std::string key = "model.substeps >= ";
+    if (const std::size_t at = r.note.find(key); try_named && at != std::string::npos) {
+      ModelConfig named = config;
+      named.substeps = std::stoi(r.note.substr(at + key.size()));
+      const CaseResult n = run_case(scene, named, c, o, false);
+      r.named_outcome = n.outcome + " at model.substeps " + std::to_string(named.substeps) + ", median " +
+                        std::to_string(percentile(n.wall_ms, 0.5)) + " ms";
+    }
     return r;
   }
   const auto t0 = std::chrono::steady_clock::now();
@@ -145,7 +156,20 @@ std::vector<StressCase> stress_cases() {
     out.push_back({.name = n, .load_g = g});
   }
   out.push_back({.name = "pull_50mm", .pull_mm = 50.0});
-  out.push_back({.name = "all_extremes", .poisson_ratio = 0.499, .contrast = 1000.0, .dt_s = 1.0 / 20, .load_g = 10.0, .pull_mm = 50.0});
+  const StressCase all{.name = "all_extremes", .poisson_ratio = 0.499, .contrast = 1000.0, .dt_s = 1.0 / 20, .load_g = 10.0, .pull_mm = 50.0};
+  out.push_back(all);
+  // All extremes but one (which combination a model cannot hold).
+  StressCase c = all;
+  c.name = "all_but_nu", c.poisson_ratio = -1.0;
+  out.push_back(c);
+  c = all, c.name = "all_but_contrast", c.contrast = -1.0;
+  out.push_back(c);
+  c = all, c.name = "all_but_dt", c.dt_s = 1.0 / 60;
+  out.push_back(c);
+  c = all, c.name = "all_but_load", c.load_g = 1.0;
+  out.push_back(c);
+  c = all, c.name = "all_but_pull", c.pull_mm = 0.0;
+  out.push_back(c);
   return out;
 }
 
@@ -162,13 +186,13 @@ nlohmann::json run_stress_matrix(const Scene& scene, const StressMatrixOptions& 
     throw std::invalid_argument("--stress-case: an unknown case name (baseline, nu_0.3, contrast_1000, dt_1/20, load_10g, pull_50mm, ...)");
 
   csv << "model,case,poisson_ratio,contrast,dt_s,load_g,pull_mm,outcome,frames_run,step_control_frames,redone_frames,"
-         "max_factor,fallback_frames,median_ms,p95_ms,max_ms,median_cpu_ms,within_16.7ms,build_ms,max_displacement_mm,note\n";
+         "max_factor,fallback_frames,median_ms,p95_ms,max_ms,median_cpu_ms,within_16.7ms,build_ms,max_displacement_mm,named_setting,note\n";
   nlohmann::json summary;
   summary["scene"] = scene.source;
   summary["mesh"] = {{"tets", scene.problem.mesh.num_tets()}, {"vertices", scene.problem.mesh.num_vertices()}};
   summary["frames_per_case"] = o.frames;
   summary["budget_ms"] = kBudget_ms;
-  int held = 0, refused = 0, stopped = 0, adapted = 0, adapted_within = 0, held_within = 0;
+  int held = 0, refused = 0, refused_named_held = 0, stopped = 0, adapted = 0, adapted_within = 0, held_within = 0;
   std::vector<double> adapted_medians;
   nlohmann::json stops = nlohmann::json::array(), per_model = nlohmann::json::object();
   for (const ModelVariant& v : variants) {
@@ -188,7 +212,10 @@ nlohmann::json run_stress_matrix(const Scene& scene, const StressMatrixOptions& 
           m["adapted"] = m["adapted"].get<int>() + 1;
         }
       }
-      if (r.outcome == "refused_at_load") ++refused;
+      if (r.outcome == "refused_at_load") {
+        ++refused;
+        refused_named_held += r.named_outcome.rfind("held", 0) == 0 ? 1 : 0;
+      }
       if (r.outcome == "stopped") {
         ++stopped;
         stops.push_back({{"model", v.label}, {"case", c.name}, {"note", r.note.substr(0, 300)}});
@@ -201,16 +228,18 @@ nlohmann::json run_stress_matrix(const Scene& scene, const StressMatrixOptions& 
           << c.load_g << ',' << c.pull_mm << ',' << r.outcome << ',' << r.frames_run << ',' << r.control_frames << ','
           << r.redone_frames << ',' << r.max_factor << ',' << r.fallback_frames << ',' << median << ','
           << percentile(r.wall_ms, 0.95) << ',' << percentile(r.wall_ms, 1.0) << ',' << percentile(r.cpu_ms, 0.5) << ',' << (within ? 1 : 0) << ',' << r.build_ms << ','
-          << r.max_displacement_mm << ',' << csv_text(r.note) << '\n'
+          << r.max_displacement_mm << ',' << csv_text(r.named_outcome) << ',' << csv_text(r.note) << '\n'
           << std::flush;
       log << v.label << " " << c.name << ": " << r.outcome << " median " << median << " ms, step control " << r.control_frames
-          << " frames (max " << r.max_factor << "x)" << (r.note.empty() ? "" : " - " + r.note.substr(0, 160)) << std::endl;
+          << " frames (max " << r.max_factor << "x)" << (r.note.empty() ? "" : " - " + r.note.substr(0, 160))
+          << (r.named_outcome.empty() ? "" : "; named setting: " + r.named_outcome) << std::endl;
     }
     per_model[v.label] = m;
   }
   summary["cases"] = static_cast<int>(variants.size() * cases.size());
   summary["held"] = held;
   summary["refused_at_load"] = refused;
+  summary["refused_named_setting_held"] = refused_named_held;  // the setting the refusal names, run: held
   summary["stopped_mid_run"] = stopped;
   summary["stops"] = stops;
   summary["held_median_within_budget"] = held_within;

@@ -370,7 +370,8 @@ StepSummary StableNeoHookeanFem::step(double dt_s) {
         v_ = v_saved_;
         inversions_ = inversions_saved_;
       },
-      [&](int factor) { return run_substeps(substeps_ * factor, dt_s, [this](double h) { return substep(h); }); });
+      [&](int factor) { return run_substeps(substeps_ * factor, dt_s, [this](double h) { return substep(h); }); },
+      SubstepControl::budget_factor(dt_s));
   embedded_.drive(x_, v_, dt_s, gravity_);  // embedded vertices follow their drivers / rigid groups
   s.wall_time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return s;
