@@ -103,6 +103,7 @@ TEST_F(SessionRun, TumourOverlayLiesWhereTheChainProjectsIt) {
   const auto j = s->summary_json(20 / 60.0);
   EXPECT_EQ(j["frames_displayed"], 20);
   EXPECT_GT(j["model"]["steps"].get<int>(), 15);
+  EXPECT_EQ(j["model"]["step_control_steps"].get<int>(), 0);  // the FEM at rest: never redone (issue 29)
 }
 
 TEST_F(SessionRun, BannersWithin200msOfLosingTheReferenceAndGoneOnRecovery) {
