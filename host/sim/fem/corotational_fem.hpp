@@ -116,7 +116,7 @@ class CorotationalFem final : public TissueModel {
   void wait_for_background() { solver_.wait_for_background(); }
   const InversionMonitor& inversions() const { return inversions_; }
   // Step control (step_control.hpp): an unhealthy step redone from its saved state with 2-8x
-  // the substeps; redone steps, steps at 1x/2x/4x/8x.
+  // the substeps (the budget is budget_factor(dt)); redone steps, steps at each factor.
   const SubstepControl& step_control() const { return control_; }
 
  private:

@@ -91,7 +91,8 @@ class StableNeoHookeanFem final : public TissueModel {
   // Introspection for tests and benchmarks.
   const InversionMonitor& inversions() const { return inversions_; }
   // Step control (step_control.hpp): an unhealthy step redone from its saved state with 2-8x
-  // the substeps (each with the configured Newton iterations); redone steps, steps at 1x/2x/4x/8x.
+  // the substeps (each with the configured Newton iterations; the budget is budget_factor(dt));
+  // redone steps, steps at each factor.
   const SubstepControl& step_control() const { return control_; }
   int last_newton_iterations() const { return last_newton_; }
   int last_projected_elements() const { return last_projected_; }  // eigen-projected in the last assembly
