@@ -287,6 +287,7 @@ void ModelRunner::step_once(const ModelStepInputs* in, std::int64_t now_us) {
     snap->step_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     snap->healthy = s.healthy;
     snap->warning = s.warning;
+    if (s.warning.find("step control") != std::string::npos) ++step_control_steps_;
     snap->step_device_time_us = in->device_time_us;
     for (auto& e : new_events) e.step_done_mono_us = now_us;
   }

@@ -164,6 +164,9 @@ class ModelRunner {
   std::int64_t steps() const { return steps_.load(); }
   // Wall times of every step (ms), for the summary.
   std::vector<double> step_times_ms() const;
+  // Steps whose warning names the tissue model's step control (issue 29: redone with finer
+  // substeps, or at a kept finer factor; host/sim/step_control.hpp).
+  std::int64_t step_control_steps() const { return step_control_steps_.load(); }
 
  private:
   // One step with its inputs (null: the rest state, before the first step).
@@ -203,6 +206,7 @@ class ModelRunner {
   std::shared_ptr<const ModelSnapshot> snapshot_;
   std::vector<double> step_ms_;
   std::atomic<std::int64_t> steps_{0};
+  std::atomic<std::int64_t> step_control_steps_{0};
   std::thread thread_;
   std::atomic<bool> stop_{false};
   std::condition_variable cv_;

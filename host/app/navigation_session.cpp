@@ -16,6 +16,7 @@
 #include "host/overlay/overlay_geometry.hpp"
 #include "host/overlay/overlay_renderer.hpp"
 #include "host/overlay/overlay_window.hpp"
+#include "host/sim/model_factory.hpp"
 #include "protocol/clock.hpp"
 #include "protocol/pose_convert.hpp"
 
@@ -45,6 +46,21 @@ double percentile(std::vector<double> v, double q) {
 }
 
 void add_flag(std::string& flags, const std::string& f) { flags += (flags.empty() ? "" : "|") + f; }
+
+// Issue 29: a scene setting the tissue model cannot hold at the session's step rate is refused
+// here, before anything starts (arnav-host exit 2), not stopped mid-session. at_scene names the
+// session file, its line and key 'scene'.
+void refuse_setting_that_cannot_hold(const Scene& scene, double rate_hz, const std::string& at_scene) {
+  const double dt_s = 1.0 / rate_hz;
+  char rate[96];
+  std::snprintf(rate, sizeof rate, "the session's model.rate_hz %g (%.6f s a step)", rate_hz, dt_s);
+  try {
+    check_setting_holds(scene.problem, scene.model, dt_s, rate);
+  } catch (const std::invalid_argument& e) {
+    throw SessionError(at_scene + scene.source + ":" + std::to_string(scene.model_line) +
+                       ": the tissue model cannot hold this setting (refused before the session starts): " + e.what());
+  }
+}
 
 }  // namespace
 
@@ -100,6 +116,7 @@ NavigationSession::NavigationSession(const SessionConfig& config, std::unique_pt
                        ": key 'inputs.cut_enable': the scene declares no 'cutting:' section (docs/cut.md): add it there or drop cut_enable");
   }
   if (scene_) {
+    refuse_setting_that_cannot_hold(*scene_, config_.model.rate_hz, at_scene);
     try {
       ModelClockSettings clock;
       clock.input_wait_ms = config_.model.input_wait_ms;
@@ -887,7 +904,8 @@ nlohmann::json NavigationSession::summary_json(double run_s) {
     j["model"] = {{"steps", steps.size()},
                   {"rate_hz", run_s > 0 ? static_cast<double>(steps.size()) / run_s : 0.0},
                   {"step_ms_p50", percentile(steps, 0.5)},
-                  {"step_ms_p99", percentile(steps, 0.99)}};
+                  {"step_ms_p99", percentile(steps, 0.99)},
+                  {"step_control_steps", model_->step_control_steps()}};
     if (model_->has_inputs()) {
       // The model's clock (docs/overlay.md, "Model clock"): steps run without a late input,
       // grid steps skipped to catch up, samples that came after their step, the largest lag.
@@ -974,9 +992,10 @@ std::string NavigationSession::format_summary(double run_s) {
   os << line;
   }
   if (j.contains("model")) {
-    std::snprintf(line, sizeof line, "  model: %lld steps, %.1f Hz, step p50 %.2f ms, p99 %.2f ms\n",
+    std::snprintf(line, sizeof line, "  model: %lld steps, %.1f Hz, step p50 %.2f ms, p99 %.2f ms, %lld under step control\n",
                   static_cast<long long>(j["model"]["steps"].get<std::int64_t>()), j["model"]["rate_hz"].get<double>(),
-                  j["model"]["step_ms_p50"].get<double>(), j["model"]["step_ms_p99"].get<double>());
+                  j["model"]["step_ms_p50"].get<double>(), j["model"]["step_ms_p99"].get<double>(),
+                  static_cast<long long>(j["model"]["step_control_steps"].get<std::int64_t>()));
     os << line;
   }
   if (j.contains("registration") && j["registration"]["method"].get<std::string>().rfind("live landmarks", 0) == 0) {

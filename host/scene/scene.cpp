@@ -231,6 +231,7 @@ Scene load_scene(const std::string& path) {
   scene.time_step_s = spec.time_step_s;
   scene.frames = spec.frames;
   scene.model = spec.model;
+  scene.model_line = spec.model_line;
   scene.cutting = spec.cutting;
 
   // Display surface carried by the volume.

@@ -36,6 +36,7 @@ struct Scene {
   std::string source;                     // scene file path
   SimProblem problem;                     // mesh, materials, fixed vertices, gravity, vessels
   ModelConfig model;
+  int model_line = 0;                     // first line of the 'model:' section in the scene file
   double time_step_s = 1.0 / 60.0;
   int frames = 60;                        // default run length for arnav-sim
   TriMesh organ_surface;                  // display surface (as loaded; may be finer than the volume)

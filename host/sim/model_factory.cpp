@@ -147,9 +147,10 @@ ModelConfig recommended_model_config(const std::string& kind) {
   return c;
 }
 
-void check_setting_holds(const SimProblem& problem, const ModelConfig& config, double dt_s) {
+void check_setting_holds(const SimProblem& problem, const ModelConfig& config, double dt_s, const std::string& dt_source) {
   check_common(config);
   if (!(dt_s > 0.0) || !std::isfinite(dt_s)) throw std::invalid_argument("time_step_s must be finite and > 0");
+  const std::string at_dt = dt_source.empty() ? "time_step_s " + std::to_string(dt_s) : dt_source;
 #ifdef ARNAV_SIM_HAVE_MASS_SPRING
   if (config.kind == "mass_spring" && config.integrator == "explicit") {
     const MassSpringModel probe(problem, MassSpringModel::Integrator::kExplicit, config);
@@ -160,10 +161,16 @@ void check_setting_holds(const SimProblem& problem, const ModelConfig& config, d
           "model.substeps: " + std::to_string(config.substeps) + " substeps of the explicit mass-spring integrator give " +
           std::to_string(h_s) + " s per substep, beyond its stability bound " + std::to_string(h_max_s) +
           " s for the stiffest springs (every step would be refused): use model.substeps >= " + std::to_string(needed) +
-          " at time_step_s " + std::to_string(dt_s) + ", or model.integrator: semi_implicit or local_global");
+          " at " + at_dt + ", or model.integrator: semi_implicit or local_global");
     }
   }
 #endif
+  if (config.kind == "corotational_fem" && config.integrator == "quasi_static" && problem.fixed_vertices.empty()) {
+    throw std::invalid_argument(
+        "model.integrator: quasi_static finds the equilibrium of a supported body, and this scene fixes no vertex (its "
+        "stiffness is singular under rigid motion: every step would be refused): add boundary.fixed (e.g. the "
+        "ligaments' box), or use model.integrator: implicit_euler");
+  }
 }
 
 std::unique_ptr<TissueModel> make_tissue_model(const SimProblem& problem, const ModelConfig& config) {

@@ -19,9 +19,12 @@ std::unique_ptr<TissueModel> make_tissue_model(const SimProblem& problem, const 
 // "Step control"): throws std::invalid_argument naming the key, the reason and the setting
 // that would work. What the step control holds at run time (up to 8x the substeps) is not
 // refused. Refused today: the explicit mass-spring integrator with a substep beyond its
-// stability bound for the stiffest springs (every step would be refused). Cost: one model
-// build for that integrator, nothing for the others.
-void check_setting_holds(const SimProblem& problem, const ModelConfig& config, double dt_s);
+// stability bound for the stiffest springs (every step would be refused), and the
+// quasi-static FEM (both materials) on a problem with no fixed vertex (its stiffness is
+// singular: every step would be refused). `dt_source` says where dt_s comes from in the
+// message ("time_step_s 0.016667" when empty; arnav-host: its model.rate_hz). Cost: one model
+// build for the explicit mass-spring, nothing for the others.
+void check_setting_holds(const SimProblem& problem, const ModelConfig& config, double dt_s, const std::string& dt_source = "");
 
 // One buildable model with its defaults: every kind and integrator compiled in. The
 // stability matrix and benchmarks iterate over this list, so a new model joins them by

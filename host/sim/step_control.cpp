@@ -11,6 +11,13 @@ int level_of(int factor) {
 
 }  // namespace
 
+int SubstepControl::budget_factor(double dt_s) {
+  const double per_frame = dt_s * 60.0 * (1.0 + 1e-6);  // 1/60 s steps: exactly one frame
+  int f = kMaxFactor;
+  while (2 * f <= kMaxBudgetFactor && 2 * f <= kMaxFactor * per_frame) f *= 2;
+  return f;
+}
+
 int SubstepControl::start_factor() {
   relaxing_ = factor_ > 1 && calm_ >= kCalmSteps;
   return relaxing_ ? factor_ / 2 : factor_;
@@ -41,7 +48,7 @@ void SubstepControl::finish(StepSummary& s, int factor, const std::string& first
 }
 
 std::string SubstepControl::counts() const {
-  std::string out = "steps at 1x/2x/4x/8x substeps: ";
+  std::string out = "steps at 1x/2x/4x/8x/16x/32x substeps: ";
   for (int l = 0; l < kLevels; ++l) out += (l ? "/" : "") + std::to_string(steps_at_[static_cast<std::size_t>(l)]);
   return out + ", redone " + std::to_string(redone_) + ", not held " + std::to_string(failed_);
 }

@@ -1,12 +1,15 @@
 #pragma once
 // Step control shared by the tissue models (docs/sim.md, "Step control"): a step that ends
 // unhealthy (energy created, non-finite state, collapse) is undone and redone from the state
-// it started from with 2, 4, ..., kMaxFactor times the configured substeps. The factor that
-// held is kept for the following steps while they need it and halved after kCalmSteps
-// healthy steps at it (the tissue has calmed): a relaxed step that fails is redone at the
-// finer factor again. Only a step no factor up to kMaxFactor holds stays unhealthy. Counted
-// (redone steps, steps that no factor held, steps that ended at each factor) and named in the
-// step's warning.
+// it started from with 2, 4, ... times the configured substeps, up to the frame's budget:
+// kMaxFactor (8) for a step of up to 1/60 s; a longer step has more wall time before the next
+// one is due, so its budget is the same substep rate, 8x per 1/60 s of the step rounded down
+// to a power of two (1/30 and 1/20 s: 16x), at most kMaxBudgetFactor (budget_factor(dt)).
+// The factor that held is kept for the following steps while they need it and halved after
+// kCalmSteps healthy steps at it (the tissue has calmed): a relaxed step that fails is redone
+// at the finer factor again. Only a step no factor within the budget holds stays unhealthy.
+// Counted (redone steps, steps that no factor held, steps that ended at each factor) and
+// named in the step's warning.
 #include <array>
 #include <string>
 
@@ -17,20 +20,26 @@ namespace arnav::host {
 
 class SubstepControl {
  public:
-  static constexpr int kMaxFactor = 8;   // the budget: at most 8x the configured substeps
-  static constexpr int kLevels = 4;      // factors 1, 2, 4, 8
-  static constexpr int kCalmSteps = 30;  // healthy steps at a factor before it is halved (0.5 s at 60 Hz)
+  static constexpr int kMaxFactor = 8;         // the budget of a step of up to 1/60 s
+  static constexpr int kMaxBudgetFactor = 32;  // the budget of any step
+  static constexpr int kLevels = 6;            // factors 1, 2, 4, 8, 16, 32
+  static constexpr int kCalmSteps = 30;        // healthy steps at a factor before it is halved (0.5 s at 60 Hz)
+
+  // The largest factor a step of dt_s may use: kMaxFactor per 1/60 s of it, rounded down to
+  // a power of two, between kMaxFactor and kMaxBudgetFactor.
+  static int budget_factor(double dt_s);
 
   // One step: save() keeps the state it starts from, step(factor) runs it with factor times
   // the configured substeps from the current state, restore() brings the saved state back
-  // before a redo. The returned summary is the last attempt's; its wall time is the caller's.
+  // before a redo. max_factor: the budget (budget_factor of the step's dt). The returned
+  // summary is the last attempt's; its wall time is the caller's.
   template <typename Save, typename Restore, typename Step>
-  StepSummary run(Save&& save, Restore&& restore, Step&& step) {
+  StepSummary run(Save&& save, Restore&& restore, Step&& step, int max_factor = kMaxFactor) {
     save();
     int factor = start_factor();
     StepSummary s = step(factor);
     std::string first;
-    while (!s.healthy && retry_allowed(s) && factor < kMaxFactor) {
+    while (!s.healthy && retry_allowed(s) && factor < max_factor) {
       if (first.empty()) first = s.warning.substr(0, 160);
       factor *= 2;
       restore();
@@ -44,9 +53,9 @@ class SubstepControl {
   int factor() const { return factor_; }  // the factor the next step starts from
   int redone_steps() const { return redone_; }
   int failed_steps() const { return failed_; }
-  // Steps that ended at factor 1, 2, 4, 8 (healthy or not).
+  // Steps that ended at factor 1, 2, 4, 8, 16, 32 (healthy or not).
   const std::array<long long, kLevels>& steps_at_factor() const { return steps_at_; }
-  // "steps at 1x/2x/4x/8x substeps: a/b/c/d, redone r, not held f".
+  // "steps at 1x/2x/4x/8x/16x/32x substeps: a/b/c/d/e/f, redone r, not held n".
   std::string counts() const;
 
  private:

@@ -103,6 +103,7 @@ TEST_F(SessionRun, TumourOverlayLiesWhereTheChainProjectsIt) {
   const auto j = s->summary_json(20 / 60.0);
   EXPECT_EQ(j["frames_displayed"], 20);
   EXPECT_GT(j["model"]["steps"].get<int>(), 15);
+  EXPECT_EQ(j["model"]["step_control_steps"].get<int>(), 0);  // the FEM at rest: never redone (issue 29)
 }
 
 TEST_F(SessionRun, BannersWithin200msOfLosingTheReferenceAndGoneOnRecovery) {
@@ -312,6 +313,52 @@ TEST_F(SessionRun, DownscaledFramesUseScaledIntrinsics) {
   ASSERT_TRUE(r.row.tumour_px);
   const cv::Point2d e = expected_tumour_px(0);
   EXPECT_LT(cv::norm(*r.row.tumour_px - cv::Point2d((e.x + 0.5) / 2 - 0.5, (e.y + 0.5) / 2 - 0.5)), 0.05);
+}
+
+// Issue 29: a scene setting the model cannot hold at the session's rate is refused when the
+// session is made (arnav-host: exit 2, before it starts), naming the session file and line,
+// the scene file and its model line, the key, the reason and the setting that holds; that
+// setting is then accepted.
+TEST_F(SessionRun, SettingTheModelCannotHoldIsRefusedBeforeTheSessionStarts) {
+  SessionFolder f("refused");
+  const SessionConfig config = load_session(f.session());
+  SessionOptions o;
+  o.threaded = false;
+  auto refusal = [&](const Scene& scene) -> std::string {
+    try {
+      NavigationSession s(config, std::make_unique<Scene>(scene), o);
+    } catch (const SessionError& e) {
+      return e.what();
+    }
+    return "(accepted)";
+  };
+  // Explicit mass-spring, one substep a 1/60 s step: beyond its stability bound.
+  Scene explicit_ms = *scene_;
+  explicit_ms.model = ModelConfig{};
+  explicit_ms.model.kind = "mass_spring";
+  explicit_ms.model.integrator = "explicit";
+  explicit_ms.model.substeps = 1;
+  std::string m = refusal(explicit_ms);
+  EXPECT_NE(m.find("session.yaml:3: key 'scene': " + scene_->source + ":" + std::to_string(scene_->model_line) + ": "), std::string::npos) << m;
+  EXPECT_GT(scene_->model_line, 1);
+  EXPECT_NE(m.find("beyond its stability bound"), std::string::npos) << m;
+  EXPECT_NE(m.find("the session's model.rate_hz 60"), std::string::npos) << m;
+  const std::size_t at = m.find("model.substeps >= ");
+  ASSERT_NE(at, std::string::npos) << m;
+  explicit_ms.model.substeps = std::stoi(m.substr(at + 18));
+  EXPECT_GT(explicit_ms.model.substeps, 1);
+  EXPECT_EQ(refusal(explicit_ms), "(accepted)");
+  // Quasi-static FEM on a body nothing holds: singular at every step.
+  Scene floating = *scene_;
+  floating.model.integrator = "quasi_static";
+  floating.model.linear_solver = "cholmod";
+  floating.problem.fixed_vertices.clear();
+  m = refusal(floating);
+  EXPECT_NE(m.find("key 'scene': " + scene_->source), std::string::npos) << m;
+  EXPECT_NE(m.find("model.integrator: quasi_static"), std::string::npos) << m;
+  EXPECT_NE(m.find("add boundary.fixed"), std::string::npos) << m;
+  floating.problem.fixed_vertices = scene_->problem.fixed_vertices;
+  EXPECT_EQ(refusal(floating), "(accepted)");
 }
 
 }  // namespace

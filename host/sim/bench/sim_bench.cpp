@@ -15,6 +15,7 @@
 #include "host/scene/box_mesh.hpp"
 #include "host/scene/load_error.hpp"
 #include "host/scene/scene.hpp"
+#include "host/sim/bench/stress_matrix.hpp"
 #include "host/sim/model_factory.hpp"
 #include "protocol/guarded_main.hpp"
 
@@ -37,6 +38,42 @@ double process_cpu_ms() {
   return 1e3 * static_cast<double>(ts.tv_sec) + 1e-6 * static_cast<double>(ts.tv_nsec);
 }
 
+// --stress-matrix: the matrix on a scene (stress_matrix.hpp).
+int stress_matrix_main(const std::string& scene_path, const std::string& csv_path, const std::vector<std::string>& cases,
+                       const std::vector<std::string>& models, int frames) {
+  if (scene_path.empty()) {
+    std::cerr << "arnav-sim-bench: --stress-matrix needs --scene (e.g. data/patients/sksurgery_liver_coarse.scene.yaml)\n";
+    return 2;
+  }
+  Scene scene;
+  try {
+    scene = load_scene(scene_path);
+  } catch (const LoadError& e) {
+    std::cerr << "arnav-sim-bench: " << e.what() << "\n";
+    return 2;
+  }
+  std::ofstream file;
+  if (csv_path != "-") {
+    file.open(csv_path);
+    if (!file) {
+      std::cerr << "arnav-sim-bench: cannot write --stress-matrix " << csv_path << "\n";
+      return 2;
+    }
+  }
+  StressMatrixOptions o;
+  o.frames = frames;
+  o.models = models;
+  o.cases = cases;
+  try {
+    const nlohmann::json summary = run_stress_matrix(scene, o, csv_path == "-" ? std::cout : file, std::cerr);
+    std::cout << summary.dump(2) << "\n";
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "arnav-sim-bench: " << e.what() << "\n";
+    return 2;
+  }
+  return 0;
+}
+
 }  // namespace
 
 static int main_body(int argc, char** argv) {
@@ -54,7 +91,7 @@ static int main_body(int argc, char** argv) {
   app.add_option("--nx", nx, "cells along x (6 tets per cell)")->check(CLI::PositiveNumber);
   app.add_option("--ny", ny, "cells along y")->check(CLI::PositiveNumber);
   app.add_option("--nz", nz, "cells along z")->check(CLI::PositiveNumber);
-  app.add_option("--frames", frames, "frames of 1/60 s to time")->check(CLI::PositiveNumber);
+  app.add_option("--frames", frames, "frames of 1/60 s to time (--stress-matrix: frames per case)")->check(CLI::PositiveNumber);
   app.add_option("--threads", threads, "thread counts to run")->check(CLI::PositiveNumber);
   app.add_option("--model", models, "variant labels (default: every variant of model_variants())");
   app.add_option("--iterations", iterations, "override iterations (XPBD sweeps per substep, CG max)");
@@ -74,7 +111,16 @@ static int main_body(int argc, char** argv) {
   app.add_option("--linear-solver", linear_solver,
                  "override the linear solver (corotational_fem: cholmod, pcg, ...; mass_spring/semi_implicit: jacobi, "
                  "laplacian)");
+  std::string stress_csv;
+  std::vector<std::string> stress_cases_wanted;
+  app.add_option("--stress-matrix", stress_csv,
+                 "run the stress matrix of issue 29 on --scene (every --model x nu, stiffness contrast, time step, load, "
+                 "sudden 50 mm pull; each held, refused at load or stopped; docs/benchmarks.md \"Stress matrix\"): one CSV "
+                 "row per case to this file (- for stdout), the JSON summary to stdout; --frames per case (default 60)");
+  app.add_option("--stress-case", stress_cases_wanted, "with --stress-matrix: only these cases (e.g. baseline nu_0.499 pull_50mm)");
   CLI11_PARSE(app, argc, argv);
+  if (!stress_csv.empty())
+    return stress_matrix_main(scene_path, stress_csv, stress_cases_wanted, models, app.count("--frames") ? frames : 60);
 
   SimProblem problem;
   int grasp = 0;

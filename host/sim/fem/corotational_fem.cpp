@@ -537,8 +537,30 @@ double CorotationalFem::potential_energy(const Eigen::Matrix3Xd& x) {
 
 StepSummary CorotationalFem::step(double dt_s) {
   check_dt(dt_s);
-  StepSummary s = run_substeps(substeps_, dt_s, [this](double h) { return substep(h); });
+  const auto start = std::chrono::steady_clock::now();
+  // Step control (step_control.hpp, issue 29): an unhealthy step (solve failed, vertex speed
+  // beyond the limit, collapse) is redone from the saved state with 2-8x the sub-steps.
+  StepSummary s = control_.run(
+      [&] {
+        x_saved_ = x_;
+        v_saved_ = v_;
+        q_saved_ = q_;
+        R_beam_saved_ = R_beam_;
+        last_dx_saved_ = last_dx_;
+        inversions_saved_ = inversions_;
+      },
+      [&] {
+        x_ = x_saved_;
+        v_ = v_saved_;
+        q_ = q_saved_;
+        R_beam_ = R_beam_saved_;
+        last_dx_ = last_dx_saved_;
+        inversions_ = inversions_saved_;
+      },
+      [&](int factor) { return run_substeps(substeps_ * factor, dt_s, [this](double h) { return substep(h); }); },
+      SubstepControl::budget_factor(dt_s));
   embedded_.drive(x_, v_, dt_s, gravity_);  // embedded vertices follow their drivers / rigid groups
+  s.wall_time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return s;
 }
 

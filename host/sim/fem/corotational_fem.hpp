@@ -32,6 +32,7 @@
 #include "host/sim/fem/fem_mesh_change.hpp"
 #include "host/sim/fem/symmetric_pattern.hpp"
 #include "host/sim/model_config.hpp"
+#include "host/sim/step_control.hpp"
 #include "host/sim/step_health.hpp"
 #include "host/sim/fem/fem_attachments.hpp"
 #include "host/sim/tissue_model.hpp"
@@ -114,6 +115,9 @@ class CorotationalFem final : public TissueModel {
   // (tests use it to make the background path deterministic).
   void wait_for_background() { solver_.wait_for_background(); }
   const InversionMonitor& inversions() const { return inversions_; }
+  // Step control (step_control.hpp): an unhealthy step redone from its saved state with 2-8x
+  // the substeps (the budget is budget_factor(dt)); redone steps, steps at each factor.
+  const SubstepControl& step_control() const { return control_; }
 
  private:
   struct Tet {
@@ -194,6 +198,14 @@ class CorotationalFem final : public TissueModel {
   InversionMonitor inversions_;
   double last_dt_ = -1.0;
   std::string note_;  // said once in the next step's warning (e.g. blas_threads not honoured)
+  SubstepControl control_;
+  // The state an unhealthy step is redone from (members: no allocation per step). The
+  // lagged factor is not saved: a redo at another sub-step size refactorises (last_dt_).
+  Eigen::Matrix3Xd x_saved_, v_saved_;
+  std::vector<Eigen::Quaterniond> q_saved_;
+  std::vector<Eigen::Matrix3d> R_beam_saved_;
+  Eigen::VectorXd last_dx_saved_;
+  InversionMonitor inversions_saved_;
 };
 
 // Factory entry (used by host/sim/model_factory when arnav_sim_fem is built).

@@ -355,8 +355,25 @@ double StableNeoHookeanFem::attachment_energy(const Eigen::Matrix3Xd& x) const {
 
 StepSummary StableNeoHookeanFem::step(double dt_s) {
   check_dt(dt_s);
-  StepSummary s = run_substeps(substeps_, dt_s, [this](double h) { return substep(h); });
+  const auto start = std::chrono::steady_clock::now();
+  // Step control (step_control.hpp, issue 29): an unhealthy step (Newton without decrease,
+  // solve failed, vertex speed beyond the limit, collapse) is redone from the saved state
+  // with 2-8x the sub-steps, each with the configured Newton iterations.
+  StepSummary s = control_.run(
+      [&] {
+        x_saved_ = x_;
+        v_saved_ = v_;
+        inversions_saved_ = inversions_;
+      },
+      [&] {
+        x_ = x_saved_;
+        v_ = v_saved_;
+        inversions_ = inversions_saved_;
+      },
+      [&](int factor) { return run_substeps(substeps_ * factor, dt_s, [this](double h) { return substep(h); }); },
+      SubstepControl::budget_factor(dt_s));
   embedded_.drive(x_, v_, dt_s, gravity_);  // embedded vertices follow their drivers / rigid groups
+  s.wall_time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return s;
 }
 

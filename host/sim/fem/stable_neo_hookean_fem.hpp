@@ -36,6 +36,7 @@
 #include "host/sim/fem/fem_mesh_change.hpp"
 #include "host/sim/fem/symmetric_pattern.hpp"
 #include "host/sim/model_config.hpp"
+#include "host/sim/step_control.hpp"
 #include "host/sim/step_health.hpp"
 #include "host/sim/fem/fem_attachments.hpp"
 #include "host/sim/tissue_model.hpp"
@@ -89,6 +90,10 @@ class StableNeoHookeanFem final : public TissueModel {
 
   // Introspection for tests and benchmarks.
   const InversionMonitor& inversions() const { return inversions_; }
+  // Step control (step_control.hpp): an unhealthy step redone from its saved state with 2-8x
+  // the substeps (each with the configured Newton iterations; the budget is budget_factor(dt));
+  // redone steps, steps at each factor.
+  const SubstepControl& step_control() const { return control_; }
   int last_newton_iterations() const { return last_newton_; }
   int last_projected_elements() const { return last_projected_; }  // eigen-projected in the last assembly
   double elastic_energy() const;                                     // Psi summed over the tets, mN*mm
@@ -148,6 +153,9 @@ class StableNeoHookeanFem final : public TissueModel {
   int last_projected_ = 0;
   double last_dt_ = -1.0;
   std::string note_;
+  SubstepControl control_;
+  Eigen::Matrix3Xd x_saved_, v_saved_;  // the state an unhealthy step is redone from
+  InversionMonitor inversions_saved_;
 };
 
 }  // namespace arnav::host

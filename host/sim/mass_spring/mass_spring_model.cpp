@@ -831,7 +831,7 @@ StepSummary MassSpringModel::semi_implicit_guarded(double dt_s) {
   // element only while its motion in the step is small against its size. Elements far below
   // the mesh's resolution (what a cut leaves between its sweeps) can move by their own size in
   // a frame; the step then creates energy or inverts them. Such a step is undone and redone
-  // with 2, 4, ..., kMaxRetrySubsteps times the substeps, the factor that held kept until the
+  // with 2, 4, ... times the substeps (up to the step's budget, SubstepControl::budget_factor), the factor that held kept until the
   // tissue calms; counted (retries(), step_control()) and named in the warning.
   InversionMonitor inversions0;
   const int substeps = config_.substeps;
@@ -852,7 +852,8 @@ StepSummary MassSpringModel::semi_implicit_guarded(double dt_s) {
         StepSummary s = step_unguarded(dt_s);
         config_.substeps = substeps;
         return s;
-      });
+      },
+      SubstepControl::budget_factor(dt_s));
 }
 
 StepSummary MassSpringModel::step_guarded(double dt_s) {

@@ -119,7 +119,8 @@ class MassSpringModel final : public TissueModel {
   int fallbacks() const { return fallbacks_; }
   // semi_implicit (also the fallback): steps redone with more substeps after they ended
   // unhealthy (energy created, non-finite), up to kMaxRetrySubsteps times the configured ones
-  // (step_control.hpp: the factor that held is kept until the tissue calms).
+  // for a step of up to 1/60 s, more for a longer one (SubstepControl::budget_factor; the
+  // factor that held is kept until the tissue calms).
   int retries() const { return control_.redone_steps(); }
   const SubstepControl& step_control() const { return control_; }
   static constexpr int kMaxRetrySubsteps = SubstepControl::kMaxFactor;

@@ -84,6 +84,28 @@ TEST(SubstepControl, StepNoFactorHoldsStaysUnhealthyAndIsCounted) {
   EXPECT_NE(c.counts().find("not held 1"), std::string::npos) << c.counts();
 }
 
+// The budget is a substep rate: 8x per 1/60 s of the step. A 1/20 s step may go to 16x (what
+// XPBD needs on the patient liver at nu 0.499, contrast 1000, 10 g; docs/benchmarks.md
+// "Stress matrix"); a 1/60 s step stops at 8x.
+TEST(SubstepControl, LongerStepsHaveALargerBudget) {
+  EXPECT_EQ(SubstepControl::budget_factor(1.0 / 120), 8);
+  EXPECT_EQ(SubstepControl::budget_factor(1.0 / 60), 8);
+  EXPECT_EQ(SubstepControl::budget_factor(1.0 / 30), 16);
+  EXPECT_EQ(SubstepControl::budget_factor(1.0 / 20), 16);
+  EXPECT_EQ(SubstepControl::budget_factor(0.1), 32);
+  EXPECT_EQ(SubstepControl::budget_factor(10.0), SubstepControl::kMaxBudgetFactor);
+  SubstepControl c;
+  RuleStep r{.need = 16};
+  auto run = [&](int budget) { return c.run([&] { r.saved = r.state; }, [&] { r.state = r.saved; }, [&](int f) { return r.step(f); }, budget); };
+  EXPECT_FALSE(run(SubstepControl::budget_factor(1.0 / 60)).healthy);
+  const StepSummary s = run(SubstepControl::budget_factor(1.0 / 20));
+  EXPECT_TRUE(s.healthy) << s.warning;
+  EXPECT_NE(s.warning.find("step redone with 16x"), std::string::npos) << s.warning;
+  EXPECT_EQ(c.steps_at_factor()[3], 1);  // the first step, not held at 8x
+  EXPECT_EQ(c.steps_at_factor()[4], 1);
+  EXPECT_EQ(c.factor(), 16);
+}
+
 TEST(SubstepControl, RefusedConfigurationIsNotRedone) {
   SubstepControl c;
   int attempts = 0;

@@ -971,7 +971,8 @@ StepSummary XpbdModel::step(double dt_s) {
         inversions_ = inversions_saved_;
         inverted_at_end_ = inverted_saved_;
       },
-      [&](int factor) { return step_once(dt_s, config_.substeps * factor); });
+      [&](int factor) { return step_once(dt_s, config_.substeps * factor); },
+      SubstepControl::budget_factor(dt_s));
   // Embedded vertices (massless here) follow their drivers; rigid groups move as bodies.
   embedded_.drive(x_, v_, dt_s, gravity_);
   summary.wall_time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();

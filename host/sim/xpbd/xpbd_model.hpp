@@ -87,7 +87,7 @@ class XpbdModel final : public TissueModel {
   double mean_lanes() const;
   // The energy in use: "neo_hookean" or "corotated".
   std::string energy() const { return neo_hookean_ ? "neo_hookean" : "corotated"; }
-  // Step control (step_control.hpp): redone steps, steps at 1x/2x/4x/8x the substeps.
+  // Step control (step_control.hpp): redone steps, steps at each factor of the substeps.
   const SubstepControl& step_control() const { return control_; }
 
  private:

@@ -4,6 +4,7 @@
 
 #include <Eigen/Geometry>
 
+#include "host/sim/fem/stable_neo_hookean_fem.hpp"
 #include "host/sim/fem/test/fem_test_util.hpp"
 #include "host/sim/tet_geometry.hpp"
 #include "host/sim/fem/symmetric_pattern.hpp"
@@ -314,6 +315,50 @@ TEST(FemStability, CollapsedMeshBecomesUnhealthy) {
   EXPECT_GE(first_unhealthy, 98) << s.warning;
   EXPECT_LE(first_unhealthy, 100) << s.warning;
   EXPECT_NE(s.warning.find("mesh collapse"), std::string::npos) << s.warning;
+}
+
+// Step control (issue 29, step_control.hpp) in both FEM materials: an unhealthy step is redone
+// from the state it started from with 2x, 4x, 8x the sub-steps. A cube in free fall (no
+// support, no damping: implicit Euler gives v_k = k g h exactly) with a speed limit of 0.6 g dt:
+// 1x fails in its only sub-step, 2x in its second, 4x in its third, 8x in its fifth. Each redo
+// must start from the saved state: the model ends where four sub-steps of dt/8 from rest take
+// it (x = -10 g h^2, v = -4 g h), not further; counted as 3 redone and 1 not held at 8x. With
+// the default limit the same fall is held at 1x with no redo and no step-control warning.
+TEST(FemStability, StepControlRedoesAnUnhealthyStepFromItsSavedState) {
+  SimProblem problem = box_problem(1, 1, 1, Eigen::Vector3d(10, 10, 10), 5.0, 0.45);
+  problem.gravity_World_mm_s2 = Eigen::Vector3d(0, 0, -9810.0);
+  const double dt = 1.0 / 60.0, g = 9810.0, h = dt / 8;
+  FemOptions tight;
+  tight.max_speed_mm_s = 0.6 * g * dt;
+  const ModelConfig corotational{.kind = "corotational_fem", .integrator = "implicit_euler", .linear_solver = "cholmod"};
+  ModelConfig neo_hookean = corotational;
+  neo_hookean.material_model = "stable_neo_hookean";
+  neo_hookean.iterations = 4;
+  neo_hookean.tolerance = 1e-9;
+  auto check = [&](TissueModel& model, const SubstepControl& control, const std::string& what) {
+    const StepSummary s = model.step(dt);
+    EXPECT_FALSE(s.healthy) << what;
+    EXPECT_NE(s.warning.find("exceeds"), std::string::npos) << what << ": " << s.warning;
+    EXPECT_EQ(control.redone_steps(), 3) << what;
+    EXPECT_EQ(control.failed_steps(), 1) << what;
+    EXPECT_EQ(control.steps_at_factor()[3], 1) << what;
+    const Eigen::Matrix3Xd dx = model.positions_World_mm() - problem.mesh.rest_positions_World_mm;
+    EXPECT_LT((dx.row(2).array() + 10.0 * g * h * h).abs().maxCoeff(), 1e-9) << what;
+    EXPECT_LT(dx.topRows(2).cwiseAbs().maxCoeff(), 1e-9) << what;
+    EXPECT_LT((model.velocities_World_mm_s().row(2).array() + 4.0 * g * h).abs().maxCoeff(), 1e-7) << what;
+  };
+  CorotationalFem a(problem, corotational, tight);
+  check(a, a.step_control(), "corotational");
+  StableNeoHookeanFem b(problem, neo_hookean, tight);
+  check(b, b.step_control(), "stable_neo_hookean");
+  CorotationalFem free_fall(problem, corotational);
+  for (int k = 0; k < 10; ++k) {
+    const StepSummary s = free_fall.step(dt);
+    EXPECT_TRUE(s.healthy) << s.warning;
+    EXPECT_EQ(s.warning.find("step control"), std::string::npos) << s.warning;
+  }
+  EXPECT_EQ(free_fall.step_control().redone_steps(), 0);
+  EXPECT_EQ(free_fall.step_control().steps_at_factor()[0], 10);
 }
 
 TEST(FemStability, QuasiStaticLineSearchConvergesUnderLargeSag) {
