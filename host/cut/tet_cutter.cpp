@@ -99,6 +99,173 @@ int TetCutter::locate(const Eigen::Vector3d& p, const Eigen::Matrix3Xd& x, Eigen
   return best_tet;
 }
 
+std::vector<Triangle> TetCutter::sweep_in_material(const SweptSurface& sweep, const Eigen::Matrix3Xd& x, bool refit) {
+  const Eigen::Matrix3Xd& rest = mesh_.rest_positions_World_mm;
+  const int strips = std::max(1, sweep.strips);
+  const double length = (sweep.to.heel_World_mm - sweep.to.tip_World_mm).norm();
+  const int n = std::clamp(static_cast<int>(std::ceil(length / 1.0)), strips, 64);
+  const bool carried = sweep.from_points.size() == static_cast<std::size_t>(strips + 1);
+  // The blade's start (carried with the tissue) and end lines, tip first: 2 (n + 1) points.
+  std::vector<Eigen::Vector3d> p(static_cast<std::size_t>(2 * (n + 1)));
+  for (int i = 0; i <= n; ++i) {
+    const double u = static_cast<double>(i) / n;
+    if (carried) {
+      const double f = u * strips;
+      const int j = std::min(static_cast<int>(std::floor(f)), strips - 1);
+      const double a = f - j;
+      p[static_cast<std::size_t>(i)] = (1 - a) * sweep.from_points[static_cast<std::size_t>(j)] + a * sweep.from_points[static_cast<std::size_t>(j + 1)];
+    } else {
+      p[static_cast<std::size_t>(i)] = (1 - u) * sweep.from.tip_World_mm + u * sweep.from.heel_World_mm;
+    }
+    p[static_cast<std::size_t>(n + 1 + i)] = (1 - u) * sweep.to.tip_World_mm + u * sweep.to.heel_World_mm;
+  }
+  // Rest position: the barycentric combination of the rest positions of the tet holding the
+  // point now. A point outside the tissue (or in the opening of a cut) keeps the displacement
+  // of the nearest mapped point of its own line, else of the other line's point at the same
+  // place along the blade (the blade entering from above the organ); nothing mapped: missed.
+  std::vector<Eigen::Vector3d> r(p.size());
+  std::vector<char> mapped(p.size(), 0);
+  for (std::size_t k = 0; k < p.size(); ++k) {
+    Eigen::Vector4d w;
+    const int t = locate(p[k], x, w, refit && k == 0);
+    if (t < 0 || w.minCoeff() < -1e-6) continue;
+    const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+    r[k].setZero();
+    for (int j = 0; j < 4; ++j) r[k] += w[j] * rest.col(tet[static_cast<std::size_t>(j)]);
+    mapped[k] = 1;
+  }
+  const auto nearest_mapped = [&](int base, int i) {
+    int nearest = -1;
+    for (int j = 0; j <= n; ++j)
+      if (mapped[static_cast<std::size_t>(base + j)] && (nearest < 0 || std::abs(j - i) < std::abs(nearest - i))) nearest = j;
+    return nearest < 0 ? -1 : base + nearest;
+  };
+  std::vector<Eigen::Vector3d> shift(p.size(), Eigen::Vector3d::Zero());
+  for (int line = 0; line < 2; ++line) {
+    const int base = line * (n + 1), other = (1 - line) * (n + 1);
+    for (int i = 0; i <= n; ++i) {
+      const auto k = static_cast<std::size_t>(base + i);
+      if (mapped[k]) continue;
+      int m = nearest_mapped(base, i);
+      if (m < 0) m = nearest_mapped(other, i);
+      if (m < 0) return {};
+      shift[k] = r[static_cast<std::size_t>(m)] - p[static_cast<std::size_t>(m)];
+    }
+  }
+  for (std::size_t k = 0; k < p.size(); ++k)
+    if (!mapped[k]) r[k] = p[k] + shift[k];
+  std::vector<Triangle> tris;
+  for (int i = 0; i < n; ++i) {
+    const auto f0 = static_cast<std::size_t>(i), f1 = f0 + 1, t0 = static_cast<std::size_t>(n + 1 + i), t1 = t0 + 1;
+    tris.push_back({r[f0], r[f1], r[t0]});
+    tris.push_back({r[f1], r[t1], r[t0]});
+  }
+  return tris;
+}
+
+double TetCutter::material_stroke_distance(const Eigen::Vector3d& p, Eigen::Vector3d* closest) const {
+  double best = 1e300;
+  for (const auto& chunk : stroke_chunks_rest_) {
+    const Eigen::Vector3d gap = (chunk.box.min - p).cwiseMax(p - chunk.box.max).cwiseMax(0.0);
+    if (gap.norm() >= best) continue;
+    for (int i = chunk.begin; i < chunk.end; ++i) {
+      Eigen::Vector3d c;
+      const double d = point_triangle_distance(p, stroke_tris_rest_[static_cast<std::size_t>(i)], &c);
+      if (d < best) {
+        best = d;
+        if (closest) *closest = c;
+      }
+    }
+  }
+  return best;
+}
+
+double TetCutter::world_stroke_crossing(int a, int b, double near_s, const Eigen::Matrix3Xd& x) const {
+  Aabb edge_box;
+  edge_box.extend(Eigen::Vector3d(x.col(a)));
+  edge_box.extend(Eigen::Vector3d(x.col(b)));
+  double best = -1.0;
+  for (const auto& chunk : stroke_chunks_) {
+    if (!chunk.box.overlaps(edge_box)) continue;
+    for (int i = chunk.begin; i < chunk.end; ++i) {
+      double u = 0.0;
+      if (segment_triangle_intersection(x.col(a), x.col(b), stroke_tris_[static_cast<std::size_t>(i)], u) && (best < 0 || std::abs(u - near_s) < std::abs(best - near_s)))
+        best = u;
+    }
+  }
+  return best;
+}
+
+bool TetCutter::material_crossing(int a, int b, double near_s, double& s) const {
+  const Eigen::Vector3d ra = mesh_.rest_positions_World_mm.col(std::min(a, b)), rb = mesh_.rest_positions_World_mm.col(std::max(a, b));
+  Aabb edge_box;
+  edge_box.extend(ra);
+  edge_box.extend(rb);
+  double best = -1.0;
+  for (const auto& chunk : stroke_chunks_rest_) {
+    if (!chunk.box.overlaps(edge_box)) continue;
+    for (int i = chunk.begin; i < chunk.end; ++i) {
+      double u = 0.0;
+      if (segment_triangle_intersection(ra, rb, stroke_tris_rest_[static_cast<std::size_t>(i)], u) && (best < 0 || std::abs(u - near_s) < std::abs(best - near_s)))
+        best = u;
+    }
+  }
+  if (best < 0.0) return false;
+  s = best;
+  return true;
+}
+
+void TetCutter::place_on_material_stroke(int m, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v) {
+  Eigen::Vector3d target;
+  const Eigen::Vector3d from = mesh_.rest_positions_World_mm.col(m);
+  if (!(material_stroke_distance(from, &target) > 0.5 * settings_.path_tolerance_mm + 1e-9) || !target.allFinite()) return;
+  const std::vector<int>& star = vertex_tets_[static_cast<std::size_t>(m)];
+  // Interior only (as move_vertex): on the organ's surface or an open lip, moving it would
+  // change the tissue's shape and volume.
+  for (int tt : star) {
+    const auto& tet = mesh_.tets[static_cast<std::size_t>(tt)];
+    for (const auto& fc : kFaces) {
+      const int f0 = tet[static_cast<std::size_t>(fc[0])], f1 = tet[static_cast<std::size_t>(fc[1])], f2 = tet[static_cast<std::size_t>(fc[2])];
+      if ((f0 == m || f1 == m || f2 == m) && tets_with_face(face_key(f0, f1, f2)) != 2) return;
+    }
+  }
+  const auto volume_with = [&](const Eigen::Matrix3Xd& pos, int t2, const Eigen::Vector3d& pm) {
+    Eigen::Vector3d q[4];
+    for (int k = 0; k < 4; ++k) {
+      const int u = mesh_.tets[static_cast<std::size_t>(t2)][static_cast<std::size_t>(k)];
+      q[k] = u == m ? pm : Eigen::Vector3d(pos.col(u));
+    }
+    return (q[1] - q[0]).cross(q[2] - q[0]).dot(q[3] - q[0]);
+  };
+  // All the way to the surface, else as far towards it as the tets around allow.
+  for (const double fraction : {1.0, 0.75, 0.5, 0.25}) {
+    const Eigen::Vector3d rest_new = from + fraction * (target - from);
+    // Its place now: the tet of m's star holding it at rest, by its weights.
+    for (int tt : star) {
+      const auto& tet = mesh_.tets[static_cast<std::size_t>(tt)];
+      Eigen::Matrix3d D;
+      for (int k = 0; k < 3; ++k) D.col(k) = mesh_.rest_positions_World_mm.col(tet[static_cast<std::size_t>(k + 1)]) - mesh_.rest_positions_World_mm.col(tet[0]);
+      const Eigen::Vector3d l = D.partialPivLu().solve(rest_new - mesh_.rest_positions_World_mm.col(tet[0]));
+      const Eigen::Vector4d w(1.0 - l.sum(), l[0], l[1], l[2]);
+      if (!w.allFinite() || w.minCoeff() < -1e-9) continue;
+      Eigen::Vector3d x_new = Eigen::Vector3d::Zero(), v_new = Eigen::Vector3d::Zero();
+      for (int k = 0; k < 4; ++k) {
+        x_new += w[k] * x.col(tet[static_cast<std::size_t>(k)]);
+        if (v.cols() > m) v_new += w[k] * v.col(tet[static_cast<std::size_t>(k)]);
+      }
+      bool keeps = true;
+      for (int t2 : star)
+        keeps = keeps && volume_with(mesh_.rest_positions_World_mm, t2, rest_new) >= 0.25 * volume_with(mesh_.rest_positions_World_mm, t2, from) &&
+                volume_with(x, t2, x_new) >= 0.25 * volume_with(x, t2, x.col(m));
+      if (!keeps) break;  // the next, shorter move
+      mesh_.rest_positions_World_mm.col(m) = rest_new;
+      x.col(m) = x_new;
+      if (v.cols() > m) v.col(m) = v_new;
+      return;
+    }
+  }
+}
+
 std::string TetCutter::describe_pending() const {
   std::ostringstream out;
   for (int t = 0; t < mesh_.num_tets(); ++t) {
@@ -221,6 +388,8 @@ void TetCutter::begin_stroke() {
   pending_normal_.clear();
   stroke_tris_.clear();
   stroke_chunks_.clear();
+  stroke_tris_rest_.clear();
+  stroke_chunks_rest_.clear();
   for (int w : sided_) side_[static_cast<std::size_t>(w)] = 0;
   sided_.clear();
   std::fill(tip_tet_.begin(), tip_tet_.end(), 0);
@@ -377,14 +546,22 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
   // A tet with no crossing recorded (its vertices on the cut and sides only: a crossing
   // missed between two frames' strips) is completed only where the stroke really swept: each
   // new point within the tissue's motion since (the distance of the tet's vertices on the
-  // cut from the stroke's surface as swept) plus path_tolerance_mm of that surface. A crack
-  // front (the blade's end inside the tissue) is not extended.
-  double reach = -1.0;
+  // cut from the stroke's surface as swept) plus path_tolerance_mm of that surface, and
+  // within the same of the surface in the material (issue 20: when the grasper moves the
+  // tissue, tets the blade never crossed arrive where it swept seconds earlier; their sides
+  // call for a cut, the surface as swept is near, the material says it never passed there).
+  // A crack front (the blade's end inside the tissue) is not extended.
+  double reach = -1.0, reach_material = -1.0;
   if (!recorded) {
     reach = 0.0;
+    reach_material = 0.0;
     for (int w : tet)
-      if (on_stroke(w)) reach = std::max(reach, stroke_distance(x.col(w)));
+      if (on_stroke(w)) {
+        reach = std::max(reach, stroke_distance(x.col(w)));
+        reach_material = std::max(reach_material, material_stroke_distance(mesh_.rest_positions_World_mm.col(w)));
+      }
     reach = 2.0 * reach + settings_.path_tolerance_mm + settings_.vertex_tolerance_mm;
+    reach_material = 2.0 * reach_material + settings_.path_tolerance_mm + settings_.vertex_tolerance_mm;
   }
   std::vector<std::pair<EdgeKey, double>> added;
   for (int e : missing) {
@@ -395,31 +572,19 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
     // edge to an end; a plane that misses the edge (the sides say it is crossed) gives the
     // point of the edge nearest to it (the deviation is measured below).
     double s = d0 != d1 ? std::clamp(d0 / (d0 - d1), 0.01, 0.99) : 0.5;
-    if (reach >= 0.0) {
-      // Where the edge crosses the stroke's surface (as swept), when it does (a long edge
-      // across a curved cut: the plane through the tet's points on the cut is a chord);
-      // otherwise on the plane, near enough to the surface.
-      const Aabb edge_box = [&] {
-        Aabb b_box;
-        b_box.extend(Eigen::Vector3d(x.col(a)));
-        b_box.extend(Eigen::Vector3d(x.col(b)));
-        return b_box;
-      }();
-      double best_s = -1.0;
-      for (const auto& chunk : stroke_chunks_) {
-        if (!chunk.box.overlaps(edge_box)) continue;
-        for (int i = chunk.begin; i < chunk.end; ++i) {
-          double u = 0.0;
-          if (segment_triangle_intersection(x.col(a), x.col(b), stroke_tris_[static_cast<std::size_t>(i)], u) && (best_s < 0 || std::abs(u - s) < std::abs(best_s - s)))
-            best_s = u;
-        }
-      }
-      if (best_s >= 0.0) {
-        s = std::clamp(best_s, 0.01, 0.99);
-      } else if (stroke_distance((1 - s) * x.col(a) + s * x.col(b)) > reach) {
-        return false;
+    // Where the edge crosses the stroke's surface in the material, when it does (the tissue
+    // may have moved since the blade passed; on a curved cut the plane through the tet's
+    // points on the cut is a chord).
+    double crossing = -1.0;
+    if (!material_crossing(a, b, s, crossing) && reach >= 0.0) {
+      crossing = world_stroke_crossing(a, b, s, x);  // else where it crosses the surface as swept
+      if (crossing < 0.0) {                           // else on the plane, near enough to both
+        const Eigen::Matrix3Xd& rest = mesh_.rest_positions_World_mm;
+        if (stroke_distance((1 - s) * x.col(a) + s * x.col(b)) > reach) return false;
+        if (!stroke_tris_rest_.empty() && material_stroke_distance((1 - s) * rest.col(a) + s * rest.col(b)) > reach_material) return false;
       }
     }
+    if (crossing >= 0.0) s = std::clamp(crossing, 0.01, 0.99);
     added.emplace_back(edge_key(a, b), s);
   }
   for (std::size_t i = 0; i < missing.size(); ++i) {
@@ -703,6 +868,22 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
     stroke_tris_.insert(stroke_tris_.end(), tris.begin(), tris.end());
     chunk.end = static_cast<int>(stroke_tris_.size());
     stroke_chunks_.push_back(chunk);
+    // The same surface in the material, while the tissue is where the blade met it (the
+    // hierarchy holds x since the candidates' query): crossings completed later, when the
+    // tissue has moved, are taken from it.
+    const std::vector<Triangle> in_material = sweep_in_material(sweep, x, false);
+    if (!in_material.empty()) {
+      StrokeChunk rest_chunk;
+      rest_chunk.begin = static_cast<int>(stroke_tris_rest_.size());
+      for (const auto& t : in_material) {
+        rest_chunk.box.extend(t.a);
+        rest_chunk.box.extend(t.b);
+        rest_chunk.box.extend(t.c);
+      }
+      stroke_tris_rest_.insert(stroke_tris_rest_.end(), in_material.begin(), in_material.end());
+      rest_chunk.end = static_cast<int>(stroke_tris_rest_.size());
+      stroke_chunks_rest_.push_back(rest_chunk);
+    }
   }
   // 1. Vertices on the swept surface.
   std::unordered_set<int> seen_vertices;
@@ -1220,6 +1401,9 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
         }
       }
       cut_faces_.insert(moved.begin(), moved.end());
+      // The mid-point of a chord lies off a curved cut by its sagitta: onto the surface the
+      // blade swept in the material, when the tets around allow.
+      place_on_material_stroke(m, x, v);
       separate_vertex(m, x, v, r);
     }
     for (auto it = cut_faces_.begin(); it != cut_faces_.end();) {

@@ -122,6 +122,12 @@ class TetCutter {
   // refit false: the hierarchy was refitted to x by an earlier call (several points, one refit).
   int locate(const Eigen::Vector3d& p_World_mm, const Eigen::Matrix3Xd& x_World_mm, Eigen::Vector4d& weights, bool refit = true);
 
+  // The surface a sweep covered, pulled back into the rest configuration through the tets
+  // holding it at positions x (the tissue as the blade passed): the material the blade went
+  // through, whatever the tissue does afterwards. Each blade line is resampled every ~1 mm
+  // (the pull-back is affine per tet only). Empty when the sweep missed the tissue.
+  std::vector<Triangle> sweep_in_material(const SweptSurface& sweep, const Eigen::Matrix3Xd& x_World_mm, bool refit = true);
+
   // Tets with recorded crossings that do not (yet) separate them, as text (for diagnosis).
   std::string describe_pending() const;
 
@@ -160,14 +166,26 @@ class TetCutter {
   int complete_pattern(int t) const;
   // Crossed-edge bitmask implied by the sides of tet t's free vertices (0 when unknown).
   int side_pattern(int t) const;
-  // Adds the crossings missing from the side pattern of tet t on the plane through the
-  // recorded ones; false when the sides are unknown or nothing is missing.
+  // Adds the crossings missing from the side pattern of tet t where its edges cross the
+  // stroke's surface in the material (else as swept, else on the plane through the recorded
+  // ones); false when the sides are unknown, nothing is missing, or (no crossing recorded)
+  // the surface never passed near the tet.
   bool complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepReport& r);
   // Side of free vertex w from the nearest point of this stroke's whole swept surface so far
   // (0: not across from it, or farther than an edge of its tets).
   int stroke_side(int w, const Eigen::Matrix3Xd& x, double cone, bool within_reach = true) const;
   // Distance of p from this stroke's whole swept surface (as swept).
   double stroke_distance(const Eigen::Vector3d& p) const;
+  // The same in the rest configuration: p at rest against the stroke's surface in the material.
+  double material_stroke_distance(const Eigen::Vector3d& p_rest, Eigen::Vector3d* closest = nullptr) const;
+  // Where edge a-b crosses the stroke's surface in the material (the crossing nearest to
+  // parameter near_s, from the smaller vertex id); false when it does not cross it.
+  bool material_crossing(int a, int b, double near_s, double& s) const;
+  // The same for the surface as swept, at positions x (-1 when it does not cross it).
+  double world_stroke_crossing(int a, int b, double near_s, const Eigen::Matrix3Xd& x) const;
+  // A vertex inserted inside the cut (an edge split at its mid-point) moved onto the stroke's
+  // surface in the material when every tet around it keeps a quarter of its volume.
+  void place_on_material_stroke(int m, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v);
   // Adds tet t to the watch list when it has a vertex on this stroke's cut.
   void watch_tet(int t);
   bool move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
@@ -197,6 +215,8 @@ class TetCutter {
     int begin = 0, end = 0;
   };
   std::vector<StrokeChunk> stroke_chunks_;       // stroke_tris_ by frame, with their box
+  std::vector<Triangle> stroke_tris_rest_;        // this stroke's swept surface in the material (rest configuration)
+  std::vector<StrokeChunk> stroke_chunks_rest_;  // stroke_tris_rest_ by frame, with their box
   std::vector<Eigen::Vector3d> cut_normal_;      // per vertex on this stroke's cut: the sweep's unit normal there (0: unknown)
   std::vector<int> sided_;
   std::vector<std::array<int, 3>> undecided_faces_;  // on the cut, sides of their tets not known yet                       // vertices with a side (reset at the next stroke)

@@ -72,14 +72,14 @@ std::vector<CutVertexRow> read_cut_vertices(const std::filesystem::path& path) {
 }
 
 // The cut-path error in the material (docs/overlay.md): the per-step worst new cut vertex
-// against the surfaces the blade swept. Issue 20's target (p95 <= 1.0, max <= 3.0 mm) is not
-// met, and the bound this test held before issue 20 (p95 < 4 mm over the ~40 cutting steps)
-// failed on some logs with the code before and after it (one log: p95 3.2 / max 11.6 mm
-// before, 9.4 / 9.7 mm after; another 2.2 / 3.0 before, 2.9 / 3.5 after; docs/cut.md "Not
-// done yet"): the median is held, the tail printed.
+// against the surfaces the blade swept. The tail (p95 9.4-11.3 mm on some logs) came from
+// completions of tets the blade never crossed (docs/cut.md, issue 20); with completions
+// checked in the material, five logs replay at p95 2.7-3.0, max 3.5-4.3 mm. Issue 20's target
+// (p95 <= 1.0, max <= 3.0 mm) is not met yet: the bound held here is the one before it.
 void expect_cut_on_the_blades_path(const nlohmann::json& cutting, const char* run) {
   EXPECT_GT(cutting["cut_faces"].get<int>(), 20) << run << ": " << cutting.dump();
   EXPECT_LT(cutting["path_error_mm"]["p50"].get<double>(), 0.5) << run << ": " << cutting.dump();
+  EXPECT_LT(cutting["path_error_mm"]["p95"].get<double>(), 4.0) << run << ": " << cutting.dump();
   std::cerr << "[ar demo] " << run << " cut-path error in the material: p50 " << cutting["path_error_mm"]["p50"].get<double>() << ", p95 "
             << cutting["path_error_mm"]["p95"].get<double>() << ", max " << cutting["path_error_mm"]["max"].get<double>() << " mm\n";
 }
