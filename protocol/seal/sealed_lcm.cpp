@@ -61,6 +61,7 @@ void SealedLcm::deliver(Subscription& s, const lcm::ReceiveBuffer* rbuf, const s
   if (opened_dispatch_ != dispatch_) {
     opened_dispatch_ = dispatch_;
     last_verdict_ = opener_->open(channel, bytes, rbuf->recv_utime, plain_);
+    if (last_verdict_ != Verdict::Accepted && drop_observer_) drop_observer_(last_verdict_, channel);
   }
   if (last_verdict_ != Verdict::Accepted) return;
   lcm::ReceiveBuffer opened{plain_.data(), static_cast<std::uint32_t>(plain_.size()), rbuf->recv_utime};

@@ -72,6 +72,11 @@ class SealedLcm {
   lcm::LCM& raw() { return lcm_; }
   // Receive-side counters (read on the thread that calls handle()).
   BusCounters counters() const;
+  // Called once for every received message the opener drops (not for an accepted one), on
+  // the thread that calls handle(), with its verdict and channel: the host's security
+  // banner (host/app/security_alarm.hpp). Sealed buses only; one observer (a second replaces it).
+  using DropObserver = std::function<void(Verdict, const std::string& channel)>;
+  void on_drop(DropObserver observer) { drop_observer_ = std::move(observer); }
   // "sealed: accepted N; dropped M (forged a, tampered b, replayed c, stale d, unsealed e,
   // malformed f)" or the OFF announcement; one line, for status tables.
   std::string status_line() const;
@@ -101,6 +106,7 @@ class SealedLcm {
   Verdict last_verdict_ = Verdict::Unsealed;
   std::vector<std::uint8_t> plain_;
   std::uint64_t accepted_off_ = 0, undecodable_ = 0, sealed_on_off_bus_ = 0;
+  DropObserver drop_observer_;
 };
 
 }  // namespace arnav::seal

@@ -85,7 +85,10 @@ TEST(SealedLcm, ForgedUnsealedAndReplayedNeverReachAHandler) {
   SealedLcm bus("memq://", sealed_with(1));
   Sink sink;
   bus.subscribe("ARNAV_POSE_.*", &Sink::pose, &sink);
+  bus.subscribe("ARNAV_POSE_pointer", &Sink::pose_too, &sink);  // a second match: still one verdict
   bus.subscribe("ARNAV_INPUT", &Sink::input, &sink);
+  std::vector<std::pair<Verdict, std::string>> drops;  // what the host's banner hears
+  bus.on_drop([&](Verdict v, const std::string& channel) { drops.emplace_back(v, channel); });
   // Plain LCM (what an attacker without the key sends, or a bench appliance with security off).
   input_event_t press{};
   press.input_name = "pedal_cut";
@@ -130,6 +133,12 @@ TEST(SealedLcm, ForgedUnsealedAndReplayedNeverReachAHandler) {
   EXPECT_EQ(c.replayed, 1u);
   EXPECT_EQ(c.tampered, 1u);
   EXPECT_NE(bus.status_line().find("SECURITY ALERT: 4 messages rejected"), std::string::npos) << bus.status_line();
+  const std::vector<std::pair<Verdict, std::string>> expected = {{Verdict::Unsealed, "ARNAV_INPUT"},
+                                                                 {Verdict::Forged, "ARNAV_INPUT"},
+                                                                 {Verdict::Replayed, "ARNAV_POSE_pointer"},
+                                                                 {Verdict::Tampered, "ARNAV_POSE_pointer"}};
+  EXPECT_EQ(drops, expected);
+  EXPECT_EQ(sink.poses_too.size(), 1u);
 }
 
 TEST(SealedLcm, OffPassesPlainMessagesAndSetsSealedOnesAside) {
