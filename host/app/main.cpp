@@ -68,11 +68,19 @@ nlohmann::json summary(const arnav::host::ToolFreshnessTracker& tracker, double 
 }
 
 // What the bus's receiver did with every message (docs/protocol.md, "Sealed bus").
-nlohmann::json security_json(const arnav::seal::BusSecurity& security, const arnav::seal::OpenCounters& c, std::uint64_t sealed_without_key) {
+nlohmann::json security_json(const arnav::seal::BusSecurity& security, const arnav::seal::OpenCounters& c, std::uint64_t sealed_without_key,
+                             const std::vector<arnav::seal::SenderTally>* senders = nullptr) {
   nlohmann::json j = {{"mode", security.sealed() ? "sealed" : "off"}, {"accepted", c.accepted}, {"dropped", c.dropped()},
                       {"forged", c.forged},     {"tampered", c.tampered}, {"replayed", c.replayed}, {"stale", c.stale},
                       {"unsealed", c.unsealed}, {"malformed", c.malformed}, {"sealed_without_key", sealed_without_key}};
   if (security.sealed()) j["key_id"] = security.key->key_id_hex();
+  // Live: every sender accepted from, audited apart from the replay window (docs/protocol.md).
+  if (senders && security.sealed()) {
+    j["senders"] = nlohmann::json::array();
+    for (const auto& t : *senders)
+      j["senders"].push_back({{"sender", t.sender}, {"accepted", t.accepted}, {"highest_counter", t.highest},
+                              {"accepted_twice", t.accepted_twice}, {"audit_truncated", t.audit_truncated}});
+  }
   return j;
 }
 
@@ -347,7 +355,7 @@ int run_session(const Cli& cli) {
   nlohmann::json j = summary(tracker, run_s);
   if (config.camera || session->has_model()) j["navigation"] = session->summary_json(run_s);
   const arnav::seal::BusCounters bc = bus.counters();
-  j["security"] = security_json(*security, bc.open, bc.sealed_on_off_bus);
+  j["security"] = security_json(*security, bc.open, bc.sealed_on_off_bus, &bc.senders);
   return write_summary(cli, j);
 }
 
@@ -444,7 +452,7 @@ static int main_body(int argc, char** argv) {
   if (!summary_path.empty()) {
     nlohmann::json j = summary(tracker, run_s);
     const arnav::seal::BusCounters bc = bus.counters();
-    j["security"] = security_json(security, bc.open, bc.sealed_on_off_bus);
+    j["security"] = security_json(security, bc.open, bc.sealed_on_off_bus, &bc.senders);
     std::ofstream out(summary_path);
     out << j.dump(2) << "\n";
     if (!out) {
