@@ -33,7 +33,8 @@ ar_start_host() {
 }
 
 # Waits until the appliance (pid $1) reports its camera's last frame (at most $2 tenths of
-# a second), stops it, then the host and the logger (sets app_rc, the appliance's exit code).
+# a second), stops the bus attacker if one runs (attacker_pid), then the appliance, the host
+# and the logger (sets app_rc, the appliance's exit code).
 ar_finish() {
   local app_pid=$1 limit=$2
   for _ in $(seq 1 "$limit"); do
@@ -41,6 +42,11 @@ ar_finish() {
     kill -0 "$app_pid" 2>/dev/null || break
     sleep 0.1
   done
+  # The bus attacker (ar_session.sh) stops first: the host counts all it sent.
+  if [ -n "${attacker_pid:-}" ]; then
+    kill -TERM "$attacker_pid" 2>/dev/null || true
+    wait "$attacker_pid" || true
+  fi
   sleep 1
   kill -TERM "$app_pid" 2>/dev/null || true
   app_rc=0
