@@ -82,10 +82,8 @@ sed "s#\.\./\.\./\.\./data/#$data/#" "$here/ar_demo/polaris_live.yaml" >"$out/po
 sed -e "s#^scene: [^ ]*#scene: $data/liver/liver_coarse_cut.scene.yaml#" -e "s#^registration: X_RefModel.yaml#registration: X_RefModel_phantom.yaml#" \
   "$here/ar_demo/session.yaml" >"$out/session_truth.yaml"
 
-# The sealed bus (docs/security.md): a fresh session key for this run, readable by its
-# owner only; session.yaml and appliance.yaml name it (security: {key_file: bus.key}).
-rm -f "$out/bus.key"
-"$keygen" "$out/bus.key" | sed 's/^/  /'
+# The sealed bus: a fresh key for this run (session.yaml and appliance.yaml name it).
+ar_make_key "$keygen"
 
 pids=()
 trap ar_stop_pids EXIT
@@ -108,22 +106,16 @@ case "${ready:-}" in READY*) ;; *) echo "arnav-can-sim did not start:" >&2; cat 
 (cd "$out" && LD_PRELOAD="$can_shim" ARNAV_HIL_CAN_DIR="$out/can" exec "$appliance" appliance.yaml 2>"$out/appliance.log") &
 app_pid=$!
 pids+=("$app_pid")
-# An attacker on the bus without the key (hil_tests/attacker, docs/security.md): once it has
-# captured the first sealed messages, 200 injections a second until the camera's last frame:
-# forged poses of the board and the scalpel, cut-pedal presses and camera frames (plain, and
-# sealed with its own key), replays of the session's own sealed traffic and bit-flipped or
-# re-channelled copies of it. ar_finish stops it before the host.
-"$attacker" --lcm-url "$ar_url" --tool liver_marker --camera bench --rate 200 --count 100000000 --duration 3600 --wait-capture 30 \
-  --report "$out/attack.json" >"$out/attacker.log" 2>&1 &
-attacker_pid=$!
-pids+=("$attacker_pid")
+# An attacker on the bus without the key all session long (ar_bench.sh ar_start_attacker):
+# forged poses, pedal presses and frames, replays and bit-flipped copies of the session's
+# own sealed traffic. ar_finish stops it before the host.
+ar_start_attacker "$attacker" liver_marker bench
 ar_finish "$app_pid" 1800
 kill -TERM "$can_pid" 2>/dev/null || true
 trap - EXIT
 ar_print_host_summary
-echo "== security: sealed bus under attack (arnav-host's counters; docs/security.md) =="
 sec_rc=0
-python3 "$here/security_report.py" "$out/host.json" "$out/appliance.log" "$out/attack.json" || sec_rc=$?
+ar_print_security || sec_rc=$?
 echo "== appliance: exit code $app_rc; camera faults and recoveries =="
 grep -E "CAMERA_LOST|CAMERA_RECOVERED|CAMERA_TOOL_LOST|CAMERA_TOOL_FOUND|NDI_TRACKING_STARTED|NDI_RECOVERED|CAN_" "$out/appliance.log" | sed 's/^arnav-appliance: /  /' | sort | uniq -c | sed 's/^/  /' || true
 echo "== AR error: overlay tumour centroid vs the synthetic camera's ground truth (arnav-ar-error) =="
