@@ -20,8 +20,8 @@ std::string hold_s(std::int64_t hold_us) {
 
 void NavigationSession::on_bus_drop(seal::Verdict verdict, const std::string& channel, std::int64_t now_us) {
   std::lock_guard lock(mutex_);
-  if (!security_alarm_.on_drop(verdict, channel, now_us)) return;
   security_check_over(now_us);  // an alert that ended unseen (no frame since) is said first
+  if (!security_alarm_.on_drop(verdict, channel, now_us)) return;
   ++security_alerts_;
   security_alert_open_ = true;
   say(std::string("security: ALERT: ") + seal::to_string(verdict) + " message on " + channel +

@@ -194,6 +194,28 @@ TEST_F(SealedSession, DroppedMessagesReachOnlyTheBanner) {
   EXPECT_TRUE(contains(session.format_summary(1.0), "security: 1 alert(s)"));
 }
 
+TEST_F(SealedSession, EachAlertStartsAndEndsOnceWithoutFrames) {
+  SessionFolder f("sealed_alerts");
+  SessionOptions o;
+  o.threaded = false;
+  NavigationSession session(load_session(sealed_session(f)), std::make_unique<Scene>(*scene_), o);
+  const std::int64_t t0 = 100 * kS;
+  session.on_bus_drop(seal::Verdict::Forged, "ARNAV_INPUT", t0);
+  session.on_bus_drop(seal::Verdict::Replayed, "ARNAV_INPUT", t0 + kS);
+  // 10 s later, no frame in between: the first alert ends before the second starts.
+  session.on_bus_drop(seal::Verdict::Unsealed, "ARNAV_POSE_scalpel", t0 + 11 * kS);
+  std::vector<std::string> said;
+  for (const auto& m : session.messages())
+    if (m.rfind("security:", 0) == 0) said.push_back(m);
+  ASSERT_EQ(said.size(), 3u);
+  EXPECT_TRUE(contains(said[0], "security: ALERT: forged message on ARNAV_INPUT"));
+  EXPECT_TRUE(contains(said[1], "security: alert over, no message rejected for 5 s; rejected so far 2 (forged 1, tampered 0, replayed 1")) << said[1];
+  EXPECT_TRUE(contains(said[2], "security: ALERT: unsealed message on ARNAV_POSE_scalpel"));
+  session.status_table(t0 + 17 * kS);  // the status table notices the end too
+  EXPECT_TRUE(contains(session.messages().back(), "security: alert over")) << session.messages().back();
+  EXPECT_EQ(session.summary_json(1.0)["security_banner"]["alerts"], 2);
+}
+
 // arnav-host --replay on a sealed lcm-logger log with an attack in it.
 std::string arnav_host() {
   const char* d = std::getenv("ARNAV_BINARY_DIR");
