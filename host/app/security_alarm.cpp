@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <iterator>
 
 namespace arnav::host {
 
@@ -34,16 +35,17 @@ SecurityAlarm::SecurityAlarm(SecurityAlarmOptions options) : options_(options) {
 }
 
 std::uint32_t SecurityAlarm::channel_id(const std::string& channel) {
-  const auto it = std::find(channels_.begin(), channels_.end(), channel);
-  if (it != channels_.end()) return static_cast<std::uint32_t>(it - channels_.begin()) + 1;
-  if (channels_.size() >= kMaxChannels) {
+  if (const auto it = ids_.find(channel); it != ids_.end()) return it->second;
+  if (channels_.size() + 1 >= kMaxChannels) {
+    // Every further channel under one name (an attacker may invent any number of them).
     static const std::string kOther = "(one of many channels)";
-    const auto o = std::find(channels_.begin(), channels_.end(), kOther);
-    if (o != channels_.end()) return static_cast<std::uint32_t>(o - channels_.begin()) + 1;
-    channels_.back() = kOther;  // the last slot stands for every further channel
+    if (const auto it = ids_.find(kOther); it != ids_.end()) return it->second;
+    channels_.push_back(kOther);
+    ids_.emplace(kOther, static_cast<std::uint32_t>(channels_.size()));
     return static_cast<std::uint32_t>(channels_.size());
   }
   channels_.push_back(channel);
+  ids_.emplace(channel, static_cast<std::uint32_t>(channels_.size()));
   return static_cast<std::uint32_t>(channels_.size());
 }
 

@@ -14,6 +14,7 @@
 #include <deque>
 #include <optional>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "protocol/seal/channel_guard.hpp"
@@ -66,7 +67,8 @@ class SecurityAlarm {
   std::deque<Entry> entries_;
   seal::OpenCounters base_;   // running totals before entries_.front() (forgotten entries)
   seal::OpenCounters total_;
-  std::vector<std::string> channels_;
+  std::vector<std::string> channels_;                  // id - 1 -> name
+  std::unordered_map<std::string, std::uint32_t> ids_;  // name -> id
 };
 
 }  // namespace arnav::host
