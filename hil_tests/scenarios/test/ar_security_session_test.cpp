@@ -37,7 +37,7 @@ TEST(ArSecuritySession, AttacksCountedByTheHostNoneAccepted) {
   EXPECT_EQ(std::stoull(m[2]), sec["forged"].get<std::uint64_t>());
   EXPECT_EQ(std::stoull(m[3]), sec["replayed"].get<std::uint64_t>());
   EXPECT_EQ(std::stoull(m[4]), sec["tampered"].get<std::uint64_t>());
-  for (int i = 2; i <= 5; ++i) EXPECT_GT(std::stoull(m[i]), 0u) << r.output;
+  for (std::size_t i = 2; i <= 5; ++i) EXPECT_GT(std::stoull(m[i]), 0u) << r.output;
   // The attacker stopped before the host: the host counted what it sent (UDP on a loaded machine may lose a few).
   std::ifstream attack_in(out / "attack.json");
   const nlohmann::json attack = nlohmann::json::parse(attack_in);
