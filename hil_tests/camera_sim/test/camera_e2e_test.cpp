@@ -34,6 +34,7 @@
 #include "calibration/lib/rigid_transform_file.hpp"
 #include "appliance/synthetic_camera/ground_truth.hpp"
 #include "protocol/pose_convert.hpp"
+#include "hil_tests/bench/bench_required.hpp"
 
 extern char** environ;
 
@@ -132,7 +133,7 @@ std::string slurp(const std::string& path) {
 
 TEST(CameraEndToEnd, ApplianceWithSyntheticCameraPublishesPosesMatchingGroundTruth) {
   const std::string why = enter_private_network();
-  if (!why.empty()) GTEST_SKIP() << why;
+  ARNAV_BENCH_OR_SKIP(why);
   const auto dir = std::filesystem::temp_directory_path() / ("arnav_camera_e2e_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
   calib::write_board_layout(dir / "marker_board.yaml", calib::make_marker_board("tag36h11", 35.0, 25.0, 10, 8.0));
@@ -223,7 +224,7 @@ camera:
 // the appliance published and the camera's ground truth).
 TEST(CameraEndToEnd, CameraPosesInTheReferenceToolFrameWithTheSimulatedPolaris) {
   const std::string why = enter_private_network();
-  if (!why.empty()) GTEST_SKIP() << why;
+  ARNAV_BENCH_OR_SKIP(why);
   const char* data = std::getenv("ARNAV_DATA_DIR");
   ASSERT_NE(data, nullptr) << "ARNAV_DATA_DIR is not set (run the test through ctest)";
   const std::string rom = std::string(data) + "/ndi_roms/8700339.rom";

@@ -7,6 +7,7 @@
 
 #include "hil_tests/bench/child_process.hpp"
 #include "hil_tests/bench/namespaces.hpp"
+#include "hil_tests/bench/bench_required.hpp"
 
 namespace arnav::hil {
 namespace {
@@ -17,7 +18,7 @@ class SerialShim : public ::testing::Test {
  protected:
   void SetUp() override {
     const std::string why = enter_bench_namespaces();
-    if (!why.empty()) GTEST_SKIP() << "HIL bench not available: " << why;
+    ARNAV_BENCH_OR_SKIP(why);
     if (!fs::exists("/sys/class/tty/ttyS0") || !fs::exists("/dev/ttyS0"))
       GTEST_SKIP() << "no /dev/ttyS0 with a sysfs entry on this machine: nothing to bind the pty over";
     dir = make_temp_dir("arnav-shim");

@@ -22,6 +22,7 @@
 
 #include "appliance/synthetic_camera/ground_truth.hpp"
 #include "calibration/lib/camera_intrinsics.hpp"
+#include "hil_tests/bench/bench_required.hpp"
 
 namespace arnav::hil {
 namespace {
@@ -32,7 +33,7 @@ std::string env(const char* name, const char* fallback) {
 }
 
 TEST(ArPhantomSession, CameraPublishesTheDeformingPhantomWithGroundTruth) {
-  if (::geteuid() != 0) GTEST_SKIP() << "needs root for a private network namespace (unshare --net)";
+  ARNAV_BENCH_OR_SKIP(::geteuid() != 0 ? "needs root for a private network namespace (unshare --net)" : "");
   const std::filesystem::path out = std::filesystem::temp_directory_path() / ("arnav-ar-phantom-" + std::to_string(::getpid()));
   std::filesystem::remove_all(out);
   const std::string script = env("ARNAV_SOURCE_DIR", ".") + std::string("/hil_tests/scenarios/ar_phantom_session.sh");

@@ -25,6 +25,7 @@
 #include "hil_tests/bench/namespaces.hpp"
 #include "hil_tests/scenarios/ar_error.hpp"
 #include "protocol/testing/child_process.hpp"
+#include "hil_tests/bench/bench_required.hpp"
 
 namespace arnav::hil {
 namespace {
@@ -94,8 +95,8 @@ struct Bench {
 
 TEST(ArSessionEndToEnd, OverlayMatchesGroundTruthBannersRecordingAndReplay) {
   const std::string why = enter_bench_namespaces();
-  if (!why.empty()) GTEST_SKIP() << why;
-  if (!std::filesystem::exists(bin("host/app/arnav-host"))) GTEST_SKIP() << "arnav-host not built";
+  ARNAV_BENCH_OR_SKIP(why);
+  ARNAV_BENCH_OR_SKIP(std::filesystem::exists(bin("host/app/arnav-host")) ? "" : "arnav-host not built");
   Bench b;
   const std::string session = b.session();
   const auto rec = b.dir / "rec";

@@ -12,6 +12,7 @@
 
 #include "hil_tests/scenarios/hil_run.hpp"
 #include "protocol/clock.hpp"
+#include "hil_tests/bench/bench_required.hpp"
 
 namespace arnav::hil {
 namespace {
@@ -47,7 +48,7 @@ void run_bring_up(const std::string& reply_mode, Resolution res) {
   o.reply_mode = reply_mode;
   const std::int64_t t0 = monotonic_us();
   const std::string why = run.start(o);
-  if (!why.empty()) GTEST_SKIP() << "HIL bench not available: " << why;
+  ARNAV_BENCH_OR_SKIP(why);
   ASSERT_TRUE(run.wait_all_valid(120, t0, 90.0)) << "no tracking within 90 s\n" << run.lcm().event_log() << run.logs();
   const auto first = run.lcm().first_valid_after(run.tool_names()[0], t0);
   std::printf("[ hil ] %s: bring-up to first valid pose %.2f s\n", reply_mode.c_str(), static_cast<double>(*first - t0) * 1e-6);
@@ -84,7 +85,7 @@ TEST(HilBringUp, HostSeesFreshToolsWithoutGaps) {
   HilRun run;
   const std::int64_t t0 = monotonic_us();
   const std::string why = run.start(HilRunOptions{});
-  if (!why.empty()) GTEST_SKIP() << "HIL bench not available: " << why;
+  ARNAV_BENCH_OR_SKIP(why);
   ASSERT_TRUE(run.wait_all_valid(30, t0, 90.0)) << run.logs();
   const std::string summary = run.dir() + "/host.json";
   ChildProcess host({host_exe(), "--lcm-url", HilRun::kLcmUrl, "--security", "off", "--duration", "4", "--quiet", "--stale-after-ms", "500",

@@ -15,6 +15,7 @@
 #include "hil_tests/scenarios/can_run.hpp"
 #include "hil_tests/scenarios/hil_run.hpp"
 #include "protocol/clock.hpp"
+#include "hil_tests/bench/bench_required.hpp"
 
 namespace arnav::hil {
 namespace {
@@ -29,7 +30,7 @@ class CanE2e : public ::testing::TestWithParam<CanPath> {
   void start(CanRunOptions o = {}) {
     o.path = GetParam();
     const std::string why = run.start(o);
-    if (!why.empty()) GTEST_SKIP() << "CAN bench not available: " << why;
+    ARNAV_BENCH_OR_SKIP(why);
     ASSERT_TRUE(run.lcm().wait_for([](const CanCapture& c) { return c.count_events("CAN_DEVICE_ALIVE") >= 2; }, 30.0))
         << "devices never seen\n" << run.lcm().event_log() << run.logs();
   }
@@ -254,7 +255,7 @@ TEST(CanE2eNoAfCan, SaidOnceAndTheApplianceKeepsRunning) {
   CanRunOptions o;
   o.with_shim = false;
   const std::string why = run.start(o);
-  if (!why.empty()) GTEST_SKIP() << "CAN bench not available: " << why;
+  ARNAV_BENCH_OR_SKIP(why);
   ASSERT_TRUE(run.lcm().wait_for([](const CanCapture& c) {
     return c.count_events("CAN_UNAVAILABLE") + c.count_events("CAN_OPEN_FAILED") >= 1 && c.health().size() >= 5;
   }, 20.0)) << run.lcm().event_log() << run.logs();
@@ -283,7 +284,7 @@ TEST(CanE2eNoAfCan, NdiKeepsTracking) {
                    "  inputs: [{name: pedal_cut, node: pedal, id: 0x190, bit: 0}]\n";
   const std::int64_t t0 = monotonic_us();
   const std::string why = run.start(o);
-  if (!why.empty()) GTEST_SKIP() << "HIL bench not available: " << why;
+  ARNAV_BENCH_OR_SKIP(why);
   ASSERT_TRUE(run.wait_all_valid(120, t0, 90.0)) << "no tracking within 90 s\n" << run.lcm().event_log() << run.logs();
   const std::size_t unavailable = run.lcm().events_after("CAN_UNAVAILABLE", t0);
   if (unavailable == 0 && run.lcm().events_after("CAN_OPEN_FAILED", t0) > 0)
@@ -310,7 +311,7 @@ TEST(CanE2eTools, ReplayedCaptureGivesTheRecordedPresses) {
   o.sim_args = {"--heartbeat-ms", "60000"};  // the capture carries its own heartbeats
   o.path = CanPath::SocketCan;
   const std::string why = run.start(o);
-  if (!why.empty()) GTEST_SKIP() << "CAN bench not available: " << why;
+  ARNAV_BENCH_OR_SKIP(why);
   // The appliance must be on the bus before the capture is sent (frames before are lost).
   ASSERT_TRUE(run.lcm().wait_for([](const CanCapture& c) { return c.count_events("CAN_OPEN") >= 1; }, 30.0)) << run.logs();
   const std::string log = run.dir() + "/capture.log";

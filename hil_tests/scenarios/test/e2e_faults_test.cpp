@@ -11,6 +11,7 @@
 
 #include "hil_tests/scenarios/hil_run.hpp"
 #include "protocol/clock.hpp"
+#include "hil_tests/bench/bench_required.hpp"
 
 namespace arnav::hil {
 namespace {
@@ -59,7 +60,7 @@ TEST(HilFaults, EachFaultIsNoticedAndRecovered) {
   HilRun run;
   const std::int64_t t0 = monotonic_us();
   const std::string why = run.start(HilRunOptions{});
-  if (!why.empty()) GTEST_SKIP() << "HIL bench not available: " << why;
+  ARNAV_BENCH_OR_SKIP(why);
   ASSERT_TRUE(run.wait_all_valid(60, t0, 90.0)) << "no tracking within 90 s\n" << run.lcm().event_log() << run.logs();
 
   using C = Counters;

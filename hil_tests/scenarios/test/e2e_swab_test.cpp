@@ -10,6 +10,7 @@
 
 #include "hil_tests/scenarios/hil_run.hpp"
 #include "protocol/clock.hpp"
+#include "hil_tests/bench/bench_required.hpp"
 
 namespace arnav::hil {
 namespace {
@@ -24,7 +25,7 @@ TEST(HilSwab, ContinuousSwabPublishesThePointerTip) {
   HilRun run;
   const std::int64_t t0 = monotonic_us();
   const std::string why = run.start(o);
-  if (!why.empty()) GTEST_SKIP() << "HIL bench not available: " << why;
+  ARNAV_BENCH_OR_SKIP(why);
   ASSERT_TRUE(run.wait_all_valid(30, t0, 90.0)) << run.logs();
   ASSERT_TRUE(run.lcm().wait_for([](const LcmCapture& c) { return c.clouds().size() >= 5; }, 30.0)) << run.logs();
   EXPECT_EQ(run.stop_appliance(), 0) << run.logs();

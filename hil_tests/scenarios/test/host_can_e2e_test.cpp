@@ -32,6 +32,7 @@
 #include "protocol/clock.hpp"
 #include "protocol/pose_convert.hpp"
 #include "protocol/testing/child_process.hpp"
+#include "hil_tests/bench/bench_required.hpp"
 
 namespace arnav::hil {
 namespace {
@@ -58,7 +59,7 @@ TEST(HostCanE2e, ThePedalHeldOnTheCanBusArmsCuttingInTheSession) {
   CanRunOptions o;
   o.path = CanPath::SocketCan;
   const std::string why = run.start(o);
-  if (!why.empty()) GTEST_SKIP() << "CAN bench not available: " << why;
+  ARNAV_BENCH_OR_SKIP(why);
   ASSERT_TRUE(run.lcm().wait_for([](const CanCapture& c) { return c.count_events("CAN_DEVICE_ALIVE") >= 1; }, 30.0))
       << run.lcm().event_log() << run.logs();
   const std::filesystem::path dir = run.dir();
@@ -135,7 +136,7 @@ TEST(HostCanE2e, LiveLandmarkRegistrationAcceptedByTheCanPedal) {
   CanRunOptions o;
   o.path = CanPath::SocketCan;
   const std::string why = run.start(o);
-  if (!why.empty()) GTEST_SKIP() << "CAN bench not available: " << why;
+  ARNAV_BENCH_OR_SKIP(why);
   ASSERT_TRUE(run.lcm().wait_for([](const CanCapture& c) { return c.count_events("CAN_DEVICE_ALIVE") >= 1; }, 30.0))
       << run.lcm().event_log() << run.logs();
   const std::filesystem::path dir = run.dir();

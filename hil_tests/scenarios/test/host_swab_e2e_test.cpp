@@ -38,6 +38,7 @@
 #include "protocol/channels.hpp"
 #include "protocol/clock.hpp"
 #include "protocol/testing/child_process.hpp"
+#include "hil_tests/bench/bench_required.hpp"
 
 namespace arnav::hil {
 namespace {
@@ -234,7 +235,7 @@ TEST(HostSwabE2e, PedalHeldSwabRefinesTheLandmarkRegistration) {
                    "swab: {tool: pointer, tip_mm: [0, 0, 0], input: pedal_cut, min_spacing_mm: 1.0, points_per_message: 20}\n";
   // The host first (in the bench's namespaces; it loads the scene and builds the model), so
   // the path's clock, which starts when the appliance boots the simulator, finds it ready.
-  if (const std::string why = enter_bench_namespaces(); !why.empty()) GTEST_SKIP() << "CAN bench not available: " << why;
+  ARNAV_BENCH_OR_SKIP(enter_bench_namespaces());
   const std::filesystem::path dir = tmp;
   // The landmark file: where the pointer dwells, with 1.5-3 mm touch errors (Model).
   const std::vector<Eigen::Vector3d> touch_error = {{2.0, -1.5, 1.0}, {-1.5, 2.0, -1.0}, {1.0, 1.5, 2.0}, {-2.0, -1.5, 1.0}};
@@ -258,7 +259,7 @@ TEST(HostSwabE2e, PedalHeldSwabRefinesTheLandmarkRegistration) {
   std::unique_ptr<ChildProcess> host;
   ASSERT_TRUE(start_host(dir, host)) << host->log_tail();
   const std::string why = run.start(o);
-  if (!why.empty()) GTEST_SKIP() << "CAN bench not available: " << why;
+  ARNAV_BENCH_OR_SKIP(why);
   const auto wait_path = [&](double t_s, double timeout_s) {
     const std::int64_t until = monotonic_us() + static_cast<std::int64_t>(timeout_s * 1e6);
     while (bus.path_time_s() < t_s && monotonic_us() < until) std::this_thread::sleep_for(std::chrono::milliseconds(5));

@@ -26,6 +26,7 @@
 #include "host/igtl/test/test_client.hpp"
 #include "hil_tests/scenarios/hil_run.hpp"
 #include "protocol/clock.hpp"
+#include "hil_tests/bench/bench_required.hpp"
 
 namespace arnav::hil {
 namespace {
@@ -108,7 +109,7 @@ TEST(HilIgtl, SlicerAndPackagedClientsOnTheBench) {
   HilRunOptions o;
   const std::int64_t t0 = monotonic_us();
   const std::int64_t t0_wall = wall_us();
-  if (const std::string why = run.start(o); !why.empty()) GTEST_SKIP() << "HIL bench not available: " << why;
+  ARNAV_BENCH_OR_SKIP(run.start(o));
   ASSERT_TRUE(run.wait_all_valid(30, t0, 90.0)) << "no tracking within 90 s\n" << run.logs();
 
   const std::string dir = run.dir();
@@ -212,7 +213,7 @@ TEST(HilIgtl, CameraFramesBecomeImagesForThePackagedClient) {
       "  tools:\n    - name: cam_marker\n      tag: {id: 3, size_mm: 40}\n"
       "  synthetic:\n    boards:\n      - tool: cam_marker\n        trajectory: {distance_mm: 400, amplitude_mm: [30, 20, 40], period_s: 5}\n";
   const std::int64_t t0 = monotonic_us();
-  if (const std::string why = run.start(o); !why.empty()) GTEST_SKIP() << "HIL bench not available: " << why;
+  ARNAV_BENCH_OR_SKIP(run.start(o));
   ASSERT_TRUE(run.wait_all_valid(10, t0, 90.0)) << "no tracking within 90 s\n" << run.logs();
   const std::string dir = run.dir();
   ChildProcess igtl({env_or("ARNAV_IGTL_EXE", ARNAV_IGTL_EXE), "--lcm", std::string(HilRun::kLcmUrl) + "&recv_buf_size=4194304", "--security", "off", "--port", "0",

@@ -31,6 +31,7 @@
 #include "protocol/seal/channel_guard.hpp"
 #include "protocol/seal/key.hpp"
 #include "protocol/testing/child_process.hpp"
+#include "hil_tests/bench/bench_required.hpp"
 
 namespace arnav::hil {
 namespace {
@@ -130,8 +131,8 @@ std::uint64_t at(const nlohmann::json& j, const char* key) { return j.at(key).ge
 
 TEST(SealedBusEndToEnd, AttacksAreCountedNoneAcceptedAndTheSessionUnchanged) {
   const std::string why = enter_bench_namespaces();
-  if (!why.empty()) GTEST_SKIP() << why;
-  if (!std::filesystem::exists(bin("host/app/arnav-host"))) GTEST_SKIP() << "arnav-host not built";
+  ARNAV_BENCH_OR_SKIP(why);
+  ARNAV_BENCH_OR_SKIP(std::filesystem::exists(bin("host/app/arnav-host")) ? "" : "arnav-host not built");
   SealedBench b;
   const std::string session = b.session("session.yaml", "security: {key_file: bus.key, max_age_ms: 2000}\n");
   b.earlier_log(40);

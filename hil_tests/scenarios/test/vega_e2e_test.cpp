@@ -9,6 +9,7 @@
 
 #include "hil_tests/scenarios/vega_run.hpp"
 #include "protocol/clock.hpp"
+#include "hil_tests/bench/bench_required.hpp"
 
 namespace arnav::hil {
 namespace {
@@ -19,7 +20,7 @@ TEST(VegaE2E, StreamsWithoutLossAndRecoversFromAConnectionReset) {
   VegaRun run;
   VegaRunOptions o;
   o.sim_faults = {"6:reset"};  // 6 s after the first STREAM
-  if (const std::string why = run.start(o); !why.empty()) GTEST_SKIP() << why;
+  ARNAV_BENCH_OR_SKIP(run.start(o));
   const std::int64_t t0 = monotonic_us();
   while (run.monitor().snapshot().frames < 10 && monotonic_us() - t0 < 60'000'000) wait_s(0.05);
   ASSERT_GE(run.monitor().snapshot().frames, 10u) << run.logs();
