@@ -14,6 +14,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "hil_tests/bench/bench_required.hpp"
 #include "protocol/testing/child_process.hpp"
 
 namespace {
@@ -23,7 +24,7 @@ TEST(ArSecuritySession, AttacksCountedByTheHostNoneAccepted) {
   std::filesystem::remove_all(out);
   const auto r = arnav::testing::run_command(arnav::testing::source_dir() + "/hil_tests/scenarios/ar_security_session.sh " +
                                              arnav::testing::required_env("ARNAV_BINARY_DIR") + " " + out.string());
-  if (r.code == 77) GTEST_SKIP() << r.output;
+  ARNAV_BENCH_OR_SKIP(r.code == 77 ? r.output : std::string());
   std::cout << r.output;
   ASSERT_EQ(r.code, 0) << r.output;
   std::smatch m;
