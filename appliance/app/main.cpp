@@ -105,6 +105,11 @@ static int main_body(int argc, char** argv) {
   // The sealed bus (docs/protocol.md, "Sealed bus"): a key file only its owner can read, or
   // `security: off` said in so many words; announced at start and on every health line.
   seal::BusSecurity security;
+  // Each publishing thread (NDI, camera, CAN) seals as a sender of its own, a new one at
+  // every start: said, so a report can check the host accepted only these (scripts/demo).
+  seal::SealedLcm::announce_senders([](const std::string& sender) {
+    std::cerr << "arnav-appliance: security: publishing as sender " << sender << std::endl;
+  });
   auto resolve_security = [&]() -> bool {
     try {
       security = seal::resolve_security(cfg.security);

@@ -11,6 +11,34 @@ ar_bus_up() {
 
 ar_stop_pids() { for p in "${pids[@]}"; do kill -TERM "$p" 2>/dev/null || true; done; }
 
+# The sealed bus (docs/security.md): a fresh session key for this run in OUT/bus.key, made by
+# arnav-keygen ($1), readable by its owner only; the run's session.yaml and appliance.yaml
+# name it (security: {key_file: bus.key}).
+ar_make_key() {
+  rm -f "$out/bus.key"
+  "$1" "$out/bus.key" | sed 's/^/  /'
+}
+
+# arnav-bus-attacker ($1; hil_tests/attacker) on the bus without the key: once it has
+# captured the first sealed messages, ARNAV_AR_ATTACK_HZ (default 200) injections a second
+# until ar_finish stops it: forged poses of the board ($2) and the scalpel, cut-pedal presses
+# and frames of camera $3 (plain, and sealed with its own key), replays of the session's own
+# sealed traffic and bit-flipped or re-channelled copies of it. Report: OUT/attack.json (sets
+# attacker_pid).
+ar_start_attacker() {
+  "$1" --lcm-url "$ar_url" --tool "$2" --camera "$3" --rate "${ARNAV_AR_ATTACK_HZ:-200}" --count 100000000 --duration 3600 \
+    --wait-capture 30 --report "$out/attack.json" >"$out/attacker.log" 2>&1 &
+  attacker_pid=$!
+  pids+=("$attacker_pid")
+}
+
+# The security line from the host's counters (security_report.py, next to this file);
+# returns 3 when an injected message was accepted, 2 when there is nothing to report.
+ar_print_security() {
+  echo "== security: sealed bus under attack (arnav-host's counters; docs/security.md) =="
+  python3 "$(dirname "${BASH_SOURCE[0]}")/security_report.py" "$out/host.json" "$out/appliance.log" "$out/attack.json"
+}
+
 # lcm-logger records the bus into OUT/session.lcmlog (sets logger_pid).
 ar_start_logger() {
   lcm-logger --lcm-url="$ar_url" -f "$out/session.lcmlog" >"$out/logger.log" 2>&1 &
@@ -33,7 +61,8 @@ ar_start_host() {
 }
 
 # Waits until the appliance (pid $1) reports its camera's last frame (at most $2 tenths of
-# a second), stops it, then the host and the logger (sets app_rc, the appliance's exit code).
+# a second), stops the bus attacker if one runs (attacker_pid), then the appliance, the host
+# and the logger (sets app_rc, the appliance's exit code).
 ar_finish() {
   local app_pid=$1 limit=$2
   for _ in $(seq 1 "$limit"); do
@@ -41,6 +70,11 @@ ar_finish() {
     kill -0 "$app_pid" 2>/dev/null || break
     sleep 0.1
   done
+  # The bus attacker (ar_session.sh) stops first: the host counts all it sent.
+  if [ -n "${attacker_pid:-}" ]; then
+    kill -TERM "$attacker_pid" 2>/dev/null || true
+    wait "$attacker_pid" || true
+  fi
   sleep 1
   kill -TERM "$app_pid" 2>/dev/null || true
   app_rc=0

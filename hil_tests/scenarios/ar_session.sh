@@ -14,10 +14,14 @@
 # simulated Polaris (pointer, scalpel, the phantom's grasper) and the CAN path
 # (ar_demo/appliance_live.yaml) until the camera's frames are done. Then arnav-ar-error
 # compares the overlay with the camera's ground truth (the deformed tumour of each frame,
-# through the bench's true X_RefModel_phantom.yaml) and a summary is printed. docs/hil.md.
+# through the bench's true X_RefModel_phantom.yaml) and a summary is printed. The bus is
+# sealed (a fresh key made by arnav-keygen in OUT/bus.key) and arnav-bus-attacker, on the
+# bus without the key, injects forged, replayed and bit-flipped messages all session long;
+# the summary's `security:` line counts them from the host's counters. docs/hil.md,
+# docs/security.md.
 set -euo pipefail
 if [ "$#" -lt 2 ]; then
-  sed -n '2,18p' "$0" >&2
+  sed -n '2,22p' "$0" >&2
   exit 2
 fi
 here=$(cd "$(dirname "$0")" && pwd)
@@ -30,7 +34,9 @@ ar_error=$build/hil_tests/scenarios/arnav-ar-error
 can_sim=$build/hil_tests/can_sim/arnav-can-sim
 can_shim=$build/hil_tests/interposer/libarnav_hil_can_shim.so
 record=$build/hil_tests/phantom/arnav-phantom-record
-for f in "$host" "$appliance" "$ar_error" "$can_sim" "$can_shim" "$record"; do
+keygen=$build/protocol/seal/arnav-keygen
+attacker=$build/hil_tests/attacker/arnav-bus-attacker
+for f in "$host" "$appliance" "$ar_error" "$can_sim" "$can_shim" "$record" "$keygen" "$attacker"; do
   [ -x "$f" ] || { echo "ar_session.sh: $f is missing: build first (scripts/build release)" >&2; exit 1; }
 done
 data=$(cd "$here/../../data" && pwd)
@@ -76,6 +82,9 @@ sed "s#\.\./\.\./\.\./data/#$data/#" "$here/ar_demo/polaris_live.yaml" >"$out/po
 sed -e "s#^scene: [^ ]*#scene: $data/liver/liver_coarse_cut.scene.yaml#" -e "s#^registration: X_RefModel.yaml#registration: X_RefModel_phantom.yaml#" \
   "$here/ar_demo/session.yaml" >"$out/session_truth.yaml"
 
+# The sealed bus: a fresh key for this run (session.yaml and appliance.yaml name it).
+ar_make_key "$keygen"
+
 pids=()
 trap ar_stop_pids EXIT
 mkdir -p "$out/can"
@@ -97,10 +106,16 @@ case "${ready:-}" in READY*) ;; *) echo "arnav-can-sim did not start:" >&2; cat 
 (cd "$out" && LD_PRELOAD="$can_shim" ARNAV_HIL_CAN_DIR="$out/can" exec "$appliance" appliance.yaml 2>"$out/appliance.log") &
 app_pid=$!
 pids+=("$app_pid")
+# An attacker on the bus without the key all session long (ar_bench.sh ar_start_attacker):
+# forged poses, pedal presses and frames, replays and bit-flipped copies of the session's
+# own sealed traffic. ar_finish stops it before the host.
+ar_start_attacker "$attacker" liver_marker bench
 ar_finish "$app_pid" 1800
 kill -TERM "$can_pid" 2>/dev/null || true
 trap - EXIT
 ar_print_host_summary
+sec_rc=0
+ar_print_security || sec_rc=$?
 echo "== appliance: exit code $app_rc; camera faults and recoveries =="
 grep -E "CAMERA_LOST|CAMERA_RECOVERED|CAMERA_TOOL_LOST|CAMERA_TOOL_FOUND|NDI_TRACKING_STARTED|NDI_RECOVERED|CAN_" "$out/appliance.log" | sed 's/^arnav-appliance: /  /' | sort | uniq -c | sed 's/^/  /' || true
 echo "== AR error: overlay tumour centroid vs the synthetic camera's ground truth (arnav-ar-error) =="
@@ -194,4 +209,6 @@ echo "  video:         $out/recording/overlay.avi"
 echo "  contact sheet: $out/recording/contact_sheet.png"
 echo "  overlay.csv:   $out/recording/overlay.csv (replay: $out/replay/overlay.csv)"
 echo "  LCM log:       $out/session.lcmlog  (replay: $host $out/session.yaml --replay $out/session.lcmlog)"
+# An injected message accepted fails the run (security_report.py exit 3).
+[ "$sec_rc" -ne 3 ] || exit 3
 exit "$app_rc"

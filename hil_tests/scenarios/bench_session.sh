@@ -6,10 +6,12 @@
 # libserialport with the test-only serial shim preloaded, arnav-host prints status, and
 # LCM udpm stays on the namespace's loopback. Writes logs, the simulator's events and the
 # host's JSON summary to OUT_DIR; with RSS_EVERY_S it samples the appliance's resident
-# memory into OUT_DIR/appliance_rss.csv. Environment: ARNAV_SIM_PRIORITY (see below).
+# memory into OUT_DIR/appliance_rss.csv. Environment: ARNAV_SIM_PRIORITY (see below);
+# ARNAV_BENCH_KEY=FILE: the bus is sealed with this key (the appliance's config must name it,
+# security: {key_file: ...}; arnav-host gets --key FILE), else the host runs --security off.
 set -euo pipefail
 if [ "$#" -lt 5 ]; then
-  sed -n '2,11p' "$0" >&2
+  sed -n '2,13p' "$0" >&2
   exit 2
 fi
 if [ "${ARNAV_BENCH_INSIDE:-}" != "1" ]; then
@@ -99,7 +101,9 @@ fi
 
 period=5
 [ "$seconds" -gt 120 ] && period=60
-"$host" --lcm-url "$lcm_url" --security off --duration "$seconds" --print-period "$period" --stale-after-ms 250 --summary \
+host_security=(--security off)
+[ -n "${ARNAV_BENCH_KEY:-}" ] && host_security=(--key "$ARNAV_BENCH_KEY")
+"$host" --lcm-url "$lcm_url" "${host_security[@]}" --duration "$seconds" --print-period "$period" --stale-after-ms 250 --summary \
   --summary-json "$out/host.json" | tee "$out/host.log"
 
 kill -TERM "$app_pid"

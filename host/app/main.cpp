@@ -18,6 +18,7 @@
 #include <lcm/lcm-cpp.hpp>
 #include <nlohmann/json.hpp>
 
+#include "host/app/bus_handlers.hpp"
 #include "host/app/navigation_session.hpp"
 #include "host/app/status_report.hpp"
 #include "host/scene/load_error.hpp"
@@ -34,31 +35,7 @@ namespace {
 std::atomic<bool> g_stop{false};
 void on_signal(int) { g_stop.store(true); }
 
-// Poses, health and events to whatever tracks them (the status table's tracker or the session).
-template <class Sink>
-struct StatusHandler {
-  Sink& sink;
-  bool print_events;
-  void pose(const lcm::ReceiveBuffer*, const std::string&, const arnav::tool_pose_t* msg) { sink.on_pose(*msg, arnav::monotonic_us()); }
-  void health(const lcm::ReceiveBuffer*, const std::string&, const arnav::device_health_t* msg) {
-    sink.on_health(*msg, arnav::monotonic_us());
-  }
-  void event(const lcm::ReceiveBuffer*, const std::string&, const arnav::appliance_event_t* msg) {
-    sink.on_event(*msg);
-    if (print_events) std::cout << "event " << msg->source << " " << msg->code << ": " << msg->text << std::endl;
-  }
-};
-using Handler = StatusHandler<arnav::host::ToolFreshnessTracker>;
-
-struct SessionHandler : StatusHandler<arnav::host::NavigationSession> {
-  void frame(const lcm::ReceiveBuffer*, const std::string&, const arnav::image_frame_t* msg) {
-    sink.submit_frame(*msg, arnav::monotonic_us());
-  }
-  void input(const lcm::ReceiveBuffer*, const std::string&, const arnav::input_event_t* msg) { sink.on_input(*msg, arnav::monotonic_us()); }
-  void cloud(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
-    sink.on_cloud(rbuf->data, rbuf->data_size, channel, arnav::monotonic_us());
-  }
-};
+using Handler = arnav::host::StatusHandler<arnav::host::ToolFreshnessTracker>;
 
 nlohmann::json summary(const arnav::host::ToolFreshnessTracker& tracker, double run_s) {
   nlohmann::json j;
@@ -91,11 +68,19 @@ nlohmann::json summary(const arnav::host::ToolFreshnessTracker& tracker, double 
 }
 
 // What the bus's receiver did with every message (docs/protocol.md, "Sealed bus").
-nlohmann::json security_json(const arnav::seal::BusSecurity& security, const arnav::seal::OpenCounters& c, std::uint64_t sealed_without_key) {
+nlohmann::json security_json(const arnav::seal::BusSecurity& security, const arnav::seal::OpenCounters& c, std::uint64_t sealed_without_key,
+                             const std::vector<arnav::seal::SenderTally>* senders = nullptr) {
   nlohmann::json j = {{"mode", security.sealed() ? "sealed" : "off"}, {"accepted", c.accepted}, {"dropped", c.dropped()},
                       {"forged", c.forged},     {"tampered", c.tampered}, {"replayed", c.replayed}, {"stale", c.stale},
                       {"unsealed", c.unsealed}, {"malformed", c.malformed}, {"sealed_without_key", sealed_without_key}};
   if (security.sealed()) j["key_id"] = security.key->key_id_hex();
+  // Live: every sender accepted from, audited apart from the replay window (docs/protocol.md).
+  if (senders && security.sealed()) {
+    j["senders"] = nlohmann::json::array();
+    for (const auto& t : *senders)
+      j["senders"].push_back({{"sender", t.sender}, {"accepted", t.accepted}, {"highest_counter", t.highest},
+                              {"accepted_twice", t.accepted_twice}, {"audit_truncated", t.audit_truncated}});
+  }
   return j;
 }
 
@@ -162,13 +147,25 @@ int run_replay(const Cli& cli, arnav::host::NavigationSession& session, const st
            ch == arnav::channels::kInput || ch == arnav::channels::kInputState || (!session.swab_channel().empty() && ch == session.swab_channel()) ||
            (!frame_channel.empty() && ch == frame_channel);
   };
+  // What the opener dropped goes to the session's security banner at the log's time (as
+  // live at the receive time); drops before the first accepted message wait for the clock.
+  struct Drop {
+    arnav::seal::Verdict verdict;
+    std::string channel;
+    std::int64_t timestamp;
+  };
+  std::vector<Drop> early_drops;
   while (!g_stop.load()) {
     const lcm::LogEvent* raw_ev = log.readNextEvent();
     if (!raw_ev) break;
     ++messages;
     if (!reads(raw_ev->channel)) continue;
     const auto opened = opener.open(*raw_ev);
-    if (!opened) continue;
+    if (!opened) {
+      if (offset_us) session.on_bus_drop(opener.last_verdict(), raw_ev->channel, raw_ev->timestamp + *offset_us);
+      else if (early_drops.size() < 100000) early_drops.push_back({opener.last_verdict(), raw_ev->channel, raw_ev->timestamp});
+      continue;
+    }
     lcm::LogEvent plain_ev = *raw_ev;
     plain_ev.data = const_cast<std::uint8_t*>(opened->data());
     plain_ev.datalen = static_cast<std::int32_t>(opened->size());
@@ -179,7 +176,11 @@ int run_replay(const Cli& cli, arnav::host::NavigationSession& session, const st
       std::this_thread::sleep_until(due);
     }
     const auto now = [&](std::int64_t mono, std::int64_t wall) {
-      if (!offset_us) offset_us = mono - wall;
+      if (!offset_us) {
+        offset_us = mono - wall;
+        for (const Drop& d : early_drops) session.on_bus_drop(d.verdict, d.channel, d.timestamp + *offset_us);
+        early_drops.clear();
+      }
       last_now = ev->timestamp + *offset_us;
       return last_now;
     };
@@ -300,15 +301,8 @@ int run_session(const Cli& cli) {
               << "': check lcm_url (udpm needs a multicast route, e.g. 224.0.0.0/4 on the interface)\n";
     return 2;
   }
-  SessionHandler handler{{*session, cli.events}};
-  StatusHandler<arnav::host::NavigationSession>* status = &handler;
-  bus.subscribe(std::string(arnav::channels::kPoseRegex), &SessionHandler::pose, status);
-  bus.subscribe(std::string(arnav::channels::kHealthRegex), &SessionHandler::health, status);
-  bus.subscribe(std::string(arnav::channels::kEvents), &SessionHandler::event, status);
-  if (config.camera) bus.subscribe(arnav::channels::frame(config.camera->name), &SessionHandler::frame, &handler);
-  bus.subscribe(std::string(arnav::channels::kInput), &SessionHandler::input, &handler);
-  bus.subscribe(std::string(arnav::channels::kInputState), &SessionHandler::input, &handler);
-  if (!session->swab_channel().empty()) bus.subscribe(session->swab_channel(), &SessionHandler::cloud, &handler);
+  arnav::host::SessionHandler handler{{*session, cli.events}};
+  arnav::host::connect_session(bus, handler, config.camera ? arnav::channels::frame(config.camera->name) : std::string());
   try {
     session->start();
   } catch (const arnav::host::DisplayUnavailable& e) {
@@ -361,7 +355,7 @@ int run_session(const Cli& cli) {
   nlohmann::json j = summary(tracker, run_s);
   if (config.camera || session->has_model()) j["navigation"] = session->summary_json(run_s);
   const arnav::seal::BusCounters bc = bus.counters();
-  j["security"] = security_json(*security, bc.open, bc.sealed_on_off_bus);
+  j["security"] = security_json(*security, bc.open, bc.sealed_on_off_bus, &bc.senders);
   return write_summary(cli, j);
 }
 
@@ -458,7 +452,7 @@ static int main_body(int argc, char** argv) {
   if (!summary_path.empty()) {
     nlohmann::json j = summary(tracker, run_s);
     const arnav::seal::BusCounters bc = bus.counters();
-    j["security"] = security_json(security, bc.open, bc.sealed_on_off_bus);
+    j["security"] = security_json(security, bc.open, bc.sealed_on_off_bus, &bc.senders);
     std::ofstream out(summary_path);
     out << j.dump(2) << "\n";
     if (!out) {

@@ -711,6 +711,16 @@ FrameResult NavigationSession::render_decoded(const image_frame_t& msg, cv::Mat 
       registration_status = registration_status.empty() ? st : registration_status + "; " + st;
       if (!swab_->done()) add_flag(r.flags, swab_->running() ? "swab_registering" : "swab");
     }
+    // Messages the sealed bus rejected: the banner on top (the dropped messages themselves
+    // never reach the session; navigation_session_security.cpp).
+    std::vector<std::string> security_banners;
+    security_frame(now_us, r.flags, security_banners);
+    if (!security_banners.empty()) {
+      std::vector<overlay::Banner> banners;
+      for (auto& text : security_banners) banners.emplace_back(overlay::Banner{std::move(text), cv::Scalar(120, 0, 170)});
+      std::move(r.banners.begin(), r.banners.end(), std::back_inserter(banners));
+      r.banners = std::move(banners);
+    }
     if (registration_changed_ && X_RefModel_) {
       add_flag(r.flags, "registration_changed");
       registration_changed_ = false;
@@ -865,6 +875,7 @@ std::optional<FrameResult> NavigationSession::last_frame() {
 std::string NavigationSession::status_table(std::int64_t now_us) {
   std::lock_guard lock(mutex_);
   tracker_.update(now_us);
+  security_check_over(now_us);
   return format_status_table(tracker_, now_us);
 }
 
@@ -964,6 +975,7 @@ nlohmann::json NavigationSession::summary_json(double run_s) {
   } else if (config_.X_RefModel) {
     j["registration"] = {{"method", "file"}, {"file", config_.registration_path}};
   }
+  if (config_.security.mode == seal::SecuritySettings::Mode::Sealed) j["security_banner"] = security_summary();
   for (const auto& [f, n] : flag_frames_) {
     nlohmann::json spans = nlohmann::json::array();
     for (const auto& [a, b] : flag_spans_[f]) spans.push_back({{"onset_capture_us", a}, {"recovered_capture_us", b}});
@@ -1030,6 +1042,12 @@ std::string NavigationSession::format_summary(double run_s) {
                   static_cast<long long>(g["refused"].get<std::int64_t>()), static_cast<long long>(g["steps_grasping"].get<std::int64_t>()),
                   g["max_tip_travel_mm"].get<double>());
     os << line;
+  }
+  if (j.contains("security_banner")) {
+    const auto& sb = j["security_banner"];
+    os << "  security: " << sb["alerts"] << " alert(s) (banner while messages were rejected, held " << sb["hold_s"] << " s); rejected "
+       << sb["dropped"] << " (forged " << sb["forged"] << ", tampered " << sb["tampered"] << ", replayed " << sb["replayed"] << ", stale "
+       << sb["stale"] << ", unsealed " << sb["unsealed"] << ", malformed " << sb["malformed"] << ")\n";
   }
   if (j.contains("flags"))
     for (const auto& [f, v] : j["flags"].items())

@@ -40,6 +40,7 @@
 #include "host/app/live_registration.hpp"
 #include "host/app/model_runner.hpp"
 #include "host/app/recorder.hpp"
+#include "host/app/security_alarm.hpp"
 #include "host/app/session_config.hpp"
 #include "host/app/swab_registration.hpp"
 #include "host/app/tool_freshness.hpp"
@@ -92,6 +93,12 @@ class NavigationSession {
   // The swab channel's messages (arnav.point_cloud_t bytes; registration.live.swab):
   // decoded and checked, brought into Ref, collected (navigation_session_swab.cpp).
   void on_cloud(const void* data, std::size_t size, const std::string& channel, std::int64_t now_us);
+  // A message the sealed bus dropped (forged, tampered, replayed, stale, malformed or
+  // unsealed; live: seal::SealedLcm::on_drop, replay: seal::LogOpener), received at now_us.
+  // Only its verdict and channel: the message itself never reaches the session. Frames
+  // arriving within the hold time carry a SECURITY banner (security_alarm.hpp); the first
+  // drop of an alert and the alert's end are said (messages(), stdout with print_events).
+  void on_bus_drop(seal::Verdict verdict, const std::string& channel, std::int64_t now_us);
   // The channel on_cloud wants (empty: the session has no swab step).
   std::string swab_channel() const;
   // Live: decodes the frame (on the calling thread) and hands it to the rendering thread;
@@ -189,6 +196,14 @@ class NavigationSession {
   void grasp_frame(std::string& flags, std::vector<std::string>& banners);
   void drain_grasp();  // with mutex_ held
   nlohmann::json grasp_summary();  // with mutex_ held
+  // The security banner (navigation_session_security.cpp), with mutex_ held (they take
+  // security_mutex_ inside): the frame's banner lines and flags at now_us; the alert's end
+  // said once it is over.
+  void security_frame(std::int64_t now_us, std::string& flags, std::vector<std::string>& banners);
+  void security_check_over(std::int64_t now_us);
+  // With security_mutex_ held: the "alert over" text when the open alert has ended by now_us.
+  std::string security_over_text(std::int64_t now_us);
+  nlohmann::json security_summary();
   // registration.live.swab (navigation_session_swab.cpp), all with mutex_ held.
   void swab_begin_after_landmarks();
   void swab_accept(std::int64_t now_us);
@@ -263,6 +278,12 @@ class NavigationSession {
   double last_cut_area_mm2_ = 0.0;
   int last_cut_faces_ = 0;
   std::vector<std::vector<Eigen::Vector3d>> last_strokes_;
+  // The bus's receive thread reports drops under this small lock only (a flood must not
+  // contend for mutex_ with the rendering thread); order: mutex_ before security_mutex_.
+  std::mutex security_mutex_;
+  SecurityAlarm security_alarm_;                        // with security_mutex_
+  bool security_alert_open_ = false;                    // with security_mutex_: an alert said and not yet over
+  std::int64_t security_alerts_ = 0;                    // with security_mutex_
   GraspCommand grasp_cmd_;                              // with mutex_
   std::size_t grasp_messages_seen_ = 0;                 // with mutex_
   std::int64_t grasper_stale_frames_ = 0;               // with mutex_

@@ -1,5 +1,7 @@
 #include "protocol/seal/envelope.hpp"
 
+#include <cstdio>
+
 #include <sodium.h>
 
 #include <algorithm>
@@ -59,6 +61,12 @@ void build_ad(std::span<const std::uint8_t> header, std::string_view channel, st
 thread_local std::vector<std::uint8_t> t_ad;  // reused: no allocation per message once warm
 
 }  // namespace
+
+std::string sender_hex(const SenderId& id) {
+  char buf[17];
+  std::snprintf(buf, sizeof buf, "%02x%02x%02x%02x%02x%02x%02x%02x", id[0], id[1], id[2], id[3], id[4], id[5], id[6], id[7]);
+  return buf;
+}
 
 const char* to_string(ParseError e) {
   switch (e) {

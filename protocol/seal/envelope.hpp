@@ -50,6 +50,9 @@ struct EnvelopeHeader {
 enum class ParseError { NotSealed, BadVersion, Truncated, TooLarge };
 const char* to_string(ParseError e);
 
+// A sender id as printed by the tools and the host: its first 8 bytes in hex (16 digits).
+std::string sender_hex(const SenderId& id);
+
 struct ParsedEnvelope {
   EnvelopeHeader header;
   std::span<const std::uint8_t> header_bytes;  // the 44 bytes (associated data, first part)

@@ -2,6 +2,7 @@
 
 #include <sys/time.h>
 
+#include <algorithm>
 #include <span>
 
 namespace arnav::seal {
@@ -12,13 +13,43 @@ std::int64_t wall_now_us() {
   ::gettimeofday(&tv, nullptr);
   return static_cast<std::int64_t>(tv.tv_sec) * 1000000 + tv.tv_usec;
 }
+std::function<void(const std::string&)>& announcer() {
+  static std::function<void(const std::string&)> a;
+  return a;
+}
 }  // namespace
+
+void SealedLcm::announce_senders(std::function<void(const std::string& sender)> a) { announcer() = std::move(a); }
 
 SealedLcm::SealedLcm(const std::string& url, BusSecurity security) : lcm_(url), security_(std::move(security)) {
   if (security_.key) {
     sealer_ = std::make_unique<Sealer>(security_.key);
     opener_ = std::make_unique<Opener>(security_.key, security_.options);
+    if (announcer()) announcer()(sender_hex(sealer_->sender()));
   }
+}
+
+void SealedLcm::audit(const EnvelopeHeader& h) {
+  auto it = audit_.find(h.sender);
+  if (it == audit_.end()) {
+    if (audit_.size() >= kAuditSenders) {
+      ++audit_overflow_;
+      return;
+    }
+    it = audit_.emplace(h.sender, Audit{}).first;
+    it->second.tally.sender = sender_hex(h.sender);
+  }
+  SenderTally& t = it->second.tally;
+  ++t.accepted;
+  t.highest = std::max(t.highest, h.counter);
+  if (h.counter >= kAuditCounters) {
+    t.audit_truncated = true;
+    return;
+  }
+  std::vector<bool>& seen = it->second.seen;
+  if (seen.size() <= h.counter) seen.resize(std::max<std::size_t>(h.counter + 1, seen.size() * 2));
+  if (seen[h.counter]) ++t.accepted_twice;
+  seen[h.counter] = true;
 }
 
 int SealedLcm::publish_bytes(const std::string& channel, const void* data, std::size_t size) {
@@ -61,6 +92,8 @@ void SealedLcm::deliver(Subscription& s, const lcm::ReceiveBuffer* rbuf, const s
   if (opened_dispatch_ != dispatch_) {
     opened_dispatch_ = dispatch_;
     last_verdict_ = opener_->open(channel, bytes, rbuf->recv_utime, plain_);
+    if (last_verdict_ == Verdict::Accepted) audit(opener_->last_header());
+    else if (drop_observer_) drop_observer_(last_verdict_, channel);
   }
   if (last_verdict_ != Verdict::Accepted) return;
   lcm::ReceiveBuffer opened{plain_.data(), static_cast<std::uint32_t>(plain_.size()), rbuf->recv_utime};
@@ -73,6 +106,7 @@ BusCounters SealedLcm::counters() const {
   else c.open.accepted = accepted_off_;
   c.undecodable = undecodable_;
   c.sealed_on_off_bus = sealed_on_off_bus_;
+  for (const auto& [id, a] : audit_) c.senders.push_back(a.tally);
   return c;
 }
 

@@ -11,6 +11,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -21,14 +22,33 @@
 
 namespace arnav::seal {
 
+// What one sender had accepted (sealed buses): an audit kept apart from the opener's replay
+// window, so a report can show every accepted message came from a known publisher, once.
+struct SenderTally {
+  std::string sender;                 // sender_hex
+  std::uint64_t accepted = 0;         // messages accepted from it
+  std::uint64_t highest = 0;          // its highest counter accepted
+  std::uint64_t accepted_twice = 0;   // a (sender, counter) accepted again: must stay 0
+  bool audit_truncated = false;       // counters beyond kAuditCounters not checked for repeats
+};
+
 struct BusCounters {
   OpenCounters open;            // per verdict (sealed); on an off bus only `accepted`
+  std::vector<SenderTally> senders;  // sealed: every sender accepted from (at most kAuditSenders)
   std::uint64_t undecodable = 0;  // accepted but not the subscribed type (another schema)
   std::uint64_t sealed_on_off_bus = 0;  // envelopes met with security off: cannot be read
 };
 
 class SealedLcm {
  public:
+  static constexpr std::size_t kAuditSenders = 256;
+  static constexpr std::uint64_t kAuditCounters = std::uint64_t{1} << 26;  // 8 MiB of bits per sender at most
+  // Called with the sender id (sender_hex) of every sealed instance made from now on, on the
+  // constructing thread: a program that publishes says which senders are its own (the
+  // appliance's log; scripts/demo compares them with the host's accepted senders). Set once,
+  // before the instances are made (not synchronised).
+  static void announce_senders(std::function<void(const std::string& sender)> announcer);
+
   SealedLcm(const std::string& url, BusSecurity security);
   SealedLcm(const SealedLcm&) = delete;
   SealedLcm& operator=(const SealedLcm&) = delete;
@@ -72,6 +92,11 @@ class SealedLcm {
   lcm::LCM& raw() { return lcm_; }
   // Receive-side counters (read on the thread that calls handle()).
   BusCounters counters() const;
+  // Called once for every received message the opener drops (not for an accepted one), on
+  // the thread that calls handle(), with its verdict and channel: the host's security
+  // banner (host/app/security_alarm.hpp). Sealed buses only; one observer (a second replaces it).
+  using DropObserver = std::function<void(Verdict, const std::string& channel)>;
+  void on_drop(DropObserver observer) { drop_observer_ = std::move(observer); }
   // "sealed: accepted N; dropped M (forged a, tampered b, replayed c, stale d, unsealed e,
   // malformed f)" or the OFF announcement; one line, for status tables.
   std::string status_line() const;
@@ -101,6 +126,14 @@ class SealedLcm {
   Verdict last_verdict_ = Verdict::Unsealed;
   std::vector<std::uint8_t> plain_;
   std::uint64_t accepted_off_ = 0, undecodable_ = 0, sealed_on_off_bus_ = 0;
+  DropObserver drop_observer_;
+  struct Audit {
+    SenderTally tally;
+    std::vector<bool> seen;  // bit c: counter c accepted
+  };
+  void audit(const EnvelopeHeader& h);
+  std::map<SenderId, Audit> audit_;
+  std::uint64_t audit_overflow_ = 0;  // accepted from senders beyond kAuditSenders
 };
 
 }  // namespace arnav::seal

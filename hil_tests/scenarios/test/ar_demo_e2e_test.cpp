@@ -19,6 +19,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <regex>
 #include <sstream>
 #include <cstdint>
 #include <vector>
@@ -103,6 +104,9 @@ TEST(ArDemoSession, LiveRegistrationRingCutFaultAndRecording) {
   ASSERT_EQ(rc, 0) << log.str();
   EXPECT_NE(log.str().find("registration FRE/TRE: FRE"), std::string::npos) << log.str();
   EXPECT_NE(log.str().find("cut-path error p50"), std::string::npos) << log.str();
+  // Sealed, under attack all session long (ar_bench.sh ar_start_attacker): the host's count, none accepted.
+  EXPECT_TRUE(std::regex_search(log.str(), std::regex(R"(security: [1-9][0-9]* injected \(forged [1-9][0-9]*/replayed [1-9][0-9]*/tampered [1-9][0-9]*.*\), 0 accepted)")))
+      << log.str();
 
   std::ifstream host_in(out / "host.json");
   const nlohmann::json nav = nlohmann::json::parse(host_in)["navigation"];

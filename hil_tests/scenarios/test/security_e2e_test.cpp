@@ -197,6 +197,30 @@ TEST(SealedBusEndToEnd, AttacksAreCountedNoneAcceptedAndTheSessionUnchanged) {
   EXPECT_FALSE(host_summary.contains("tools") && host_summary["tools"].contains("scalpel")) << host_summary["tools"].dump();
   EXPECT_EQ(host_summary["navigation"]["decode_failures"], 0);  // no forged frame reached the decoder
   EXPECT_NE(host_out.find("SECURITY ALERT: " + std::to_string(at(got, "dropped")) + " messages rejected"), std::string::npos) << host_out;
+  // The banner and its event lines (docs/overlay.md, "Security banner"), the forged pedal
+  // presses kept from the session, and the accepted senders: the appliance's own, once each.
+  EXPECT_NE(host_out.find("security: ALERT: "), std::string::npos) << host_out;
+  EXPECT_GE(host_summary["navigation"]["security_banner"]["alerts"].get<int>(), 1);
+  EXPECT_EQ(host_summary["navigation"]["security_banner"]["dropped"], at(got, "dropped"));
+  EXPECT_GT(host_summary["navigation"]["flags"]["security_rejected"]["frames"].get<int>(), 0);
+  EXPECT_GT(host_summary["navigation"]["flags"]["security_unsealed"]["frames"].get<int>(), 0);
+  EXPECT_FALSE(host_summary["navigation"].contains("inputs")) << host_summary["navigation"]["inputs"].dump();
+  ASSERT_TRUE(got.contains("senders"));
+  for (const auto& s : got["senders"]) {
+    EXPECT_EQ(s["accepted_twice"], 0) << s.dump();
+    EXPECT_NE(slurp(b.dir / "appliance.log").find("publishing as sender " + s["sender"].get<std::string>()), std::string::npos) << s.dump();
+  }
+  // scripts/demo's security line (ar_session.sh), from the host's counters.
+  const auto report = arnav::testing::run_command("python3 " + arnav::testing::source_dir() + "/hil_tests/scenarios/security_report.py " +
+                                                  (b.dir / "host.json").string() + " " + (b.dir / "appliance.log").string() + " " +
+                                                  (b.dir / "attack.json").string());
+  std::cout << report.output;
+  EXPECT_EQ(report.code, 0) << report.output;
+  EXPECT_NE(report.output.find("security: " + std::to_string(at(got, "dropped")) + " injected (forged " + std::to_string(at(got, "forged")) +
+                               "/replayed " + std::to_string(at(got, "replayed")) + "/tampered " + std::to_string(at(got, "tampered")) +
+                               "/unsealed " + std::to_string(at(got, "unsealed")) + "/stale " + std::to_string(at(got, "stale")) + "), 0 accepted"),
+            std::string::npos)
+      << report.output;
 
   // The session's figures as without the attacker (ar_session_e2e_test's targets).
   const ArErrorReport live = evaluate_ar_error(session, (b.dir / "ground_truth.csv").string(), (rec / "overlay.csv").string());

@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <map>
 
 #include "arnav/input_event_t.hpp"
 #include "arnav/tool_pose_t.hpp"
@@ -85,7 +86,10 @@ TEST(SealedLcm, ForgedUnsealedAndReplayedNeverReachAHandler) {
   SealedLcm bus("memq://", sealed_with(1));
   Sink sink;
   bus.subscribe("ARNAV_POSE_.*", &Sink::pose, &sink);
+  bus.subscribe("ARNAV_POSE_pointer", &Sink::pose_too, &sink);  // a second match: still one verdict
   bus.subscribe("ARNAV_INPUT", &Sink::input, &sink);
+  std::vector<std::pair<Verdict, std::string>> drops;  // what the host's banner hears
+  bus.on_drop([&](Verdict v, const std::string& channel) { drops.emplace_back(v, channel); });
   // Plain LCM (what an attacker without the key sends, or a bench appliance with security off).
   input_event_t press{};
   press.input_name = "pedal_cut";
@@ -130,6 +134,50 @@ TEST(SealedLcm, ForgedUnsealedAndReplayedNeverReachAHandler) {
   EXPECT_EQ(c.replayed, 1u);
   EXPECT_EQ(c.tampered, 1u);
   EXPECT_NE(bus.status_line().find("SECURITY ALERT: 4 messages rejected"), std::string::npos) << bus.status_line();
+  const std::vector<std::pair<Verdict, std::string>> expected = {{Verdict::Unsealed, "ARNAV_INPUT"},
+                                                                 {Verdict::Forged, "ARNAV_INPUT"},
+                                                                 {Verdict::Replayed, "ARNAV_POSE_pointer"},
+                                                                 {Verdict::Tampered, "ARNAV_POSE_pointer"}};
+  EXPECT_EQ(drops, expected);
+  EXPECT_EQ(sink.poses_too.size(), 1u);
+  // The audit: one sender (this instance), accepted once, nothing twice.
+  const BusCounters bc = bus.counters();
+  ASSERT_EQ(bc.senders.size(), 1u);
+  EXPECT_EQ(bc.senders[0].accepted, 1u);
+  EXPECT_EQ(bc.senders[0].highest, 1u);
+  EXPECT_EQ(bc.senders[0].accepted_twice, 0u);
+}
+
+TEST(SealedLcm, SendersAreAnnouncedAndTheHostsAuditListsOnlyThem) {
+  std::vector<std::string> announced;
+  SealedLcm::announce_senders([&](const std::string& s) { announced.push_back(s); });
+  SealedLcm receiver("memq://", sealed_with(1));
+  SealedLcm off("memq://", BusSecurity::off());  // not a sender of the sealed bus: not announced
+  SealedLcm::announce_senders(nullptr);
+  ASSERT_EQ(announced.size(), 1u);
+  EXPECT_EQ(announced[0].size(), 16u);
+  Sink sink;
+  receiver.subscribe("ARNAV_POSE_.*", &Sink::pose, &sink);
+  // Two publishers of the same key, through the receiver's memq bus (their envelopes sealed by their own Sealers).
+  Sealer a(key_of(1)), b(key_of(1));
+  const tool_pose_t m = pose_msg("pointer", 1);
+  std::vector<std::uint8_t> plain(static_cast<std::size_t>(m.getEncodedSize())), env;
+  m.encode(plain.data(), 0, m.getEncodedSize());
+  const auto send = [&](Sealer& s) {
+    s.seal("ARNAV_POSE_pointer", plain, ::time(nullptr) * 1000000LL, env);
+    receiver.raw().publish("ARNAV_POSE_pointer", env.data(), static_cast<unsigned>(env.size()));
+  };
+  for (int i = 0; i < 5; ++i) send(a);
+  for (int i = 0; i < 2; ++i) send(b);
+  drain(receiver);
+  EXPECT_EQ(sink.poses.size(), 7u);
+  std::map<std::string, SenderTally> by_id;
+  for (const auto& t : receiver.counters().senders) by_id[t.sender] = t;
+  ASSERT_EQ(by_id.size(), 2u);
+  EXPECT_EQ(by_id.at(sender_hex(a.sender())).accepted, 5u);
+  EXPECT_EQ(by_id.at(sender_hex(a.sender())).highest, 5u);
+  EXPECT_EQ(by_id.at(sender_hex(b.sender())).accepted, 2u);
+  EXPECT_EQ(by_id.at(sender_hex(b.sender())).accepted_twice, 0u);
 }
 
 TEST(SealedLcm, OffPassesPlainMessagesAndSetsSealedOnesAside) {
