@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <stdexcept>
 
 namespace arnav::host {
@@ -57,14 +58,17 @@ void EnergyLedger::check(double ke_ee, double u_g, StepSummary& summary) const {
 }
 
 double energy_floor_mN_mm(const SimProblem& problem) {
+  // The softest material over the whole volume: a stiff inclusion must not widen the
+  // tolerance of the soft tissue round it (where an unconverged solve shows first).
   const TetMesh& mesh = problem.mesh;
-  double e_v = 0.0;  // sum of E * V (mN*mm)
+  double volume = 0.0, softest = std::numeric_limits<double>::infinity();
   for (std::size_t t = 0; t < mesh.tets.size(); ++t) {
     const std::size_t region = t < mesh.tet_region.size() ? static_cast<std::size_t>(mesh.tet_region[t]) : 0;
-    const double E = region < problem.region_materials.size() ? problem.region_materials[region].youngs_modulus_kPa : 0.0;
-    e_v += E * std::abs(signed_volume_mm3(mesh.rest_positions_World_mm, mesh.tets[t]));
+    if (region < problem.region_materials.size()) softest = std::min(softest, problem.region_materials[region].youngs_modulus_kPa);
+    volume += std::abs(signed_volume_mm3(mesh.rest_positions_World_mm, mesh.tets[t]));
   }
-  return std::max(1e-6, 0.5 * e_v * kLedgerFloorStrain * kLedgerFloorStrain);
+  if (!std::isfinite(softest)) return 1e-6;
+  return std::max(1e-6, 0.5 * softest * volume * kLedgerFloorStrain * kLedgerFloorStrain);
 }
 
 namespace {

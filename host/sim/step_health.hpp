@@ -33,14 +33,14 @@ double kinetic_energy(const Eigen::VectorXd& mass_kg, const Eigen::Matrix3Xd& v_
 // reported as unhealthy. Units mN*mm.
 // Tolerance (docs/sim.md "Run-time health"): kLedgerRelativeTolerance of the budget, and at
 // least the floor: the strain energy of a uniform strain of kLedgerFloorStrain over the whole
-// body (energy_floor_mN_mm), so that an unloaded scene (a free organ, no gravity: budget 0)
+// body in its softest material (energy_floor_mN_mm), so that an unloaded scene (a free organ, no gravity: budget 0)
 // does not stop on round-off or on the few micro-joules an XPBD sweep's energy estimate
 // differs from the exact one, while a diverging step (energy growing by orders of magnitude
 // per step) still crosses it within a step or two.
 inline constexpr double kLedgerRelativeTolerance = 1e-3;
 inline constexpr double kLedgerFloorStrain = 1e-3;
 
-// 0.5 * sum over tets of E * V * kLedgerFloorStrain^2 (mN*mm): the ledger's floor for a body.
+// 0.5 * E_softest * V_body * kLedgerFloorStrain^2 (mN*mm): the ledger's floor for a body.
 double energy_floor_mN_mm(const SimProblem& problem);
 
 class EnergyLedger {
