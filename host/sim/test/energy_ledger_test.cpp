@@ -89,6 +89,7 @@ TEST(EnergyLedger, DivergingModelInAnUnloadedSceneIsFlagged) {
     const StepSummary s = model->step(1.0 / 60.0);
     if (!s.healthy) first_unhealthy = f, warning = s.warning;
   }
+  EXPECT_TRUE(model->positions_World_mm().allFinite()) << "flagged only once the state blew up";
   ASSERT_GE(first_unhealthy, 0) << "the model no longer diverges (pick a harsher setting for this test)";
   EXPECT_NE(warning.find("energy balance violated"), std::string::npos) << warning;
   std::printf("[ledger] diverging xpbd/neo_hookean 1 substep E=1000 kPa: unhealthy at frame %d: %s\n", first_unhealthy,
