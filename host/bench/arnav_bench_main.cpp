@@ -172,6 +172,8 @@ static int main_body(int argc, char** argv) {
   transection->add_option("--support", transection_options.supports, "free (no gravity, nothing fixed) and/or held (the scene's fixed vertices and gravity)")
       ->check(CLI::IsMember({"free", "held"}));
   transection->add_option("--threads", transection_options.threads, "model threads")->check(CLI::PositiveNumber);
+  transection->add_option("--margin", transection_options.margin_mm, "mm the blade reaches beyond the organ on each side (default 30)")
+      ->check(CLI::NonNegativeNumber);
   std::string rebuild = "inline";
   std::string local_updates = "on";
   cut->add_option("--fem-cut-rings", cut_options.fem_cut_region_rings,

@@ -37,7 +37,7 @@ int run_transection_bench(const TransectionBenchOptions& options) {
         settings.threads = options.threads;
         const bool held = support == "held";  // as cut_transection_test
         settings.settle_s = held ? 0.5 : 0.0;
-        settings.margin_mm = held ? 30.0 : 5.0;
+        settings.margin_mm = options.margin_mm;
         settings.stroke_s = 0.4;
         settings.after_s = 0.3;
         settings.return_stroke = held;

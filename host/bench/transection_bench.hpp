@@ -13,6 +13,7 @@ struct TransectionBenchOptions {
   std::vector<std::string> setting_prefixes;  // run only the variants whose label starts with one of these
   std::vector<std::string> supports{"free", "held"};
   int threads = 1;
+  double margin_mm = 30.0;  // the blade's reach beyond the organ (TransectionSettings::margin_mm)
 };
 
 // Returns the number of runs with an unhealthy step, a broken mesh or a side volume off by

@@ -21,7 +21,10 @@ struct TransectionSettings {
   // one) after the first: a surgeon's second pass through what the first left joined (a
   // swinging organ can carry material past the blade's end).
   bool return_stroke = false;
-  double margin_mm = 5.0;      // the blade starts and ends this far outside the organ
+  // The blade starts and ends this far outside the organ (also above and below it). 5 mm
+  // left the bundled liver at rest joined by a bridge (540 tets cut, one piece; 10 mm and
+  // more separate it exactly: a cutter limit, docs/cut.md).
+  double margin_mm = 30.0;
   int threads = 1;             // model threads
   double min_dihedral_deg = 5.0;  // the session's quality bound (docs/cut.md)
 };

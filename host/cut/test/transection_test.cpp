@@ -7,9 +7,10 @@
 // of the material on that side of the plane when the stroke started (the organ clipped by
 // the plane; the cut points lie on it within path_tolerance_mm, the tissue moves a little
 // during the stroke).
-// CI: one patient's liver meshed coarse (about 2,000 tets), 0.7-1.2 s of simulated time per
-// run; label long (cut_transection_long_test): the other two patients' livers. The full-resolution case is `arnav-bench transection`
-// (host/cut/bench, docs/benchmarks.md).
+// CI: one patient's liver meshed coarse (surface decimated to 400 vertices, TetGen -q2a5000:
+// 1,580 tets), 0.6-1.5 s of simulated time per run; label long (cut_transection_long_test):
+// the other two patients' livers. The full-resolution case is `arnav-bench transection`
+// (host/bench, docs/benchmarks.md).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -42,8 +43,7 @@ struct Liver {
 
 void PrintTo(const Liver& l, std::ostream* os) { *os << l.name; }
 
-// CI: one patient's liver meshed coarse (surface decimated to 600 vertices, TetGen -q2a3000:
-// about 2,000 tets); label long (cut_transection_long_test): the other two patients.
+// CI: one patient's liver meshed coarse; label long (cut_transection_long_test): the other two.
 const std::vector<Liver>& livers() {
   static const std::vector<Liver> l = {{"sksurgery_liver", "sksurgery_liver.ply"}};
   return l;
@@ -63,8 +63,8 @@ Scene coarse_scene(const Liver& liver) {
   std::ostringstream y;
   y.precision(10);
   y << "organ:\n  surface: " << surface << "\n  keep_largest_component: " << (liver.keep_largest ? "true" : "false")
-    << "\n  embed_tolerance_mm: 5.0\nvolume:\n  tetgen:\n    max_radius_edge_ratio: 2.0\n    decimate_surface_to: 600\n"
-    << "    max_volume_mm3: 3000\nmaterials:\n  default: {youngs_modulus_kPa: 5.0, poisson_ratio: 0.45, density_kg_per_mm3: 1.06e-6, "
+    << "\n  embed_tolerance_mm: 5.0\nvolume:\n  tetgen:\n    max_radius_edge_ratio: 2.0\n    decimate_surface_to: 400\n"
+    << "    max_volume_mm3: 5000\nmaterials:\n  default: {youngs_modulus_kPa: 5.0, poisson_ratio: 0.45, density_kg_per_mm3: 1.06e-6, "
     << "damping_mass_per_s: 2.0}\nboundary:\n  fixed:\n    - name: top_quarter\n      box_mm: {min: [-1000, -1000, "
     << top - 0.25 * (top - bottom) << "], max: [1000, 1000, 1000]}\n      surface_only: true\n"
     << "gravity_mm_s2: [0, 0, -9810]\ntime_step_s: 0.0166667\nframes: 60\nmodel:\n  kind: xpbd\n";
@@ -77,14 +77,14 @@ void check_transection(const Liver& liver, bool held) {
     sc.problem.fixed_vertices.clear();
     sc.problem.gravity_World_mm_s2.setZero();
   }
+  std::printf("[transection] %s: %d tets, %zu fixed vertices\n", liver.name.c_str(), sc.problem.mesh.num_tets(), sc.problem.fixed_vertices.size());
   const char* only = std::getenv("ARNAV_TRANSECTION_MODEL");  // e.g. "xpbd" to run the variants naming it
   for (const ModelVariant& variant : model_variants()) {
     if (only && variant.label.find(only) == std::string::npos) continue;
     TransectionSettings settings;
     settings.settle_s = held ? 0.5 : 0.0;  // a free organ at rest needs none
-    settings.margin_mm = held ? 30.0 : 5.0;  // the held organ swings: the blade reaches well beyond it
     settings.stroke_s = 0.4;
-    settings.after_s = 0.3;
+    settings.after_s = 0.2;
     settings.return_stroke = held;  // the swinging organ can carry material past the blade's end
     const TransectionResult r = run_transection(sc, variant, settings);
     std::printf("[transection] %-20s %-5s %-50s %s\n", liver.name.c_str(), held ? "held" : "free", variant.label.c_str(),
