@@ -104,7 +104,9 @@ void check_transection(const Liver& liver, bool held) {
       EXPECT_GT(r.expected_side_volume_mm3[s], 0.1 * r.uncut_volume_mm3) << what;
       EXPECT_NEAR(r.side_volume_mm3[s] / r.expected_side_volume_mm3[s], 1.0, held ? 5e-2 : 1e-4) << what << " side " << s;
     }
-    if (!held) EXPECT_EQ(r.pieces_across_plane, 0) << what << ": a piece holds material from both sides (the cut did not go through)";
+    if (!held) {
+      EXPECT_EQ(r.pieces_across_plane, 0) << what << ": a piece holds material from both sides (the cut did not go through)";
+    }
   }
 }
 

@@ -150,7 +150,9 @@ TEST(EnergyLedger, CutThatInvertsATetIsWorkAndTheModelRecovers) {
                 variant.label.c_str(), unhealthy, first_inverted, last_inverted, warning.substr(0, 160).c_str());
     EXPECT_EQ(unhealthy, 0) << variant.label << ": " << warning;
     EXPECT_TRUE(model->positions_World_mm().allFinite()) << variant.label;
-    if (variant.config.kind != "mass_spring") EXPECT_EQ(last_inverted, 0) << variant.label << ": the inverted tet was not restored";
+    if (variant.config.kind != "mass_spring") {
+      EXPECT_EQ(last_inverted, 0) << variant.label << ": the inverted tet was not restored";
+    }
   }
 }
 
