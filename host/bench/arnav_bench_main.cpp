@@ -20,6 +20,7 @@
 #include "host/bench/pareto_plot.hpp"
 #include "host/bench/register_bench.hpp"
 #include "host/bench/register_hard_bench.hpp"
+#include "host/bench/transection_bench.hpp"
 #include "host/scene/load_error.hpp"
 #include "protocol/guarded_main.hpp"
 
@@ -164,6 +165,15 @@ static int main_body(int argc, char** argv) {
   cut->add_option("--min-dihedral", cut_options.min_dihedral_deg,
                   "quality bound in degrees, overriding the scene's cutting.min_dihedral_deg (0: no embedded treatment, the elements as cut)")
       ->check(CLI::Range(0.0, 30.0));
+  TransectionBenchOptions transection_options;
+  CLI::App* transection = app.add_subcommand("transection", "a full transection of patient livers by the blade, every model, free and held: false stops, side volumes, frame time (JSON lines)");
+  transection->add_option("--scene", transection_options.scenes, "scene files (default: data/patients/sksurgery_liver.scene.yaml, sksurgery_liver_fine.scene.yaml, data/liver/liver.scene.yaml)");
+  transection->add_option("--setting", transection_options.setting_prefixes, "run only the models whose label starts with this (repeatable)");
+  transection->add_option("--support", transection_options.supports, "free (no gravity, nothing fixed) and/or held (the scene's fixed vertices and gravity)")
+      ->check(CLI::IsMember({"free", "held"}));
+  transection->add_option("--threads", transection_options.threads, "model threads")->check(CLI::PositiveNumber);
+  transection->add_option("--margin", transection_options.margin_mm, "mm the blade reaches beyond the organ on each side (default 30)")
+      ->check(CLI::NonNegativeNumber);
   std::string rebuild = "inline";
   std::string local_updates = "on";
   cut->add_option("--fem-cut-rings", cut_options.fem_cut_region_rings,
@@ -285,6 +295,22 @@ static int main_body(int argc, char** argv) {
       return 1;
     }
     return 0;
+  }
+
+  if (transection->parsed()) {
+    if (transection_options.scenes.empty())
+      transection_options.scenes = {std::string(ARNAV_DEFAULT_DATA_DIR) + "/patients/sksurgery_liver.scene.yaml",
+                                    std::string(ARNAV_DEFAULT_DATA_DIR) + "/patients/sksurgery_liver_fine.scene.yaml",
+                                    std::string(ARNAV_DEFAULT_DATA_DIR) + "/liver/liver.scene.yaml"};
+    try {
+      return run_transection_bench(transection_options) == 0 ? 0 : 1;
+    } catch (const LoadError& e) {
+      std::cerr << "arnav-bench: " << e.what() << "\n";
+      return 2;
+    } catch (const std::exception& e) {
+      std::cerr << "arnav-bench: " << e.what() << "\n";
+      return 1;
+    }
   }
 
   if (cut->parsed()) {

@@ -1,8 +1,11 @@
 #include "host/sim/step_health.hpp"
 
+#include "host/sim/tet_geometry.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <stdexcept>
 
 namespace arnav::host {
@@ -44,13 +47,28 @@ void EnergyLedger::check(double ke_ee, double u_g, StepSummary& summary) const {
   if (!std::isfinite(ke_ee) || !std::isfinite(u_g)) return;  // reported by check_state
   const double created = (ke_ee + u_g) - (e0_ + u0_ + work_);
   const double budget = e0_ + abs_work_ + std::abs(u_g - u0_);
-  constexpr double kFloor_mN_mm = 1e-6;
-  if (created > budget + kFloor_mN_mm) {
+  const double tolerance = std::max(floor_, kLedgerRelativeTolerance * budget);
+  if (created > budget + tolerance) {
     report(summary,
            "energy balance violated: " + std::to_string(created) + " mN*mm created against a budget of " +
-               std::to_string(budget) + " mN*mm (solver unconverged in stiff regions, or unstable)",
+               std::to_string(budget) + " mN*mm (+ tolerance " + std::to_string(tolerance) +
+               " mN*mm; solver unconverged in stiff regions, or unstable)",
            true);
   }
+}
+
+double energy_floor_mN_mm(const SimProblem& problem) {
+  // The softest material over the whole volume: a stiff inclusion must not widen the
+  // tolerance of the soft tissue round it (where an unconverged solve shows first).
+  const TetMesh& mesh = problem.mesh;
+  double volume = 0.0, softest = std::numeric_limits<double>::infinity();
+  for (std::size_t t = 0; t < mesh.tets.size(); ++t) {
+    const std::size_t region = t < mesh.tet_region.size() ? static_cast<std::size_t>(mesh.tet_region[t]) : 0;
+    if (region < problem.region_materials.size()) softest = std::min(softest, problem.region_materials[region].youngs_modulus_kPa);
+    volume += std::abs(signed_volume_mm3(mesh.rest_positions_World_mm, mesh.tets[t]));
+  }
+  if (!std::isfinite(softest)) return 1e-6;
+  return std::max(1e-6, 0.5 * softest * volume * kLedgerFloorStrain * kLedgerFloorStrain);
 }
 
 namespace {

@@ -24,20 +24,39 @@ void check_state(const Eigen::Matrix3Xd& x_World_mm, const Eigen::Matrix3Xd& v_W
 double kinetic_energy(const Eigen::VectorXd& mass_kg, const Eigen::Matrix3Xd& v_World_mm_s);
 
 // Energy balance: kinetic + stored energy may not exceed what was there at the last reset
-// plus the external work since (attachment targets moved, springs added) plus the work of
-// gravity. Energy created by the solver (instability, or an unconverged iteration whose
-// state stores more energy than was put in) is reported as unhealthy. Units mN*mm.
+// plus the work of every external agent since: attachment springs (grasps, the blade's push,
+// registration pulls: targets moved, springs added, stiffened or removed), the cut (the
+// energy a topology change adds or takes: vertices moved onto the cut, split elements, the
+// mass moved between vertices; TissueModel::apply_mesh_change) and gravity. Fixed vertices
+// hold still and do no work. Energy created by the solver (instability, or an unconverged
+// iteration whose state stores more energy than was put in) beyond the tolerance is
+// reported as unhealthy. Units mN*mm.
+// Tolerance (docs/sim.md "Run-time health"): kLedgerRelativeTolerance of the budget, and at
+// least the floor: the strain energy of a uniform strain of kLedgerFloorStrain over the whole
+// body in its softest material (energy_floor_mN_mm), so that an unloaded scene (a free organ, no gravity: budget 0)
+// does not stop on round-off or on the few micro-joules an XPBD sweep's energy estimate
+// differs from the exact one, while a diverging step (energy growing by orders of magnitude
+// per step) still crosses it within a step or two.
+inline constexpr double kLedgerRelativeTolerance = 1e-3;
+inline constexpr double kLedgerFloorStrain = 1e-3;
+
+// 0.5 * E_softest * V_body * kLedgerFloorStrain^2 (mN*mm): the ledger's floor for a body.
+double energy_floor_mN_mm(const SimProblem& problem);
+
 class EnergyLedger {
  public:
+  // The smallest energy the check resolves (energy_floor_mN_mm of the model's problem);
+  // 1e-6 mN*mm until set.
+  void set_floor(double floor_mN_mm) { floor_ = floor_mN_mm; }
   // ke_ee: kinetic + elastic (incl. attachment springs); u_g: gravity potential.
   void reset(double ke_ee, double u_g);
   void add_work(double work);
   // Reports "energy balance violated" when the created energy exceeds the energy
-  // budget (stored at reset + |work| + |gravity work|) plus a floor.
+  // budget (stored at reset + |work| + |gravity work|) plus the tolerance.
   void check(double ke_ee, double u_g, StepSummary& summary) const;
 
  private:
-  double e0_ = 0.0, u0_ = 0.0, work_ = 0.0, abs_work_ = 0.0;
+  double e0_ = 0.0, u0_ = 0.0, work_ = 0.0, abs_work_ = 0.0, floor_ = 1e-6;
 };
 
 // The health rule for inverted elements (docs/sim.md, "Run-time health"): a few elements

@@ -193,6 +193,7 @@ MassSpringModel::MassSpringModel(const SimProblem& problem, Integrator integrato
     embedded_.move_mass({&mass_, &mass_damping_}, touched, &problem.region_materials);
   }
   set_fixed_vertices(problem.fixed_vertices);
+  ledger_.set_floor(energy_floor_mN_mm(problem));
   reset_ledger();
 }
 
@@ -336,7 +337,10 @@ std::optional<MeshChangeStats> MassSpringModel::apply_mesh_change(const SimProbl
     inv_mass_[w] = fixed_[static_cast<std::size_t>(w)] ? 0.0 : 1.0 / mass_[w];
     ++stats.vertices_updated;
   }
-  if (integrator_ == Integrator::kExplicit) update_omega_bound();  // the stability bound the small pieces lower
+  if (integrator_ == Integrator::kExplicit) {
+    update_omega_bound();  // the stability bound the small pieces lower
+    bound_lowered_by_cut_ = true;
+  }
   // As for a model rebuilt on the cut mesh (set_state): the energy balance restarts on the
   // cut mesh (the cut changed the energy function: a split spring's pieces take their own
   // rest lengths) and so does the inversion episode. O(mesh), one energy evaluation.
@@ -905,9 +909,20 @@ StepSummary MassSpringModel::step_guarded(double dt_s) {
 StepSummary MassSpringModel::step_unguarded(double dt_s) {
   const auto start = std::chrono::steady_clock::now();
   StepSummary summary;
-  const double h = dt_s / config_.substeps;
+  double h = dt_s / config_.substeps;
+  int substeps = config_.substeps;
   if (integrator_ == Integrator::kExplicit) {
     const double h_max = explicit_stable_substep_s();
+    if (h > h_max && bound_lowered_by_cut_) {
+      // The cut's small pieces lowered the bound: the model takes the substeps it needs
+      // (a counted warning; the step costs that much more) rather than stopping.
+      substeps = static_cast<int>(std::ceil(1.25 * dt_s / h_max));
+      h = dt_s / substeps;
+      report(summary,
+             "explicit mass-spring: " + std::to_string(substeps) + " substeps instead of " + std::to_string(config_.substeps) +
+                 " (a cut lowered the stability bound to " + std::to_string(h_max) + " s)",
+             false);
+    }
     if (h > h_max) {
       const int needed = static_cast<int>(std::ceil(dt_s / h_max));
       report(summary,
@@ -917,8 +932,8 @@ StepSummary MassSpringModel::step_unguarded(double dt_s) {
              true);
       summary.termination = "refused_unstable_dt";
     } else {
-      for (int k = 0; k < config_.substeps; ++k) explicit_substep(h);
-      summary.iterations = config_.substeps;
+      for (int k = 0; k < substeps; ++k) explicit_substep(h);
+      summary.iterations = substeps;
       summary.termination = "explicit";
     }
   } else {

@@ -127,6 +127,7 @@ XpbdModel::XpbdModel(const SimProblem& problem, const ModelConfig& config) : con
     reset_rotations();
   }
   set_fixed_vertices(problem.fixed_vertices);
+  ledger_.set_floor(energy_floor_mN_mm(problem));
   reset_ledger();
 }
 
@@ -591,6 +592,10 @@ std::optional<MeshChangeStats> XpbdModel::apply_mesh_change(const SimProblem& pr
   if (n < n_old || nt < num_tets_ || x.cols() != n || (v.cols() != n && v.cols() != 0) || mesh.tet_region.size() != mesh.tets.size())
     return std::nullopt;
   MeshChangeStats stats;
+  // The cut is an external agent: the energy it adds or takes (vertices moved onto the cut,
+  // split tets with their own rest shapes, mass moved between vertices) is its work in the
+  // ledger, as a grasp's is (docs/sim.md "Run-time health"). One energy pass before and after.
+  const double energy_before = total_energy();
   if (lane_of_tet_.empty()) build_local_maps();  // once: the maps for local updates
   // Appended vertices.
   x_.conservativeResize(Eigen::NoChange, n);
@@ -738,6 +743,7 @@ std::optional<MeshChangeStats> XpbdModel::apply_mesh_change(const SimProblem& pr
   std::sort(batches.begin(), batches.end());
   batches.erase(std::unique(batches.begin(), batches.end()), batches.end());
   for (std::size_t bi : batches) fill_unused_lanes(bi);
+  ledger_.add_work(total_energy() - energy_before);
   return stats;
 }
 
@@ -795,6 +801,10 @@ void XpbdModel::remove_attachment(AttachmentId id) { ledger_.add_work(attachment
 
 void XpbdModel::reset_ledger() {
   ledger_.reset(kinetic_energy(mass_, v_) + elastic_energy(), gravity_potential(mass_, x_, gravity_));
+}
+
+double XpbdModel::total_energy() const {
+  return kinetic_energy(mass_, v_) + elastic_energy() + gravity_potential(mass_, x_, gravity_);
 }
 
 void XpbdModel::set_state(const Eigen::Matrix3Xd& positions_World_mm, const Eigen::Matrix3Xd& velocities_World_mm_s) {

@@ -111,6 +111,7 @@ class XpbdModel final : public TissueModel {
   StepSummary step_once(double dt_s, int substeps);
   void reset_rotations();
   void reset_ledger();
+  double total_energy() const;  // kinetic + elastic (attachments included) + gravity potential, mN*mm
   int count_inverted() const;
   double tet_energy(int* inverted) const;
   void solve_attachments(double h);
