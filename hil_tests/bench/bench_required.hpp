@@ -4,8 +4,8 @@
 // scripts/test sets ARNAV_BENCH_REQUIRED=1 when it runs as root and `unshare --net` works,
 // so a green suite there has run every end-to-end test (issue 21: a suite that cannot pass
 // by skipping). Facts of the machine that no bench can change (this kernel has AF_CAN, no
-// /dev/ttyS0) stay plain skips; ctest reports every skip as "Skipped" (SKIP_REGULAR_EXPRESSION
-// in cmake/ArnavCommon.cmake) and scripts/test lists them.
+// /dev/ttyS0) stay plain skips; a program whose tests were all skipped is reported by ctest
+// as "Skipped" (protocol/testing/skip_exit_code.cpp) and scripts/test lists them.
 #include <gtest/gtest.h>
 
 #include <cstdlib>
