@@ -4,10 +4,12 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <numeric>
 #include <set>
 #include <sstream>
 #include <stdexcept>
+#include <string>
 
 #include "host/scene/box_mesh.hpp"
 
@@ -51,11 +53,16 @@ std::array<int, 3> TetCutter::face_key(int a, int b, int c) {
 }
 
 TetCutter::TetCutter(const TetMesh& mesh, const CutSettings& settings) : mesh_(mesh), settings_(settings) {
-  if (!(settings_.snap_fraction > 0.0 && settings_.snap_fraction < 0.5)) {
-    throw std::invalid_argument("cut settings: snap_fraction must lie in (0, 0.5)");
-  }
-  if (!(settings_.vertex_tolerance_mm >= 0.0)) throw std::invalid_argument("cut settings: vertex_tolerance_mm must be >= 0");
-  if (!(settings_.side_distance_mm > 0.0)) throw std::invalid_argument("cut settings: side_distance_mm must be > 0");
+  // Each setting checked with its value in the message (a NaN fails every comparison).
+  const auto require = [](bool ok, const char* what, double value) {
+    if (!ok) throw std::invalid_argument(std::string("cut settings: ") + what + ", got " + std::to_string(value));
+  };
+  require(settings_.snap_fraction > 0.0 && settings_.snap_fraction < 0.5, "snap_fraction must lie in (0, 0.5)", settings_.snap_fraction);
+  require(settings_.vertex_tolerance_mm >= 0.0 && std::isfinite(settings_.vertex_tolerance_mm), "vertex_tolerance_mm must be finite and >= 0",
+          settings_.vertex_tolerance_mm);
+  require(settings_.path_tolerance_mm >= 0.0 && std::isfinite(settings_.path_tolerance_mm), "path_tolerance_mm must be finite and >= 0",
+          settings_.path_tolerance_mm);
+  require(settings_.side_distance_mm > 0.0, "side_distance_mm must be > 0", settings_.side_distance_mm);
   const int nv = mesh_.num_vertices();
   vertex_tets_.assign(static_cast<std::size_t>(nv), {});
   for (int t = 0; t < mesh_.num_tets(); ++t)

@@ -305,3 +305,20 @@ TEST(PathFidelity, SnappedSurfaceVerticesStayWithinTheTolerance) {
     EXPECT_NEAR(c.total_volume_mm3 / 40000.0, 1.0, 1e-12);
   }
 }
+
+TEST(CutSettingsCheck, EverySettingOutOfRangeIsRefusedWithItsValue) {
+  const TetMesh mesh = make_box_tet_mesh(2, 2, 2, Eigen::Vector3d(20, 20, 20));
+  const auto message = [&](const CutSettings& s) -> std::string {
+    try {
+      TetCutter cutter(mesh, s);
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "accepted";
+  };
+  EXPECT_EQ(message(CutSettings{}), "accepted");
+  EXPECT_NE(message(CutSettings{.snap_fraction = 0.7}).find("snap_fraction must lie in (0, 0.5), got 0.7"), std::string::npos);
+  EXPECT_NE(message(CutSettings{.path_tolerance_mm = -1.0}).find("path_tolerance_mm must be finite and >= 0, got -1"), std::string::npos);
+  EXPECT_NE(message(CutSettings{.path_tolerance_mm = std::nan("")}).find("path_tolerance_mm must be finite"), std::string::npos);
+  EXPECT_NE(message(CutSettings{.vertex_tolerance_mm = INFINITY}).find("vertex_tolerance_mm must be finite and >= 0"), std::string::npos);
+}
