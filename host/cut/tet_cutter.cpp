@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <set>
 #include <sstream>
@@ -223,7 +224,8 @@ bool TetCutter::material_crossing(int a, int b, double near_s, double& s) const 
 }
 
 void TetCutter::place_on_material_stroke(int m, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v) {
-  Eigen::Vector3d target;
+  if (stroke_tris_rest_.empty()) return;  // no sweep of this stroke in the material: nothing to move onto
+  Eigen::Vector3d target = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   const Eigen::Vector3d from = mesh_.rest_positions_World_mm.col(m);
   if (!(material_stroke_distance(from, &target) > 0.5 * settings_.path_tolerance_mm + 1e-9) || !target.allFinite()) return;
   const std::vector<int>& star = vertex_tets_[static_cast<std::size_t>(m)];
