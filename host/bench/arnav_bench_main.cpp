@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <functional>
 #include <fstream>
 #include <iostream>
 
@@ -23,6 +24,19 @@
 #include "host/bench/transection_bench.hpp"
 #include "host/scene/load_error.hpp"
 #include "protocol/guarded_main.hpp"
+
+// Runs one subcommand: a bad input file exits 2, any other failure 1, each with its message.
+static int exit_code_of(const std::function<int()>& body) {
+  try {
+    return body();
+  } catch (const arnav::host::LoadError& e) {
+    std::cerr << "arnav-bench: " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "arnav-bench: " << e.what() << "\n";
+    return 1;
+  }
+}
 
 // arnav-bench register --hard: the cases of register_hard_bench.hpp; prints per split and
 // method the mean TRE, the worst case and the cases worse than the reference.
@@ -258,7 +272,7 @@ static int main_body(int argc, char** argv) {
       reg_options.registration_scene = reg_patient.substr(slash + 1) + "_coarse.scene.yaml";
     }
     if (reg_hard) return run_hard(reg_options, hard_options, out_dir);
-    try {
+    return exit_code_of([&] {
       const std::vector<RegisterBenchRow> rows = run_register_bench(reg_options);
       std::filesystem::create_directories(out_dir);
       write_register_csv(out_dir + "/register.csv", rows);
@@ -287,14 +301,8 @@ static int main_body(int argc, char** argv) {
         first = false;
       }
       std::cout << "}}\n";
-    } catch (const LoadError& e) {
-      std::cerr << "arnav-bench: " << e.what() << "\n";
-      return 2;
-    } catch (const std::exception& e) {
-      std::cerr << "arnav-bench: " << e.what() << "\n";
-      return 1;
-    }
-    return 0;
+      return 0;
+    });
   }
 
   if (transection->parsed()) {
@@ -302,15 +310,7 @@ static int main_body(int argc, char** argv) {
       transection_options.scenes = {std::string(ARNAV_DEFAULT_DATA_DIR) + "/patients/sksurgery_liver.scene.yaml",
                                     std::string(ARNAV_DEFAULT_DATA_DIR) + "/patients/sksurgery_liver_fine.scene.yaml",
                                     std::string(ARNAV_DEFAULT_DATA_DIR) + "/liver/liver.scene.yaml"};
-    try {
-      return run_transection_bench(transection_options) == 0 ? 0 : 1;
-    } catch (const LoadError& e) {
-      std::cerr << "arnav-bench: " << e.what() << "\n";
-      return 2;
-    } catch (const std::exception& e) {
-      std::cerr << "arnav-bench: " << e.what() << "\n";
-      return 1;
-    }
+    return exit_code_of([&] { return run_transection_bench(transection_options) == 0 ? 0 : 1; });
   }
 
   if (cut->parsed()) {
