@@ -171,14 +171,15 @@ std::vector<Triangle> TetCutter::sweep_in_material(const SweptSurface& sweep, co
   return tris;
 }
 
-double TetCutter::material_stroke_distance(const Eigen::Vector3d& p, Eigen::Vector3d* closest) const {
+double TetCutter::surface_distance(const std::vector<Triangle>& tris, const std::vector<StrokeChunk>& chunks, const Eigen::Vector3d& p,
+                                   Eigen::Vector3d* closest) {
   double best = 1e300;
-  for (const auto& chunk : stroke_chunks_rest_) {
+  for (const auto& chunk : chunks) {
     const Eigen::Vector3d gap = (chunk.box.min - p).cwiseMax(p - chunk.box.max).cwiseMax(0.0);
     if (gap.norm() >= best) continue;
     for (int i = chunk.begin; i < chunk.end; ++i) {
       Eigen::Vector3d c;
-      const double d = point_triangle_distance(p, stroke_tris_rest_[static_cast<std::size_t>(i)], &c);
+      const double d = point_triangle_distance(p, tris[static_cast<std::size_t>(i)], &c);
       if (d < best) {
         best = d;
         if (closest) *closest = c;
@@ -188,73 +189,67 @@ double TetCutter::material_stroke_distance(const Eigen::Vector3d& p, Eigen::Vect
   return best;
 }
 
-double TetCutter::world_stroke_crossing(int a, int b, double near_s, const Eigen::Matrix3Xd& x) const {
+double TetCutter::surface_crossing(const std::vector<Triangle>& tris, const std::vector<StrokeChunk>& chunks, const Eigen::Vector3d& p0,
+                                   const Eigen::Vector3d& p1, double near_s) {
   Aabb edge_box;
-  edge_box.extend(Eigen::Vector3d(x.col(a)));
-  edge_box.extend(Eigen::Vector3d(x.col(b)));
+  edge_box.extend(p0);
+  edge_box.extend(p1);
   double best = -1.0;
-  for (const auto& chunk : stroke_chunks_) {
+  for (const auto& chunk : chunks) {
     if (!chunk.box.overlaps(edge_box)) continue;
     for (int i = chunk.begin; i < chunk.end; ++i) {
       double u = 0.0;
-      if (segment_triangle_intersection(x.col(a), x.col(b), stroke_tris_[static_cast<std::size_t>(i)], u) && (best < 0 || std::abs(u - near_s) < std::abs(best - near_s)))
+      if (segment_triangle_intersection(p0, p1, tris[static_cast<std::size_t>(i)], u) && (best < 0 || std::abs(u - near_s) < std::abs(best - near_s)))
         best = u;
     }
   }
   return best;
 }
 
-bool TetCutter::material_crossing(int a, int b, double near_s, double& s) const {
-  const Eigen::Vector3d ra = mesh_.rest_positions_World_mm.col(std::min(a, b)), rb = mesh_.rest_positions_World_mm.col(std::max(a, b));
-  Aabb edge_box;
-  edge_box.extend(ra);
-  edge_box.extend(rb);
-  double best = -1.0;
-  for (const auto& chunk : stroke_chunks_rest_) {
-    if (!chunk.box.overlaps(edge_box)) continue;
-    for (int i = chunk.begin; i < chunk.end; ++i) {
-      double u = 0.0;
-      if (segment_triangle_intersection(ra, rb, stroke_tris_rest_[static_cast<std::size_t>(i)], u) && (best < 0 || std::abs(u - near_s) < std::abs(best - near_s)))
-        best = u;
-    }
+void TetCutter::append_chunk(const std::vector<Triangle>& add, std::vector<Triangle>& tris, std::vector<StrokeChunk>& chunks) {
+  StrokeChunk chunk;
+  chunk.begin = static_cast<int>(tris.size());
+  for (const auto& t : add) {
+    chunk.box.extend(t.a);
+    chunk.box.extend(t.b);
+    chunk.box.extend(t.c);
   }
-  if (best < 0.0) return false;
-  s = best;
+  tris.insert(tris.end(), add.begin(), add.end());
+  chunk.end = static_cast<int>(tris.size());
+  chunks.push_back(chunk);
+}
+
+double TetCutter::material_stroke_distance(const Eigen::Vector3d& p, Eigen::Vector3d* closest) const {
+  return surface_distance(stroke_tris_rest_, stroke_chunks_rest_, p, closest);
+}
+
+double TetCutter::world_stroke_crossing(int a, int b, double near_s, const Eigen::Matrix3Xd& x) const {
+  return surface_crossing(stroke_tris_, stroke_chunks_, x.col(a), x.col(b), near_s);
+}
+
+bool TetCutter::material_crossing(int a, int b, double near_s, double& s) const {
+  const Eigen::Matrix3Xd& rest = mesh_.rest_positions_World_mm;
+  const double u = surface_crossing(stroke_tris_rest_, stroke_chunks_rest_, rest.col(std::min(a, b)), rest.col(std::max(a, b)), near_s);
+  if (u < 0.0) return false;
+  s = u;
   return true;
 }
 
 void TetCutter::place_on_material_stroke(int m, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v) {
   if (stroke_tris_rest_.empty()) return;  // no sweep of this stroke in the material: nothing to move onto
   Eigen::Vector3d target = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
-  const Eigen::Vector3d from = mesh_.rest_positions_World_mm.col(m);
+  const Eigen::Matrix3Xd& rest = mesh_.rest_positions_World_mm;
+  const Eigen::Vector3d from = rest.col(m);
   if (!(material_stroke_distance(from, &target) > 0.5 * settings_.path_tolerance_mm + 1e-9) || !target.allFinite()) return;
-  const std::vector<int>& star = vertex_tets_[static_cast<std::size_t>(m)];
-  // Interior only (as move_vertex): on the organ's surface or an open lip, moving it would
-  // change the tissue's shape and volume.
-  for (int tt : star) {
-    const auto& tet = mesh_.tets[static_cast<std::size_t>(tt)];
-    for (const auto& fc : kFaces) {
-      const int f0 = tet[static_cast<std::size_t>(fc[0])], f1 = tet[static_cast<std::size_t>(fc[1])], f2 = tet[static_cast<std::size_t>(fc[2])];
-      if ((f0 == m || f1 == m || f2 == m) && tets_with_face(face_key(f0, f1, f2)) != 2) return;
-    }
-  }
-  const auto volume_with = [&](const Eigen::Matrix3Xd& pos, int t2, const Eigen::Vector3d& pm) {
-    Eigen::Vector3d q[4];
-    for (int k = 0; k < 4; ++k) {
-      const int u = mesh_.tets[static_cast<std::size_t>(t2)][static_cast<std::size_t>(k)];
-      q[k] = u == m ? pm : Eigen::Vector3d(pos.col(u));
-    }
-    return (q[1] - q[0]).cross(q[2] - q[0]).dot(q[3] - q[0]);
-  };
   // All the way to the surface, else as far towards it as the tets around allow.
   for (const double fraction : {1.0, 0.75, 0.5, 0.25}) {
     const Eigen::Vector3d rest_new = from + fraction * (target - from);
     // Its place now: the tet of m's star holding it at rest, by its weights.
-    for (int tt : star) {
+    for (int tt : vertex_tets_[static_cast<std::size_t>(m)]) {
       const auto& tet = mesh_.tets[static_cast<std::size_t>(tt)];
       Eigen::Matrix3d D;
-      for (int k = 0; k < 3; ++k) D.col(k) = mesh_.rest_positions_World_mm.col(tet[static_cast<std::size_t>(k + 1)]) - mesh_.rest_positions_World_mm.col(tet[0]);
-      const Eigen::Vector3d l = D.partialPivLu().solve(rest_new - mesh_.rest_positions_World_mm.col(tet[0]));
+      for (int k = 0; k < 3; ++k) D.col(k) = rest.col(tet[static_cast<std::size_t>(k + 1)]) - rest.col(tet[0]);
+      const Eigen::Vector3d l = D.partialPivLu().solve(rest_new - rest.col(tet[0]));
       const Eigen::Vector4d w(1.0 - l.sum(), l[0], l[1], l[2]);
       if (!w.allFinite() || w.minCoeff() < -1e-9) continue;
       Eigen::Vector3d x_new = Eigen::Vector3d::Zero(), v_new = Eigen::Vector3d::Zero();
@@ -262,11 +257,7 @@ void TetCutter::place_on_material_stroke(int m, Eigen::Matrix3Xd& x, Eigen::Matr
         x_new += w[k] * x.col(tet[static_cast<std::size_t>(k)]);
         if (v.cols() > m) v_new += w[k] * v.col(tet[static_cast<std::size_t>(k)]);
       }
-      bool keeps = true;
-      for (int t2 : star)
-        keeps = keeps && volume_with(mesh_.rest_positions_World_mm, t2, rest_new) >= 0.25 * volume_with(mesh_.rest_positions_World_mm, t2, from) &&
-                volume_with(x, t2, x_new) >= 0.25 * volume_with(x, t2, x.col(m));
-      if (!keeps) break;  // the next, shorter move
+      if (!can_move(m, rest_new, x_new, x)) break;  // the next, shorter move
       mesh_.rest_positions_World_mm.col(m) = rest_new;
       x.col(m) = x_new;
       if (v.cols() > m) v.col(m) = v_new;
@@ -489,15 +480,7 @@ int TetCutter::side_pattern(int t) const {
   return pattern;
 }
 
-double TetCutter::stroke_distance(const Eigen::Vector3d& p) const {
-  double best = 1e300;
-  for (const auto& chunk : stroke_chunks_) {
-    const Eigen::Vector3d gap = (chunk.box.min - p).cwiseMax(p - chunk.box.max).cwiseMax(0.0);
-    if (gap.norm() >= best) continue;
-    for (int i = chunk.begin; i < chunk.end; ++i) best = std::min(best, point_triangle_distance(p, stroke_tris_[static_cast<std::size_t>(i)]));
-  }
-  return best;
-}
+double TetCutter::stroke_distance(const Eigen::Vector3d& p) const { return surface_distance(stroke_tris_, stroke_chunks_, p, nullptr); }
 
 bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepReport& r) {
   const int pattern = side_pattern(t);
@@ -610,9 +593,10 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
   return true;
 }
 
-bool TetCutter::move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r) {
+bool TetCutter::can_move(int w, const Eigen::Vector3d& rest_new, const Eigen::Vector3d& x_new, const Eigen::Matrix3Xd& x) const {
   const std::vector<int>& star = vertex_tets_[static_cast<std::size_t>(w)];
-  // Interior vertices only: moving a boundary vertex would change the organ's shape.
+  // Interior vertices only: moving a boundary vertex (the organ's surface, an open lip)
+  // would change the tissue's shape and volume.
   for (int tt : star) {
     const auto& tet = mesh_.tets[static_cast<std::size_t>(tt)];
     for (const auto& fc : kFaces) {
@@ -620,9 +604,7 @@ bool TetCutter::move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::
       if ((f0 == w || f1 == w || f2 == w) && tets_with_face(face_key(f0, f1, f2)) != 2) return false;
     }
   }
-  const Eigen::Vector3d rest_new = (1 - t) * mesh_.rest_positions_World_mm.col(w) + t * mesh_.rest_positions_World_mm.col(o);
-  const Eigen::Vector3d x_new = (1 - t) * x.col(w) + t * x.col(o);
-  auto volume_with = [&](const Eigen::Matrix3Xd& pos, int tt, const Eigen::Vector3d& pw) {
+  const auto volume_with = [&](const Eigen::Matrix3Xd& pos, int tt, const Eigen::Vector3d& pw) {
     Eigen::Vector3d q[4];
     for (int k = 0; k < 4; ++k) {
       const int u = mesh_.tets[static_cast<std::size_t>(tt)][static_cast<std::size_t>(k)];
@@ -631,11 +613,19 @@ bool TetCutter::move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::
     return (q[1] - q[0]).cross(q[2] - q[0]).dot(q[3] - q[0]);
   };
   // Every tet around keeps at least a quarter of its volume, at rest and now.
+  const Eigen::Matrix3Xd& rest = mesh_.rest_positions_World_mm;
   for (int tt : star) {
-    if (!(volume_with(mesh_.rest_positions_World_mm, tt, rest_new) >= 0.25 * volume_with(mesh_.rest_positions_World_mm, tt, mesh_.rest_positions_World_mm.col(w))))
-      return false;
+    if (!(volume_with(rest, tt, rest_new) >= 0.25 * volume_with(rest, tt, rest.col(w)))) return false;
     if (!(volume_with(x, tt, x_new) >= 0.25 * volume_with(x, tt, x.col(w)))) return false;
   }
+  return true;
+}
+
+bool TetCutter::move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r) {
+  const Eigen::Vector3d rest_new = (1 - t) * mesh_.rest_positions_World_mm.col(w) + t * mesh_.rest_positions_World_mm.col(o);
+  const Eigen::Vector3d x_new = (1 - t) * x.col(w) + t * x.col(o);
+  if (!can_move(w, rest_new, x_new, x)) return false;
+  const std::vector<int>& star = vertex_tets_[static_cast<std::size_t>(w)];
   mesh_.rest_positions_World_mm.col(w) = rest_new;
   x.col(w) = x_new;
   if (v.cols() > w) v.col(w) = (1 - t) * v.col(w) + t * v.col(o);
@@ -867,32 +857,12 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
   }
 
   if (!tris.empty()) {
-    StrokeChunk chunk;
-    chunk.begin = static_cast<int>(stroke_tris_.size());
-    for (const auto& t : tris) {
-      chunk.box.extend(t.a);
-      chunk.box.extend(t.b);
-      chunk.box.extend(t.c);
-    }
-    stroke_tris_.insert(stroke_tris_.end(), tris.begin(), tris.end());
-    chunk.end = static_cast<int>(stroke_tris_.size());
-    stroke_chunks_.push_back(chunk);
+    append_chunk(tris, stroke_tris_, stroke_chunks_);
     // The same surface in the material, while the tissue is where the blade met it (the
     // hierarchy holds x since the candidates' query): crossings completed later, when the
     // tissue has moved, are taken from it.
     const std::vector<Triangle> in_material = sweep_in_material(sweep, x, false);
-    if (!in_material.empty()) {
-      StrokeChunk rest_chunk;
-      rest_chunk.begin = static_cast<int>(stroke_tris_rest_.size());
-      for (const auto& t : in_material) {
-        rest_chunk.box.extend(t.a);
-        rest_chunk.box.extend(t.b);
-        rest_chunk.box.extend(t.c);
-      }
-      stroke_tris_rest_.insert(stroke_tris_rest_.end(), in_material.begin(), in_material.end());
-      rest_chunk.end = static_cast<int>(stroke_tris_rest_.size());
-      stroke_chunks_rest_.push_back(rest_chunk);
-    }
+    if (!in_material.empty()) append_chunk(in_material, stroke_tris_rest_, stroke_chunks_rest_);
   }
   // 1. Vertices on the swept surface.
   std::unordered_set<int> seen_vertices;

@@ -188,6 +188,9 @@ class TetCutter {
   void place_on_material_stroke(int m, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v);
   // Adds tet t to the watch list when it has a vertex on this stroke's cut.
   void watch_tet(int t);
+  // Vertex w may move to rest_new (rest) and x_new (now): it is interior and every tet around
+  // it keeps a quarter of its volume at rest and now.
+  bool can_move(int w, const Eigen::Vector3d& rest_new, const Eigen::Vector3d& x_new, const Eigen::Matrix3Xd& x) const;
   bool move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   int add_vertex(const VertexOrigin& o, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   void split_edge(int a, int b, double t_ab, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r,
@@ -215,6 +218,14 @@ class TetCutter {
     int begin = 0, end = 0;
   };
   std::vector<StrokeChunk> stroke_chunks_;       // stroke_tris_ by frame, with their box
+  // A stroke's surface (as swept, or in the material) queried by frame chunk: distance of p
+  // (closest point optional), the crossing of segment p0-p1 nearest parameter near_s (-1 when
+  // none), and a frame's triangles appended as a new chunk.
+  static double surface_distance(const std::vector<Triangle>& tris, const std::vector<StrokeChunk>& chunks, const Eigen::Vector3d& p,
+                                 Eigen::Vector3d* closest);
+  static double surface_crossing(const std::vector<Triangle>& tris, const std::vector<StrokeChunk>& chunks, const Eigen::Vector3d& p0,
+                                 const Eigen::Vector3d& p1, double near_s);
+  static void append_chunk(const std::vector<Triangle>& add, std::vector<Triangle>& tris, std::vector<StrokeChunk>& chunks);
   std::vector<Triangle> stroke_tris_rest_;        // this stroke's swept surface in the material (rest configuration)
   std::vector<StrokeChunk> stroke_chunks_rest_;  // stroke_tris_rest_ by frame, with their box
   std::vector<Eigen::Vector3d> cut_normal_;      // per vertex on this stroke's cut: the sweep's unit normal there (0: unknown)
