@@ -241,10 +241,13 @@ void TetCutter::place_on_material_stroke(int m, Eigen::Matrix3Xd& x, Eigen::Matr
   const Eigen::Matrix3Xd& rest = mesh_.rest_positions_World_mm;
   const Eigen::Vector3d from = rest.col(m);
   if (!(material_stroke_distance(from, &target) > 0.5 * settings_.path_tolerance_mm + 1e-9) || !target.allFinite()) return;
-  // All the way to the surface, else as far towards it as the tets around allow.
-  for (const double fraction : {1.0, 0.75, 0.5, 0.25}) {
-    const Eigen::Vector3d rest_new = from + fraction * (target - from);
-    // Its place now: the tet of m's star holding it at rest, by its weights.
+  // Its place now for a move by `fraction` towards the target: the tet of m's star holding the
+  // new rest position, by its weights; false when no tet of the star holds it or the move is
+  // not allowed.
+  std::vector<Eigen::Vector3d> x_new(1);
+  Eigen::Vector3d rest_new, v_new;
+  const auto place = [&](double fraction) {
+    rest_new = from + fraction * (target - from);
     for (int tt : vertex_tets_[static_cast<std::size_t>(m)]) {
       const auto& tet = mesh_.tets[static_cast<std::size_t>(tt)];
       Eigen::Matrix3d D;
@@ -252,18 +255,33 @@ void TetCutter::place_on_material_stroke(int m, Eigen::Matrix3Xd& x, Eigen::Matr
       const Eigen::Vector3d l = D.partialPivLu().solve(rest_new - rest.col(tet[0]));
       const Eigen::Vector4d w(1.0 - l.sum(), l[0], l[1], l[2]);
       if (!w.allFinite() || w.minCoeff() < -1e-9) continue;
-      Eigen::Vector3d x_new = Eigen::Vector3d::Zero(), v_new = Eigen::Vector3d::Zero();
+      x_new[0].setZero();
+      v_new.setZero();
       for (int k = 0; k < 4; ++k) {
-        x_new += w[k] * x.col(tet[static_cast<std::size_t>(k)]);
-        if (v.cols() > m) v_new += w[k] * v.col(tet[static_cast<std::size_t>(k)]);
+        x_new[0] += w[k] * x.col(tet[static_cast<std::size_t>(k)]);
+        if (v.cols() == x.cols()) v_new += w[k] * v.col(tet[static_cast<std::size_t>(k)]);
       }
-      if (!can_move(m, rest_new, x_new, x)) break;  // the next, shorter move
-      mesh_.rest_positions_World_mm.col(m) = rest_new;
-      x.col(m) = x_new;
-      if (v.cols() > m) v.col(m) = v_new;
-      return;
+      return can_move({m}, rest_new, x_new, x, true);
     }
+    return false;
+  };
+  // All the way to the surface, else as far towards it as the tets around allow (the allowed
+  // moves form an interval from zero: each bound is linear in the new position, and the star
+  // is star-shaped about m), found by bisection to 1/1024 of the distance.
+  double allowed = 0.0;
+  if (place(1.0)) {
+    allowed = 1.0;
+  } else {
+    double refused = 1.0;
+    for (int i = 0; i < 10; ++i) {
+      const double f = 0.5 * (allowed + refused);
+      (place(f) ? allowed : refused) = f;
+    }
+    if (allowed == 0.0 || !place(allowed)) return;
   }
+  mesh_.rest_positions_World_mm.col(m) = rest_new;
+  x.col(m) = x_new[0];
+  if (v.cols() == x.cols()) v.col(m) = v_new;
 }
 
 std::string TetCutter::describe_pending() const {
@@ -593,18 +611,22 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
   return true;
 }
 
-bool TetCutter::can_move(int w, const Eigen::Vector3d& rest_new, const Eigen::Vector3d& x_new, const Eigen::Matrix3Xd& x) const {
-  const std::vector<int>& star = vertex_tets_[static_cast<std::size_t>(w)];
-  // Interior vertices only: moving a boundary vertex (the organ's surface, an open lip)
+bool TetCutter::can_move(const std::vector<int>& copies, const Eigen::Vector3d& rest_new, const std::vector<Eigen::Vector3d>& x_new,
+                         const Eigen::Matrix3Xd& x, bool on_cut_lips) const {
+  // Interior vertices only (or on this stroke's lips): moving a vertex of the organ's surface
   // would change the tissue's shape and volume.
-  for (int tt : star) {
-    const auto& tet = mesh_.tets[static_cast<std::size_t>(tt)];
-    for (const auto& fc : kFaces) {
-      const int f0 = tet[static_cast<std::size_t>(fc[0])], f1 = tet[static_cast<std::size_t>(fc[1])], f2 = tet[static_cast<std::size_t>(fc[2])];
-      if ((f0 == w || f1 == w || f2 == w) && tets_with_face(face_key(f0, f1, f2)) != 2) return false;
+  bool on_boundary = false;
+  for (int w : copies)
+    for (int tt : vertex_tets_[static_cast<std::size_t>(w)]) {
+      const auto& tet = mesh_.tets[static_cast<std::size_t>(tt)];
+      for (const auto& fc : kFaces) {
+        const int f0 = tet[static_cast<std::size_t>(fc[0])], f1 = tet[static_cast<std::size_t>(fc[1])], f2 = tet[static_cast<std::size_t>(fc[2])];
+        if ((f0 != w && f1 != w && f2 != w) || tets_with_face(face_key(f0, f1, f2)) == 2) continue;
+        if (!on_cut_lips || !on_stroke(f0) || !on_stroke(f1) || !on_stroke(f2)) return false;
+        on_boundary = true;
+      }
     }
-  }
-  const auto volume_with = [&](const Eigen::Matrix3Xd& pos, int tt, const Eigen::Vector3d& pw) {
+  const auto volume_with = [&](const Eigen::Matrix3Xd& pos, int tt, int w, const Eigen::Vector3d& pw) {
     Eigen::Vector3d q[4];
     for (int k = 0; k < 4; ++k) {
       const int u = mesh_.tets[static_cast<std::size_t>(tt)][static_cast<std::size_t>(k)];
@@ -612,19 +634,32 @@ bool TetCutter::can_move(int w, const Eigen::Vector3d& rest_new, const Eigen::Ve
     }
     return (q[1] - q[0]).cross(q[2] - q[0]).dot(q[3] - q[0]);
   };
-  // Every tet around keeps at least a quarter of its volume, at rest and now.
+  // Every tet around keeps at least a quarter of its volume, at rest and now; on the lips, the
+  // tets around together keep their volume at rest and now: the lips are still closed there
+  // (a move across lips that have opened would drag one lip across the gap; a vertex of the
+  // organ's surface moved off it would change the organ).
   const Eigen::Matrix3Xd& rest = mesh_.rest_positions_World_mm;
-  for (int tt : star) {
-    if (!(volume_with(rest, tt, rest_new) >= 0.25 * volume_with(rest, tt, rest.col(w)))) return false;
-    if (!(volume_with(x, tt, x_new) >= 0.25 * volume_with(x, tt, x.col(w)))) return false;
+  double rest_before = 0.0, rest_after = 0.0, now_before = 0.0, now_after = 0.0;
+  for (std::size_t i = 0; i < copies.size(); ++i) {
+    const int w = copies[i];
+    for (int tt : vertex_tets_[static_cast<std::size_t>(w)]) {
+      const double before = volume_with(rest, tt, w, rest.col(w)), after = volume_with(rest, tt, w, rest_new);
+      const double before_now = volume_with(x, tt, w, x.col(w)), after_now = volume_with(x, tt, w, x_new[i]);
+      if (!(after >= 0.25 * before) || !(after_now >= 0.25 * before_now)) return false;
+      rest_before += before;
+      rest_after += after;
+      now_before += before_now;
+      now_after += after_now;
+    }
   }
-  return true;
+  return !on_boundary ||
+         (std::abs(rest_after - rest_before) <= 1e-9 * rest_before && std::abs(now_after - now_before) <= 1e-6 * now_before);
 }
 
 bool TetCutter::move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r) {
   const Eigen::Vector3d rest_new = (1 - t) * mesh_.rest_positions_World_mm.col(w) + t * mesh_.rest_positions_World_mm.col(o);
   const Eigen::Vector3d x_new = (1 - t) * x.col(w) + t * x.col(o);
-  if (!can_move(w, rest_new, x_new, x)) return false;
+  if (!can_move({w}, rest_new, {x_new}, x, false)) return false;
   const std::vector<int>& star = vertex_tets_[static_cast<std::size_t>(w)];
   mesh_.rest_positions_World_mm.col(w) = rest_new;
   x.col(w) = x_new;
@@ -1381,7 +1416,8 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       }
       cut_faces_.insert(moved.begin(), moved.end());
       // The mid-point of a chord lies off a curved cut by its sagitta: onto the surface the
-      // blade swept in the material, when the tets around allow.
+      // blade swept in the material, as far as the tets around allow, while the lips there
+      // are still closed; then separated.
       place_on_material_stroke(m, x, v);
       separate_vertex(m, x, v, r);
     }
