@@ -371,7 +371,7 @@ int run_session(const Cli& cli) {
   if (surfaces) {
     const auto st = surfaces->stats();
     j["surfaces"] = {{"publish_rate_hz", config.surfaces.publish_rate_hz}, {"rounds", st.rounds}, {"rounds_unregistered", st.rounds_unregistered},
-                     {"messages", st.messages}, {"publish_failures", st.publish_failures}, {"build_ms_max", st.build_ms_max}};
+                     {"messages", st.messages}, {"model_steps", st.model_steps}, {"publish_failures", st.publish_failures}, {"build_ms_max", st.build_ms_max}};
   }
   return write_summary(cli, j);
 }

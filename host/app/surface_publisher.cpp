@@ -101,9 +101,15 @@ void SurfacePublisher::publish_round() {
   }
   const auto t0 = std::chrono::steady_clock::now();
   const std::int64_t wall_now = wall_us();
-  // The rest state (before the first step, step_done_mono_us -1) holds now: the publish time.
-  const std::int64_t step_wall_us =
-      src.snapshot->step_done_mono_us >= 0 ? src.snapshot->step_done_mono_us + (wall_now - monotonic_us()) : wall_now;
+  // The step's UTC time, mapped once per step (a step published again keeps its time stamp);
+  // the rest state (before the first step, step_done_mono_us -1) holds now: the publish time.
+  const bool new_step = src.snapshot->step != last_step_;
+  if (new_step || src.snapshot->step_done_mono_us < 0) {
+    last_step_ = src.snapshot->step;
+    last_step_wall_us_ =
+        src.snapshot->step_done_mono_us >= 0 ? src.snapshot->step_done_mono_us + (wall_now - monotonic_us()) : wall_now;
+  }
+  const std::int64_t step_wall_us = last_step_wall_us_;
   std::vector<surface_mesh_t> messages = surface_messages(*src.snapshot, *src.X_RefModel, step_wall_us, wall_now);
   const double build_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   std::int64_t sent = 0, failed = 0;
@@ -114,6 +120,7 @@ void SurfacePublisher::publish_round() {
   }
   std::lock_guard lock(mutex_);
   ++stats_.rounds;
+  stats_.model_steps += new_step ? 1 : 0;
   stats_.messages += sent;
   stats_.publish_failures += failed;
   stats_.build_ms_max = std::max(stats_.build_ms_max, build_ms);

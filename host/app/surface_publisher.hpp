@@ -41,6 +41,7 @@ struct SurfacePublisherStats {
   std::int64_t rounds = 0;              // publishing rounds run
   std::int64_t rounds_unregistered = 0; // rounds with no registration (or no snapshot): nothing published
   std::int64_t messages = 0;
+  std::int64_t model_steps = 0;         // rounds that published a model step not published before
   std::int64_t publish_failures = 0;    // the sink refused a message (LCM publish < 0)
   double build_ms_max = 0.0;            // the most one round took to convert its snapshot
 };
@@ -67,6 +68,7 @@ class SurfacePublisher {
   Source source_;
   Sink sink_;
   std::map<std::string, std::int64_t> sequence_;   // per channel (publisher thread)
+  std::int64_t last_step_ = -1, last_step_wall_us_ = 0;  // publisher thread
   mutable std::mutex mutex_;
   std::condition_variable wake_;
   bool stopping_ = false;
