@@ -1,5 +1,7 @@
 #include "host/igtl/bridge.hpp"
 
+#include <algorithm>
+#include <chrono>
 #include <cmath>
 
 #include <opencv2/imgcodecs.hpp>
@@ -186,7 +188,9 @@ std::optional<Packet> polydata_from_surface(const surface_mesh_t& mesh, std::str
 
 void Bridge::send_surface(const surface_mesh_t& mesh) {
   std::string device_name, why;
+  const auto t0 = std::chrono::steady_clock::now();
   const std::optional<Packet> packet = polydata_from_surface(mesh, device_name, why);
+  const double pack_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   if (!packet) {
     const bool first = surface_reported_.insert(mesh.name).second;
     if (first) log_("surface '" + mesh.name + "' (ARNAV_SURFACE_" + mesh.name + "): not sent: " + why + " (reported once per name)");
@@ -197,6 +201,8 @@ void Bridge::send_surface(const surface_mesh_t& mesh) {
   server_.publish_polydata(device_name, *packet);
   std::lock_guard lock(mutex_);
   ++stats_.polydata;
+  stats_.polydata_pack_ms_total += pack_ms;
+  stats_.polydata_pack_ms_max = std::max(stats_.polydata_pack_ms_max, pack_ms);
 }
 
 // Decoded at the reduced size directly when the downscale is 2, 4 or 8 (libjpeg scales in

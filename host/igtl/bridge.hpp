@@ -53,6 +53,8 @@ struct BridgeStats {
   std::uint64_t polydata = 0;            // POLYDATA messages made
   std::uint64_t surfaces_replaced = 0;   // a newer mesh of the same name arrived before the thread took it
   std::uint64_t surfaces_rejected = 0;   // not in Ref, a name OpenIGTLink cannot carry, inconsistent counts or indices
+  double polydata_pack_ms_total = 0.0;   // checking and packing the meshes (libopenigtlink Pack + CRC), on the image thread
+  double polydata_pack_ms_max = 0.0;
 };
 
 // The POLYDATA of a host surface: device name from the mesh's name the PLUS way ("organ" ->

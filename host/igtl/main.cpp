@@ -92,6 +92,8 @@ nlohmann::json stats_json(const arnav::igtl::Bridge& bridge, const arnav::igtl::
           {"polydata", b.polydata},
           {"surfaces_replaced", b.surfaces_replaced},
           {"surfaces_rejected", b.surfaces_rejected},
+          {"polydata_pack_ms_mean", b.polydata > 0 ? b.polydata_pack_ms_total / static_cast<double>(b.polydata) : 0.0},
+          {"polydata_pack_ms_max", b.polydata_pack_ms_max},
           {"clients_accepted", s.clients_accepted},
           {"clients_now", s.clients_now},
           {"clients_dropped", s.clients_dropped},
