@@ -14,6 +14,7 @@
 
 #include "calibration/lib/rigid_transform_file.hpp"
 #include "hil_tests/bench/child_process.hpp"
+#include "protocol/seal/key.hpp"
 
 namespace arnav::hil {
 
@@ -23,6 +24,7 @@ struct SurfacePipelineOptions {
   double model_rate_hz = 60.0;
   double publish_rate_hz = 10.0;    // surfaces.publish_rate_hz
   bool gravity = true;              // the organ sags from the CT shape: a deforming organ
+  bool sealed = true;               // the sealed bus (docs/security.md): a fresh key in DIR/bus.key for both programs
 };
 
 // The registration the pipeline's session uses: Model -> Ref, turned and ~1.4 m away.
@@ -50,9 +52,14 @@ struct SurfacePipeline {
     reg.method = "surface pipeline bench";
     reg.date = "2026-12-02T00:00:00Z";
     calib::write_transform(dir / "X_RefModel.yaml", reg);
+    if (o.sealed) {
+      std::filesystem::remove(dir / "bus.key");
+      seal::write_new_key((dir / "bus.key").string());
+    }
     {
       std::ofstream s(dir / "session.yaml");
-      s << "arnav_session_version: 1\nlcm_url: \"" << kLcmUrl << "\"\nsecurity: off\nscene: " << o.scene_path << "\n"
+      s << "arnav_session_version: 1\nlcm_url: \"" << kLcmUrl << "\"\nsecurity: " << (o.sealed ? "{key_file: bus.key}" : "off")
+        << "\nscene: " << o.scene_path << "\n"
         << "registration: X_RefModel.yaml\nmodel: {rate_hz: " << o.model_rate_hz << ", gravity: " << (o.gravity ? "true" : "false")
         << "}\nsurfaces: {publish_rate_hz: " << o.publish_rate_hz << "}\n";
     }
@@ -67,7 +74,8 @@ struct SurfacePipeline {
     }
     if (!ready) return "arnav-host did not get ready:\n" + host->log_tail();
     igtl = std::make_unique<ChildProcess>(
-        std::vector<std::string>{o.igtl_exe, "--lcm", std::string(kLcmUrl) + "&recv_buf_size=4194304", "--security", "off", "--port", "0",
+        std::vector<std::string>{o.igtl_exe, "--lcm", std::string(kLcmUrl) + "&recv_buf_size=4194304", o.sealed ? "--key" : "--security",
+                                 o.sealed ? (dir / "bus.key").string() : "off", "--port", "0",
                                  "--stats-json", (dir / "igtl_stats.json").string()},
         std::vector<std::string>{}, (dir / "igtl.log").string(), true);
     const auto line = igtl->read_line(30.0);

@@ -1,7 +1,9 @@
 // The host's deforming surfaces in an OpenIGTLink client (docs/igtl.md "POLYDATA"): the real
 // arnav-host (coarse liver, gravity on, registration from a file, surfaces.publish_rate_hz
-// 10) -> surface_mesh_t on LCM udpm in the bench's private network namespace -> the real
-// arnav-igtl -> a client on 127.0.0.1 that greets like 3D Slicer. No appliance: the model
+// 10) -> surface_mesh_t on the sealed bus (LCM udpm in the bench's private network
+// namespace, a fresh key for both programs) -> the real arnav-igtl -> a client on
+// 127.0.0.1 that greets like 3D Slicer. On the bus the surfaces are sealed (a plain LCM
+// subscriber cannot decode them). No appliance: the model
 // steps on the host clock without tool inputs. Checked: Organ and Tumour POLYDATA with good
 // CRCs, UTC time stamps in order, the organ's vertices where the scene's organ is in Ref
 // (the registration applied) and moving (sagging), GET_POLYDATA answered from the latest
@@ -11,7 +13,11 @@
 
 #include <signal.h>
 
+#include <atomic>
 #include <set>
+#include <thread>
+
+#include <lcm/lcm-cpp.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -27,6 +33,16 @@
 namespace arnav::hil {
 namespace {
 
+// What a plain LCM subscriber without the key sees on ARNAV_SURFACE_*.
+struct RawSurfaces {
+  std::atomic<int> messages{0}, decodable{0};
+  void on(const lcm::ReceiveBuffer* rb, const std::string&) {
+    ++messages;
+    surface_mesh_t m;
+    if (m.decode(rb->data, 0, static_cast<int>(rb->data_size)) >= 0) ++decodable;
+  }
+};
+
 TEST(HilIgtlPolydata, HostSurfacesReachTheClientInReference) {
   ARNAV_BENCH_OR_SKIP(enter_bench_namespaces());
   const std::string scene_path = arnav::testing::data_dir() + "/liver/liver_coarse.scene.yaml";
@@ -38,6 +54,14 @@ TEST(HilIgtlPolydata, HostSurfacesReachTheClientInReference) {
   const std::int64_t t0_wall = wall_us();
   const std::string why = p.start(make_temp_dir("igtl_polydata"), o);
   ASSERT_EQ(why, "");
+
+  RawSurfaces raw;
+  std::atomic<bool> raw_stop{false};
+  std::thread raw_thread([&] {
+    lcm::LCM bus(std::string(SurfacePipeline::kLcmUrl) + "&recv_buf_size=4194304");
+    bus.subscribe("ARNAV_SURFACE_.*", &RawSurfaces::on, &raw);
+    while (!raw_stop.load()) bus.handleTimeout(50);
+  });
 
   igtl::test::TestClient client(p.port);
   ASSERT_TRUE(client.connected()) << client.why();
@@ -74,6 +98,10 @@ TEST(HilIgtlPolydata, HostSurfacesReachTheClientInReference) {
   EXPECT_EQ(empty_cut, 3u);
   EXPECT_GE(answered, 3u);  // the answers (and whatever the 10 Hz stream sent meanwhile)
   const std::int64_t t_end_wall = wall_us();
+  raw_stop = true;
+  raw_thread.join();
+  EXPECT_GE(raw.messages.load(), 10) << "no ARNAV_SURFACE_* on the bus";
+  EXPECT_EQ(raw.decodable.load(), 0) << "surfaces on the bus without the seal";
   EXPECT_EQ(p.igtl->stop(SIGTERM, 15.0), 0) << p.igtl->log_tail();
   EXPECT_EQ(p.host->stop(SIGTERM, 30.0), 0) << p.host->log_tail();
 
@@ -120,6 +148,7 @@ TEST(HilIgtlPolydata, HostSurfacesReachTheClientInReference) {
   const auto host = nlohmann::json::parse(arnav::testing::read_text(p.dir / "host.json"));
   EXPECT_GE(host["surfaces"]["messages"].get<int>(), 20) << host["surfaces"].dump();
   EXPECT_EQ(host["surfaces"]["publish_failures"].get<int>(), 0);
+  EXPECT_EQ(host["security"]["mode"], "sealed");
   const auto igtl_stats = nlohmann::json::parse(arnav::testing::read_text(p.dir / "igtl_stats.json"));
   EXPECT_EQ(igtl_stats["surfaces_rejected"].get<int>(), 0) << igtl_stats.dump();
   EXPECT_EQ(igtl_stats["polydata_unknown"].get<int>(), 3) << igtl_stats.dump();
