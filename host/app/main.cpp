@@ -316,7 +316,8 @@ int run_session(const Cli& cli) {
     arnav::host::NavigationSession& s = *session;
     surfaces = std::make_unique<arnav::host::SurfacePublisher>(
         config.surfaces.publish_rate_hz, [&s] { return arnav::host::SurfaceSource{s.model_snapshot(), s.X_RefModel()}; },
-        [&bus](const std::string& channel, const arnav::surface_mesh_t& mesh) { return bus.publish(channel, &mesh) >= 0; });
+        [&bus](const std::string& channel, const arnav::surface_mesh_t& mesh) { return bus.publish(channel, &mesh) >= 0; },
+        s.cpu_plan().active ? s.cpu_plan().render_cpus : std::vector<int>{});
     std::cout << "arnav-host: publishing the model's surfaces on " << arnav::channels::kSurfacePrefix << "* at "
               << config.surfaces.publish_rate_hz << " Hz (surfaces.publish_rate_hz)" << std::endl;
   }
@@ -371,7 +372,8 @@ int run_session(const Cli& cli) {
   if (surfaces) {
     const auto st = surfaces->stats();
     j["surfaces"] = {{"publish_rate_hz", config.surfaces.publish_rate_hz}, {"rounds", st.rounds}, {"rounds_unregistered", st.rounds_unregistered},
-                     {"messages", st.messages}, {"model_steps", st.model_steps}, {"publish_failures", st.publish_failures}, {"build_ms_max", st.build_ms_max}};
+                     {"messages", st.messages}, {"model_steps", st.model_steps}, {"publish_failures", st.publish_failures}, {"build_ms_max", st.build_ms_max},
+                     {"pin_error", surfaces->pin_error()}};
   }
   return write_summary(cli, j);
 }

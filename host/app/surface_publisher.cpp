@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 
+#include "host/app/cpu_partition.hpp"
 #include "host/overlay/overlay_renderer.hpp"
 #include "protocol/channels.hpp"
 #include "protocol/clock.hpp"
@@ -58,8 +59,13 @@ std::vector<surface_mesh_t> surface_messages(const ModelSnapshot& snap, const Ei
   return out;
 }
 
-SurfacePublisher::SurfacePublisher(double rate_hz, Source source, Sink sink)
-    : rate_hz_(rate_hz), source_(std::move(source)), sink_(std::move(sink)), thread_([this] { loop(); }) {}
+SurfacePublisher::SurfacePublisher(double rate_hz, Source source, Sink sink, std::vector<int> cpus)
+    : rate_hz_(rate_hz), source_(std::move(source)), sink_(std::move(sink)), cpus_(std::move(cpus)), thread_([this] { loop(); }) {}
+
+std::string SurfacePublisher::pin_error() const {
+  std::lock_guard lock(mutex_);
+  return pin_error_;
+}
 
 SurfacePublisher::~SurfacePublisher() { stop(); }
 
@@ -78,6 +84,11 @@ SurfacePublisherStats SurfacePublisher::stats() const {
 }
 
 void SurfacePublisher::loop() {
+  if (!cpus_.empty()) {
+    const std::string e = pin_current_thread(cpus_);
+    std::lock_guard lock(mutex_);
+    pin_error_ = e;
+  }
   const auto period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(1.0 / rate_hz_));
   auto next = std::chrono::steady_clock::now();
   for (;;) {

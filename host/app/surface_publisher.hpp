@@ -53,12 +53,16 @@ class SurfacePublisher {
   using Sink = std::function<bool(const std::string& channel, const surface_mesh_t& mesh)>;
   // Starts the thread; rate_hz > 0. Live sessions only: the snapshot's session clock is
   // CLOCK_MONOTONIC, mapped to UTC with the host's clocks at publish time.
-  SurfacePublisher(double rate_hz, Source source, Sink sink);
+  // `cpus` (non-empty with model.cpu_partition active): the thread runs only there, off the
+  // model's core.
+  SurfacePublisher(double rate_hz, Source source, Sink sink, std::vector<int> cpus = {});
   ~SurfacePublisher();
   SurfacePublisher(const SurfacePublisher&) = delete;
   SurfacePublisher& operator=(const SurfacePublisher&) = delete;
   void stop();
   SurfacePublisherStats stats() const;
+  // Why the thread could not be pinned to `cpus` (empty: it was, or none were given).
+  std::string pin_error() const;
 
  private:
   void loop();
@@ -67,6 +71,8 @@ class SurfacePublisher {
   double rate_hz_;
   Source source_;
   Sink sink_;
+  std::vector<int> cpus_;
+  std::string pin_error_;                          // mutex_
   std::map<std::string, std::int64_t> sequence_;   // per channel (publisher thread)
   std::int64_t last_step_ = -1, last_step_wall_us_ = 0;  // publisher thread
   mutable std::mutex mutex_;
