@@ -8,6 +8,10 @@
 // publish period of waiting by design). From the programs' counters: the host's mesh build
 // time, arnav-igtl's check + pack time per POLYDATA, the model's step rate. One JSON object.
 //   arnav-igtl-polydata-bench [--scene FILE] [--publish-rate-hz 10] [--model-rate-hz 60] [--clients 4] [--seconds 20]
+//   arnav-igtl-polydata-bench --pack-only 500   (no processes: arnav-igtl's check + pack of an organ-sized
+//                                                 mesh, 4,902 vertices / 9,800 triangles, wall and thread CPU time)
+#include <time.h>
+
 #include <algorithm>
 #include <atomic>
 #include <csignal>
@@ -21,6 +25,7 @@
 
 #include "hil_tests/bench/namespaces.hpp"
 #include "hil_tests/scenarios/surface_pipeline.hpp"
+#include "host/igtl/bridge.hpp"
 #include "host/igtl/messages.hpp"
 #include "host/igtl/test/test_client.hpp"
 #include "protocol/clock.hpp"
@@ -77,6 +82,41 @@ std::string loadavg() {
   return a + " " + b + " " + c;
 }
 
+double thread_cpu_ms() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) * 1e3 + static_cast<double>(t.tv_nsec) * 1e-6;
+}
+
+// arnav-igtl's part per mesh (Bridge::send_surface without the queueing): checks and packs
+// an organ-sized sphere that deforms from one message to the next.
+int pack_only(int n) {
+  std::vector<double> wall_ms, cpu_ms;
+  std::size_t bytes = 0, points = 0, triangles = 0;
+  for (int i = 0; i < n; ++i) {
+    const arnav::surface_mesh_t mesh = arnav::igtl::test::sphere_surface("organ", 50, 100, 0.05 * i, arnav::wall_us());
+    points = mesh.positions_mm.size();
+    triangles = mesh.triangles.size();
+    std::string name, why;
+    const double c0 = thread_cpu_ms();
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto packet = arnav::igtl::polydata_from_surface(mesh, name, why);
+    wall_ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    cpu_ms.push_back(thread_cpu_ms() - c0);
+    if (!packet) {
+      std::cerr << "arnav-igtl-polydata-bench: " << why << "\n";
+      return 1;
+    }
+    bytes = (*packet)->size();
+  }
+  const nlohmann::json out = {{"mode", "pack-only"}, {"messages", n}, {"points", points}, {"triangles", triangles}, {"bytes", bytes},
+                              {"wall_ms_p50", percentile(wall_ms, 50)}, {"wall_ms_p99", percentile(wall_ms, 99)},
+                              {"cpu_ms_p50", percentile(cpu_ms, 50)}, {"cpu_ms_p99", percentile(cpu_ms, 99)},
+                              {"loadavg", loadavg()}};
+  std::cout << out.dump(2) << std::endl;
+  return 0;
+}
+
 nlohmann::json read_json(const std::filesystem::path& p) {
   std::ifstream in(p);
   nlohmann::json j;
@@ -99,11 +139,14 @@ int run(int argc, char** argv) {
   app.add_option("--model-rate-hz", o.model_rate_hz, "model.rate_hz")->check(CLI::Range(1.0, 1000.0));
   app.add_option("--clients", clients, "reading clients")->check(CLI::Range(1, 100));
   app.add_option("--seconds", seconds, "measuring time after the first Organ arrived")->check(CLI::Range(1.0, 3600.0));
+  int pack_messages = 0;
+  app.add_option("--pack-only", pack_messages, "only time arnav-igtl's check + pack of this many organ-sized meshes")->check(CLI::Range(1, 100000));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
   }
+  if (pack_messages > 0) return pack_only(pack_messages);
   if (const std::string why = arnav::hil::enter_bench_namespaces(); !why.empty()) {
     std::cerr << "arnav-igtl-polydata-bench: cannot enter private namespaces (" << why << "): run as root\n";
     return 1;

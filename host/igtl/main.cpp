@@ -107,7 +107,7 @@ nlohmann::json stats_json(const arnav::igtl::Bridge& bridge, const arnav::igtl::
 }
 
 int run(int argc, char** argv) {
-  CLI::App app{"arnav-igtl: ARNav poses, video and status over OpenIGTLink (docs/igtl.md)"};
+  CLI::App app{"arnav-igtl: ARNav poses, video, surfaces and status over OpenIGTLink (docs/igtl.md)"};
   std::string lcm_url = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304";
   arnav::igtl::ServerOptions server_options;
   arnav::igtl::BridgeOptions bridge_options;
