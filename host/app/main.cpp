@@ -304,6 +304,7 @@ int run_session(const Cli& cli) {
   }
   arnav::host::SessionHandler handler{{*session, cli.events}};
   arnav::host::connect_session(bus, handler, config.camera ? arnav::channels::frame(config.camera->name) : std::string());
+  const std::int64_t model_started_mono_us = arnav::monotonic_us();  // the surfaces' rest state holds from here
   try {
     session->start();
   } catch (const arnav::host::DisplayUnavailable& e) {
@@ -317,7 +318,7 @@ int run_session(const Cli& cli) {
     surfaces = std::make_unique<arnav::host::SurfacePublisher>(
         config.surfaces.publish_rate_hz, [&s] { return arnav::host::SurfaceSource{s.model_snapshot(), s.X_RefModel()}; },
         [&bus](const std::string& channel, const arnav::surface_mesh_t& mesh) { return bus.publish(channel, &mesh) >= 0; },
-        s.cpu_plan().active ? s.cpu_plan().render_cpus : std::vector<int>{});
+        s.cpu_plan().active ? s.cpu_plan().render_cpus : std::vector<int>{}, model_started_mono_us);
     std::cout << "arnav-host: publishing the model's surfaces on " << arnav::channels::kSurfacePrefix << "* at "
               << config.surfaces.publish_rate_hz << " Hz (surfaces.publish_rate_hz)" << std::endl;
   }

@@ -59,8 +59,13 @@ std::vector<surface_mesh_t> surface_messages(const ModelSnapshot& snap, const Ei
   return out;
 }
 
-SurfacePublisher::SurfacePublisher(double rate_hz, Source source, Sink sink, std::vector<int> cpus)
-    : rate_hz_(rate_hz), source_(std::move(source)), sink_(std::move(sink)), cpus_(std::move(cpus)), thread_([this] { loop(); }) {}
+SurfacePublisher::SurfacePublisher(double rate_hz, Source source, Sink sink, std::vector<int> cpus, std::int64_t model_started_mono_us)
+    : rate_hz_(rate_hz),
+      source_(std::move(source)),
+      sink_(std::move(sink)),
+      cpus_(std::move(cpus)),
+      model_started_mono_us_(model_started_mono_us >= 0 ? model_started_mono_us : monotonic_us()),
+      thread_([this] { loop(); }) {}
 
 std::string SurfacePublisher::pin_error() const {
   std::lock_guard lock(mutex_);
@@ -112,13 +117,15 @@ void SurfacePublisher::publish_round() {
   }
   const auto t0 = std::chrono::steady_clock::now();
   const std::int64_t wall_now = wall_us();
-  // The step's UTC time, mapped once per step (a step published again keeps its time stamp);
-  // the rest state (before the first step, step_done_mono_us -1) holds now: the publish time.
+  // The step's UTC time (when the host ran it), mapped once per step: a step published again
+  // keeps its time stamp. The rest state (step_done_mono_us -1) holds from the model's start
+  // until the first step: it carries the start (not the publish time, which could be later
+  // than the first step's own time while that step is still being computed).
   const bool new_step = src.snapshot->step != last_step_;
-  if (new_step || src.snapshot->step_done_mono_us < 0) {
+  if (new_step) {
     last_step_ = src.snapshot->step;
-    last_step_wall_us_ =
-        src.snapshot->step_done_mono_us >= 0 ? src.snapshot->step_done_mono_us + (wall_now - monotonic_us()) : wall_now;
+    const std::int64_t mono = src.snapshot->step_done_mono_us >= 0 ? src.snapshot->step_done_mono_us : model_started_mono_us_;
+    last_step_wall_us_ = mono + (wall_now - monotonic_us());
   }
   const std::int64_t step_wall_us = last_step_wall_us_;
   std::vector<surface_mesh_t> messages = surface_messages(*src.snapshot, *src.X_RefModel, step_wall_us, wall_now);

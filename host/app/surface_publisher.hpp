@@ -28,7 +28,7 @@
 namespace arnav::host {
 
 // The messages of one snapshot (sequence 0: the publisher numbers them per channel).
-// step_wall_us: the UTC time at which the snapshot's step finished.
+// step_wall_us: the UTC time at which the host ran the snapshot's step.
 std::vector<surface_mesh_t> surface_messages(const ModelSnapshot& snap, const Eigen::Isometry3d& X_RefModel, std::int64_t step_wall_us,
                                              std::int64_t publish_wall_us);
 
@@ -54,8 +54,9 @@ class SurfacePublisher {
   // Starts the thread; rate_hz > 0. Live sessions only: the snapshot's session clock is
   // CLOCK_MONOTONIC, mapped to UTC with the host's clocks at publish time.
   // `cpus` (non-empty with model.cpu_partition active): the thread runs only there, off the
-  // model's core.
-  SurfacePublisher(double rate_hz, Source source, Sink sink, std::vector<int> cpus = {});
+  // model's core. `model_started_mono_us`: CLOCK_MONOTONIC when the model thread started
+  // (before its first step): the rest state's time stamp (-1: this constructor's time).
+  SurfacePublisher(double rate_hz, Source source, Sink sink, std::vector<int> cpus = {}, std::int64_t model_started_mono_us = -1);
   ~SurfacePublisher();
   SurfacePublisher(const SurfacePublisher&) = delete;
   SurfacePublisher& operator=(const SurfacePublisher&) = delete;
@@ -74,6 +75,7 @@ class SurfacePublisher {
   std::vector<int> cpus_;
   std::string pin_error_;                          // mutex_
   std::map<std::string, std::int64_t> sequence_;   // per channel (publisher thread)
+  std::int64_t model_started_mono_us_;
   std::int64_t last_step_ = -1, last_step_wall_us_ = 0;  // publisher thread
   mutable std::mutex mutex_;
   std::condition_variable wake_;

@@ -144,6 +144,55 @@ TEST(SurfacePublisher, NothingBeforeRegistrationThenSequencedPerChannel) {
   EXPECT_EQ(publisher.stats().publish_failures, 0);
 }
 
+// The rest state is shown from the model's start until the first step, which may take
+// longer than a round (a loaded machine): its stamp is the start, so the first step's own
+// time (when the host began it, before the rest state's later rounds) never goes back.
+TEST(SurfacePublisher, TimeStampsNeverGoBackFromTheRestStateToTheFirstStep) {
+  const std::int64_t started = monotonic_us() - 1'000'000;
+  auto rest = std::make_shared<ModelSnapshot>();
+  rest->step = 0;
+  rest->step_done_mono_us = -1;
+  rest->organ.positions_World_mm = Eigen::Matrix3Xd::Random(3, 3);
+  rest->organ.tris = {{0, 1, 2}};
+  auto first = std::make_shared<ModelSnapshot>(*rest);
+  first->step = 1;
+  first->step_done_mono_us = started + 500'000;  // begun half a second ago, finished only now
+  std::mutex mutex;
+  std::shared_ptr<const ModelSnapshot> current = rest;
+  std::vector<surface_mesh_t> got;
+  SurfacePublisher publisher(
+      200.0,
+      [&] {
+        std::lock_guard lock(mutex);
+        return SurfaceSource{current, Eigen::Isometry3d::Identity()};
+      },
+      [&](const std::string&, const surface_mesh_t& m) {
+        std::lock_guard lock(mutex);
+        got.push_back(m);
+        return true;
+      },
+      {}, started);
+  ASSERT_TRUE(wait_until([&] {
+    std::lock_guard lock(mutex);
+    return got.size() >= 3;
+  }));
+  {
+    std::lock_guard lock(mutex);
+    current = first;
+  }
+  ASSERT_TRUE(wait_until([&] {
+    std::lock_guard lock(mutex);
+    return !got.empty() && got.back().model_step == 1;
+  }));
+  publisher.stop();
+  std::int64_t last = 0;
+  for (const auto& m : got) {
+    EXPECT_GE(m.model_step_wall_us, last) << "step " << m.model_step;
+    last = m.model_step_wall_us;
+  }
+  EXPECT_LT(got.front().model_step_wall_us, got.front().publish_time_wall_us - 900'000);  // the start, not the publish time
+}
+
 TEST(SessionConfig, SurfacesPublishRateCheckedAtLoad) {
   SessionFolder f("surfaces");
   const std::string v = "arnav_session_version: 1\n";
