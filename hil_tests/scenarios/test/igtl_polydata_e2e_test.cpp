@@ -13,11 +13,14 @@
 
 #include <signal.h>
 
+#include <algorithm>
 #include <atomic>
 #include <set>
 #include <thread>
 
 #include <lcm/lcm-cpp.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -42,6 +45,43 @@ struct RawSurfaces {
     if (m.decode(rb->data, 0, static_cast<int>(rb->data_size)) >= 0) ++decodable;
   }
 };
+
+// What a client received, as a picture (docs/igtl.md): the meshes seen along Reference's -z
+// axis, flat-shaded with a headlight, each back to front and each later mesh on top (the
+// tumour inside the organ shown through it, as the overlay does); no Slicer here, for the docs only.
+void save_picture(const std::string& path, const std::vector<std::pair<igtl::test::Unpacked, cv::Scalar>>& meshes) {
+  Eigen::AlignedBox3d box;
+  for (const auto& [u, colour] : meshes)
+    for (const auto& p : u.points_mm) box.extend(Eigen::Vector3d(p[0], p[1], p[2]));
+  const int size = 640;
+  const double scale = 0.9 * size / std::max(box.sizes().x(), box.sizes().y());
+  const Eigen::Vector3d centre = box.center();
+  struct Face {
+    double depth;
+    std::vector<cv::Point> px;
+    cv::Scalar colour;
+  };
+  cv::Mat image(size, size, CV_8UC3, cv::Scalar(40, 40, 40));
+  for (const auto& [u, colour] : meshes) {
+    std::vector<Face> faces;
+    for (const auto& poly : u.polygons) {
+      if (poly.size() != 3) continue;
+      Eigen::Vector3d v[3];
+      for (int k = 0; k < 3; ++k) {
+        const auto& p = u.points_mm[poly[static_cast<std::size_t>(k)]];
+        v[k] = Eigen::Vector3d(p[0], p[1], p[2]);
+      }
+      const Eigen::Vector3d n = (v[1] - v[0]).cross(v[2] - v[0]).normalized();
+      const double light = 0.25 + 0.75 * std::abs(n.z());
+      Face f{(v[0].z() + v[1].z() + v[2].z()) / 3.0, {}, colour * light};
+      for (const auto& x : v) f.px.emplace_back(static_cast<int>(size / 2 + scale * (x.x() - centre.x())), static_cast<int>(size / 2 - scale * (x.y() - centre.y())));
+      faces.push_back(std::move(f));
+    }
+    std::sort(faces.begin(), faces.end(), [](const Face& a, const Face& b) { return a.depth > b.depth; });  // far (high z) first: seen from -z
+    for (const auto& f : faces) cv::fillConvexPoly(image, f.px, f.colour, cv::LINE_AA);
+  }
+  cv::imwrite(path, image);
+}
 
 TEST(HilIgtlPolydata, HostSurfacesReachTheClientInReference) {
   ARNAV_BENCH_OR_SKIP(enter_bench_namespaces());
@@ -150,6 +190,8 @@ TEST(HilIgtlPolydata, HostSurfacesReachTheClientInReference) {
   EXPECT_GE(geometries.size(), 2u) << "the organ did not move (gravity sag)";
   const auto tumour = igtl::test::unpack(tumours.back());
   EXPECT_TRUE(tumour.crc_ok);
+  if (const char* save = std::getenv("ARNAV_IGTL_SAVE_POLYDATA"); save && tumour.crc_ok)
+    save_picture(save, {{igtl::test::unpack(organs.back()), cv::Scalar(150, 175, 230)}, {tumour, cv::Scalar(40, 40, 230)}});
   EXPECT_EQ(tumour.polygons.size(), scene.tumours[0].rest.tris.size());
 
   const auto host = nlohmann::json::parse(arnav::testing::read_text(p.dir / "host.json"));
