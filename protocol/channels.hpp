@@ -13,6 +13,7 @@ inline constexpr std::string_view kFramePrefix = "ARNAV_FRAME_";    // + camera 
 inline constexpr std::string_view kInput = "ARNAV_INPUT";           // input_event_t (CAN pedal, buttons)
 inline constexpr std::string_view kCloudPrefix = "ARNAV_CLOUD_";    // + source ("pointer", ...)
 inline constexpr std::string_view kInputState = "ARNAV_INPUT_STATE"; // input_event_t snapshots
+inline constexpr std::string_view kSurfacePrefix = "ARNAV_SURFACE_"; // + surface ("organ", "tumour", "cut"), surface_mesh_t
 inline constexpr std::string_view kPoseRegex = "ARNAV_POSE_.*";
 inline constexpr std::string_view kHealthRegex = "ARNAV_HEALTH_.*";
 
@@ -20,5 +21,6 @@ inline std::string pose(std::string_view tool_name) { return std::string(kPosePr
 inline std::string health(std::string_view device) { return std::string(kHealthPrefix) + std::string(device); }
 inline std::string cloud(std::string_view source) { return std::string(kCloudPrefix) + std::string(source); }
 inline std::string frame(std::string_view camera) { return std::string(kFramePrefix) + std::string(camera); }
+inline std::string surface(std::string_view name) { return std::string(kSurfacePrefix) + std::string(name); }
 
 }  // namespace arnav::channels

@@ -21,6 +21,7 @@
 #include "host/app/bus_handlers.hpp"
 #include "host/app/navigation_session.hpp"
 #include "host/app/status_report.hpp"
+#include "host/app/surface_publisher.hpp"
 #include "host/scene/load_error.hpp"
 #include "host/scene/scene.hpp"
 #include "host/overlay/egl_context.hpp"
@@ -303,11 +304,23 @@ int run_session(const Cli& cli) {
   }
   arnav::host::SessionHandler handler{{*session, cli.events}};
   arnav::host::connect_session(bus, handler, config.camera ? arnav::channels::frame(config.camera->name) : std::string());
+  const std::int64_t model_started_mono_us = arnav::monotonic_us();  // the surfaces' rest state holds from here
   try {
     session->start();
   } catch (const arnav::host::DisplayUnavailable& e) {
     std::cerr << "arnav-host: " << e.what() << "\n";
     return 2;
+  }
+  // The model's surfaces for other programs (arnav-igtl), off the model thread.
+  std::unique_ptr<arnav::host::SurfacePublisher> surfaces;
+  if (session->has_model() && config.surfaces.publish_rate_hz > 0) {
+    arnav::host::NavigationSession& s = *session;
+    surfaces = std::make_unique<arnav::host::SurfacePublisher>(
+        config.surfaces.publish_rate_hz, [&s] { return arnav::host::SurfaceSource{s.model_snapshot(), s.X_RefModel()}; },
+        [&bus](const std::string& channel, const arnav::surface_mesh_t& mesh) { return bus.publish(channel, &mesh) >= 0; },
+        s.cpu_plan().active ? s.cpu_plan().render_cpus : std::vector<int>{}, model_started_mono_us);
+    std::cout << "arnav-host: publishing the model's surfaces on " << arnav::channels::kSurfacePrefix << "* at "
+              << config.surfaces.publish_rate_hz << " Hz (surfaces.publish_rate_hz)" << std::endl;
   }
   // Scene loaded, model built, subscribed: what the bench waits for before it starts the appliance.
   std::cout << "arnav-host: session ready: " << config.source << (config.camera ? " (overlay on ARNAV_FRAME_" + config.camera->name + ")" : " (status monitor)")
@@ -336,6 +349,7 @@ int run_session(const Cli& cli) {
       break;
     }
   }
+  if (surfaces) surfaces->stop();
   try {
     session->stop();
   } catch (const arnav::host::SessionError& e) {
@@ -356,6 +370,12 @@ int run_session(const Cli& cli) {
   if (config.camera || session->has_model()) j["navigation"] = session->summary_json(run_s);
   const arnav::seal::BusCounters bc = bus.counters();
   j["security"] = security_json(*security, bc.open, bc.sealed_on_off_bus, &bc.senders);
+  if (surfaces) {
+    const auto st = surfaces->stats();
+    j["surfaces"] = {{"publish_rate_hz", config.surfaces.publish_rate_hz}, {"rounds", st.rounds}, {"rounds_unregistered", st.rounds_unregistered},
+                     {"messages", st.messages}, {"model_steps", st.model_steps}, {"publish_failures", st.publish_failures}, {"build_ms_max", st.build_ms_max},
+                     {"pin_error", surfaces->pin_error()}};
+  }
   return write_summary(cli, j);
 }
 

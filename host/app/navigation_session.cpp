@@ -343,6 +343,10 @@ std::optional<Eigen::Isometry3d> NavigationSession::X_RefModel() {
   return X_RefModel_;
 }
 
+std::shared_ptr<const ModelSnapshot> NavigationSession::model_snapshot() const { return model_ ? model_->snapshot() : nullptr; }
+
+CpuPlan NavigationSession::cpu_plan() const { return cpu_plan_; }
+
 std::optional<TriMesh> NavigationSession::cut_surface() const { return last_cut_surface_; }
 
 std::vector<TipSample> NavigationSession::pointer_tips_Ref(std::int64_t now_us) {

@@ -141,6 +141,10 @@ class NavigationSession {
   std::vector<std::array<Eigen::Vector3d, 2>> cut_rim() const { return last_cut_rim_; }
   // The registration in use (file or live, once complete).
   std::optional<Eigen::Isometry3d> X_RefModel();
+  // The model's latest snapshot (what the overlay draws; null without a model).
+  std::shared_ptr<const ModelSnapshot> model_snapshot() const;
+  // Live: the cores of the session (model.cpu_partition), set by start().
+  CpuPlan cpu_plan() const;
   const LiveRegistration* live_registration() const { return live_.get(); }
   // The swab step (null without registration.live.swab); read it after stop() or in
   // unthreaded sessions (a live worker may be finishing it).

@@ -166,7 +166,7 @@ SessionConfig parse_session(const std::string& text, const std::string& source, 
   const Reader r(source);
   const YAML::Node root = r.load_root(text);
   r.only(root, "", {"arnav_session_version", "lcm_url", "stale_after_ms", "print_period_s", "scene", "registration", "tools",
-                    "camera", "model", "overlay", "record", "inputs", "cutting", "display", "security"});
+                    "camera", "model", "overlay", "record", "inputs", "cutting", "display", "security", "surfaces"});
   SessionConfig c;
   c.source = source;
   try {  // `security:` (docs/protocol.md, "Sealed bus"); the key is loaded when the bus opens
@@ -328,6 +328,11 @@ SessionConfig parse_session(const std::string& text, const std::string& source, 
     c.record.video_fps = r.number(rec, "record", "video_fps", c.record.video_fps, 1.0, 240.0);
     c.record.contact_sheet_frames = r.integer(rec, "record", "contact_sheet_frames", c.record.contact_sheet_frames, 1, 100);
     c.record.contact_sheet_every_s = r.number(rec, "record", "contact_sheet_every_s", c.record.contact_sheet_every_s, 0.01, 3600.0);
+  }
+
+  if (const YAML::Node s = root["surfaces"]) {
+    r.only(s, "surfaces", {"publish_rate_hz"});
+    c.surfaces.publish_rate_hz = r.number(s, "surfaces", "publish_rate_hz", c.surfaces.publish_rate_hz, 0.0, 1000.0);
   }
 
   // What depends on what: the overlay needs a scene, a registration and a reference.

@@ -150,6 +150,12 @@ struct GrasperRole : ToolRole {
   int line = 0;
 };
 
+// The model's surfaces on the bus for other programs (arnav-igtl: POLYDATA for 3D Slicer):
+// surface_mesh_t on ARNAV_SURFACE_<name> (host/app/surface_publisher.hpp), live sessions.
+struct SurfaceSettings {
+  double publish_rate_hz = 10.0;   // 0: not published
+};
+
 struct SessionConfig {
   std::string source;                        // the session file
   std::string lcm_url = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304";
@@ -172,6 +178,7 @@ struct SessionConfig {
   OverlaySettings overlay;
   RecordSettings record;
   DisplaySettings display;
+  SurfaceSettings surfaces;
 };
 
 // Reads the file and the files it names (intrinsics, hand-eye, registration; not the

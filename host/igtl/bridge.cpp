@@ -1,5 +1,9 @@
 #include "host/igtl/bridge.hpp"
 
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -113,18 +117,92 @@ void Bridge::on_frame(const image_frame_t& frame) {
   image_wake_.notify_one();
 }
 
+void Bridge::on_surface(const surface_mesh_t& mesh) {
+  {
+    std::lock_guard lock(mutex_);
+    ++stats_.surfaces;
+    auto [it, inserted] = next_surfaces_.insert_or_assign(mesh.name, mesh);
+    if (!inserted) ++stats_.surfaces_replaced;
+  }
+  image_wake_.notify_one();
+}
+
+// Camera frames and surfaces, the latest of each; surfaces first (packing one takes far
+// less than decoding a frame).
 void Bridge::image_loop() {
   for (;;) {
-    image_frame_t frame;
+    std::optional<image_frame_t> frame;
+    std::vector<surface_mesh_t> surfaces;
     {
       std::unique_lock lock(mutex_);
-      image_wake_.wait(lock, [&] { return stopping_ || next_frame_.has_value(); });
+      image_wake_.wait(lock, [&] { return stopping_ || next_frame_.has_value() || !next_surfaces_.empty(); });
       if (stopping_) return;
-      frame = std::move(*next_frame_);
-      next_frame_.reset();
+      for (auto& [name, mesh] : next_surfaces_) surfaces.push_back(std::move(mesh));
+      next_surfaces_.clear();
+      frame.swap(next_frame_);
     }
-    send_image(frame);
+    for (const auto& mesh : surfaces) send_surface(mesh);
+    if (frame) send_image(*frame);
   }
+}
+
+std::optional<Packet> polydata_from_surface(const surface_mesh_t& mesh, std::string& device_name, std::string& why) {
+  device_name = plus_frame_name(mesh.name);
+  if (mesh.frame_name != "Ref") {
+    why = "its vertices are in frame '" + mesh.frame_name + "', arnav-igtl serves surfaces in Ref (the reference tool's frame)";
+    return std::nullopt;
+  }
+  if (device_name.empty() || device_name.size() > kMaxDeviceNameChars) {
+    why = "name '" + mesh.name + "' gives no OpenIGTLink device name of 1..20 characters";
+    return std::nullopt;
+  }
+  if (mesh.num_vertices < 0 || static_cast<std::size_t>(mesh.num_vertices) != mesh.positions_mm.size() || mesh.num_triangles < 0 ||
+      static_cast<std::size_t>(mesh.num_triangles) != mesh.triangles.size()) {
+    why = "counts (" + std::to_string(mesh.num_vertices) + " vertices, " + std::to_string(mesh.num_triangles) +
+          " triangles) disagree with its arrays";
+    return std::nullopt;
+  }
+  std::vector<std::array<float, 3>> points(mesh.positions_mm.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const auto& p = mesh.positions_mm[i];
+    if (p.size() != 3 || !std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
+      why = "vertex " + std::to_string(i) + " is not a finite 3D position";
+      return std::nullopt;
+    }
+    points[i] = {p[0], p[1], p[2]};
+  }
+  std::vector<std::array<std::uint32_t, 3>> triangles(mesh.triangles.size());
+  for (std::size_t i = 0; i < triangles.size(); ++i) {
+    const auto& t = mesh.triangles[i];
+    for (std::size_t k = 0; k < 3; ++k) {
+      if (t.size() != 3 || t[k] < 0 || t[k] >= mesh.num_vertices) {
+        why = "triangle " + std::to_string(i) + " indexes a vertex out of 0.." + std::to_string(mesh.num_vertices - 1);
+        return std::nullopt;
+      }
+      triangles[i][k] = static_cast<std::uint32_t>(t[k]);
+    }
+  }
+  const std::int64_t wall_us = mesh.model_step_wall_us > 0 ? mesh.model_step_wall_us : mesh.publish_time_wall_us;
+  return pack_polydata(device_name, points, triangles, wall_us);
+}
+
+void Bridge::send_surface(const surface_mesh_t& mesh) {
+  std::string device_name, why;
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::optional<Packet> packet = polydata_from_surface(mesh, device_name, why);
+  const double pack_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  if (!packet) {
+    const bool first = surface_reported_.insert(mesh.name).second;
+    if (first) log_("surface '" + mesh.name + "' (ARNAV_SURFACE_" + mesh.name + "): not sent: " + why + " (reported once per name)");
+    std::lock_guard lock(mutex_);
+    ++stats_.surfaces_rejected;
+    return;
+  }
+  server_.publish_polydata(device_name, *packet);
+  std::lock_guard lock(mutex_);
+  ++stats_.polydata;
+  stats_.polydata_pack_ms_total += pack_ms;
+  stats_.polydata_pack_ms_max = std::max(stats_.polydata_pack_ms_max, pack_ms);
 }
 
 // Decoded at the reduced size directly when the downscale is 2, 4 or 8 (libjpeg scales in

@@ -6,7 +6,10 @@
 // camera frames (image_frame_t, JPEG/PNG) become RGB IMAGE messages, optionally
 // downscaled and rate limited, on the bridge's own image thread (decoding a 720p JPEG takes
 // milliseconds: the LCM thread only hands the latest frame over, so poses never wait for
-// an image). on_pose/on_frame/flush are called from the LCM thread only.
+// an image). The host's surfaces (surface_mesh_t, ARNAV_SURFACE_<name>) become POLYDATA
+// named `Organ`, `Tumour`, `Cut`, ... packed on the same thread, the latest per name (a
+// newer mesh replaces one still waiting), kept by the server for GET_POLYDATA.
+// on_pose/on_frame/on_surface/flush are called from the LCM thread only.
 #include <condition_variable>
 #include <cstdint>
 #include <map>
@@ -20,6 +23,7 @@
 #include <Eigen/Geometry>
 
 #include "arnav/image_frame_t.hpp"
+#include "arnav/surface_mesh_t.hpp"
 #include "arnav/tool_pose_t.hpp"
 #include "host/igtl/server.hpp"
 
@@ -45,7 +49,20 @@ struct BridgeStats {
   std::uint64_t frames_rate_limited = 0;
   std::uint64_t frames_replaced = 0;     // a newer frame arrived before the image thread took it
   std::uint64_t frames_undecodable = 0;
+  std::uint64_t surfaces = 0;            // surface_mesh_t received
+  std::uint64_t polydata = 0;            // POLYDATA messages made
+  std::uint64_t surfaces_replaced = 0;   // a newer mesh of the same name arrived before the thread took it
+  std::uint64_t surfaces_rejected = 0;   // not in Ref, a name OpenIGTLink cannot carry, inconsistent counts or indices
+  double polydata_pack_ms_total = 0.0;   // checking and packing the meshes (libopenigtlink Pack + CRC), on the image thread
+  double polydata_pack_ms_max = 0.0;
 };
+
+// The POLYDATA of a host surface: device name from the mesh's name the PLUS way ("organ" ->
+// "Organ", "tumour2" -> "Tumour2"), points in Reference (mm), one polygon per triangle, time
+// stamp the model step's UTC time. nullopt with `why` when the mesh is not in "Ref", its
+// name does not fit, its counts disagree with its arrays, an index is out of range or a
+// position is not finite.
+std::optional<Packet> polydata_from_surface(const surface_mesh_t& mesh, std::string& device_name, std::string& why);
 
 class Bridge {
  public:
@@ -55,6 +72,7 @@ class Bridge {
   Bridge& operator=(const Bridge&) = delete;
   void on_pose(const tool_pose_t& pose);
   void on_frame(const image_frame_t& frame);
+  void on_surface(const surface_mesh_t& mesh);
   // Sends the TDATA of a tracker frame still being collected (end of a log).
   void flush();
   BridgeStats stats() const;
@@ -73,6 +91,7 @@ class Bridge {
   void send_tdata(FrameGroup& group);
   void image_loop();
   void send_image(const image_frame_t& frame);
+  void send_surface(const surface_mesh_t& mesh);
 
   BridgeOptions options_;
   Server& server_;
@@ -81,9 +100,11 @@ class Bridge {
   std::set<std::string> unnamed_;
   std::map<int, FrameGroup> frames_;           // per pose source (NDI, camera)
   std::int64_t last_image_capture_us_ = 0;
-  mutable std::mutex mutex_;               // guards stats_, next_frame_, stopping_
+  mutable std::mutex mutex_;               // guards stats_, next_frame_, next_surfaces_, stopping_
   std::condition_variable image_wake_;
   std::optional<image_frame_t> next_frame_;
+  std::map<std::string, surface_mesh_t> next_surfaces_;  // by name, the latest waiting for the image thread
+  std::set<std::string> surface_reported_;   // names whose rejection was logged (image thread)
   bool stopping_ = false;
   BridgeStats stats_;
   std::thread image_thread_;

@@ -1,8 +1,8 @@
 // arnav-igtl: ARNav on OpenIGTLink, for 3D Slicer / SlicerIGT and PLUS users (docs/igtl.md).
 //   arnav-igtl [--lcm URL] [--bind 127.0.0.1] [--port 18944] [--name TOOL=NAME] [--tip TOOL=X,Y,Z]
 //              [--image-downscale N] [--image-rate-hz R] [--image-name NAME]
-// Subscribes to ARNAV_POSE_.* and ARNAV_FRAME_.* on the LCM bus (live, or a recorded
-// session with --lcm 'file://LOG?speed=1') and serves TRANSFORM, TDATA, IMAGE and STATUS
+// Subscribes to ARNAV_POSE_.*, ARNAV_FRAME_.* and ARNAV_SURFACE_.* on the LCM bus (live, or a
+// recorded session with --lcm 'file://LOG?speed=1') and serves TRANSFORM, TDATA, IMAGE, POLYDATA and STATUS
 // to any number of OpenIGTLink clients. Prints "READY <port>" on stdout once listening.
 #include <atomic>
 #include <csignal>
@@ -38,6 +38,7 @@ struct Handler {
   arnav::igtl::Bridge* bridge;
   void pose(const lcm::ReceiveBuffer*, const std::string&, const arnav::tool_pose_t* msg) { bridge->on_pose(*msg); }
   void frame(const lcm::ReceiveBuffer*, const std::string&, const arnav::image_frame_t* msg) { bridge->on_frame(*msg); }
+  void surface(const lcm::ReceiveBuffer*, const std::string&, const arnav::surface_mesh_t* msg) { bridge->on_surface(*msg); }
 };
 
 // "TOOL=VALUE" -> (TOOL, VALUE); false when malformed.
@@ -87,6 +88,12 @@ nlohmann::json stats_json(const arnav::igtl::Bridge& bridge, const arnav::igtl::
           {"frames_rate_limited", b.frames_rate_limited},
           {"frames_replaced", b.frames_replaced},
           {"frames_undecodable", b.frames_undecodable},
+          {"surfaces", b.surfaces},
+          {"polydata", b.polydata},
+          {"surfaces_replaced", b.surfaces_replaced},
+          {"surfaces_rejected", b.surfaces_rejected},
+          {"polydata_pack_ms_mean", b.polydata > 0 ? b.polydata_pack_ms_total / static_cast<double>(b.polydata) : 0.0},
+          {"polydata_pack_ms_max", b.polydata_pack_ms_max},
           {"clients_accepted", s.clients_accepted},
           {"clients_now", s.clients_now},
           {"clients_dropped", s.clients_dropped},
@@ -95,11 +102,12 @@ nlohmann::json stats_json(const arnav::igtl::Bridge& bridge, const arnav::igtl::
           {"messages_replaced", s.messages_replaced},
           {"keepalives_sent", s.keepalives_sent},
           {"requests_handled", s.requests_handled},
+          {"polydata_unknown", s.polydata_unknown},
           {"messages_skipped", s.messages_skipped}};
 }
 
 int run(int argc, char** argv) {
-  CLI::App app{"arnav-igtl: ARNav poses, video and status over OpenIGTLink (docs/igtl.md)"};
+  CLI::App app{"arnav-igtl: ARNav poses, video, surfaces and status over OpenIGTLink (docs/igtl.md)"};
   std::string lcm_url = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304";
   arnav::igtl::ServerOptions server_options;
   arnav::igtl::BridgeOptions bridge_options;
@@ -156,6 +164,7 @@ int run(int argc, char** argv) {
   Handler handler{&bridge};
   bus.subscribe(std::string(arnav::channels::kPoseRegex), &Handler::pose, &handler);
   bus.subscribe(std::string(arnav::channels::kFramePrefix) + ".*", &Handler::frame, &handler);
+  bus.subscribe(std::string(arnav::channels::kSurfacePrefix) + ".*", &Handler::surface, &handler);
 
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);

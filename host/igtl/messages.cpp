@@ -4,10 +4,13 @@
 #include <cstring>
 
 #include <igtlImageMessage.h>
+#include <igtlPolyDataMessage.h>
 #include <igtlStatusMessage.h>
 #include <igtlTrackingDataMessage.h>
 #include <igtlTransformMessage.h>
 #include <igtl_util.h>
+
+#include "host/igtl/wire.hpp"
 
 namespace arnav::igtl {
 namespace {
@@ -133,6 +136,35 @@ Packet pack_image_rgb(const std::string& device_name, int width, int height, con
   std::memcpy(msg->GetScalarPointer(), rgb, static_cast<std::size_t>(width) * static_cast<std::size_t>(height) * 3u);
   set_time(msg, wall_us);
   return packed(msg);
+}
+
+Packet pack_polydata(const std::string& device_name, const std::vector<std::array<float, 3>>& points_mm,
+                     const std::vector<std::array<std::uint32_t, 3>>& triangles, std::int64_t wall_us) {
+  auto msg = ::igtl::PolyDataMessage::New();
+  msg->SetDeviceName(device_name.c_str());
+  auto points = ::igtl::PolyDataPointArray::New();
+  points->SetNumberOfPoints(static_cast<int>(points_mm.size()));
+  for (std::size_t i = 0; i < points_mm.size(); ++i)
+    points->SetPoint(static_cast<unsigned int>(i), points_mm[i][0], points_mm[i][1], points_mm[i][2]);
+  msg->SetPoints(points);
+  auto polygons = ::igtl::PolyDataCellArray::New();
+  for (auto t : triangles) polygons->AddCell(3, t.data());
+  msg->SetPolygons(polygons);
+  set_time(msg, wall_us);
+  return packed(msg);
+}
+
+Packet pack_empty(const std::string& type, const std::string& device_name, std::int64_t wall_us) {
+  Header h;
+  h.version = 1;
+  h.type = type;
+  h.device_name = device_name;
+  h.timestamp = igtl_time_from_wall_us(wall_us);
+  h.body_size = 0;
+  h.crc = body_crc({});
+  auto bytes = std::make_shared<std::vector<std::uint8_t>>(kHeaderSize);
+  write_header(h, bytes->data());
+  return bytes;
 }
 
 }  // namespace arnav::igtl

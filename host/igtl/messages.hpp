@@ -1,6 +1,7 @@
 #pragma once
 // OpenIGTLink messages arnav-igtl sends, packed with Debian's libopenigtlink (docs/igtl.md),
 // and the PLUS naming of transforms. Every message carries the UTC time of what it shows.
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -41,5 +42,14 @@ Packet pack_status(const std::string& device_name, int code, const std::string& 
 
 // IMAGE of 8-bit RGB pixels (row-major, 3 bytes per pixel), spacing 1, identity matrix.
 Packet pack_image_rgb(const std::string& device_name, int width, int height, const std::uint8_t* rgb, std::int64_t wall_us);
+
+// POLYDATA of a triangulated surface: points (float32, the mesh's frame, mm) and one
+// 3-point polygon per triangle (indices into points, checked by the caller); no attributes.
+Packet pack_polydata(const std::string& device_name, const std::vector<std::array<float, 3>>& points_mm,
+                     const std::vector<std::array<std::uint32_t, 3>>& triangles, std::int64_t wall_us);
+
+// A message of `type` with an empty body (body size 0): OpenIGTLink's answer to a GET_<type>
+// query for data that is not available (the protocol's "Query Message" section).
+Packet pack_empty(const std::string& type, const std::string& device_name, std::int64_t wall_us);
 
 }  // namespace arnav::igtl

@@ -175,7 +175,7 @@ void Server::close_client(Client& c, const std::string& why, bool dropped) {
 }
 
 void Server::reader_loop(Client& c) {
-  StreamReader reader({"STT_TDATA", "STP_TDATA", "GET_STATUS"}, 4096, options_.max_body_bytes);
+  StreamReader reader({"STT_TDATA", "STP_TDATA", "GET_STATUS", "GET_POLYDATA"}, 4096, options_.max_body_bytes);
   std::vector<std::uint8_t> buffer(64 * 1024);
   for (;;) {
     {
@@ -229,9 +229,41 @@ void Server::handle_request(Client& c, const Message& m) {
     if (changed) log_("client " + c.peer + (start ? " started" : " stopped") + " tracking data");
   } else if (m.header.type == "GET_STATUS") {
     queue(c, "STATUS", pack_status(options_.status_device_name, ::igtl::StatusMessage::STATUS_OK, "", wall_us()));
+  } else if (m.header.type == "GET_POLYDATA") {
+    answer_get_polydata(c, m.header.device_name);
   }
   std::lock_guard lock(stats_mutex_);
   ++stats_.requests_handled;
+}
+
+// GET_POLYDATA (OpenIGTLink "Query Message"): the latest POLYDATA of that name; without a
+// name every surface there is; data not available: a POLYDATA of that name with an empty body.
+void Server::answer_get_polydata(Client& c, const std::string& device_name) {
+  std::vector<std::pair<std::string, Packet>> answers;
+  std::string known;
+  {
+    std::lock_guard lock(polydata_mutex_);
+    for (const auto& [name, packet] : polydata_) {
+      if (device_name.empty() || name == device_name) answers.emplace_back(name, packet);
+      known += (known.empty() ? "" : ", ") + name;
+    }
+  }
+  if (answers.empty()) {
+    log_("client " + c.peer + ": GET_POLYDATA '" + device_name + "': no such surface (" + (known.empty() ? "none yet" : "have " + known) +
+         "): answered with an empty POLYDATA");
+    answers.emplace_back(device_name, pack_empty("POLYDATA", device_name, wall_us()));
+    std::lock_guard lock(stats_mutex_);
+    ++stats_.polydata_unknown;
+  }
+  for (const auto& [name, packet] : answers) queue(c, "POLYDATA:" + name, packet);
+}
+
+void Server::publish_polydata(const std::string& device_name, const Packet& packet) {
+  {
+    std::lock_guard lock(polydata_mutex_);
+    polydata_[device_name] = packet;
+  }
+  publish("POLYDATA:" + device_name, packet);
 }
 
 // Fast path: with nothing queued and the sender idle, the caller (the LCM thread) sends at

@@ -11,7 +11,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   if (size < 1) return 0;
   const std::size_t chunk = 1 + data[0] % 97;
   std::span<const std::uint8_t> rest(data + 1, size - 1);
-  arnav::igtl::StreamReader reader({"STT_TDATA", "STP_TDATA", "GET_STATUS", "STATUS"}, 4096, 1u << 20);
+  arnav::igtl::StreamReader reader({"STT_TDATA", "STP_TDATA", "GET_STATUS", "GET_POLYDATA", "STATUS"}, 4096, 1u << 20);
   while (!rest.empty()) {
     const std::size_t n = rest.size() < chunk ? rest.size() : chunk;
     reader.feed(rest.first(n));

@@ -1,8 +1,9 @@
 // arnav-igtl on a recorded session (--lcm 'file://LOG?speed=1'): a log written here with
 // lcm::LogFile (poses after a 4 s lead-in, so the client is connected before they play),
 // the real executable, a client on 127.0.0.1. The latest pose of each tool always arrives,
-// every TRANSFORM carries a logged pose's time, a missing pose is never sent, and the
-// program exits 0 at the end of the log with --exit-at-end.
+// every TRANSFORM carries a logged pose's time, a missing pose is never sent, the host's
+// last organ surface arrives as POLYDATA with its model step's time, and the program exits
+// 0 at the end of the log with --exit-at-end.
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -33,7 +34,8 @@ void write_event(lcm::LogFile& log, std::int64_t t_us, const std::string& channe
   ASSERT_EQ(log.writeEvent(&e), 0);
 }
 
-std::vector<std::uint8_t> encode(const tool_pose_t& p) {
+template <class Msg>
+std::vector<std::uint8_t> encode(const Msg& p) {
   std::vector<std::uint8_t> bytes(static_cast<std::size_t>(p.getEncodedSize()));
   p.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
   return bytes;
@@ -66,6 +68,9 @@ TEST(IgtlReplay, RecordedSessionServedAtItsPace) {
           missing_time = p.receive_time_wall_us;
         write_event(log, 4'000'000 + f * 16667, channels::pose(tool), encode(p));
       }
+      if (f % 6 == 0)  // the host's surfaces at 10 Hz
+        write_event(log, 4'000'000 + f * 16667 + 100, channels::surface("organ"),
+                    encode(test::sphere_surface("organ", 4, 6, 0.1 * f, kWall0_us + f * 16667)));
     }
   }
   const std::string cmd = "'" + testing::binary_path("host/igtl/arnav-igtl") + "' --lcm 'file://" + log_path +
@@ -103,6 +108,14 @@ TEST(IgtlReplay, RecordedSessionServedAtItsPace) {
     last_time[u.device_name] = u.wall_us;
   }
   EXPECT_GE(transforms, 60u);  // 119 valid poses; a loaded machine may coalesce some
+  std::int64_t last_organ_us = 0;
+  for (const auto& m : got)
+    if (m.header.type == "POLYDATA" && m.header.device_name == "Organ") {
+      const auto u = test::unpack(m);
+      EXPECT_TRUE(u.crc_ok);
+      last_organ_us = u.wall_us;
+    }
+  EXPECT_EQ(last_organ_us, kWall0_us + 54 * 16667) << "the last logged organ surface did not arrive";
   EXPECT_EQ(last_time["PointerToReference"], kWall0_us + 59 * 16667);
   EXPECT_EQ(last_time["ReferenceToTracker"], kWall0_us + 59 * 16667);
 }

@@ -339,5 +339,103 @@ TEST(IgtlBridge, CameraFrameBecomesDownscaledRgbImage) {
   EXPECT_NE(logged.all().find("cannot be decoded"), std::string::npos);
 }
 
+Packet organ_packet(double phase, const std::string& surface = "organ") {
+  std::string name, why;
+  return *polydata_from_surface(test::sphere_surface(surface, 4, 6, phase, wall_us()), name, why);
+}
+
+TEST(IgtlServer, GetPolydataAnsweredFromTheLatestAgainAndAgain) {
+  Logged logged;
+  Server server(test_options(), logged.log());
+  server.publish_polydata("Organ", organ_packet(0.0));  // before the client connects: only GET_POLYDATA gets it
+  server.publish_polydata("Organ", organ_packet(1.0));
+  TestClient client(server.port());
+  ASSERT_TRUE(client.connected()) << client.why();
+  ASSERT_TRUE(client.send(test::slicer_v2_status()));
+  for (int i = 0; i < 5; ++i) {  // a client asking repeatedly gets an answer each time (v1 and v2 headers)
+    ASSERT_TRUE(client.send(test::named_request("GET_POLYDATA", "Organ", i % 2 == 0 ? 1 : 2)));
+    const auto& got = client.receive_until(1, 10.0);
+    ASSERT_EQ(count_type(got, "POLYDATA", "Organ"), 1u) << "request " << i << "\n" << logged.all();
+    const auto u = test::unpack(got[0]);
+    ASSERT_TRUE(u.crc_ok);
+    const surface_mesh_t latest = test::sphere_surface("organ", 4, 6, 1.0, 0);  // the second mesh published, not the first
+    ASSERT_EQ(u.points_mm.size(), latest.positions_mm.size());
+    for (std::size_t v = 0; v < latest.positions_mm.size(); ++v) EXPECT_EQ(u.points_mm[v][0], latest.positions_mm[v][0]) << v;
+    client.take();
+  }
+  EXPECT_EQ(server.stats().polydata_unknown, 0u);
+}
+
+TEST(IgtlServer, GetPolydataForAnUnknownNameGetsAnEmptyPolydata) {
+  Logged logged;
+  Server server(test_options(), logged.log());
+  TestClient client(server.port());
+  ASSERT_TRUE(client.connected()) << client.why();
+  ASSERT_TRUE(client.send(test::named_request("GET_POLYDATA", "Tumour")));  // nothing published yet
+  auto got = client.receive_until(1, 10.0);
+  ASSERT_EQ(count_type(got, "POLYDATA", "Tumour"), 1u) << logged.all();
+  auto u = test::unpack(got[0]);
+  EXPECT_TRUE(u.empty_body);
+  EXPECT_TRUE(u.crc_ok);
+  EXPECT_GT(u.wall_us, 1'700'000'000'000'000);  // UTC now
+  EXPECT_NE(logged.all().find("GET_POLYDATA 'Tumour': no such surface (none yet)"), std::string::npos) << logged.all();
+  client.take();
+
+  server.publish_polydata("Organ", organ_packet(0.5));
+  got = client.receive_until(1, 10.0);  // pushed to the connected client
+  ASSERT_EQ(count_type(got, "POLYDATA", "Organ"), 1u);
+  client.take();
+  ASSERT_TRUE(client.send(test::named_request("GET_POLYDATA", "Cut")));
+  got = client.receive_until(1, 10.0);
+  ASSERT_EQ(count_type(got, "POLYDATA", "Cut"), 1u);
+  EXPECT_TRUE(test::unpack(got[0]).empty_body);
+  EXPECT_NE(logged.all().find("GET_POLYDATA 'Cut': no such surface (have Organ)"), std::string::npos) << logged.all();
+  client.take();
+  // Without a name: every surface there is.
+  server.publish_polydata("Tumour", organ_packet(0.7, "tumour"));
+  client.receive_until(1, 10.0);
+  client.take();
+  ASSERT_TRUE(client.send(test::named_request("GET_POLYDATA", "")));
+  got = client.receive_until(2, 10.0);
+  EXPECT_EQ(count_type(got, "POLYDATA", "Organ"), 1u);
+  EXPECT_EQ(count_type(got, "POLYDATA", "Tumour"), 1u);
+  EXPECT_EQ(server.stats().polydata_unknown, 2u);
+  EXPECT_EQ(server.stats().clients_dropped, 0u);
+}
+
+TEST(IgtlBridge, SurfacesBecomePolydataPerNameAndBadOnesAreReported) {
+  Logged logged;
+  Server server(test_options(), logged.log());
+  Bridge bridge(BridgeOptions{}, server, logged.log());
+  TestClient client(server.port());
+  ASSERT_TRUE(client.connected());
+  ASSERT_TRUE(wait_until([&] { return server.clients() == 1; }));
+  const std::int64_t t = 1'764'633'600'000'777;
+  bridge.on_surface(test::sphere_surface("organ", 5, 8, 0.1, t));
+  bridge.on_surface(test::sphere_surface("tumour", 3, 4, 0.0, t));
+  const auto& got = client.receive_until(2, 10.0);
+  ASSERT_EQ(count_type(got, "POLYDATA", "Organ"), 1u) << logged.all();
+  ASSERT_EQ(count_type(got, "POLYDATA", "Tumour"), 1u);
+  for (const auto& m : got) {
+    const auto u = test::unpack(m);
+    ASSERT_TRUE(u.crc_ok);
+    EXPECT_EQ(u.wall_us, t);
+    EXPECT_EQ(u.points_mm.size(), m.header.device_name == "Organ" ? 2u + 4u * 8u : 2u + 2u * 4u);
+  }
+  client.take();
+  surface_mesh_t in_model = test::sphere_surface("cut", 3, 4, 0.0, t);
+  in_model.frame_name = "Model";
+  bridge.on_surface(in_model);
+  ASSERT_TRUE(wait_until([&] { return bridge.stats().surfaces_rejected == 1; }));
+  bridge.on_surface(in_model);
+  ASSERT_TRUE(wait_until([&] { return bridge.stats().surfaces_rejected == 2; }));
+  const std::string log = logged.all();
+  EXPECT_NE(log.find("surface 'cut' (ARNAV_SURFACE_cut): not sent: its vertices are in frame 'Model'"), std::string::npos) << log;
+  EXPECT_EQ(log.find("not sent"), log.rfind("not sent"));  // reported once
+  ASSERT_TRUE(client.send(test::named_request("GET_POLYDATA", "Organ")));
+  EXPECT_EQ(count_type(client.receive_until(1, 10.0), "POLYDATA", "Organ"), 1u);
+  EXPECT_EQ(bridge.stats().polydata, 2u);
+}
+
 }  // namespace
 }  // namespace arnav::igtl

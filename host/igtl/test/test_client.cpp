@@ -8,10 +8,12 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstring>
 
 #include <igtlImageMessage.h>
 #include <igtlMessageHeader.h>
+#include <igtlPolyDataMessage.h>
 #include <igtlStatusMessage.h>
 #include <igtlTrackingDataMessage.h>
 #include <igtlTransformMessage.h>
@@ -20,7 +22,7 @@
 
 namespace arnav::igtl::test {
 
-TestClient::TestClient(int port) : reader_({"TRANSFORM", "TDATA", "STATUS", "IMAGE"}, 1ull << 28, 1ull << 28) {
+TestClient::TestClient(int port) : reader_({"TRANSFORM", "TDATA", "STATUS", "IMAGE", "POLYDATA"}, 1ull << 28, 1ull << 28) {
   fd_ = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
   sockaddr_in addr{};
   addr.sin_family = AF_INET;
@@ -93,11 +95,13 @@ void put_be(std::vector<std::uint8_t>& v, std::uint64_t x, int bytes) {
 }
 }  // namespace
 
-std::vector<std::uint8_t> request(const std::string& type, std::uint16_t version) {
+std::vector<std::uint8_t> request(const std::string& type, std::uint16_t version) { return named_request(type, "TestClient", version); }
+
+std::vector<std::uint8_t> named_request(const std::string& type, const std::string& device_name, std::uint16_t version) {
   Header h;
   h.version = version;
   h.type = type;
-  h.device_name = "TestClient";
+  h.device_name = device_name;
   std::vector<std::uint8_t> body;
   if (version >= 2) {  // extended header only
     put_be(body, 12, 2);
@@ -201,8 +205,69 @@ Unpacked unpack(const Message& m) {
       const auto* p = static_cast<const std::uint8_t*>(msg->GetScalarPointer());
       u.pixels.assign(p, p + static_cast<std::size_t>(msg->GetImageSize()));
     }
+  } else if (type == "POLYDATA") {
+    u.empty_body = m.header.body_size == 0;
+    auto msg = ::igtl::PolyDataMessage::New();
+    if (u.empty_body) {
+      u.crc_ok = m.header.crc == body_crc({});
+    } else if ((u.crc_ok = unpack_into(msg, m))) {
+      if (auto* points = msg->GetPoints())
+        for (int i = 0; i < points->GetNumberOfPoints(); ++i) {
+          std::array<float, 3> p{};
+          points->GetPoint(static_cast<unsigned int>(i), p.data());
+          u.points_mm.push_back(p);
+        }
+      if (auto* polygons = msg->GetPolygons())
+        for (unsigned int i = 0; i < polygons->GetNumberOfCells(); ++i) {
+          std::vector<std::uint32_t> cell(polygons->GetCellSize(i));
+          polygons->GetCell(i, cell.data());
+          u.polygons.push_back(std::move(cell));
+        }
+      u.other_cells = (msg->GetVertices() ? msg->GetVertices()->GetNumberOfCells() : 0) +
+                      (msg->GetLines() ? msg->GetLines()->GetNumberOfCells() : 0) +
+                      (msg->GetTriangleStrips() ? msg->GetTriangleStrips()->GetNumberOfCells() : 0);
+    }
   }
   return u;
+}
+
+surface_mesh_t sphere_surface(const std::string& name, int rings, int segments, double phase, std::int64_t wall_us) {
+  surface_mesh_t m;
+  m.name = name;
+  m.frame_name = "Ref";
+  m.model_time_us = 1000;
+  m.model_step = 1;
+  m.model_step_wall_us = wall_us;
+  m.publish_time_wall_us = wall_us + 100;
+  m.sequence = 1;
+  const auto vertex = [&](double theta, double phi) {
+    const double r = 60.0 + 3.0 * std::sin(3.0 * phi + phase) * std::sin(theta);
+    m.positions_mm.push_back({static_cast<float>(r * std::sin(theta) * std::cos(phi)), static_cast<float>(r * std::sin(theta) * std::sin(phi)),
+                              static_cast<float>(-1400.0 + r * std::cos(theta))});
+  };
+  const double pi = std::acos(-1.0);
+  vertex(0.0, 0.0);  // north pole: 0
+  for (int i = 1; i < rings; ++i)
+    for (int j = 0; j < segments; ++j) vertex(pi * i / rings, 2.0 * pi * j / segments);
+  vertex(pi, 0.0);  // south pole: last
+  const int south = static_cast<int>(m.positions_mm.size()) - 1;
+  const auto at = [&](int ring, int seg) { return 1 + (ring - 1) * segments + (seg % segments); };
+  for (int j = 0; j < segments; ++j) {
+    m.triangles.push_back({0, at(1, j), at(1, j + 1)});
+    m.triangles.push_back({south, at(rings - 1, j + 1), at(rings - 1, j)});
+  }
+  for (int i = 1; i + 1 < rings; ++i)
+    for (int j = 0; j < segments; ++j) {
+      m.triangles.push_back({at(i, j), at(i + 1, j), at(i + 1, j + 1)});
+      m.triangles.push_back({at(i, j), at(i + 1, j + 1), at(i, j + 1)});
+    }
+  m.num_vertices = static_cast<std::int32_t>(m.positions_mm.size());
+  m.num_triangles = static_cast<std::int32_t>(m.triangles.size());
+  m.rgba[0] = 0.95f;
+  m.rgba[1] = 0.75f;
+  m.rgba[2] = 0.65f;
+  m.rgba[3] = 0.25f;
+  return m;
 }
 
 }  // namespace arnav::igtl::test

@@ -3,10 +3,14 @@
 // with libopenigtlink.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstring>
 #include <random>
 
+#include <igtlMessageHeader.h>
 #include <igtl_util.h>
 
+#include "host/igtl/bridge.hpp"
 #include "host/igtl/messages.hpp"
 #include "host/igtl/test/test_client.hpp"
 #include "host/igtl/wire.hpp"
@@ -205,6 +209,107 @@ TEST(IgtlMessages, TdataStatusAndImageReadBack) {
   EXPECT_EQ(image.components, 3);
   EXPECT_EQ(image.pixels, rgb);
   EXPECT_EQ(image.wall_us, 7);
+}
+
+TEST(IgtlMessages, PolydataReadBackByLibopenigtlinkWithCrc) {
+  const std::vector<std::array<float, 3>> points = {{0, 0, 0}, {10.5f, 0, 0}, {0, 20.25f, 0}, {0, 0, -1400.125f}};
+  const std::vector<std::array<std::uint32_t, 3>> triangles = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+  const std::int64_t t = 1'764'633'600'123'456;
+  const Packet packet = pack_polydata("Organ", points, triangles, t);
+  StreamReader reader({"POLYDATA"}, 1 << 20, 1 << 20);
+  reader.feed(*packet);
+  const auto m = reader.next();
+  ASSERT_TRUE(m);
+  EXPECT_EQ(m->header.type, "POLYDATA");
+  EXPECT_EQ(m->header.device_name, "Organ");
+  const auto u = test::unpack(*m);
+  ASSERT_TRUE(u.crc_ok);
+  EXPECT_FALSE(u.empty_body);
+  EXPECT_EQ(u.wall_us, t);
+  EXPECT_EQ(u.points_mm, points);
+  ASSERT_EQ(u.polygons.size(), triangles.size());
+  for (std::size_t i = 0; i < triangles.size(); ++i)
+    EXPECT_EQ(u.polygons[i], std::vector<std::uint32_t>(triangles[i].begin(), triangles[i].end())) << "triangle " << i;
+  EXPECT_EQ(u.other_cells, 0u);
+
+  Message damaged = *m;  // one bit of one coordinate: the library's CRC check refuses it
+  damaged.body[damaged.body.size() / 2] ^= 0x04;
+  EXPECT_FALSE(test::unpack(damaged).crc_ok);
+}
+
+TEST(IgtlMessages, EmptyPolydataIsTheNotAvailableAnswer) {
+  const Packet packet = pack_empty("POLYDATA", "Tumour", 1'764'633'600'000'000);
+  ASSERT_EQ(packet->size(), kHeaderSize);
+  std::string why;
+  const auto h = parse_header(std::span<const std::uint8_t, kHeaderSize>(packet->data(), kHeaderSize), 1 << 20, why);
+  ASSERT_TRUE(h) << why;
+  EXPECT_EQ(h->type, "POLYDATA");
+  EXPECT_EQ(h->device_name, "Tumour");
+  EXPECT_EQ(h->body_size, 0u);
+  EXPECT_EQ(h->crc, body_crc({}));
+  EXPECT_EQ(wall_us_from_igtl_time(h->timestamp), 1'764'633'600'000'000);
+  // libopenigtlink reads the header as a complete POLYDATA header.
+  auto header = ::igtl::MessageHeader::New();
+  header->InitPack();
+  std::memcpy(header->GetPackPointer(), packet->data(), kHeaderSize);
+  header->Unpack();
+  EXPECT_STREQ(header->GetDeviceType(), "POLYDATA");
+  EXPECT_EQ(header->GetBodySizeToRead(), 0u);
+}
+
+TEST(IgtlSurface, HostMeshBecomesPolydataInReference) {
+  const surface_mesh_t organ = test::sphere_surface("organ", 6, 8, 0.3, 1'764'633'600'000'500);
+  std::string name, why;
+  const auto packet = polydata_from_surface(organ, name, why);
+  ASSERT_TRUE(packet) << why;
+  EXPECT_EQ(name, "Organ");
+  StreamReader reader({"POLYDATA"}, 1 << 20, 1 << 20);
+  reader.feed(**packet);
+  const auto u = test::unpack(*reader.next());
+  ASSERT_TRUE(u.crc_ok);
+  EXPECT_EQ(u.wall_us, organ.model_step_wall_us);  // the model step's UTC time, not the publish time
+  ASSERT_EQ(u.points_mm.size(), organ.positions_mm.size());
+  for (std::size_t i = 0; i < u.points_mm.size(); ++i)
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(u.points_mm[i][static_cast<std::size_t>(k)], organ.positions_mm[i][static_cast<std::size_t>(k)]);
+  ASSERT_EQ(u.polygons.size(), organ.triangles.size());
+  EXPECT_EQ(u.polygons[5], std::vector<std::uint32_t>(organ.triangles[5].begin(), organ.triangles[5].end()));
+
+  EXPECT_TRUE(polydata_from_surface(test::sphere_surface("tumour2", 3, 4, 0, 1), name, why));
+  EXPECT_EQ(name, "Tumour2");
+  EXPECT_TRUE(polydata_from_surface(test::sphere_surface("cut", 3, 4, 0, 1), name, why));
+  EXPECT_EQ(name, "Cut");
+}
+
+TEST(IgtlSurface, InconsistentMeshesAreRefusedWithTheReason) {
+  const surface_mesh_t good = test::sphere_surface("organ", 3, 4, 0, 1);
+  std::string name, why;
+  const auto refused = [&](surface_mesh_t m, const std::string& expect) {
+    why.clear();
+    const bool ok = polydata_from_surface(m, name, why).has_value();
+    EXPECT_FALSE(ok) << expect;
+    EXPECT_NE(why.find(expect), std::string::npos) << why;
+  };
+  surface_mesh_t m = good;
+  m.frame_name = "Model";
+  refused(m, "frame 'Model'");
+  m = good;
+  m.name = "a_surface_with_a_very_long_name";
+  refused(m, "1..20 characters");
+  m = good;
+  m.num_vertices += 1;
+  refused(m, "disagree");
+  m = good;
+  m.triangles[2][1] = m.num_vertices;
+  refused(m, "triangle 2");
+  m = good;
+  m.triangles[0][0] = -1;
+  refused(m, "triangle 0");
+  m = good;
+  m.positions_mm[3][2] = std::nanf("");
+  refused(m, "vertex 3");
+  m = good;
+  m.positions_mm[1].resize(2);
+  refused(m, "vertex 1");
 }
 
 }  // namespace
