@@ -2,7 +2,10 @@
 
 #include <algorithm>
 #include <fstream>
+#include <cmath>
 #include <map>
+#include <set>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 
@@ -10,6 +13,7 @@
 
 #include "appliance/synthetic_camera/ground_truth.hpp"
 #include "host/app/session_config.hpp"
+#include "hil_tests/scenarios/surface_error.hpp"
 #include "host/scene/scene.hpp"
 
 namespace arnav::hil {
@@ -30,7 +34,41 @@ std::vector<std::string> split(const std::string& line) {
   return out;
 }
 
+// Availability: eligible = board clearly visible at or after the first registered frame;
+// a frame missing from overlay.csv after that counts as not displayed (a failure).
+void count_availability(ArErrorReport& rep, const std::map<std::int64_t, camera_sim::GroundTruthRow>& truth) {
+  std::optional<std::int64_t> first_registered;
+  std::map<std::int64_t, const ArFrame*> by_seq;
+  for (const ArFrame& fr : rep.frames) {
+    by_seq[fr.sequence] = &fr;
+    if (fr.registered && (!first_registered || fr.sequence < *first_registered)) first_registered = fr.sequence;
+  }
+  if (!first_registered) return;
+  for (const auto& [seq, row] : truth) {
+    if (seq < *first_registered || row.tags_visible < 4) continue;
+    ++rep.availability.eligible;
+    const auto it = by_seq.find(seq);
+    if (it == by_seq.end()) {
+      ++rep.availability.not_displayed;
+      rep.eligible_not_displayed.push_back(seq);
+    } else if (it->second->drawn) {
+      ++rep.availability.with_overlay;
+    } else {
+      ++rep.availability.not_drawn;
+    }
+  }
+}
+
 }  // namespace
+
+std::optional<double> quantile_counting_missing(std::vector<double> values, std::int64_t missing, double q) {
+  const std::size_t n = values.size() + static_cast<std::size_t>(std::max<std::int64_t>(0, missing));
+  if (n == 0) return std::nullopt;
+  std::sort(values.begin(), values.end());
+  const auto rank = std::min(n - 1, static_cast<std::size_t>(q * static_cast<double>(n - 1) + 0.5));
+  if (rank >= values.size()) return std::nullopt;
+  return values[rank];
+}
 
 ArErrorReport evaluate_ar_error(const std::string& session_path, const std::string& gt_path, const std::string& csv_path) {
   const host::SessionConfig session = host::load_session(session_path);
@@ -59,31 +97,52 @@ ArErrorReport evaluate_ar_error(const std::string& session_path, const std::stri
   std::ifstream in(csv_path);
   if (!in) throw std::runtime_error(csv_path + ": cannot read the overlay CSV");
   std::string line;
-  std::getline(in, line);  // header
+  std::getline(in, line);  // header: columns by name (older files lack the 3-D centroid)
+  const std::vector<std::string> header = split(line);
+  const auto column = [&](const std::string& name, bool required) {
+    for (std::size_t i = 0; i < header.size(); ++i)
+      if (header[i] == name) return static_cast<int>(i);
+    if (required) throw std::runtime_error(csv_path + ":1: no column '" + name + "' (an overlay.csv written by arnav-host --record)");
+    return -1;
+  };
+  const int i_seq = column("camera_sequence", true), i_pose = column("pose_time_mono_us", true),
+            i_capture = column("capture_time_mono_us", true), i_lat = column("motion_to_photon_ms", true),
+            i_u = column("tumour_u_px", true), i_v = column("tumour_v_px", true), i_flags = column("flags", true),
+            i_x = column("tumour_x_cam_mm", false), i_y = column("tumour_y_cam_mm", false), i_z = column("tumour_z_cam_mm", false);
+  rep.has_3d = i_x >= 0 && i_y >= 0 && i_z >= 0;
+  const int needed = std::max({i_seq, i_pose, i_capture, i_lat, i_u, i_v, i_flags, i_x, i_y, i_z}) + 1;
   std::map<std::int64_t, bool> seen;
   int line_no = 1;
   while (std::getline(in, line)) {
     ++line_no;
     const auto f_ = split(line);
-    if (f_.size() < 10) throw std::runtime_error(csv_path + ":" + std::to_string(line_no) + ": expected at least 10 columns");
+    const auto cell = [&](int i) -> const std::string& { return f_[static_cast<std::size_t>(i)]; };
+    if (static_cast<int>(f_.size()) < needed)
+      throw std::runtime_error(csv_path + ":" + std::to_string(line_no) + ": expected at least " + std::to_string(needed) + " columns");
     ++rep.csv_rows;
     ArFrame fr;
-    fr.sequence = std::stoll(f_[0]);
-    fr.latency_ms = std::stod(f_[5]);
-    fr.flags = f_[9];
-    fr.own_pose = f_[2] == f_[1];
+    try {
+      fr.sequence = std::stoll(cell(i_seq));
+      fr.latency_ms = std::stod(cell(i_lat));
+    } catch (const std::exception&) {
+      throw std::runtime_error(csv_path + ":" + std::to_string(line_no) + ": camera_sequence / motion_to_photon_ms is not a number");
+    }
+    fr.flags = cell(i_flags);
+    fr.registered = fr.flags.find("unregistered") == std::string::npos;
+    fr.own_pose = cell(i_pose) == cell(i_capture);
     seen[fr.sequence] = true;
     const auto t = truth.find(fr.sequence);
     if (t == truth.end()) continue;
     fr.board_visible = t->second.tags_visible >= 4;
-    fr.drawn = !f_[6].empty();
+    fr.drawn = !cell(i_u).empty();
     if (fr.drawn) {
-      const cv::Point2d drawn(std::stod(f_[6]), std::stod(f_[7]));
+      const cv::Point2d drawn(std::stod(cell(i_u)), std::stod(cell(i_v)));
       const Eigen::Vector3d p_rigid = t->second.X_CamBoard * *session.X_RefModel * c_Model;
       const cv::Point2d px_rigid = project(p_rigid);
       const auto d = deformed.find(fr.sequence);
       if (rep.phantom && d == deformed.end())
         throw std::runtime_error(gt_path + ": frame " + std::to_string(fr.sequence) + " has the board but no target:tumour_centroid row");
+      Eigen::Vector3d p_true = p_rigid;
       if (d != deformed.end()) {
         const Eigen::Vector3d p = d->second.X_CamBoard.translation();
         const cv::Point2d px = project(p);
@@ -93,17 +152,29 @@ ArErrorReport evaluate_ar_error(const std::string& session_path, const std::stri
         fr.rigid_error_px = cv::norm(px_rigid - px);
         fr.rigid_error_mm = fr.rigid_error_px * p.z() / f;
         fr.tumour_displacement_mm = (p - p_rigid).norm();
+        p_true = p;
       } else {
         fr.error_px = cv::norm(drawn - px_rigid);
         fr.error_mm = fr.error_px * p_rigid.z() / f;
+      }
+      if (rep.has_3d && !cell(i_x).empty()) {
+        const Eigen::Vector3d drawn_Cam(std::stod(cell(i_x)), std::stod(cell(i_y)), std::stod(cell(i_z)));
+        const CentroidError3d e = centroid_error_3d(drawn_Cam, p_true);
+        fr.has_3d = true;
+        fr.error_3d_mm = e.distance_mm;
+        fr.error_depth_mm = e.along_ray_mm;
+        fr.error_lateral_mm = e.across_ray_mm;
       }
     }
     if (fr.board_visible && !fr.drawn) ++rep.visible_without_overlay;
     if (t->second.tags_visible == 0 && fr.drawn) ++rep.invisible_with_overlay;
     rep.frames.push_back(fr);
   }
-  for (const auto& [seq, row] : truth)
+  for (const auto& [seq, row] : truth) {
+    rep.truth_sequences.push_back(seq);
     if (!seen.count(seq)) ++rep.missing_in_csv;
+  }
+  count_availability(rep, truth);
   return rep;
 }
 
@@ -139,6 +210,37 @@ nlohmann::json ArErrorReport::summary() const {
           {"missing_in_csv", missing_in_csv},
           {"visible_without_overlay", visible_without_overlay},
           {"invisible_with_overlay", invisible_with_overlay}};
+  j["availability"] = {{"what", "frames with the board clearly visible at or after the first registered frame; a frame without an overlay "
+                               "(not drawn, or not displayed at all) is a failure"},
+                      {"eligible_frames", availability.eligible},
+                      {"with_overlay", availability.with_overlay},
+                      {"not_drawn", availability.not_drawn},
+                      {"not_displayed", availability.not_displayed},
+                      {"percent", availability.percent()}};
+  if (has_3d) {
+    std::vector<double> e3, depth, lateral, e3_eligible;
+    std::set<std::int64_t> eligible_drawn;
+    for (const auto& f : frames) {
+      if (!f.has_3d) continue;
+      e3.push_back(f.error_3d_mm);
+      depth.push_back(std::abs(f.error_depth_mm));
+      lateral.push_back(f.error_lateral_mm);
+    }
+    const auto or_null = [](std::optional<double> v) { return v ? nlohmann::json(*v) : nlohmann::json(nullptr); };
+    const std::int64_t failures = availability.eligible - availability.with_overlay;
+    j["ar_error_3d_mm"] = {{"what", "|drawn - true| tumour centroid in the camera frame (3-D), frames with an overlay"},
+                           {"frames", e3.size()},
+                           {"mean", mean(e3)},
+                           {"p95", quantile(e3, 0.95)},
+                           {"max", e3.empty() ? 0.0 : *std::max_element(e3.begin(), e3.end())},
+                           {"along_ray_abs", stats(depth)},
+                           {"across_ray", stats(lateral)},
+                           {"counting_missing", {{"what", "the same with each eligible frame without an overlay counted as an infinite error (null: "
+                                                          "the quantile falls on a missing frame)"},
+                                                 {"missing", failures},
+                                                 {"p50", or_null(quantile_counting_missing(e3, failures, 0.5))},
+                                                 {"p95", or_null(quantile_counting_missing(e3, failures, 0.95))}}}};
+  }
   if (phantom) {
     j["rigid_overlay"] = {{"what", "a rigid overlay (rest-shape tumour through the registration) against the same deformed truth"},
                           {"ar_error_px", stats(rpx)},
@@ -146,6 +248,29 @@ nlohmann::json ArErrorReport::summary() const {
     j["tumour_displacement_mm"] = stats(disp);
   }
   return j;
+}
+
+std::string ArErrorReport::frames_csv() const {
+  std::ostringstream os;
+  os << "sequence,displayed,board_visible,registered,drawn,error_px,error_2d_mm,error_3d_mm,error_along_ray_mm,error_across_ray_mm\n";
+  std::map<std::int64_t, const ArFrame*> by_seq;
+  for (const auto& f : frames) by_seq[f.sequence] = &f;
+  for (const std::int64_t seq : truth_sequences) {
+    const auto it = by_seq.find(seq);
+    if (it == by_seq.end()) {
+      os << seq << ",0,,,0,,,,,\n";
+      continue;
+    }
+    const ArFrame& f = *it->second;
+    os << seq << ",1," << f.board_visible << ',' << f.registered << ',' << f.drawn << ',';
+    if (f.drawn) os << f.error_px << ',' << f.error_mm;
+    else os << ',';
+    os << ',';
+    if (f.has_3d) os << f.error_3d_mm << ',' << f.error_depth_mm << ',' << f.error_lateral_mm;
+    else os << ",,";
+    os << "\n";
+  }
+  return os.str();
 }
 
 }  // namespace arnav::hil

@@ -789,6 +789,7 @@ FrameResult NavigationSession::render_decoded(const image_frame_t& msg, cv::Mat 
       std::vector<cv::Point2d> px;
       cv::projectPoints(in, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), cv::Mat(camera.K), cv::Mat(camera.distortion), px);
       out.row.tumour_px = px[0];
+      out.row.tumour_Cam_mm = cv::Point3d(p.x(), p.y(), p.z());
     }
   }
   if (cut_model && snap) {

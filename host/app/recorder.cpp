@@ -12,7 +12,8 @@ namespace arnav::host {
 
 std::string csv_header() {
   return "camera_sequence,capture_time_mono_us,pose_time_mono_us,model_step_time_mono_us,render_done_mono_us,"
-         "motion_to_photon_ms,tumour_u_px,tumour_v_px,blade_to_margin_mm,flags,cutting,cut_faces,cut_area_mm2,cut_path_error_mm,cut_events";
+         "motion_to_photon_ms,tumour_u_px,tumour_v_px,blade_to_margin_mm,flags,cutting,cut_faces,cut_area_mm2,cut_path_error_mm,cut_events,"
+         "tumour_x_cam_mm,tumour_y_cam_mm,tumour_z_cam_mm";
 }
 
 std::string csv_line(const FrameRow& r) {
@@ -31,6 +32,9 @@ std::string csv_line(const FrameRow& r) {
   } else {
     os << ",,,,";
   }
+  os << ',';
+  if (r.tumour_Cam_mm) os << std::setprecision(3) << r.tumour_Cam_mm->x << ',' << r.tumour_Cam_mm->y << ',' << r.tumour_Cam_mm->z;
+  else os << ",,";
   return os.str();
 }
 

@@ -16,7 +16,10 @@
 //   boundary, both sides), cut_area_mm2, cut_path_error_mm (largest distance of the points
 //   the cut steps since the previous frame put on the cut from their swept blade surface;
 //   empty when no step cut), cut_events (';'-separated kind:structure raised since the
-//   previous frame: margin_entered, tumour_cut, vessel_crossed).
+//   previous frame: margin_entered, tumour_cut, vessel_crossed),
+//   then tumour_x_cam_mm, tumour_y_cam_mm, tumour_z_cam_mm: the drawn tumour centroid in the
+//   camera frame (the 3-D point tumour_u/v_px projects; empty when not drawn), for the
+//   bench's 3-D AR error (hil_tests/scenarios/ar_error.hpp).
 #include <opencv2/core.hpp>
 #include <opencv2/videoio.hpp>
 
@@ -43,6 +46,7 @@ struct FrameRow {
   std::int64_t render_done_mono_us = 0;
   double motion_to_photon_ms = 0.0;
   std::optional<cv::Point2d> tumour_px;
+  std::optional<cv::Point3d> tumour_Cam_mm;  // the drawn centroid in Cam (3-D AR error)
   std::optional<double> blade_to_margin_mm;
   std::string flags;
   std::optional<bool> cutting;            // cutting sessions only
