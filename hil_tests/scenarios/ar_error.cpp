@@ -9,14 +9,17 @@
 #include <sstream>
 #include <stdexcept>
 
+#include <Eigen/QR>
 #include <opencv2/calib3d.hpp>
 
 #include "appliance/synthetic_camera/ground_truth.hpp"
 #include "host/app/session_config.hpp"
 #include "hil_tests/scenarios/surface_error.hpp"
+#include "host/app/tumour_surface_file.hpp"
 #include "host/scene/scene.hpp"
 
 namespace arnav::hil {
+using host::TriMesh;
 namespace {
 
 double quantile(std::vector<double> v, double q) {
@@ -32,6 +35,62 @@ std::vector<std::string> split(const std::string& line) {
   while (std::getline(ss, f, ',')) out.push_back(f);
   if (!line.empty() && line.back() == ',') out.emplace_back();
   return out;
+}
+
+// The true tumour, for the surface distance: the scene's rest surface and the phantom's
+// interior targets at rest in Model (from the first frame with all of them, through the
+// true registration; the phantom is at rest there).
+struct TrueTumour {
+  TriSurface rest_Model;
+  std::map<std::string, Eigen::Vector3d> targets_Model;
+};
+
+TriSurface to_tri_surface(const host::TriMesh& m) {
+  TriSurface s;
+  for (Eigen::Index i = 0; i < m.positions_World_mm.cols(); ++i) s.vertices_mm.push_back(m.positions_World_mm.col(i));
+  for (const auto& t : m.tris) s.triangles.emplace_back(t[0], t[1], t[2]);
+  return s;
+}
+
+TrueTumour rest_targets(const std::map<std::int64_t, camera_sim::GroundTruthRow>& board,
+                        const std::map<std::int64_t, std::map<std::string, Eigen::Vector3d>>& targets_Cam,
+                        const Eigen::Isometry3d& X_RefModel, const host::TriMesh& rest_surface, const std::string& gt_path) {
+  TrueTumour t;
+  t.rest_Model = to_tri_surface(rest_surface);
+  std::size_t most = 0;
+  for (const auto& [seq, m] : targets_Cam) most = std::max(most, m.size());
+  for (const auto& [seq, m] : targets_Cam) {
+    const auto b = board.find(seq);
+    if (m.size() != most || b == board.end()) continue;
+    const Eigen::Isometry3d X_ModelCam = (b->second.X_CamBoard * X_RefModel).inverse();
+    for (const auto& [name, p] : m) t.targets_Model[name] = X_ModelCam * p;
+    break;
+  }
+  if (t.targets_Model.size() < 4)
+    throw std::runtime_error(gt_path + ": the tumour surface distance needs >= 4 interior targets (target:* rows of a deforming phantom), found " +
+                             std::to_string(t.targets_Model.size()));
+  return t;
+}
+
+// The rest surface under the least-squares affine map from the rest targets (Model) to the
+// frame's targets (Cam); nullopt when the frame lacks a target or they are degenerate.
+std::optional<TriSurface> true_tumour_surface_Cam(const TrueTumour& t, const std::map<std::string, Eigen::Vector3d>& frame_Cam) {
+  const auto n = static_cast<Eigen::Index>(t.targets_Model.size());
+  Eigen::MatrixXd A(n, 4), B(n, 3);
+  Eigen::Index i = 0;
+  for (const auto& [name, p] : t.targets_Model) {
+    const auto q = frame_Cam.find(name);
+    if (q == frame_Cam.end()) return std::nullopt;
+    A.row(i) << p.x(), p.y(), p.z(), 1.0;
+    B.row(i) = q->second.transpose();
+    ++i;
+  }
+  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(A);
+  if (qr.rank() < 4) return std::nullopt;
+  const Eigen::MatrixXd M = qr.solve(B);  // 4 x 3: [x y z 1] * M
+  TriSurface s = t.rest_Model;
+  for (auto& v : s.vertices_mm) v = (Eigen::RowVector4d(v.x(), v.y(), v.z(), 1.0) * M).transpose();
+  return s;
 }
 
 // Availability: eligible = board clearly visible at or after the first registered frame;
@@ -70,7 +129,8 @@ std::optional<double> quantile_counting_missing(std::vector<double> values, std:
   return values[rank];
 }
 
-ArErrorReport evaluate_ar_error(const std::string& session_path, const std::string& gt_path, const std::string& csv_path) {
+ArErrorReport evaluate_ar_error(const std::string& session_path, const std::string& gt_path, const std::string& csv_path,
+                                const std::string& surfaces_path) {
   const host::SessionConfig session = host::load_session(session_path);
   if (!session.camera || !session.scene_path || !session.X_RefModel || !session.reference)
     throw std::runtime_error(session_path + ": the AR error needs a session with camera, scene, registration and reference tool");
@@ -81,9 +141,17 @@ ArErrorReport evaluate_ar_error(const std::string& session_path, const std::stri
   const double f = 0.5 * (intr.camera_matrix(0, 0) + intr.camera_matrix(1, 1));
 
   std::map<std::int64_t, camera_sim::GroundTruthRow> truth, deformed;
+  std::map<std::int64_t, std::map<std::string, Eigen::Vector3d>> targets_Cam;  // per frame: target name -> Cam
   for (const auto& r : camera_sim::read_ground_truth(gt_path)) {
     if (r.board == session.reference->name) truth[r.sequence] = r;
     if (r.board == "target:tumour_centroid") deformed[r.sequence] = r;
+    if (r.board.rfind("target:", 0) == 0) targets_Cam[r.sequence][r.board] = r.X_CamBoard.translation();
+  }
+  std::map<std::int64_t, TriMesh> drawn_surfaces;
+  TrueTumour true_tumour;
+  if (!surfaces_path.empty()) {
+    drawn_surfaces = host::read_tumour_surfaces(surfaces_path);
+    true_tumour = rest_targets(truth, targets_Cam, *session.X_RefModel, scene.tumours[0].rest, gt_path);
   }
   ArErrorReport rep;
   rep.phantom = !deformed.empty();
@@ -166,6 +234,17 @@ ArErrorReport evaluate_ar_error(const std::string& session_path, const std::stri
         fr.error_lateral_mm = e.across_ray_mm;
       }
     }
+    const auto surf = drawn_surfaces.find(fr.sequence);
+    const auto tg = targets_Cam.find(fr.sequence);
+    if (fr.drawn && surf != drawn_surfaces.end() && tg != targets_Cam.end()) {
+      if (const auto truth_surface = true_tumour_surface_Cam(true_tumour, tg->second)) {
+        const SurfaceDistance sd = surface_distance(to_tri_surface(surf->second), *truth_surface);
+        fr.has_surface = true;
+        fr.surface_mean_mm = sd.mean_mm;
+        fr.surface_max_mm = sd.max_mm;
+        rep.has_surface = true;
+      }
+    }
     if (fr.board_visible && !fr.drawn) ++rep.visible_without_overlay;
     if (t->second.tags_visible == 0 && fr.drawn) ++rep.invisible_with_overlay;
     rep.frames.push_back(fr);
@@ -241,6 +320,19 @@ nlohmann::json ArErrorReport::summary() const {
                                                  {"p50", or_null(quantile_counting_missing(e3, failures, 0.5))},
                                                  {"p95", or_null(quantile_counting_missing(e3, failures, 0.95))}}}};
   }
+  if (has_surface) {
+    std::vector<double> smean, smax;
+    for (const auto& f : frames)
+      if (f.has_surface) {
+        smean.push_back(f.surface_mean_mm);
+        smax.push_back(f.surface_max_mm);
+      }
+    j["tumour_surface_mm"] = {{"what", "distance between the drawn and the true tumour surface (vertices to the other surface, both ways), per frame; "
+                                       "the true surface is the scene's rest tumour under the affine map of the phantom's interior targets"},
+                              {"frames", smean.size()},
+                              {"mean_distance", stats(smean)},
+                              {"max_distance", stats(smax)}};
+  }
   if (phantom) {
     j["rigid_overlay"] = {{"what", "a rigid overlay (rest-shape tumour through the registration) against the same deformed truth"},
                           {"ar_error_px", stats(rpx)},
@@ -252,13 +344,13 @@ nlohmann::json ArErrorReport::summary() const {
 
 std::string ArErrorReport::frames_csv() const {
   std::ostringstream os;
-  os << "sequence,displayed,board_visible,registered,drawn,error_px,error_2d_mm,error_3d_mm,error_along_ray_mm,error_across_ray_mm\n";
+  os << "sequence,displayed,board_visible,registered,drawn,error_px,error_2d_mm,error_3d_mm,error_along_ray_mm,error_across_ray_mm,surface_mean_mm,surface_max_mm\n";
   std::map<std::int64_t, const ArFrame*> by_seq;
   for (const auto& f : frames) by_seq[f.sequence] = &f;
   for (const std::int64_t seq : truth_sequences) {
     const auto it = by_seq.find(seq);
     if (it == by_seq.end()) {
-      os << seq << ",0,,,0,,,,,\n";
+      os << seq << ",0,,,0,,,,,,,\n";
       continue;
     }
     const ArFrame& f = *it->second;
@@ -268,6 +360,9 @@ std::string ArErrorReport::frames_csv() const {
     os << ',';
     if (f.has_3d) os << f.error_3d_mm << ',' << f.error_depth_mm << ',' << f.error_lateral_mm;
     else os << ",,";
+    os << ',';
+    if (f.has_surface) os << f.surface_mean_mm << ',' << f.surface_max_mm;
+    else os << ',';
     os << "\n";
   }
   return os.str();

@@ -21,6 +21,14 @@
 // board was clearly visible is eligible; one without an overlay (not drawn, or not in
 // overlay.csv at all) is a failure, counted and kept in the statistics as a missing value
 // (quantiles "counting missing" treat it as an infinite error), never dropped.
+//
+// Tumour surface distance (with the host's tumour_Cam.bin, the drawn tumour surface in Cam
+// per frame): against the true tumour surface of the frame, which the phantom recording
+// does not hold: it is approximated by the affine map that best takes the phantom's interior
+// targets (tumour centroid +- 15 mm along x, y, z) at rest (Model, from the first frame
+// through the true registration) to the same targets in that frame (Cam), applied to the
+// scene's rest tumour surface. A non-affine deformation of the tumour itself (stiff,
+// 40 kPa, in the phantom) is not in this truth.
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -48,6 +56,9 @@ struct ArFrame {
   double error_3d_mm = 0.0;     // |drawn - true| tumour centroid in Cam
   double error_depth_mm = 0.0;  // its component along the true centroid's viewing ray (signed: + drawn too far)
   double error_lateral_mm = 0.0;  // across the ray
+  bool has_surface = false;     // drawn surface and true (affine-approximated) surface both known
+  double surface_mean_mm = 0.0; // mean distance between drawn and true tumour surfaces (both ways)
+  double surface_max_mm = 0.0;  // largest (Hausdorff at the vertices)
 };
 
 // Availability over the frames the camera made (ground truth), in sequence order.
@@ -70,6 +81,7 @@ struct ArErrorReport {
   std::int64_t invisible_with_overlay = 0;   // board gone, overlay still drawn (a frozen overlay)
   bool phantom = false;                      // the truth is a deforming phantom
   bool has_3d = false;                       // overlay.csv carried the drawn centroid in Cam
+  bool has_surface = false;                  // tumour surfaces evaluated
   Availability availability;
   nlohmann::json summary() const;            // mean/p95/max px and mm, latency p50/p99, counts
   // One row per camera frame (ground truth): sequence, eligible, displayed, drawn, errors.
@@ -80,7 +92,8 @@ struct ArErrorReport {
 
 // session_path: the host's session file (scene, registration, camera intrinsics, reference
 // tool = the board's name in the ground truth). Throws std::runtime_error naming the file.
+// tumour_surfaces: the host's tumour_Cam.bin (empty: no surface distance).
 ArErrorReport evaluate_ar_error(const std::string& session_path, const std::string& ground_truth_csv,
-                                const std::string& overlay_csv);
+                                const std::string& overlay_csv, const std::string& tumour_surfaces = {});
 
 }  // namespace arnav::hil

@@ -14,7 +14,8 @@ static int main_body(int argc, char** argv) {
   app.add_option("--session", session, "the host's session file")->required();
   app.add_option("--ground-truth", truth, "the synthetic camera's ground_truth.csv")->required();
   app.add_option("--overlay-csv", csv, "the host's overlay.csv (--record)")->required();
-  std::string frames_csv;
+  std::string frames_csv, surfaces;
+  app.add_option("--tumour-surfaces", surfaces, "the host's tumour_Cam.bin (--record): adds the tumour surface distance");
   app.add_option("--frames-csv", frames_csv, "also write one row per camera frame (availability, 2-D and 3-D errors) to this CSV");
   try {
     app.parse(argc, argv);
@@ -22,7 +23,7 @@ static int main_body(int argc, char** argv) {
     return app.exit(e) == 0 ? 0 : 2;
   }
   try {
-    const arnav::hil::ArErrorReport rep = arnav::hil::evaluate_ar_error(session, truth, csv);
+    const arnav::hil::ArErrorReport rep = arnav::hil::evaluate_ar_error(session, truth, csv, surfaces);
     if (!frames_csv.empty()) {
       std::ofstream out(frames_csv);
       out << rep.frames_csv();

@@ -87,6 +87,7 @@ sed "s#\.\./\.\./\.\./data/#$data/#" "$here/ar_demo/appliance_live.yaml" >"$out/
 sed -e "s#\.\./\.\./\.\./data/#$data/#" -e "s#^measurement: {model: realistic,\(.*\) seed: 1}#measurement: {model: $sensors,\1 seed: $seed}#" \
   "$here/ar_demo/polaris_live.yaml" >"$out/polaris_live.yaml"
 grep -q "^measurement: {model: $sensors,.* seed: $seed}" "$out/polaris_live.yaml" || { echo "ar_session.sh: no measurement line in polaris_live.yaml to set" >&2; exit 1; }
+printf 'seed=%s\nsensors=%s\n' "$seed" "$sensors" >"$out/sensors.txt"
 echo "sensors: $sensors, seed $seed (simulated Polaris: $(sed -n 's/^measurement: //p' "$out/polaris_live.yaml"); landmarks touched $touch mm off)"
 # The truth for arnav-ar-error: the same camera and scene through the bench's true
 # registration (the phantom fixed to its board); the tumour's truth is the deformed one.
@@ -131,7 +132,7 @@ echo "== appliance: exit code $app_rc; camera faults and recoveries =="
 grep -E "CAMERA_LOST|CAMERA_RECOVERED|CAMERA_TOOL_LOST|CAMERA_TOOL_FOUND|NDI_TRACKING_STARTED|NDI_RECOVERED|CAN_" "$out/appliance.log" | sed 's/^arnav-appliance: /  /' | sort | uniq -c | sed 's/^/  /' || true
 echo "== AR error: overlay tumour centroid vs the synthetic camera's ground truth (arnav-ar-error) =="
 "$ar_error" --session "$out/session_truth.yaml" --ground-truth "$out/ground_truth.csv" --overlay-csv "$out/recording/overlay.csv" \
-  --frames-csv "$out/ar_error_frames.csv" | tee "$out/ar_error.json" | SENSORS="$sensors" SEED="$seed" python3 -c '
+  --tumour-surfaces "$out/recording/tumour_Cam.bin" --frames-csv "$out/ar_error_frames.csv" | tee "$out/ar_error.json" | SENSORS="$sensors" SEED="$seed" python3 -c '
 import json, sys
 j = json.load(sys.stdin)
 e, p = j["ar_error_mm"], j["ar_error_px"]
@@ -140,10 +141,16 @@ import os
 print(f"  frames with overlay: {n} of {rows} displayed ({made} made by the camera, {missing} of them not displayed)")
 e3, av = j.get("ar_error_3d_mm"), j["availability"]
 label = "" if os.environ["SENSORS"] == "realistic" else " [IDEAL sensors: exact poses and landmarks]"
-if e3:
+if e3 and e3["frames"] == 0:
+    print("  AR error 3-D (tumour centroid, 1 seeds): no frame with an overlay%s" % label)
+elif e3:
     print("  AR error 3-D (tumour centroid, 1 seeds): mean %.2f mm, p95 %.2f mm, max %.2f mm%s" % (e3["mean"], e3["p95"], e3["max"], label))
     print("    seed %s, %s sensors; along the viewing ray p95 %.2f mm, across p95 %.2f mm; projected mean %.2f px, p95 %.2f px"
           % (os.environ["SEED"], os.environ["SENSORS"], e3["along_ray_abs"]["p95"], e3["across_ray"]["p95"], p["mean"], p["p95"]))
+ts = j.get("tumour_surface_mm")
+if ts and ts["frames"]:
+    print("    tumour surface, drawn vs true: mean distance %.2f mm (p95 over frames %.2f), max distance p95 %.2f mm, max %.2f mm (true surface: affine fit to the phantom's interior targets)"
+          % (ts["mean_distance"]["mean"], ts["mean_distance"]["p95"], ts["max_distance"]["p95"], ts["max_distance"]["max"]))
 print("  availability: %.1f %% of frames with the board visible after registration (%d of %d; %d not drawn, %d not displayed)%s"
       % (av["percent"], av["with_overlay"], av["eligible_frames"], av["not_drawn"], av["not_displayed"], label))
 print("  AR error 2-D (image offset x depth / f; blind to depth error): mean %.2f mm, p95 %.2f mm, max %.2f mm; mean %.2f px, p95 %.2f px, max %.2f px"

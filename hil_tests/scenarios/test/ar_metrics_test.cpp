@@ -16,6 +16,7 @@
 #include "calibration/lib/rigid_transform_file.hpp"
 #include "hil_tests/scenarios/ar_error.hpp"
 #include "hil_tests/scenarios/surface_error.hpp"
+#include "host/app/tumour_surface_file.hpp"
 #include "host/scene/scene.hpp"
 #include "protocol/testing/child_process.hpp"
 
@@ -147,6 +148,99 @@ TEST(ArMetrics, AvailabilityAndThreeDimensionalError) {
   const std::string frames = rep.frames_csv();
   EXPECT_NE(frames.find("\n3,0,,,0,"), std::string::npos) << frames;
   EXPECT_EQ(std::count(frames.begin(), frames.end(), '\n'), 7) << frames;
+  std::filesystem::remove_all(dir);
+}
+
+TEST(ArMetrics, TumourSurfaceFileRoundTripAndErrors) {
+  const auto path = std::filesystem::temp_directory_path() / ("arnav_tumour_bin_" + std::to_string(::getpid()));
+  host::TriMesh m;
+  m.positions_World_mm = Eigen::Matrix3Xd::Random(3, 4) * 50.0;
+  m.tris = {{0, 1, 2}, {0, 2, 3}, {0, 3, 1}, {1, 3, 2}};
+  {
+    std::ofstream out(path, std::ios::binary);
+    host::write_tumour_surface_header(out);
+    host::write_tumour_surface(out, 7, m, true);
+    host::write_tumour_surface(out, 8, m, false);  // same triangles
+  }
+  const auto read = host::read_tumour_surfaces(path.string());
+  ASSERT_EQ(read.size(), 2u);
+  EXPECT_TRUE(read.at(8).positions_World_mm.isApprox(m.positions_World_mm, 1e-6));
+  EXPECT_EQ(read.at(8).tris, m.tris);
+  // Truncated: the error names the file and the record.
+  const std::string text = arnav::testing::read_text(path);
+  std::ofstream(path, std::ios::binary) << text.substr(0, text.size() - 5);
+  try {
+    host::read_tumour_surfaces(path.string());
+    ADD_FAILURE() << "accepted a truncated file";
+  } catch (const host::TumourSurfaceFileError& e) {
+    EXPECT_NE(std::string(e.what()).find(path.string() + ": record 2: truncated"), std::string::npos) << e.what();
+  }
+  std::ofstream(path, std::ios::binary) << "not a tumour file\n";
+  EXPECT_THROW(host::read_tumour_surfaces(path.string()), host::TumourSurfaceFileError);
+  std::filesystem::remove(path);
+}
+
+// The tumour surface distance on hand-made files: the phantom at rest (its interior targets
+// where the true registration puts them); frame 0 draws the true tumour, frame 1 the same
+// moved 2 mm along the camera's z.
+TEST(ArMetrics, TumourSurfaceDistanceAgainstTheTargetsTruth) {
+  const std::filesystem::path src = arnav::testing::source_dir() + "/hil_tests/scenarios/ar_demo";
+  const std::string data = arnav::testing::data_dir();
+  const auto dir = std::filesystem::temp_directory_path() / ("arnav_arsurf_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  for (const char* f : {"camera.yaml", "X_RefModel_phantom.yaml", "session_phantom.yaml"})
+    std::filesystem::copy_file(src / f, dir / f, std::filesystem::copy_options::overwrite_existing);
+  std::ofstream(dir / "liver_navigation.scene.yaml")
+      << std::regex_replace(arnav::testing::read_text(src / "liver_navigation.scene.yaml"), std::regex("\\.\\./\\.\\./\\.\\./data/"), data + "/");
+  const host::Scene scene = host::load_scene((dir / "liver_navigation.scene.yaml").string());
+  const Eigen::Isometry3d X_RefModel = calib::read_transform(dir / "X_RefModel_phantom.yaml").X_ParentChild;
+  Eigen::Isometry3d X_CamBoard = Eigen::Isometry3d::Identity();
+  X_CamBoard.linear() = Eigen::Vector3d(1, -1, -1).asDiagonal();
+  X_CamBoard.translation() = Eigen::Vector3d(37, 68, 450);
+  const Eigen::Isometry3d X_CamModel = X_CamBoard * X_RefModel;
+  const Eigen::Vector3d c = scene.tumours[0].rest_centroid_World_mm;
+  {
+    camera_sim::GroundTruthWriter w(dir / "gt.csv", 2);
+    for (int k = 0; k < 2; ++k) {
+      w.write({k, k / 15.0, "liver_marker", X_CamBoard, 4, ""});
+      std::vector<std::pair<std::string, Eigen::Vector3d>> targets{{"tumour_centroid", c}};
+      for (int a = 0; a < 3; ++a)
+        for (int sgn : {-1, 1}) targets.emplace_back("tumour_" + std::to_string(a) + (sgn < 0 ? "m" : "p"), c + sgn * 15.0 * Eigen::Vector3d::Unit(a));
+      for (const auto& [name, p] : targets) {
+        camera_sim::GroundTruthRow t;
+        t.sequence = k;
+        t.time_s = k / 15.0;
+        t.board = "target:" + name;
+        t.X_CamBoard.translation() = X_CamModel * p;
+        t.tags_visible = 1;
+        t.has_px = true;  // the pixel is not used by the surface distance
+        w.write(t);
+      }
+    }
+  }
+  {
+    std::ofstream csv(dir / "overlay.csv");
+    csv << "camera_sequence,capture_time_mono_us,pose_time_mono_us,model_step_time_mono_us,render_done_mono_us,"
+           "motion_to_photon_ms,tumour_u_px,tumour_v_px,blade_to_margin_mm,flags\n";
+    csv << "0,100,100,110,120,20.0,600,300,,\n1,200,200,210,220,20.0,600,300,,\n";
+    std::ofstream bin(dir / "tumour_Cam.bin", std::ios::binary);
+    host::write_tumour_surface_header(bin);
+    host::TriMesh drawn = scene.tumours[0].rest;
+    drawn.positions_World_mm = X_CamModel * drawn.positions_World_mm;
+    host::write_tumour_surface(bin, 0, drawn, true);
+    drawn.positions_World_mm.row(2).array() += 2.0;
+    host::write_tumour_surface(bin, 1, drawn, false);
+  }
+  const ArErrorReport rep = evaluate_ar_error((dir / "session_phantom.yaml").string(), (dir / "gt.csv").string(),
+                                              (dir / "overlay.csv").string(), (dir / "tumour_Cam.bin").string());
+  ASSERT_TRUE(rep.has_surface);
+  ASSERT_EQ(rep.frames.size(), 2u);
+  EXPECT_LT(rep.frames[0].surface_max_mm, 1e-3);
+  EXPECT_LE(rep.frames[1].surface_max_mm, 2.0 + 1e-3);
+  EXPECT_GT(rep.frames[1].surface_max_mm, 1.5);
+  EXPECT_GT(rep.frames[1].surface_mean_mm, 0.3);
+  EXPECT_LT(rep.frames[1].surface_mean_mm, 2.0);
+  EXPECT_EQ(rep.summary()["tumour_surface_mm"]["frames"].get<int>(), 2);
   std::filesystem::remove_all(dir);
 }
 
