@@ -149,7 +149,7 @@ elif e3:
           % (os.environ["SEED"], os.environ["SENSORS"], e3["along_ray_abs"]["p95"], e3["across_ray"]["p95"], p["mean"], p["p95"]))
 ts = j.get("tumour_surface_mm")
 if ts and ts["frames"]:
-    print("    tumour surface, drawn vs true: mean distance %.2f mm (p95 over frames %.2f), max distance p95 %.2f mm, max %.2f mm (true surface: affine fit to the phantom's interior targets)"
+    print("    tumour surface, drawn vs true: mean distance %.2f mm (p95 over frames %.2f), max distance p95 %.2f mm, max %.2f mm (true surface: affine fit to the phantom interior targets)"
           % (ts["mean_distance"]["mean"], ts["mean_distance"]["p95"], ts["max_distance"]["p95"], ts["max_distance"]["max"]))
 print("  availability: %.1f %% of frames with the board visible after registration (%d of %d; %d not drawn, %d not displayed)%s"
       % (av["percent"], av["with_overlay"], av["eligible_frames"], av["not_drawn"], av["not_displayed"], label))
