@@ -167,12 +167,16 @@ print("  frames with the board clearly visible but no overlay: %d" % j["visible_
 "$host" "$out/session.yaml" --replay "$out/session.lcmlog" --replay-speed 0 --quiet --record "$out/replay" \
   --summary-json "$out/replay.json" >"$out/replay.log" 2>&1 || echo "  (replay failed: $out/replay.log)"
 "$ar_error" --session "$out/session_truth.yaml" --ground-truth "$out/ground_truth.csv" --overlay-csv "$out/replay/overlay.csv" \
-  >"$out/ar_error_replay.json" 2>>"$out/replay.log" && python3 - "$out/ar_error_replay.json" "$out/replay.json" <<'PY' || true
+  --tumour-surfaces "$out/replay/tumour_Cam.bin" --frames-csv "$out/ar_error_replay_frames.csv" >"$out/ar_error_replay.json" 2>>"$out/replay.log" && python3 - "$out/ar_error_replay.json" "$out/replay.json" <<'PY' || true
 import json, sys
 j = json.load(open(sys.argv[1]))
 e, p = j["ar_error_mm"], j["ar_error_px"]
 print("  AR error, replay of the session's log (%d frames): mean %.2f mm, p95 %.2f mm, max %.2f mm; mean %.2f px, p95 %.2f px, max %.2f px"
       % (j["frames_evaluated"], e["mean"], e["p95"], e["max"], p["mean"], p["p95"], p["max"]))
+e3, av = j.get("ar_error_3d_mm"), j.get("availability")
+if e3 and e3["frames"]:
+    print("    replay: AR error 3-D (tumour centroid) mean %.2f mm, p95 %.2f mm, max %.2f mm; availability %.1f %%"
+          % (e3["mean"], e3["p95"], e3["max"], av["percent"]))
 nav = json.load(open(sys.argv[2])).get("navigation", {})
 c, g = nav.get("cutting"), nav.get("grasper")
 if c and g:
