@@ -82,7 +82,9 @@ command -v lcm-logger >/dev/null || { echo "ar_session.sh: lcm-logger missing (D
 ar_bus_up
 # The configs name their files relative to themselves; the run writes into OUT.
 cp "$here"/ar_demo/{camera.yaml,marker_board.yaml,X_RefModel_phantom.yaml,X_CamNdi.yaml} "$out/"
-sed "s#\.\./\.\./\.\./data/#$data/#" "$here/ar_demo/session_live.yaml" >"$out/session.yaml"
+fle=3.1
+[ "$sensors" = realistic ] || fle=0.35
+sed -e "s#\.\./\.\./\.\./data/#$data/#" -e "s#fle_mm: 3.1}#fle_mm: $fle}#" "$here/ar_demo/session_live.yaml" >"$out/session.yaml"
 sed "s#\.\./\.\./\.\./data/#$data/#" "$here/ar_demo/appliance_live.yaml" >"$out/appliance.yaml"
 sed -e "s#\.\./\.\./\.\./data/#$data/#" -e "s#^measurement: {model: realistic,\(.*\) seed: 1}#measurement: {model: $sensors,\1 seed: $seed}#" \
   "$here/ar_demo/polaris_live.yaml" >"$out/polaris_live.yaml"
@@ -171,7 +173,7 @@ print("  frames with the board clearly visible but no overlay: %d" % j["visible_
 import json, sys
 j = json.load(open(sys.argv[1]))
 e, p = j["ar_error_mm"], j["ar_error_px"]
-print("  AR error, replay of the session's log (%d frames): mean %.2f mm, p95 %.2f mm, max %.2f mm; mean %.2f px, p95 %.2f px, max %.2f px"
+print("  AR error 2-D, replay of the session's log (%d frames): mean %.2f mm, p95 %.2f mm, max %.2f mm; mean %.2f px, p95 %.2f px, max %.2f px"
       % (j["frames_evaluated"], e["mean"], e["p95"], e["max"], p["mean"], p["p95"], p["max"]))
 e3, av = j.get("ar_error_3d_mm"), j.get("availability")
 if e3 and e3["frames"]:
