@@ -11,7 +11,7 @@ namespace arnav::host {
 namespace {
 
 constexpr const char* kHeader = "arnav tumour surface 1";
-constexpr std::int32_t kMaxCount = 10'000'000;
+constexpr std::int32_t kMaxCount = 1'000'000;  // a tumour has ~10^3 vertices
 static_assert(std::endian::native == std::endian::little, "tumour_Cam.bin is written and read little-endian");
 
 template <typename T>
@@ -42,6 +42,10 @@ void write_tumour_surface(std::ostream& out, std::int64_t camera_sequence, const
 std::map<std::int64_t, TriMesh> read_tumour_surfaces(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw TumourSurfaceFileError(path + ": cannot read (arnav-host --record writes tumour_Cam.bin)");
+  return parse_tumour_surfaces(in, path);
+}
+
+std::map<std::int64_t, TriMesh> parse_tumour_surfaces(std::istream& in, const std::string& path) {
   std::string header;
   std::getline(in, header);
   if (header != kHeader) throw TumourSurfaceFileError(path + ": not a tumour surface file (first line '" + header + "', expected '" + kHeader + "')");

@@ -8,6 +8,7 @@
 // The reader checks counts, indices and truncation and names the file and record.
 #include <cstdint>
 #include <iosfwd>
+#include <istream>
 #include <map>
 #include <stdexcept>
 #include <string>
@@ -24,7 +25,9 @@ class TumourSurfaceFileError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// camera_sequence -> the surface (positions in Cam, mm). Throws TumourSurfaceFileError.
+// camera_sequence -> the surface (positions in Cam, mm). Throws TumourSurfaceFileError
+// naming `source` (the file) and the record.
 std::map<std::int64_t, TriMesh> read_tumour_surfaces(const std::string& path);
+std::map<std::int64_t, TriMesh> parse_tumour_surfaces(std::istream& in, const std::string& source);
 
 }  // namespace arnav::host
