@@ -20,13 +20,22 @@ TruthTable read_truth_csv(const std::string& path) {
     std::stringstream ss(line);
     std::vector<std::string> c;
     for (std::string cell; std::getline(ss, cell, ',');) c.push_back(cell);
-    if (c.size() != 12) throw std::runtime_error(path + ":" + std::to_string(line_no) + ": expected 12 columns");
+    if (c.size() != 12 && c.size() != 21)
+      throw std::runtime_error(path + ":" + std::to_string(line_no) + ": expected 12 columns (true pose) or 21 (true and reported pose)");
     try {
       TruthEntry e;
       e.valid = c[3] == "1";
       e.port_status = static_cast<std::uint32_t>(std::stoul(c[4]));
-      e.q_NdiTool = Eigen::Quaterniond(std::stod(c[5]), std::stod(c[6]), std::stod(c[7]), std::stod(c[8]));
-      e.p_NdiTool_mm = Eigen::Vector3d(std::stod(c[9]), std::stod(c[10]), std::stod(c[11]));
+      e.q_NdiTool_true = Eigen::Quaterniond(std::stod(c[5]), std::stod(c[6]), std::stod(c[7]), std::stod(c[8]));
+      e.p_NdiTool_true_mm = Eigen::Vector3d(std::stod(c[9]), std::stod(c[10]), std::stod(c[11]));
+      e.q_NdiTool = e.q_NdiTool_true;
+      e.p_NdiTool_mm = e.p_NdiTool_true_mm;
+      if (c.size() == 21) {
+        e.q_NdiTool = Eigen::Quaterniond(std::stod(c[12]), std::stod(c[13]), std::stod(c[14]), std::stod(c[15]));
+        e.p_NdiTool_mm = Eigen::Vector3d(std::stod(c[16]), std::stod(c[17]), std::stod(c[18]));
+        e.rms_error_mm = std::stod(c[19]);
+        e.dropout = c[20] == "1";
+      }
       // After a device reset the counter restarts and a frame number comes round again
       // with the same pose (motion is a function of the frame number); the tool may have
       // been hidden in one of those passes only.

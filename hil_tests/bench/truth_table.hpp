@@ -12,11 +12,18 @@
 
 namespace arnav::hil {
 
+// q/p_NdiTool: what the simulated device reported (with the realistic measurement model,
+// the pose fitted to noisy markers; docs/hil.md "Sensor errors"), which the wire must carry
+// unchanged; q/p_NdiTool_true: the tool's true pose. Equal under the ideal model.
 struct TruthEntry {
   bool valid = false;
   std::uint32_t port_status = 0;
   Eigen::Quaterniond q_NdiTool;
   Eigen::Vector3d p_NdiTool_mm;
+  Eigen::Quaterniond q_NdiTool_true;
+  Eigen::Vector3d p_NdiTool_true_mm;
+  double rms_error_mm = 0.0;
+  bool dropout = false;
 };
 
 // Key: (frame number, tool name). Frame numbers restart after a device reset, so the

@@ -325,14 +325,21 @@ ndi::TrackingReply PolarisModel::tracking_frame(std::uint32_t frame, double now_
       const bool is_outside = outside != out_of_volume_until_.end() && now_s < outside->second;
       if (is_outside) r.port_status |= ndi::kPortOutOfVolume;
       if (!is_hidden && (!is_outside || include_out_of_volume)) {
-        r.state = ndi::HandleState::Valid;
-        Eigen::Quaterniond q(truth.X_NdiTool.rotation());
-        if (q.w() < 0) q.coeffs() *= -1.0;
-        r.q_NdiTool_wxyz = {q.w(), q.x(), q.y(), q.z()};
-        const Eigen::Vector3d p_mm = truth.X_NdiTool.translation();
-        r.p_NdiTool_mm = {p_mm.x(), p_mm.y(), p_mm.z()};
-        r.rms_error_mm = tool->rms_error_mm;
-        truth.valid = true;
+        const std::optional<MarkerFit> measured = measure_tool(scenario_.measurement, truth.X_NdiTool, tool->markers_Tool_mm,
+                                                               p.tool_index, frame, tool->rms_error_mm);
+        truth.dropped_out = !measured;
+        if (measured) {
+          r.state = ndi::HandleState::Valid;
+          Eigen::Quaterniond q(measured->X_NdiTool.rotation());
+          if (q.w() < 0) q.coeffs() *= -1.0;
+          r.q_NdiTool_wxyz = {q.w(), q.x(), q.y(), q.z()};
+          const Eigen::Vector3d p_mm = measured->X_NdiTool.translation();
+          r.p_NdiTool_mm = {p_mm.x(), p_mm.y(), p_mm.z()};
+          r.rms_error_mm = measured->rms_error_mm;
+          truth.X_NdiTool_reported = measured->X_NdiTool;
+          truth.rms_error_mm = measured->rms_error_mm;
+          truth.valid = true;
+        }
       }
     }
     truth.port_status = r.port_status;

@@ -24,7 +24,10 @@ struct TruthRow {
   std::string tool;
   bool valid = false;  // false: reported missing / out of volume
   std::uint32_t port_status = 0;
-  Eigen::Isometry3d X_NdiTool = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d X_NdiTool = Eigen::Isometry3d::Identity();           // true pose
+  Eigen::Isometry3d X_NdiTool_reported = Eigen::Isometry3d::Identity();  // what the device sent (valid rows)
+  double rms_error_mm = 0.0;                                             // the reported RMS error field
+  bool dropped_out = false;  // missing because the measurement model dropped it this frame
 };
 
 class PolarisModel {

@@ -7,6 +7,7 @@
 #include <atomic>
 #include <csignal>
 #include <iostream>
+#include <optional>
 
 #include <CLI/CLI.hpp>
 
@@ -50,6 +51,12 @@ static int main_body(int argc, char** argv) {
   app.add_option("--reset-delay", opt.reset_delay_s, "seconds from break release to RESET (default 0.3)")->check(CLI::Range(0.0, 10.0));
   app.add_flag("--wire-timing", opt.wire_timing, "pace output at the device baud rate (10 bits a byte)");
   app.add_option("--seed", opt.seed, "seed of the random fault positions");
+  std::string sensors;
+  std::optional<std::uint64_t> sensor_seed;
+  app.add_option("--sensors", sensors, "how tools are measured: 'realistic' (marker noise, fitted pose, dropouts) or 'ideal' "
+                                       "(true pose); default: the scenario's measurement block, ideal without one (docs/hil.md)")
+      ->check(CLI::IsMember({"ideal", "realistic"}));
+  app.add_option("--sensor-seed", sensor_seed, "seed of the marker noise and dropouts (replaces the scenario's)");
 
   auto* inject = app.add_subcommand("inject", "send a fault command to a running simulator");
   std::string inject_socket, inject_command;
@@ -81,6 +88,8 @@ static int main_body(int argc, char** argv) {
       Scenario scenario = scenario_file.empty() ? Scenario{} : load_scenario(scenario_file);
       for (const auto& spec : tool_specs) add_tool_spec(scenario, spec);
       if (rate_hz > 0) scenario.frame_rate_hz = rate_hz;
+      set_sensors(scenario, sensors, sensor_seed);
+      std::cerr << "arnav-polaris-sim: measurement " << scenario.measurement.describe() << "\n";
       timeline = scenario.faults;
       model = std::make_unique<PolarisModel>(std::move(scenario));
       device = std::make_unique<ModelDevice>(*model);

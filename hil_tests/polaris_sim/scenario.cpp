@@ -132,6 +132,7 @@ void add_tool_spec(Scenario& scenario, const std::string& spec) {
   t.name = spec.substr(0, eq);
   t.rom_path = spec.substr(eq + 1);
   t.rom = read_rom(t.rom_path);
+  if (auto m = rom_marker_positions(t.rom)) t.markers_Tool_mm = std::move(*m);
   t.motion = default_motion(static_cast<int>(scenario.tools.size()));
   scenario.tools.push_back(std::move(t));
 }
@@ -260,14 +261,48 @@ ToolMotion parse_motion(const YAML::Node& n, const std::string& where, int index
   return m;
 }
 
+// measurement: {model: ideal|realistic, marker_noise_rms_mm: 0.25, dropout_rate: 0.002, seed: 1}
+MeasurementModel parse_measurement(const YAML::Node& n, const std::string& where) {
+  if (!n.IsMap()) throw ScenarioError(where + ": expected a map {model: ideal|realistic, marker_noise_rms_mm, dropout_rate, seed}");
+  check_keys(n, {"model", "marker_noise_rms_mm", "dropout_rate", "seed"}, where);
+  const std::string kind = n["model"] ? n["model"].as<std::string>() : "realistic";
+  if (kind != "ideal" && kind != "realistic") throw ScenarioError(where + ".model: '" + kind + "' is neither 'ideal' nor 'realistic'");
+  MeasurementModel m = kind == "ideal" ? MeasurementModel{} : MeasurementModel::realistic();
+  if (n["marker_noise_rms_mm"]) m.marker_noise_rms_mm = number(n["marker_noise_rms_mm"], where + ".marker_noise_rms_mm", 0, 10);
+  if (n["dropout_rate"]) m.dropout_rate = number(n["dropout_rate"], where + ".dropout_rate", 0, 0.5);
+  if (n["seed"]) m.seed = static_cast<std::uint64_t>(number(n["seed"], where + ".seed", 0, 9e15));
+  return m;
+}
+
+// markers_mm: [[x, y, z], ...] in the tool frame: >= 3, not collinear.
+std::vector<Eigen::Vector3d> parse_markers(const YAML::Node& n, const std::string& where) {
+  if (!n.IsSequence()) throw ScenarioError(where + ": expected a list of [x, y, z] marker positions (mm, tool frame)");
+  std::vector<Eigen::Vector3d> m;
+  for (std::size_t i = 0; i < n.size(); ++i) m.push_back(vec3(n[i], where + "[" + std::to_string(i) + "]"));
+  if (!markers_define_a_pose(m)) throw ScenarioError(where + ": needs >= 3 markers that are not collinear (spread >= 1 mm off their main axis)");
+  return m;
+}
+
 }  // namespace
+
+void set_sensors(Scenario& scenario, const std::string& sensors, std::optional<std::uint64_t> seed) {
+  if (sensors == "ideal") {
+    scenario.measurement = MeasurementModel{};
+  } else if (sensors == "realistic") {
+    if (scenario.measurement.ideal) scenario.measurement = MeasurementModel::realistic(scenario.measurement.seed);
+  } else if (!sensors.empty()) {
+    throw ScenarioError("--sensors '" + sensors + "': expected 'ideal' or 'realistic'");
+  }
+  if (seed) scenario.measurement.seed = *seed;
+}
 
 Scenario parse_scenario(const std::string& yaml_text, const std::string& source_name, const std::filesystem::path& base_dir) {
   Scenario s;
   try {
     const YAML::Node root = YAML::Load(yaml_text);
     if (!root.IsMap()) throw ScenarioError(source_name + ": expected a YAML map at the top level");
-    check_keys(root, {"frame_rate_hz", "first_frame", "serial_number", "tools", "faults", "epoch_mono_us"}, source_name);
+    check_keys(root, {"frame_rate_hz", "first_frame", "serial_number", "tools", "faults", "epoch_mono_us", "measurement"}, source_name);
+    if (root["measurement"]) s.measurement = parse_measurement(root["measurement"], source_name + ": measurement");
     if (root["epoch_mono_us"]) s.epoch_mono_us = static_cast<std::int64_t>(number(root["epoch_mono_us"], source_name + ": epoch_mono_us", 0, 9e15));
     if (root["frame_rate_hz"]) s.frame_rate_hz = number(root["frame_rate_hz"], source_name + ": frame_rate_hz", 1.0, kMaxFrameRateHz);
     if (root["first_frame"]) s.first_frame = static_cast<std::uint32_t>(number(root["first_frame"], source_name + ": first_frame", 0, 4e9));
@@ -278,7 +313,7 @@ Scenario parse_scenario(const std::string& yaml_text, const std::string& source_
         const std::string where = source_name + ": tools[" + std::to_string(i) + "]";
         const YAML::Node t = tools[i];
         if (!t.IsMap()) throw ScenarioError(where + ": expected a map with name, rom, motion");
-        check_keys(t, {"name", "rom", "serial", "motion", "rms_error_mm"}, where);
+        check_keys(t, {"name", "rom", "serial", "motion", "rms_error_mm", "markers_mm"}, where);
         SimTool tool;
         if (!t["name"]) throw ScenarioError(where + ": missing 'name'");
         tool.name = t["name"].as<std::string>();
@@ -289,7 +324,9 @@ Scenario parse_scenario(const std::string& yaml_text, const std::string& source_
         if (t["rom"]) {
           tool.rom_path = (base_dir / t["rom"].as<std::string>()).string();
           tool.rom = read_rom(tool.rom_path);
+          if (auto m = rom_marker_positions(tool.rom)) tool.markers_Tool_mm = std::move(*m);
         }
+        if (t["markers_mm"]) tool.markers_Tool_mm = parse_markers(t["markers_mm"], where + ".markers_mm");
         if (t["serial"]) {
           tool.serial = t["serial"].as<std::string>();
           if (tool.serial.size() != 8) throw ScenarioError(where + ".serial: must be 8 characters");

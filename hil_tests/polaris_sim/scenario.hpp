@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "hil_tests/polaris_sim/marker_measurement.hpp"
 #include "hil_tests/polaris_sim/tool_motion.hpp"
 
 namespace arnav::hil {
@@ -25,7 +26,10 @@ struct SimTool {
   std::string rom_path;           // for messages
   std::string serial = "00000000";  // 8 chars, reported by PHINF
   ToolMotion motion;
-  double rms_error_mm = 0.12;
+  double rms_error_mm = 0.12;      // reported by the ideal model (the realistic one reports its fit's)
+  // The marker spheres in the tool frame (mm): markers_mm, else the ROM's, else
+  // default_marker_geometry(); the realistic measurement fits them (marker_measurement.hpp).
+  std::vector<Eigen::Vector3d> markers_Tool_mm = default_marker_geometry();
 };
 
 struct FaultCommand {
@@ -75,7 +79,14 @@ struct Scenario {
   // the CAN simulator's steps that name the same epoch see the same world at the same
   // instant however late each of them starts (docs/hil.md).
   std::optional<std::int64_t> epoch_mono_us;
+  // How tools are measured (measurement: {model: ideal|realistic, marker_noise_rms_mm,
+  // dropout_rate, seed}); ideal when the scenario has no such block (docs/hil.md).
+  MeasurementModel measurement;
 };
+
+// Applies "ideal" or "realistic" (--sensors) over the scenario's measurement block; a seed
+// given on the command line (--sensor-seed) replaces the scenario's. Throws ScenarioError.
+void set_sensors(Scenario& scenario, const std::string& sensors, std::optional<std::uint64_t> seed);
 
 inline constexpr double kMaxFrameRateHz = 400.0;
 

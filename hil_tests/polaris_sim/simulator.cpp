@@ -80,7 +80,8 @@ std::string Simulator::start() {
   if (!options_.truth_csv.empty()) {
     truth_.open(options_.truth_csv);
     if (!truth_) throw std::runtime_error("cannot write ground truth file " + options_.truth_csv);
-    truth_ << "frame,handle,tool,valid,port_status,qw,qx,qy,qz,x_mm,y_mm,z_mm\n";
+    truth_ << "frame,handle,tool,valid,port_status,qw,qx,qy,qz,x_mm,y_mm,z_mm,"
+              "reported_qw,reported_qx,reported_qy,reported_qz,reported_x_mm,reported_y_mm,reported_z_mm,rms_error_mm,dropout\n";
   }
   if (!options_.events_jsonl.empty()) {
     events_.open(options_.events_jsonl);
@@ -118,10 +119,17 @@ void Simulator::record_truth(const TruthRow& row) {
   if (!truth_seen_.insert({row.frame_number, row.handle}).second) return;
   const Eigen::Quaterniond q(row.X_NdiTool.rotation());
   const Eigen::Vector3d p = row.X_NdiTool.translation();
-  char line[320];
-  std::snprintf(line, sizeof line, "%u,%u,%s,%d,%u,%.12g,%.12g,%.12g,%.12g,%.12g,%.12g,%.12g\n", row.frame_number,
-                static_cast<unsigned>(row.handle), row.tool.empty() ? "-" : row.tool.c_str(), row.valid ? 1 : 0,
-                row.port_status, q.w(), q.x(), q.y(), q.z(), p.x(), p.y(), p.z());
+  // The reported pose (what the device sent; the true one when nothing was sent) beside the true one.
+  const Eigen::Isometry3d& X_rep = row.valid ? row.X_NdiTool_reported : row.X_NdiTool;
+  Eigen::Quaterniond qr(X_rep.rotation());
+  if (qr.w() < 0) qr.coeffs() *= -1.0;
+  const Eigen::Vector3d pr = X_rep.translation();
+  char line[640];
+  std::snprintf(line, sizeof line,
+                "%u,%u,%s,%d,%u,%.12g,%.12g,%.12g,%.12g,%.12g,%.12g,%.12g,%.12g,%.12g,%.12g,%.12g,%.12g,%.12g,%.12g,%.6g,%d\n",
+                row.frame_number, static_cast<unsigned>(row.handle), row.tool.empty() ? "-" : row.tool.c_str(), row.valid ? 1 : 0,
+                row.port_status, q.w(), q.x(), q.y(), q.z(), p.x(), p.y(), p.z(), qr.w(), qr.x(), qr.y(), qr.z(), pr.x(), pr.y(),
+                pr.z(), row.rms_error_mm, row.dropped_out ? 1 : 0);
   truth_ << line;
 }
 

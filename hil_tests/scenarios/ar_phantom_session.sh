@@ -64,7 +64,10 @@ data=$(cd "$here/../../data" && pwd)
 cp "$here"/ar_demo/{camera.yaml,marker_board.yaml,X_RefModel_phantom.yaml,X_CamNdi.yaml} "$out/"
 sed "s#^scene: [^ ]*#scene: $here/ar_demo/liver_navigation.scene.yaml#" "$here/ar_demo/session_phantom.yaml" >"$out/session.yaml"
 sed -e "s#\.\./\.\./\.\./data/#$data/#" -e "s#^    frames: 255#    frames: $frames#" "$here/ar_demo/appliance_phantom.yaml" >"$out/appliance.yaml"
-sed "s#\.\./\.\./\.\./data/#$data/#" "$here/ar_demo/polaris_phantom.yaml" >"$out/polaris_phantom.yaml"
+# Sensors (docs/hil.md "Sensor errors"): realistic, seed ARNAV_SEED (default 1); ARNAV_SENSORS=ideal for the exact poses.
+sed -e "s#\.\./\.\./\.\./data/#$data/#" \
+  -e "s#^measurement: {model: realistic,\(.*\) seed: 1}#measurement: {model: ${ARNAV_SENSORS:-realistic},\1 seed: ${ARNAV_SEED:-1}}#" \
+  "$here/ar_demo/polaris_phantom.yaml" >"$out/polaris_phantom.yaml"
 
 pids=()
 trap ar_stop_pids EXIT

@@ -19,9 +19,13 @@
 # bus without the key, injects forged, replayed and bit-flipped messages all session long;
 # the summary's `security:` line counts them from the host's counters. docs/hil.md,
 # docs/security.md.
+# Sensors (docs/hil.md "Sensor errors"): ARNAV_SEED=N (default 1) seeds the simulated
+# Polaris' marker noise and dropouts and where the pointer touches each landmark (2-4 mm
+# off); ARNAV_SENSORS=ideal gives the old exact sensors (true poses, landmarks touched
+# exactly), for comparisons labelled as such; realistic is the default.
 set -euo pipefail
 if [ "$#" -lt 2 ]; then
-  sed -n '2,22p' "$0" >&2
+  sed -n '2,26p' "$0" >&2
   exit 2
 fi
 here=$(cd "$(dirname "$0")" && pwd)
@@ -40,6 +44,10 @@ for f in "$host" "$appliance" "$ar_error" "$can_sim" "$can_shim" "$record" "$key
   [ -x "$f" ] || { echo "ar_session.sh: $f is missing: build first (scripts/build release)" >&2; exit 1; }
 done
 data=$(cd "$here/../../data" && pwd)
+seed=${ARNAV_SEED:-1}
+sensors=${ARNAV_SENSORS:-realistic}
+case "$sensors" in realistic) touch="2,4" ;; ideal) touch="0,0" ;; *) echo "ar_session.sh: ARNAV_SENSORS must be realistic or ideal, got '$sensors'" >&2; exit 2 ;; esac
+case "$seed" in ''|*[!0-9]*) echo "ar_session.sh: ARNAV_SEED must be a whole number, got '$seed'" >&2; exit 2 ;; esac
 if [ "${ARNAV_AR_INSIDE:-}" != "1" ]; then
   if [ "$(id -u)" -ne 0 ]; then
     echo "ar_session.sh: needs root for a private network namespace (run with sudo)" >&2
@@ -47,7 +55,7 @@ if [ "${ARNAV_AR_INSIDE:-}" != "1" ]; then
   fi
   # The model frame faces the camera along -z (X_CamModel's rotation is the identity, polaris_live.yaml).
   python3 "$here/ar_demo/make_demo_paths.py" --scene "$data/liver/liver_coarse_cut.scene.yaml" --toward-camera 0,0,-1 \
-    --pointer-start-s 5 --gap-s 3 --out "$out" | tee "$out/paths.txt" | sed 's/^/make_demo_paths.py: /'
+    --pointer-start-s 5 --gap-s 3 --seed "$seed" --touch-offset-mm "$touch" --out "$out" | tee "$out/paths.txt" | sed 's/^/make_demo_paths.py: /'
   # The deforming phantom: at rest while the pointer registers, the grasper's pull starts when
   # the scalpel comes in (two pulls of 8 s period) until the camera's last frame (600 at 15 Hz,
   # the world's ~38 s).
@@ -74,9 +82,15 @@ command -v lcm-logger >/dev/null || { echo "ar_session.sh: lcm-logger missing (D
 ar_bus_up
 # The configs name their files relative to themselves; the run writes into OUT.
 cp "$here"/ar_demo/{camera.yaml,marker_board.yaml,X_RefModel_phantom.yaml,X_CamNdi.yaml} "$out/"
-sed "s#\.\./\.\./\.\./data/#$data/#" "$here/ar_demo/session_live.yaml" >"$out/session.yaml"
+fle=3.1
+[ "$sensors" = realistic ] || fle=0.35
+sed -e "s#\.\./\.\./\.\./data/#$data/#" -e "s#fle_mm: 3.1}#fle_mm: $fle}#" "$here/ar_demo/session_live.yaml" >"$out/session.yaml"
 sed "s#\.\./\.\./\.\./data/#$data/#" "$here/ar_demo/appliance_live.yaml" >"$out/appliance.yaml"
-sed "s#\.\./\.\./\.\./data/#$data/#" "$here/ar_demo/polaris_live.yaml" >"$out/polaris_live.yaml"
+sed -e "s#\.\./\.\./\.\./data/#$data/#" -e "s#^measurement: {model: realistic,\(.*\) seed: 1}#measurement: {model: $sensors,\1 seed: $seed}#" \
+  "$here/ar_demo/polaris_live.yaml" >"$out/polaris_live.yaml"
+grep -q "^measurement: {model: $sensors,.* seed: $seed}" "$out/polaris_live.yaml" || { echo "ar_session.sh: no measurement line in polaris_live.yaml to set" >&2; exit 1; }
+printf 'seed=%s\nsensors=%s\n' "$seed" "$sensors" >"$out/sensors.txt"
+echo "sensors: $sensors, seed $seed (simulated Polaris: $(sed -n 's/^measurement: //p' "$out/polaris_live.yaml"); landmarks touched $touch mm off)"
 # The truth for arnav-ar-error: the same camera and scene through the bench's true
 # registration (the phantom fixed to its board); the tumour's truth is the deformed one.
 sed -e "s#^scene: [^ ]*#scene: $data/liver/liver_coarse_cut.scene.yaml#" -e "s#^registration: X_RefModel.yaml#registration: X_RefModel_phantom.yaml#" \
@@ -120,13 +134,28 @@ echo "== appliance: exit code $app_rc; camera faults and recoveries =="
 grep -E "CAMERA_LOST|CAMERA_RECOVERED|CAMERA_TOOL_LOST|CAMERA_TOOL_FOUND|NDI_TRACKING_STARTED|NDI_RECOVERED|CAN_" "$out/appliance.log" | sed 's/^arnav-appliance: /  /' | sort | uniq -c | sed 's/^/  /' || true
 echo "== AR error: overlay tumour centroid vs the synthetic camera's ground truth (arnav-ar-error) =="
 "$ar_error" --session "$out/session_truth.yaml" --ground-truth "$out/ground_truth.csv" --overlay-csv "$out/recording/overlay.csv" \
-  | tee "$out/ar_error.json" | python3 -c '
+  --tumour-surfaces "$out/recording/tumour_Cam.bin" --frames-csv "$out/ar_error_frames.csv" | tee "$out/ar_error.json" | SENSORS="$sensors" SEED="$seed" python3 -c '
 import json, sys
 j = json.load(sys.stdin)
 e, p = j["ar_error_mm"], j["ar_error_px"]
 n, rows, made, missing = j["frames_evaluated"], j["csv_rows"], j["truth_frames"], j["missing_in_csv"]
+import os
 print(f"  frames with overlay: {n} of {rows} displayed ({made} made by the camera, {missing} of them not displayed)")
-print("  AR error (against the deformed tumour): mean %.2f mm, p95 %.2f mm, max %.2f mm; mean %.2f px, p95 %.2f px, max %.2f px"
+e3, av = j.get("ar_error_3d_mm"), j["availability"]
+label = "" if os.environ["SENSORS"] == "realistic" else " [IDEAL sensors: exact poses and landmarks]"
+if e3 and e3["frames"] == 0:
+    print("  AR error 3-D (tumour centroid, 1 seeds): no frame with an overlay%s" % label)
+elif e3:
+    print("  AR error 3-D (tumour centroid, 1 seeds): mean %.2f mm, p95 %.2f mm, max %.2f mm%s" % (e3["mean"], e3["p95"], e3["max"], label))
+    print("    seed %s, %s sensors; along the viewing ray p95 %.2f mm, across p95 %.2f mm; projected mean %.2f px, p95 %.2f px"
+          % (os.environ["SEED"], os.environ["SENSORS"], e3["along_ray_abs"]["p95"], e3["across_ray"]["p95"], p["mean"], p["p95"]))
+ts = j.get("tumour_surface_mm")
+if ts and ts["frames"]:
+    print("    tumour surface, drawn vs true: mean distance %.2f mm (p95 over frames %.2f), max distance p95 %.2f mm, max %.2f mm (true surface: affine fit to the phantom interior targets)"
+          % (ts["mean_distance"]["mean"], ts["mean_distance"]["p95"], ts["max_distance"]["p95"], ts["max_distance"]["max"]))
+print("  availability: %.1f %% of frames with the board visible after registration (%d of %d; %d not drawn, %d not displayed)%s"
+      % (av["percent"], av["with_overlay"], av["eligible_frames"], av["not_drawn"], av["not_displayed"], label))
+print("  AR error 2-D (image offset x depth / f; blind to depth error): mean %.2f mm, p95 %.2f mm, max %.2f mm; mean %.2f px, p95 %.2f px, max %.2f px"
       % (e["mean"], e["p95"], e["max"], p["mean"], p["p95"], p["max"]))
 if "rigid_overlay" in j:
     r, d = j["rigid_overlay"]["ar_error_mm"], j["tumour_displacement_mm"]
@@ -140,12 +169,16 @@ print("  frames with the board clearly visible but no overlay: %d" % j["visible_
 "$host" "$out/session.yaml" --replay "$out/session.lcmlog" --replay-speed 0 --quiet --record "$out/replay" \
   --summary-json "$out/replay.json" >"$out/replay.log" 2>&1 || echo "  (replay failed: $out/replay.log)"
 "$ar_error" --session "$out/session_truth.yaml" --ground-truth "$out/ground_truth.csv" --overlay-csv "$out/replay/overlay.csv" \
-  >"$out/ar_error_replay.json" 2>>"$out/replay.log" && python3 - "$out/ar_error_replay.json" "$out/replay.json" <<'PY' || true
+  --tumour-surfaces "$out/replay/tumour_Cam.bin" --frames-csv "$out/ar_error_replay_frames.csv" >"$out/ar_error_replay.json" 2>>"$out/replay.log" && python3 - "$out/ar_error_replay.json" "$out/replay.json" <<'PY' || true
 import json, sys
 j = json.load(open(sys.argv[1]))
 e, p = j["ar_error_mm"], j["ar_error_px"]
-print("  AR error, replay of the session's log (%d frames): mean %.2f mm, p95 %.2f mm, max %.2f mm; mean %.2f px, p95 %.2f px, max %.2f px"
+print("  AR error 2-D, replay of the session's log (%d frames): mean %.2f mm, p95 %.2f mm, max %.2f mm; mean %.2f px, p95 %.2f px, max %.2f px"
       % (j["frames_evaluated"], e["mean"], e["p95"], e["max"], p["mean"], p["p95"], p["max"]))
+e3, av = j.get("ar_error_3d_mm"), j.get("availability")
+if e3 and e3["frames"]:
+    print("    replay: AR error 3-D (tumour centroid) mean %.2f mm, p95 %.2f mm, max %.2f mm; availability %.1f %%"
+          % (e3["mean"], e3["p95"], e3["max"], av["percent"]))
 nav = json.load(open(sys.argv[2])).get("navigation", {})
 c, g = nav.get("cutting"), nav.get("grasper")
 if c and g:

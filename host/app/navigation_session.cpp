@@ -793,6 +793,12 @@ FrameResult NavigationSession::render_decoded(const image_frame_t& msg, cv::Mat 
       std::vector<cv::Point2d> px;
       cv::projectPoints(in, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), cv::Mat(camera.K), cv::Mat(camera.distortion), px);
       out.row.tumour_px = px[0];
+      out.row.tumour_Cam_mm = cv::Point3d(p.x(), p.y(), p.z());
+      if (recorder_ && !snap->tumours.empty()) {
+        auto surface = std::make_shared<TriMesh>(snap->tumours[0]);
+        surface->positions_World_mm = X_CamModel * surface->positions_World_mm;  // now in Cam
+        out.row.tumour_surface_Cam = std::move(surface);
+      }
     }
   }
   if (cut_model && snap) {

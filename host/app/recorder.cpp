@@ -1,5 +1,7 @@
 #include "host/app/recorder.hpp"
 
+#include "host/app/tumour_surface_file.hpp"
+
 #include <filesystem>
 #include <iomanip>
 #include <sstream>
@@ -12,7 +14,8 @@ namespace arnav::host {
 
 std::string csv_header() {
   return "camera_sequence,capture_time_mono_us,pose_time_mono_us,model_step_time_mono_us,render_done_mono_us,"
-         "motion_to_photon_ms,tumour_u_px,tumour_v_px,blade_to_margin_mm,flags,cutting,cut_faces,cut_area_mm2,cut_path_error_mm,cut_events";
+         "motion_to_photon_ms,tumour_u_px,tumour_v_px,blade_to_margin_mm,flags,cutting,cut_faces,cut_area_mm2,cut_path_error_mm,cut_events,"
+         "tumour_x_cam_mm,tumour_y_cam_mm,tumour_z_cam_mm";
 }
 
 std::string csv_line(const FrameRow& r) {
@@ -31,6 +34,9 @@ std::string csv_line(const FrameRow& r) {
   } else {
     os << ",,,,";
   }
+  os << ',';
+  if (r.tumour_Cam_mm) os << std::setprecision(3) << r.tumour_Cam_mm->x << ',' << r.tumour_Cam_mm->y << ',' << r.tumour_Cam_mm->z;
+  else os << ",,";
   return os.str();
 }
 
@@ -42,6 +48,11 @@ Recorder::Recorder(const std::string& dir, const RecordSettings& settings) : dir
   if (ec || !csv_) throw SessionError("--record " + dir_ + ": cannot create the folder or " + csv_path + " (check the path and permissions)");
   csv_ << csv_header() << "\n";
   files_.push_back(csv_path);
+  const std::string tumour_path = (std::filesystem::path(dir_) / "tumour_Cam.bin").string();
+  tumour_bin_.open(tumour_path, std::ios::binary);
+  if (!tumour_bin_) throw SessionError("--record " + dir_ + ": cannot create " + tumour_path + " (check the path and permissions)");
+  write_tumour_surface_header(tumour_bin_);
+  files_.push_back(tumour_path);
   thread_ = std::thread([this] { run(); });
 }
 
@@ -77,6 +88,11 @@ void Recorder::run() {
     }
     const auto& [row, frame] = item;
     csv_ << csv_line(row) << "\n";
+    if (row.tumour_surface_Cam) {
+      const bool same_tris = row.tumour_surface_Cam->tris == last_tumour_tris_;
+      write_tumour_surface(tumour_bin_, row.camera_sequence, *row.tumour_surface_Cam, !same_tris);
+      if (!same_tris) last_tumour_tris_ = row.tumour_surface_Cam->tris;
+    }
     if (!frame.empty()) {
       if (!writer_) {
         const std::string path = (std::filesystem::path(dir_) / "overlay.avi").string();
@@ -104,6 +120,7 @@ std::vector<std::string> Recorder::close() {
   }
   if (thread_.joinable()) thread_.join();
   csv_.flush();
+  tumour_bin_.flush();
   if (writer_) {
     writer_->release();
     writer_.reset();

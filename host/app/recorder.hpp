@@ -16,7 +16,12 @@
 //   boundary, both sides), cut_area_mm2, cut_path_error_mm (largest distance of the points
 //   the cut steps since the previous frame put on the cut from their swept blade surface;
 //   empty when no step cut), cut_events (';'-separated kind:structure raised since the
-//   previous frame: margin_entered, tumour_cut, vessel_crossed).
+//   previous frame: margin_entered, tumour_cut, vessel_crossed),
+//   then tumour_x_cam_mm, tumour_y_cam_mm, tumour_z_cam_mm: the drawn tumour centroid in the
+//   camera frame (the 3-D point tumour_u/v_px projects; empty when not drawn), for the
+//   bench's 3-D AR error (hil_tests/scenarios/ar_error.hpp).
+// tumour_Cam.bin: the drawn first tumour's surface in the camera frame per frame it was
+// drawn, for the bench's surface distance (format: tumour_surface_file.hpp).
 #include <opencv2/core.hpp>
 #include <opencv2/videoio.hpp>
 
@@ -32,6 +37,7 @@
 #include <vector>
 
 #include "host/app/session_config.hpp"
+#include "host/scene/tet_mesh.hpp"
 
 namespace arnav::host {
 
@@ -43,6 +49,8 @@ struct FrameRow {
   std::int64_t render_done_mono_us = 0;
   double motion_to_photon_ms = 0.0;
   std::optional<cv::Point2d> tumour_px;
+  std::optional<cv::Point3d> tumour_Cam_mm;  // the drawn centroid in Cam (3-D AR error)
+  std::shared_ptr<const TriMesh> tumour_surface_Cam;  // the drawn tumour's surface in Cam (recording only)
   std::optional<double> blade_to_margin_mm;
   std::string flags;
   std::optional<bool> cutting;            // cutting sessions only
@@ -77,6 +85,8 @@ class Recorder {
   std::string dir_;
   RecordSettings settings_;
   std::ofstream csv_;
+  std::ofstream tumour_bin_;
+  std::vector<std::array<int, 3>> last_tumour_tris_;
   std::unique_ptr<cv::VideoWriter> writer_;
   std::vector<cv::Mat> thumbs_;
   std::int64_t next_thumb_us_ = -1;

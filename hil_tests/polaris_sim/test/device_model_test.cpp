@@ -185,5 +185,46 @@ TEST_F(ModelTest, ResetForgetsEverything) {
   EXPECT_EQ(body(ask(device, "PHSR:00", 10.0)), "ERROR10");
 }
 
+// The realistic measurement model: the reply carries the pose fitted to noisy markers and
+// the fit's RMS error, not the truth; the truth row keeps both.
+TEST(Model, RealisticSensorsReportTheFittedPose) {
+  Scenario s;
+  add_tool_spec(s, "pointer=" + rom_dir() + "8700340.rom");
+  s.measurement = MeasurementModel::realistic(21);
+  s.measurement.dropout_rate = 0.0;
+  PolarisModel model(s);
+  ModelDevice device(model);
+  model.reset(0.0);
+  EXPECT_EQ(body(ask(device, "INIT:")), "OKAY");
+  const std::string h = body(ask(device, "PHRQ:*********1****"));
+  const auto rom = read_rom(rom_dir() + "8700340.rom");
+  for (unsigned addr = 0; addr < rom.size(); addr += 64) EXPECT_EQ(body(ask(device, pvwr(h, addr, rom))), "OKAY");
+  EXPECT_EQ(body(ask(device, "PINIT:" + h)), "OKAY");
+  EXPECT_EQ(body(ask(device, "PENA:" + h + "D")), "OKAY");
+  EXPECT_EQ(body(ask(device, "TSTART:")), "OKAY");
+  std::vector<TruthRow> truth;
+  model.on_truth = [&](const TruthRow& t) { truth.push_back(t); };
+  for (int k = 0; k < 5; ++k) {
+    truth.clear();
+    const std::string tx = body(ask(device, "TX:0001", 2.0 + k * 0.1));
+    ASSERT_EQ(truth.size(), 1u);
+    const TruthRow& t = truth[0];
+    ASSERT_TRUE(t.valid);
+    const double off_mm = (t.X_NdiTool_reported.translation() - t.X_NdiTool.translation()).norm();
+    EXPECT_GT(off_mm, 1e-4);  // noise is there
+    EXPECT_LT(off_mm, 3.0);   // and of the configured size (0.25 mm RMS per marker)
+    EXPECT_GT(t.rms_error_mm, 0.0);
+    Eigen::Quaterniond q(t.X_NdiTool_reported.rotation());
+    if (q.w() < 0) q.coeffs() *= -1;
+    ndi::HandleRecord rec;
+    rec.q_NdiTool_wxyz = {q.w(), q.x(), q.y(), q.z()};
+    const Eigen::Vector3d p = t.X_NdiTool_reported.translation();
+    rec.p_NdiTool_mm = {p.x(), p.y(), p.z()};
+    rec.rms_error_mm = t.rms_error_mm;
+    const std::string expect = "01" + h + ndi::format_transform(rec);
+    EXPECT_EQ(tx.substr(0, expect.size()), expect);
+  }
+}
+
 }  // namespace
 }  // namespace arnav::hil

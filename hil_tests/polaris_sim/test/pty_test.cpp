@@ -199,17 +199,21 @@ TEST_F(SimPty, TrackingFramesMatchGroundTruth) {
   std::ifstream in(truth);
   std::string line;
   std::getline(in, line);
-  EXPECT_EQ(line, "frame,handle,tool,valid,port_status,qw,qx,qy,qz,x_mm,y_mm,z_mm");
+  EXPECT_EQ(line, "frame,handle,tool,valid,port_status,qw,qx,qy,qz,x_mm,y_mm,z_mm,"
+                  "reported_qw,reported_qx,reported_qy,reported_qz,reported_x_mm,reported_y_mm,reported_z_mm,rms_error_mm,dropout");
   std::size_t matched = 0;
   while (std::getline(in, line)) {
     std::stringstream ss(line);
     std::vector<std::string> c;
     for (std::string cell; std::getline(ss, cell, ',');) c.push_back(cell);
-    ASSERT_EQ(c.size(), 12u);
+    ASSERT_EQ(c.size(), 21u);  // true pose, then the reported one (equal: no measurement block, ideal sensors)
     const auto it = seen.find(static_cast<std::uint32_t>(std::stoul(c[0])));
     if (it == seen.end()) continue;
     EXPECT_EQ(c[2], "pointer");
-    for (int k = 0; k < 7; ++k) EXPECT_EQ(it->second[k], static_cast<float>(std::stod(c[5 + k]))) << line;
+    for (int k = 0; k < 7; ++k) {
+      EXPECT_EQ(it->second[k], static_cast<float>(std::stod(c[12 + k]))) << line;
+      EXPECT_EQ(it->second[k], static_cast<float>(std::stod(c[5 + k]))) << line;
+    }
     ++matched;
   }
   EXPECT_EQ(matched, seen.size());

@@ -6,6 +6,11 @@
 * DIR/landmarks.csv: four landmarks on the organ surface facing the camera, around the
   first tumour (name,x_mm,y_mm,z_mm in Model: the host's live registration targets);
 * DIR/pointer_path.csv: the pointer comes in, dwells on each landmark (small jitter), leaves;
+  it touches each landmark --touch-offset-mm LO,HI (default 2-4 mm, uniform) off the
+  anatomical point, in a random direction (seeded by --seed) in the surface's tangent plane
+  there (--touch-direction tangent, the default: the normal from the surface vertices within
+  8 mm) or in 3-D (--touch-direction 3d): a surgeon does not find the exact anatomical point
+  (issue 21). DIR/landmark_touches.csv lists the offsets (Model, mm);
 * DIR/scalpel_path.csv: the scalpel waits outside, comes down to 5 mm off the surface
   beside the tumour, is drawn in over a quarter ring to the ring's depth (the blade tip
   --depth-mm past the tumour's far side) and traces the ring of radius (largest tumour
@@ -105,6 +110,34 @@ def quat_z_to(d):
     return (w / n, ax[0] / n, ax[1] / n, ax[2] / n)
 
 
+def surface_normal(pts, p, radius=8.0):
+    """Unit normal of the surface points within `radius` of p (least-spread axis, power iteration)."""
+    near = [q for q in pts if sum((q[i] - p[i]) ** 2 for i in range(3)) <= radius * radius]
+    if len(near) < 3:
+        return None
+    c = [sum(q[i] for q in near) / len(near) for i in range(3)]
+    C = [[sum((q[i] - c[i]) * (q[j] - c[j]) for q in near) for j in range(3)] for i in range(3)]
+    tr = C[0][0] + C[1][1] + C[2][2]
+    M = [[(tr if i == j else 0.0) - C[i][j] for j in range(3)] for i in range(3)]  # largest of M = smallest of C
+    n = [0.3, 0.5, 0.8]
+    for _ in range(200):
+        n = unit([dot(M[i], n) for i in range(3)])
+    return n
+
+
+def touch_offset(rng, normal, lo, hi, direction):
+    """An offset of length uniform in [lo, hi] mm, direction random in the tangent plane or in 3-D."""
+    r = rng.uniform(lo, hi)
+    if direction == "3d":
+        d = unit([rng.gauss(0, 1) for _ in range(3)])
+    else:
+        e1 = unit(cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0]))
+        e2 = cross(normal, e1)
+        a = rng.uniform(0.0, 2.0 * math.pi)
+        d = add([math.cos(a) * x for x in e1], e2, math.sin(a))
+    return [r * x for x in d]
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--scene", required=True)
@@ -119,6 +152,9 @@ def main():
     ap.add_argument("--move-s", type=float, default=1.0)
     ap.add_argument("--gap-s", type=float, default=2.0, help="pause between the registration and the scalpel's plunge")
     ap.add_argument("--jitter-mm", type=float, default=0.1, help="sigma of the pointer's hand tremor during a dwell")
+    ap.add_argument("--seed", type=int, default=1, help="seed of the touch offsets")
+    ap.add_argument("--touch-offset-mm", default="2,4", help="LO,HI: how far off the anatomical point each landmark is touched")
+    ap.add_argument("--touch-direction", choices=["tangent", "3d"], default="tangent")
     ap.add_argument("--can-lead-s", type=float, default=0.0, help="arnav-can-sim's clock minus the Polaris device clock")
     a = ap.parse_args()
     try:
@@ -128,6 +164,12 @@ def main():
         toward = unit(toward)
     except (ValueError, ZeroDivisionError):
         fail("--toward-camera: expected three numbers X,Y,Z, not all zero, got '%s'" % a.toward_camera)
+    try:
+        touch_lo, touch_hi = [float(x) for x in a.touch_offset_mm.split(",")]
+        if not 0 <= touch_lo <= touch_hi <= 50:
+            raise ValueError(a.touch_offset_mm)
+    except ValueError:
+        fail("--touch-offset-mm: expected LO,HI with 0 <= LO <= HI <= 50 (mm), got '%s'" % a.touch_offset_mm)
     centre, radii, surface = read_scene(a.scene)
     pts = read_vtk_points(surface)
     # Lateral axes u, v perpendicular to the viewing direction.
@@ -158,6 +200,18 @@ def main():
         f.write("name,x_mm,y_mm,z_mm\n")
         for n, p in landmarks:
             f.write("%s,%.3f,%.3f,%.3f\n" % (n, p[0], p[1], p[2]))
+    # Where the pointer actually touches: off each anatomical point (seeded).
+    touch_rng = random.Random(a.seed)
+    touches = []
+    for n, p in landmarks:
+        normal = surface_normal(pts, p) or toward
+        touches.append(add(p, touch_offset(touch_rng, normal, touch_lo, touch_hi, a.touch_direction)))
+    with open(os.path.join(a.out, "landmark_touches.csv"), "w") as f:
+        f.write("# make_demo_paths.py --seed %d --touch-offset-mm %s --touch-direction %s: where the pointer touches (Model)\n"
+                % (a.seed, a.touch_offset_mm, a.touch_direction))
+        f.write("name,x_mm,y_mm,z_mm,offset_mm\n")
+        for (n, p), t in zip(landmarks, touches):
+            f.write("%s,%.3f,%.3f,%.3f,%.3f\n" % (n, t[0], t[1], t[2], math.sqrt(sum((t[i] - p[i]) ** 2 for i in range(3)))))
     q_tool = quat_z_to(toward)
     rng = random.Random(12)
 
@@ -168,7 +222,7 @@ def main():
     t = a.pointer_start_s
     rows.append(row(0.0, add(landmarks[0][1], toward, 80.0)))
     rows.append(row(t, add(landmarks[0][1], toward, 80.0)))
-    for _, p in landmarks:
+    for p in touches:
         t += a.move_s
         rows.append(row(t, p))
         t_arrive = t
@@ -229,6 +283,8 @@ def main():
             f.write('  - {at_s: %.2f, do: "release pedal_accept"}\n' % (p + a.can_lead_s + 0.15))
         f.write('  - {at_s: %.2f, do: "press pedal_cut"}\n' % (t_plunge + a.can_lead_s))
         f.write('  - {at_s: %.2f, do: "release pedal_cut"}\n' % (t_ring_done + a.can_lead_s + 0.2))
+    offs = [math.sqrt(sum((t_[i] - p[1][i]) ** 2 for i in range(3))) for t_, p in zip(touches, landmarks)]
+    print("landmarks %d touched %.1f-%.1f mm off (%s, seed %d)" % (len(landmarks), min(offs), max(offs), a.touch_direction, a.seed))
     print("landmarks %d, ring radius %.1f mm, registration until %.1f s, ring %.1f-%.1f s, out %.1f s"
           % (len(landmarks), ring_r, t_registered, t_plunge, t_ring_done, t))
 

@@ -28,11 +28,36 @@
 
 #include <nlohmann/json.hpp>
 
+#include "calibration/lib/point_registration.hpp"
 #include "calibration/lib/rigid_transform_file.hpp"
 #include "hil_tests/bench/bench_required.hpp"
 
 namespace arnav::hil {
 namespace {
+
+// name,x_mm,y_mm,z_mm[,...] rows after a header ('#' lines skipped).
+std::vector<Eigen::Vector3d> read_points_csv(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  EXPECT_TRUE(in.good()) << path;
+  std::vector<Eigen::Vector3d> out;
+  std::string line;
+  bool header = true;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    if (header) {
+      header = false;
+      continue;
+    }
+    std::stringstream ss(line);
+    std::string name, x, y, z;
+    std::getline(ss, name, ',');
+    std::getline(ss, x, ',');
+    std::getline(ss, y, ',');
+    std::getline(ss, z, ',');
+    out.emplace_back(std::stod(x), std::stod(y), std::stod(z));
+  }
+  return out;
+}
 
 std::string env(const char* name, const char* fallback) {
   const char* v = std::getenv(name);
@@ -111,18 +136,37 @@ TEST(ArDemoSession, LiveRegistrationRingCutFaultAndRecording) {
   std::ifstream host_in(out / "host.json");
   const nlohmann::json nav = nlohmann::json::parse(host_in)["navigation"];
 
-  // Live registration: every landmark taken, none refused, the bench's true X_RefModel found.
+  // Live registration: every landmark taken, none refused, the registration the touched
+  // points give found. The sensors are realistic (docs/hil.md "Sensor errors"): the pointer
+  // touches each landmark 2-4 mm off the anatomical point (landmark_touches.csv, seeded) and
+  // the simulated Polaris adds 0.25 mm RMS per marker. The FRE and X_RefModel are then not
+  // those of the exact points (FRE 0.08 mm before, checked < 1.0 mm; over seeds 1-20 the
+  // touches alone give FRE 1.56-2.99 mm, TRE at the tumour centroid 0.62-2.43 mm, mean 1.47,
+  // docs/benchmarks.md "Sensor errors"): the expected result is the rigid fit of the touched
+  // points to the landmarks (X_true * fit, its RMS residual), computed here from the run's
+  // own files; the host must find it to within the old tolerances (1.5 mm, 0.01 rad; FRE
+  // within 0.5 mm: Polaris noise and the 0.1 mm tremor).
   const nlohmann::json& r = nav["registration"];
   ASSERT_EQ(r["method"], "live landmarks") << r.dump();
   ASSERT_TRUE(r["done"].get<bool>()) << r.dump() << log.str();
   EXPECT_EQ(r["landmarks_taken"].get<int>(), 4);
   EXPECT_EQ(r["refused"].get<int>(), 0);
-  EXPECT_LT(r["fre_mm"].get<double>(), 1.0);
+  const auto landmarks = read_points_csv(out / "landmarks.csv"), touches = read_points_csv(out / "landmark_touches.csv");
+  ASSERT_EQ(landmarks.size(), 4u);
+  ASSERT_EQ(touches.size(), 4u);
+  const calib::PointRegistrationResult touched = calib::register_paired_points(touches, landmarks);  // touch = fit * landmark
+  EXPECT_NEAR(r["fre_mm"].get<double>(), touched.fre_rms_mm, 0.5);
   Eigen::Matrix4d M;
   for (int i = 0; i < 16; ++i) M(i / 4, i % 4) = r["X_RefModel"][static_cast<std::size_t>(i)].get<double>();
   const Eigen::Isometry3d X_true = calib::read_transform(src + "/hil_tests/scenarios/ar_demo/X_RefModel_phantom.yaml").X_ParentChild;
-  EXPECT_LT((M.topRightCorner<3, 1>() - X_true.translation()).norm(), 1.5) << M;
-  EXPECT_LT(Eigen::AngleAxisd(M.topLeftCorner<3, 3>().transpose() * X_true.linear()).angle(), 0.01) << M;
+  const Eigen::Isometry3d X_expected = X_true * touched.X_AB;
+  EXPECT_LT((M.topRightCorner<3, 1>() - X_expected.translation()).norm(), 1.5) << M;
+  EXPECT_LT(Eigen::AngleAxisd(M.topLeftCorner<3, 3>().transpose() * X_expected.linear()).angle(), 0.01) << M;
+  // What the touches cost at the tumour: the AR bounds below grow by it (triangle inequality).
+  const Eigen::Vector3d c_Model(70, 160, 140);  // the scene's tumour centre (liver_coarse_cut.scene.yaml)
+  const double touch_tre_mm = (touched.X_AB * c_Model - c_Model).norm();
+  std::cerr << "[ar demo] touches: FRE " << touched.fre_rms_mm << " mm expected, host " << r["fre_mm"].get<double>() << " mm; TRE at the tumour from the touches "
+            << touch_tre_mm << " mm\n";
 
   // The cut: made while the pedal was held, faces present, along the scalpel's path.
   const nlohmann::json& c = nav["cutting"];
@@ -157,17 +201,29 @@ TEST(ArDemoSession, LiveRegistrationRingCutFaultAndRecording) {
   ASSERT_TRUE(replay_in.good()) << log.str();
   const nlohmann::json rep = nlohmann::json::parse(replay_in);
   EXPECT_GE(rep["frames_evaluated"].get<int>(), 50) << rep.dump();
-  EXPECT_LE(rep["ar_error_mm"]["mean"].get<double>(), 1.0) << rep.dump();
+  // The bounds of the exact sensors (1.0 mm mean, 2.0 mm p95) plus the registration error the
+  // landmark touches put at the tumour (touch_tre_mm, above): the drawn tumour's error is at
+  // most the model's plus the registration's.
+  EXPECT_LE(rep["ar_error_mm"]["mean"].get<double>(), 1.0 + touch_tre_mm) << rep.dump();
   std::ifstream replay_host_in(out / "replay.json");
   const nlohmann::json replay_nav = nlohmann::json::parse(replay_host_in)["navigation"];
   const int replay_stale_releases = replay_nav["grasper"]["stale_releases"].get<int>();
   if (replay_stale_releases == 0) {
-    EXPECT_LE(rep["ar_error_mm"]["p95"].get<double>(), 2.0) << rep.dump();
+    EXPECT_LE(rep["ar_error_mm"]["p95"].get<double>(), 2.0 + touch_tre_mm) << rep.dump();
   } else {
     std::cerr << "[ar demo] the replay's grasp was released stale " << replay_stale_releases << " time(s) (gaps in the log's grasper poses): AR error p95 "
               << rep["ar_error_mm"]["p95"].get<double>() << " mm, not held to 2 mm\n";
   }
-  EXPECT_LT(rep["ar_error_mm"]["mean"].get<double>(), 0.5 * rep["rigid_overlay"]["ar_error_mm"]["mean"].get<double>()) << rep.dump();
+  // The rigid overlay goes through the true registration, the host's through the touched one.
+  EXPECT_LT(rep["ar_error_mm"]["mean"].get<double>(), 0.5 * rep["rigid_overlay"]["ar_error_mm"]["mean"].get<double>() + touch_tre_mm)
+      << rep.dump();
+  // The honest figures (3-D, availability) are printed, not held yet: measured on too few
+  // seeds on this loaded machine (docs/benchmarks.md "Sensor errors").
+  for (const auto* which : {&ar, &rep})
+    if (which->contains("ar_error_3d_mm"))
+      std::cerr << "[ar demo] " << (which == &ar ? "live" : "replay") << ": AR error 3-D mean " << (*which)["ar_error_3d_mm"]["mean"].get<double>()
+                << " mm, p95 " << (*which)["ar_error_3d_mm"]["p95"].get<double>() << " mm; availability "
+                << (*which)["availability"]["percent"].get<double>() << " %\n";
   // The cut, measured in the material (docs/overlay.md): the tissue's motion after the cut
   // (the grasper's pull, the ring's plug) is not path error; a cut put where the blade was
   // not is. Live and replayed, both with every core busy (issue 20: the tail reached 11 /

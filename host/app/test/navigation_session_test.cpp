@@ -12,6 +12,7 @@
 #include <opencv2/videoio.hpp>
 
 #include "host/app/navigation_session.hpp"
+#include "host/app/tumour_surface_file.hpp"
 #include "host/app/session_config.hpp"
 #include "host/app/test/session_test_util.hpp"
 #include "host/scene/scene.hpp"
@@ -228,8 +229,11 @@ TEST_F(SessionRun, RecordingWritesCsvVideoAndContactSheet) {
     for (std::int64_t k = 0; k < 90; ++k) step(*s, k, k < 60 || k > 70);
     s->stop();
     const auto files = s->recorded_files();
-    EXPECT_EQ(files.size(), 3u);
+    EXPECT_EQ(files.size(), 4u);  // overlay.csv, tumour_Cam.bin, overlay.avi, contact_sheet.png
   }
+  // The drawn tumour's surface in Cam, one record per frame with the tumour drawn.
+  const auto surfaces = read_tumour_surfaces((rec / "tumour_Cam.bin").string());
+  EXPECT_GT(surfaces.size(), 50u);
   std::ifstream csv(rec / "overlay.csv");
   std::string line;
   std::getline(csv, line);
@@ -237,7 +241,7 @@ TEST_F(SessionRun, RecordingWritesCsvVideoAndContactSheet) {
   int rows = 0;
   while (std::getline(csv, line)) {
     ++rows;
-    EXPECT_EQ(std::count(line.begin(), line.end(), ','), 14) << line;
+    EXPECT_EQ(std::count(line.begin(), line.end(), ','), 17) << line;
     std::stringstream ss(line);
     std::string seq;
     std::getline(ss, seq, ',');
