@@ -4,11 +4,13 @@
 
 #include <atomic>
 #include <fstream>
+#include <map>
 #include <thread>
 
 #include "appliance/capture/capture.hpp"
 #include "appliance/capture/opencv_sources.hpp"
 #include "appliance/capture/synthetic_source.hpp"
+#include "protocol/clock.hpp"
 
 namespace arnav::capture {
 namespace {
@@ -150,6 +152,65 @@ TEST(SyntheticSource, WritesFramesAndGroundTruthBesideThem) {
   ImageFolderSource replay(dir, 0.0, false);
   replay.open();
   EXPECT_EQ(replay.files().size(), 4u);
+  std::filesystem::remove_all(dir);
+}
+
+// Like a real camera: a frame is exposed at start + k / fps and delivered once its readout
+// (here 5 ms) has ended; rendering is the bench's, done ahead on its own thread.
+TEST(SyntheticSource, DeliversAfterTheReadoutWithTheExposureStamped) {
+  SyntheticSettings s = small_scene();
+  s.fps = 50.0;
+  s.readout_s = 0.005;
+  SyntheticSource src(s);
+  src.open();
+  Frame f;
+  std::int64_t first_exposure = -1;
+  for (int i = 0; i < 5; ++i) {
+    ASSERT_EQ(src.read(f).status, ReadStatus::Ok);
+    if (first_exposure < 0) first_exposure = f.capture_time_mono_us - f.sequence * 20'000;
+    // The exposure is the frame's place on the camera's clock, whatever the delivery.
+    EXPECT_EQ(f.capture_time_mono_us, first_exposure + f.sequence * 20'000);
+    EXPECT_GE(f.delivered_time_mono_us, f.capture_time_mono_us + 5'000);
+    EXPECT_GE(monotonic_us(), f.delivered_time_mono_us);
+  }
+  src.close();
+  EXPECT_EQ(src.counters().delivered, 5);
+}
+
+// A reader that falls behind loses frames, and each one is counted with its cause (never a
+// silent jump in the sequence): the timing file has every frame exactly once.
+TEST(SyntheticSource, FramesNotTakenInTimeAreCountedAsDropped) {
+  const auto dir = fresh_dir("timing");
+  SyntheticSettings s = small_scene();
+  s.fps = 100.0;
+  s.timing_csv = dir / "timing.csv";
+  SyntheticSource src(s);
+  src.open();
+  Frame f;
+  ASSERT_EQ(src.read(f).status, ReadStatus::Ok);
+  const std::int64_t first = f.sequence;
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));  // ten periods: the camera moves on
+  ASSERT_EQ(src.read(f).status, ReadStatus::Ok);
+  const std::int64_t second = f.sequence;
+  src.close();
+  ASSERT_GT(second, first + 1);
+  const SyntheticCounters c = src.counters();
+  EXPECT_EQ(c.delivered, 2);
+  EXPECT_EQ(c.dropped_reader_late + c.dropped_render_late, second - first - 1);
+  std::ifstream in(s.timing_csv);
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line, kTimingCsvHeader);
+  std::map<std::int64_t, std::string> status;
+  while (std::getline(in, line)) {
+    const auto comma = line.find(',');
+    const std::int64_t seq = std::stoll(line.substr(0, comma));
+    EXPECT_TRUE(status.emplace(seq, line.substr(line.rfind(',') + 1)).second) << "frame " << seq << " written twice";
+  }
+  for (std::int64_t k = first; k <= second; ++k) {
+    ASSERT_TRUE(status.count(k)) << "frame " << k << " neither delivered nor counted as dropped";
+    EXPECT_EQ(status[k] == "delivered", k == first || k == second) << k << ": " << status[k];
+  }
   std::filesystem::remove_all(dir);
 }
 
