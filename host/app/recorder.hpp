@@ -5,8 +5,8 @@
 //
 // overlay.csv columns:
 //   camera_sequence, capture_time_mono_us, pose_time_mono_us (newest pose used),
-//   model_step_time_mono_us (model state drawn), render_done_mono_us, motion_to_photon_ms
-//   (capture -> overlay ready), tumour_u_px, tumour_v_px (projected tumour centroid, empty
+//   model_step_time_mono_us (model state drawn), render_done_mono_us (overlay ready),
+//   motion_to_photon_ms (exposure -> overlay ready; the name kept for old readers), tumour_u_px, tumour_v_px (projected tumour centroid, empty
 //   when not drawn), blade_to_margin_mm (empty without a fresh scalpel), flags
 //   ('|'-separated: reference_lost, reference_stale, scalpel_lost, scalpel_stale,
 //   camera_pose_lost, camera_pose_stale, camera_gap, model_unhealthy, pose_not_matched,
@@ -16,7 +16,10 @@
 //   boundary, both sides), cut_area_mm2, cut_path_error_mm (largest distance of the points
 //   the cut steps since the previous frame put on the cut from their swept blade surface;
 //   empty when no step cut), cut_events (';'-separated kind:structure raised since the
-//   previous frame: margin_entered, tumour_cut, vessel_crossed).
+//   previous frame: margin_entered, tumour_cut, vessel_crossed),
+//   then the frame's instants (frame_latency.hpp): publish_time_mono_us (the appliance's),
+//   receive_time_mono_us, decode_done_mono_us, shown_mono_us (buffer swap done, or handed
+//   to the recorder).
 #include <opencv2/core.hpp>
 #include <opencv2/videoio.hpp>
 
@@ -50,6 +53,10 @@ struct FrameRow {
   double cut_area_mm2 = 0.0;
   std::optional<double> cut_path_error_mm;
   std::string cut_events;
+  std::int64_t publish_time_mono_us = 0;
+  std::int64_t receive_time_mono_us = 0;
+  std::int64_t decode_done_mono_us = 0;
+  std::int64_t shown_mono_us = 0;
 };
 
 std::string csv_header();

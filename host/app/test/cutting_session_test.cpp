@@ -198,7 +198,7 @@ TEST_F(CuttingRun, PedalHeldCutsAlongTheScalpelPathAndTheOverlayShowsIt) {
     std::string x;
     while (std::getline(ss, x, ',')) cols.push_back(x);
     if (line.back() == ',') cols.emplace_back();
-    ASSERT_EQ(cols.size(), 15u) << line;
+    ASSERT_EQ(cols.size(), 19u) << line;
     cutting_rows += cols[10] == "1";
     error_rows += !cols[13].empty();
     event_rows += cols[14].find("margin_entered:tumour") != std::string::npos;

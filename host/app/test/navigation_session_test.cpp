@@ -5,6 +5,7 @@
 // the recording (CSV complete, video readable, contact sheet).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
 #include <sstream>
 
@@ -237,11 +238,16 @@ TEST_F(SessionRun, RecordingWritesCsvVideoAndContactSheet) {
   int rows = 0;
   while (std::getline(csv, line)) {
     ++rows;
-    EXPECT_EQ(std::count(line.begin(), line.end(), ','), 14) << line;
+    EXPECT_EQ(std::count(line.begin(), line.end(), ','), 18) << line;
     std::stringstream ss(line);
-    std::string seq;
-    std::getline(ss, seq, ',');
-    EXPECT_EQ(std::stoll(seq), rows - 1);
+    std::vector<std::string> col;
+    for (std::string c; std::getline(ss, c, ',');) col.push_back(c);
+    ASSERT_EQ(col.size(), 19u) << line;
+    EXPECT_EQ(std::stoll(col[0]), rows - 1);
+    // The frame's instants in order: exposure <= published <= received <= decoded <= ready <= shown.
+    const std::vector<std::int64_t> t{std::stoll(col[1]), std::stoll(col[15]), std::stoll(col[16]), std::stoll(col[17]), std::stoll(col[4]),
+                                      std::stoll(col[18])};
+    EXPECT_TRUE(std::is_sorted(t.begin(), t.end())) << line;
   }
   EXPECT_EQ(rows, 90);
   cv::VideoCapture video((rec / "overlay.avi").string());

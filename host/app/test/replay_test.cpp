@@ -106,9 +106,10 @@ TEST(Replay, DeterministicOverlayWithBannersFromAnLcmLoggerLog) {
   const auto intr = test_intrinsics();
   int stale = 0;
   for (std::size_t i = 0; i < a.size(); ++i) {
-    ASSERT_EQ(a[i].size(), 15u);
-    // Identical except render_done and latency (columns 4 and 5: measured render time).
-    for (std::size_t col : {0u, 1u, 2u, 3u, 6u, 7u, 8u, 9u, 10u, 11u, 12u, 13u, 14u}) EXPECT_EQ(a[i][col], b[i][col]) << "row " << i << " column " << col;
+    ASSERT_EQ(a[i].size(), 19u);
+    // Identical except render_done and latency (columns 4 and 5: measured render time), decode
+    // done and shown (17, 18: measured decode time); published and received are the log's.
+    for (std::size_t col : {0u, 1u, 2u, 3u, 6u, 7u, 8u, 9u, 10u, 11u, 12u, 13u, 14u, 15u, 16u}) EXPECT_EQ(a[i][col], b[i][col]) << "row " << i << " column " << col;
     const auto k = static_cast<std::int64_t>(i);
     EXPECT_EQ(std::stoll(a[i][0]), k);
     const bool has_pose = k < 20 || k >= 40;
@@ -196,8 +197,8 @@ TEST(Replay, DeterministicWithCuttingAndThePedal) {
   ASSERT_EQ(b.size(), 50u);
   int cutting = 0;
   for (std::size_t i = 0; i < a.size(); ++i) {
-    ASSERT_EQ(a[i].size(), 15u);
-    for (std::size_t col : {0u, 1u, 2u, 3u, 6u, 7u, 8u, 9u, 10u, 11u, 12u, 13u, 14u}) EXPECT_EQ(a[i][col], b[i][col]) << "row " << i << " column " << col;
+    ASSERT_EQ(a[i].size(), 19u);
+    for (std::size_t col : {0u, 1u, 2u, 3u, 6u, 7u, 8u, 9u, 10u, 11u, 12u, 13u, 14u, 15u, 16u}) EXPECT_EQ(a[i][col], b[i][col]) << "row " << i << " column " << col;
     cutting += a[i][10] == "1";
   }
   EXPECT_GE(cutting, 40);
