@@ -2,8 +2,14 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 
 #include "appliance/capture/opencv_sources.hpp"
 #include "protocol/clock.hpp"
@@ -26,6 +32,7 @@ SyntheticSource::SyntheticSource(SyntheticSettings settings) : settings_(std::mo
     centres_.push_back(markers::paper_outline(b.board, 0.0).center());
   }
   if (settings_.readout_s > 1.0) throw CaptureError("synthetic camera: readout_ms must be at most 1000 (a sensor reads out within a second)");
+  if (settings_.render_nice < -20 || settings_.render_nice > 19) throw CaptureError("synthetic camera: render_nice must be in [-20, 19]");
   if (settings_.render_ahead_frames < 1 || settings_.render_ahead_frames > 16)
     throw CaptureError("synthetic camera: render_ahead_frames must be in [1, 16]");
   if (settings_.phantom) {
@@ -189,22 +196,39 @@ void SyntheticSource::note_absent(std::int64_t sequence) {
 void SyntheticSource::render_loop() {
   const auto period_us = static_cast<std::int64_t>(std::llround(1e6 / settings_.fps));
   const auto depth = static_cast<std::size_t>(std::max(1, settings_.render_ahead_frames));
+  // A real camera costs the appliance's CPUs nothing: with render_nice the bench's renderer
+  // yields them to the product (Linux: a thread's own nice value).
+  if (settings_.render_nice != 0 && ::setpriority(PRIO_PROCESS, static_cast<id_t>(::syscall(SYS_gettid)), settings_.render_nice) != 0) {
+    std::lock_guard lock(mutex_);
+    render_error_ = "synthetic camera: cannot set the renderer's nice value " + std::to_string(settings_.render_nice) + ": " +
+                    std::strerror(errno) + " (render_nice below 0 needs CAP_SYS_NICE)";
+    cv_.notify_all();
+    return;
+  }
+  // The renderer's recent wall time per frame: a frame is only started when it can still be
+  // delivered once rendered (rendering ahead, into the future when the reader is ahead).
+  double render_us = static_cast<double>(period_us);
   for (;;) {
     std::int64_t k = 0;
+    bool reader_behind = false;  // the queue was full: the reader had not taken the frames rendered ahead
     {
       std::unique_lock lock(mutex_);
+      reader_behind = ready_.size() >= depth;
       cv_.wait(lock, [&] { return render_stop_ || ready_.size() < depth; });
       if (render_stop_) return;
       k = next_render_;
     }
-    // A frame whose successor is read out already can no longer be delivered: dropped
-    // because the renderer fell behind (counted, never rendered late for nothing).
+    // A frame that can no longer be delivered before its successor's readout, once rendered,
+    // is dropped (counted, never rendered late for nothing): the reader's fault when it kept
+    // the renderer waiting, else the renderer's.
     const std::int64_t now = monotonic_us();
-    while (readout_end_us(k) + period_us <= now && (settings_.frame_count == 0 || k < settings_.frame_count)) {
+    const auto lead_us = static_cast<std::int64_t>(1.25 * render_us);
+    while (readout_end_us(k) + period_us <= now + lead_us && (settings_.frame_count == 0 || k < settings_.frame_count)) {
       Rendered skipped;
       skipped.sequence = k;
       skipped.exposure_us = exposure_us(k);
-      note(skipped, readout_end_us(k), -1, -1, "dropped_render_late");
+      const bool reader_fault = reader_behind && readout_end_us(k) + period_us <= now;
+      note(skipped, readout_end_us(k), -1, -1, reader_fault ? "dropped_reader_late" : "dropped_render_late");
       ++k;
     }
     if (settings_.frame_count > 0 && k >= settings_.frame_count) {
@@ -223,6 +247,7 @@ void SyntheticSource::render_loop() {
       cv_.notify_all();
       return;
     }
+    render_us = 0.8 * render_us + 0.2 * static_cast<double>(f.render_done_us - f.render_start_us);
     std::lock_guard lock(mutex_);
     next_render_ = k + 1;
     ready_.push_back(std::move(f));

@@ -73,6 +73,7 @@ struct SyntheticSettings {
   // Real time only: sensor readout after the exposure, s (< 0: one frame period).
   double readout_s = -1.0;
   int render_ahead_frames = 2;                // frames rendered ahead of the reader (>= 1)
+  int render_nice = 0;                        // the rendering thread's nice value (10: the product first)
   // Per frame: exposure, rendering, readout end, delivery and what became of it (empty: not
   // written). Columns: see kTimingCsvHeader.
   std::filesystem::path timing_csv;
