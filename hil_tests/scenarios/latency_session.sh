@@ -10,7 +10,7 @@
 # camera writes OUT/timing.csv (every frame's exposure, rendering, readout end, delivery or
 # drop); arnav-exposure-latency joins it with the host's overlay.csv and --summary-json and
 # writes OUT/latency.json: p50/p99/p99.9 per stage, exposure -> display, dropped frames by
-# cause, the machine's load. Prints one line:
+# cause, the machine's load. Prints (then the drops by cause and the stages):
 #   exposure-to-display: p50 P ms, p99 Q ms (camera R Hz), dropped D
 # Exit 1 when a check of arnav-exposure-latency fails (stamps out of order, a frame skipped
 # without a timing row).
@@ -112,6 +112,19 @@ python3 - "$out/latency.json" <<'PY'
 import json, sys
 j = json.load(open(sys.argv[1]))
 e, d = j["exposure_to_display_ms"], j["dropped"]
+f, s, w = j["frames"], j["stages_ms"], j["exposure_to_display_without_bench_render_late_ms"]
 print("exposure-to-display: p50 %.1f ms, p99 %.1f ms (camera %g Hz), dropped %d" % (e["p50"], e["p99"], j["camera_hz"], d["total"]))
+print("  %d frames exposed, %d shown; dropped: bench renderer late %d, appliance late %d, host %d, lost after delivery %d"
+      % (f["exposed"], f["shown"], d["camera_render_late"], d["camera_reader_late"], d["host_dropped"] + d["host_undecodable"],
+         d["lost_after_delivery"]))
+print("  stages p50/p99 ms: readout %.1f/%.1f, bench render late %.1f/%.1f, appliance %.1f/%.1f, transport %.1f/%.1f, decode %.1f/%.1f, render %.1f/%.1f, display %.1f/%.1f"
+      % tuple(x for k in ("readout (modelled)", "bench_render_late", "appliance (delivered->published)", "transport", "decode", "render", "display")
+              for x in (s[k]["p50"], s[k]["p99"])))
+b = j["bench_renderer"]
+print("  the bench's renderer (on the same CPUs; a real camera costs them nothing): %d frames rendered, %.1f ms wall each, busy %.0f %% of the run"
+      % (b["frames_rendered"], b["wall_ms_per_frame"], 100 * b["busy_fraction_of_run"]))
+print("  without the bench renderer's lateness: p50 %.1f ms, p99 %.1f ms; host processing latency p50 %.1f ms, p99 %.1f ms; load average %s -> %s"
+      % (w["p50"], w["p99"], s["host_processing_latency"]["p50"], s["host_processing_latency"]["p99"], j["load_average"]["before"],
+         j["load_average"]["after"]))
 PY
 exit "$rc"
