@@ -159,9 +159,22 @@ SyntheticSource::Rendered SyntheticSource::render(std::int64_t seq, std::int64_t
     for (const auto& p : pf.targets_Model_mm) f.targets_Cam_mm.push_back(X_CamModel * p);
     surfaces.push_back({&organ_Cam_mm, &ph.recording->faces, ph.reflectance});
   }
-  camera_sim::RenderResult r = renderer_->render(scene, surfaces, opt);
-  f.image = r.image;
-  f.tags = std::move(r.tags);
+  // A static scene (the same board poses and organ as the last frame) is only re-exposed:
+  // the same image a full render gives, with this frame's noise.
+  std::vector<Eigen::Matrix4d> poses;
+  for (const auto& X : f.X_CamBoards) poses.push_back(X.matrix());
+  if (scene_cache_ && scene_cache_->X_CamBoards == poses && scene_cache_->organ_Cam_mm.cols() == organ_Cam_mm.cols() &&
+      scene_cache_->organ_Cam_mm == organ_Cam_mm) {
+    f.image = camera_sim::expose_radiance(scene_cache_->radiance, opt);
+    f.tags = scene_cache_->tags;
+    ++scene_cache_hits_;
+  } else {
+    opt.keep_radiance = true;
+    camera_sim::RenderResult r = renderer_->render(scene, surfaces, opt);
+    f.image = r.image;
+    f.tags = r.tags;
+    scene_cache_ = SceneCache{std::move(poses), organ_Cam_mm, std::move(r.radiance), std::move(r.tags)};
+  }
   f.render_done_us = monotonic_us();
   return f;
 }

@@ -153,6 +153,16 @@ class SyntheticSource : public FrameSource {
   mutable std::mutex stats_mutex_;
   SyntheticCounters counters_;
   std::ofstream timing_;
+  // The last scene rendered (board poses, organ vertices) and its radiance before noise: a
+  // frame of the same scene is only re-exposed (bit-identical to a full render).
+  struct SceneCache {
+    std::vector<Eigen::Matrix4d> X_CamBoards;
+    Eigen::Matrix3Xd organ_Cam_mm;
+    cv::Mat radiance;
+    std::vector<camera_sim::TagTruth> tags;
+  };
+  std::optional<SceneCache> scene_cache_;
+  std::int64_t scene_cache_hits_ = 0;
 };
 
 }  // namespace arnav::capture
