@@ -126,8 +126,19 @@ void SyntheticSource::stop_renderer() {
 void SyntheticSource::close() {
   open_ = false;
   stop_renderer();
+  if (!settings_.realtime) return;
+  // Rendered, never read out: exposed already (absent: the camera went away) or not yet
+  // (rendered again after a reopen). The reader resumes at the first frame without a row.
+  const std::int64_t now = monotonic_us();
   std::lock_guard lock(mutex_);
-  ready_.clear();  // rendered, never read out: the camera was closed (the reader resumes at next_)
+  std::optional<std::int64_t> first_future;
+  for (const auto& f : ready_) {
+    if (readout_end_us(f.sequence) <= now) note(f, readout_end_us(f.sequence), -1, -1, "absent");
+    else if (!first_future) first_future = f.sequence;
+  }
+  ready_.clear();
+  next_ = first_future.value_or(std::max(next_, next_render_));
+  next_render_ = next_;  // a second close (the reader's, after a loss) changes nothing
 }
 
 Eigen::Isometry3d SyntheticSource::X_CamBoard(size_t board_index, std::int64_t sequence) const {
@@ -167,7 +178,8 @@ SyntheticSource::Rendered SyntheticSource::render(std::int64_t seq, std::int64_t
       scene_cache_->organ_Cam_mm == organ_Cam_mm) {
     f.image = camera_sim::expose_radiance(scene_cache_->radiance, opt);
     f.tags = scene_cache_->tags;
-    ++scene_cache_hits_;
+    std::lock_guard lock(stats_mutex_);
+    ++counters_.reexposed;
   } else {
     opt.keep_radiance = true;
     camera_sim::RenderResult r = renderer_->render(scene, surfaces, opt);
@@ -360,7 +372,7 @@ ReadResult SyntheticSource::read(Frame& frame) {
     const double t_s = 1e-6 * static_cast<double>(monotonic_us() - start_us_);
     if (!outage_reported_ && settings_.outage_at_s >= 0 && t_s >= settings_.outage_at_s) {
       outage_reported_ = true;
-      next_ = f.sequence;  // not delivered: counted as absent when the camera comes back
+      note(f, readout_end, -1, -1, "absent");  // read out as the camera went away
       close();
       return {ReadStatus::Lost, "synthetic camera: device stopped delivering (scheduled outage)"};
     }

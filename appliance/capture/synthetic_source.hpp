@@ -93,6 +93,7 @@ struct SyntheticCounters {
   std::int64_t dropped_reader_late = 0;   // the consumer (the appliance) could not keep up
   std::int64_t absent = 0;                // exposed while the camera was unplugged
   std::int64_t delivered_late = 0;        // delivered after their readout end (rendering late)
+  std::int64_t reexposed = 0;             // a static scene's radiance re-exposed instead of rendered
 };
 
 class SyntheticSource : public FrameSource {
@@ -162,7 +163,6 @@ class SyntheticSource : public FrameSource {
     std::vector<camera_sim::TagTruth> tags;
   };
   std::optional<SceneCache> scene_cache_;
-  std::int64_t scene_cache_hits_ = 0;
 };
 
 }  // namespace arnav::capture
