@@ -16,7 +16,7 @@
 # without a timing row).
 set -euo pipefail
 if [ "$#" -lt 2 ]; then
-  sed -n '2,17p' "$0" >&2
+  sed -n '2,15p' "$0" >&2
   exit 2
 fi
 here=$(cd "$(dirname "$0")" && pwd)
