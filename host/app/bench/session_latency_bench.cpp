@@ -165,7 +165,9 @@ static int main_body(int argc, char** argv) {
       image_frame_t fr{};
       fr.camera_name = "bench";
       fr.sequence = k;
-      fr.capture_time_mono_us = t;
+      fr.capture_time_mono_us = t;  // exposure = publish = receive = hand-over: only the host's stages are measured
+      fr.capture_time_wall_us = wall_us();
+      fr.publish_time_mono_us = t;
       fr.width = fr.source_width = width;
       fr.height = fr.source_height = height;
       fr.channels = 3;
