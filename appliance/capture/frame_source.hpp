@@ -1,7 +1,7 @@
 #pragma once
 // Capture: every camera-like input behind one interface. A source hands out frames with
-// a capture timestamp (CLOCK_MONOTONIC, us) and a sequence number from the device side,
-// so a gap in sequence numbers is a dropped frame. Sources: V4L2 camera (OpenCV), video
+// an exposure timestamp and a delivery timestamp (both CLOCK_MONOTONIC, us) and a sequence
+// number from the device side, so a gap in sequence numbers is a dropped frame. Sources: V4L2 camera (OpenCV), video
 // file, image folder, and the synthetic camera of the bench (synthetic_source.hpp).
 #include <opencv2/core.hpp>
 
@@ -19,7 +19,14 @@ class CaptureError : public std::runtime_error {
 
 struct Frame {
   cv::Mat image;                       // CV_8UC1 or CV_8UC3 (BGR)
+  // The exposure instant (docs/camera.md, "Timestamps"): the synthetic camera's world time
+  // of the scene the frame shows; V4L2: the driver's buffer timestamp (CLOCK_MONOTONIC),
+  // the read time when the driver gives none; files and folders: the read time.
   std::int64_t capture_time_mono_us = 0;
+  // When the source made the frame available to its reader (synthetic: the end of its
+  // modelled readout, or its rendering when that finished later; other sources: the read's
+  // return). The appliance's own latency is counted from here.
+  std::int64_t delivered_time_mono_us = 0;
   std::int64_t sequence = 0;           // device-side counter: gaps are dropped frames
   std::string origin;                  // file name for folder/file sources, else empty
 };

@@ -80,16 +80,27 @@ ReadResult V4l2Source::read(Frame& frame) {
   if (!cap_.retrieve(frame.image) || frame.image.empty()) {
     return {ReadStatus::Lost, "camera " + settings_.device + ": frame could not be decoded"};
   }
+  // The exposure instant: the driver's buffer timestamp (OpenCV's V4L2 backend returns
+  // v4l2_buffer.timestamp as CAP_PROP_POS_MSEC; on CLOCK_MONOTONIC for drivers that set
+  // V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC, e.g. uvcvideo, stamped at the start of the frame).
+  // One that is not within a second before the read is not on this clock: the read time
+  // stands in and the description says so (docs/camera.md, "Timestamps").
+  const double driver_ms = cap_.get(cv::CAP_PROP_POS_MSEC);
+  const auto driver_us = static_cast<std::int64_t>(std::llround(driver_ms * 1000.0));
+  const bool driver_ok = driver_ms > 0 && driver_us <= t && t - driver_us < 1'000'000;
+  if (!driver_ok) ++exposure_fallbacks_;
+  const std::int64_t exposure_us = driver_ok ? driver_us : t;
   // V4L2's own buffer counter is not exposed by OpenCV: count frame periods between
   // timestamps instead, so a stall of k periods shows as k - 1 dropped frames.
   const double fps = nominal_fps();
   std::int64_t step = 1;
   if (last_time_us_ != 0 && fps > 0) {
-    step = std::max<std::int64_t>(1, std::llround(static_cast<double>(t - last_time_us_) * fps * 1e-6));
+    step = std::max<std::int64_t>(1, std::llround(static_cast<double>(exposure_us - last_time_us_) * fps * 1e-6));
   }
   sequence_ += step;
-  last_time_us_ = t;
-  frame.capture_time_mono_us = t;
+  last_time_us_ = exposure_us;
+  frame.capture_time_mono_us = exposure_us;
+  frame.delivered_time_mono_us = t;
   frame.sequence = sequence_;
   frame.origin.clear();
   return {};
@@ -97,7 +108,10 @@ ReadResult V4l2Source::read(Frame& frame) {
 
 std::string V4l2Source::describe() const {
   return "v4l2:" + settings_.device + " " + std::to_string(settings_.width) + "x" + std::to_string(settings_.height) +
-         "@" + std::to_string(static_cast<int>(std::lround(nominal_fps())));
+         "@" + std::to_string(static_cast<int>(std::lround(nominal_fps()))) +
+         (exposure_fallbacks_ > 0 ? "; exposure = read time for " + std::to_string(exposure_fallbacks_) +
+                                        " frame(s) (driver timestamp not on CLOCK_MONOTONIC)"
+                                  : std::string());
 }
 
 // ---- video file ----
@@ -130,6 +144,7 @@ ReadResult VideoFileSource::read(Frame& frame) {
   }
   if (realtime_ && fps_ > 0) sleep_until_mono_us(start_us_ + static_cast<std::int64_t>(1e6 * static_cast<double>(index_) / fps_));
   frame.capture_time_mono_us = monotonic_us();
+  frame.delivered_time_mono_us = frame.capture_time_mono_us;
   frame.sequence = index_++;
   frame.origin = path_.string();
   return {};
@@ -187,6 +202,7 @@ ReadResult ImageFolderSource::read(Frame& frame) {
   }
   frame.image = to_8bit(img);
   frame.capture_time_mono_us = monotonic_us();
+  frame.delivered_time_mono_us = frame.capture_time_mono_us;
   frame.sequence = seq;
   frame.origin = file.string();
   return {};

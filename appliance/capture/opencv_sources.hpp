@@ -38,6 +38,7 @@ class V4l2Source : public FrameSource {
   double actual_fps_ = 0.0;
   std::int64_t sequence_ = -1;
   std::int64_t last_time_us_ = 0;
+  std::int64_t exposure_fallbacks_ = 0;  // frames whose driver timestamp was unusable (read time used)
 };
 
 class VideoFileSource : public FrameSource {

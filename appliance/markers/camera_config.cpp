@@ -197,7 +197,8 @@ std::optional<CameraConfig> parse_camera_config(const std::string& yaml_text, co
     capture::SyntheticSettings syn;
     if (s) {
       r.only(s, k, {"hfov_deg", "distortion", "frames", "ground_truth", "frames_dir", "noise_sigma", "blur_sigma_px",
-                    "lighting", "outage", "boards", "seed", "occluders", "phantom"});
+                    "lighting", "outage", "boards", "seed", "occluders", "phantom", "readout_ms", "render_ahead_frames",
+                    "render_nice", "timing"});
     }
     const YAML::Node none;
     const YAML::Node sn = s ? s : none;
@@ -222,6 +223,11 @@ std::optional<CameraConfig> parse_camera_config(const std::string& yaml_text, co
       syn.frame_count = static_cast<std::int64_t>(r.integer(sn, k, "frames", 0, 0, 100000000));
       if (s["ground_truth"]) syn.ground_truth_csv = resolve(base_dir, r.text(sn, k, "ground_truth", ""));
       if (s["frames_dir"]) syn.frames_dir = resolve(base_dir, r.text(sn, k, "frames_dir", ""));
+      if (s["timing"]) syn.timing_csv = resolve(base_dir, r.text(sn, k, "timing", ""));
+      // Sensor readout after the exposure (real time): one frame period unless given.
+      if (s["readout_ms"]) syn.readout_s = 1e-3 * r.number(sn, k, "readout_ms", 0, 0, 1000);
+      syn.render_ahead_frames = static_cast<int>(r.integer(sn, k, "render_ahead_frames", 2, 1, 16));
+      syn.render_nice = static_cast<int>(r.integer(sn, k, "render_nice", 0, -20, 19));
       syn.render.noise_sigma = r.number(sn, k, "noise_sigma", 0, 0, 100);
       syn.render.blur_sigma_px = r.number(sn, k, "blur_sigma_px", 0, 0, 20);
       syn.render.noise_seed = static_cast<std::uint64_t>(r.integer(sn, k, "seed", 1, 0, 1000000000));

@@ -181,7 +181,9 @@ struct CameraPipeline::Impl {
         ++stats.poses_published;
       }
     }
-    const auto latency = static_cast<float>(monotonic_us() - frame.capture_time_mono_us);
+    // The appliance's own share: from the frame's delivery by the source (not its exposure:
+    // the sensor's readout is the camera's, docs/camera.md "Timestamps").
+    const auto latency = static_cast<float>(monotonic_us() - frame.delivered_time_mono_us);
     latencies_us.push_back(latency);
     if (cfg.publish_frames.enabled && frame.sequence % cfg.publish_frames.every == 0) publish_image(frame);
     std::lock_guard lock(stats_mutex);

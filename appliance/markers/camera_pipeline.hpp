@@ -7,7 +7,9 @@
 //   ARNAV_EVENT          appliance_event_t (source "camera") on changes: camera lost or
 //                        recovered, tool found or lost (with the reason), pose flips
 //   ARNAV_FRAME_<name>   image_frame_t (JPEG) when camera.publish_frames is enabled
-// Latency in health: capture timestamp -> all poses of the frame published.
+// Latency in health: frame delivered by the source -> all poses of the frame published
+// (the exposure instant, capture_time_mono_us in the messages, is earlier by the sensor's
+// readout: docs/camera.md, "Timestamps").
 #include <lcm/lcm-cpp.hpp>
 
 #include "protocol/seal/sealed_lcm.hpp"

@@ -361,14 +361,23 @@ RenderResult SyntheticRenderer::render(const std::vector<BoardInScene>& scene, c
     }
   }
   if (options.blur_sigma_px > 0.0) cv::GaussianBlur(radiance, radiance, cv::Size(0, 0), options.blur_sigma_px);
+  result.image = expose_radiance(radiance, options);
+  if (options.keep_radiance) result.radiance = radiance;
+  return result;
+}
+
+cv::Mat expose_radiance(const cv::Mat& radiance, const RenderOptions& options) {
+  cv::Mat image;
   if (options.noise_sigma > 0.0) {
-    cv::Mat noise(H, W, CV_32F);
+    cv::Mat noise(radiance.rows, radiance.cols, CV_32F);
     cv::RNG rng(options.noise_seed);
     rng.fill(noise, cv::RNG::NORMAL, 0.0, options.noise_sigma);
-    radiance += noise;
+    noise += radiance;             // into the noise's own buffer: the radiance stays as it was
+    noise.convertTo(image, CV_8U);  // rounds and saturates to 0..255
+  } else {
+    radiance.convertTo(image, CV_8U);
   }
-  radiance.convertTo(result.image, CV_8U);  // rounds and saturates to 0..255
-  return result;
+  return image;
 }
 
 }  // namespace arnav::camera_sim

@@ -49,6 +49,7 @@ struct RenderOptions {
   double noise_sigma = 0.0;       // Gaussian sensor noise, gray levels
   std::uint64_t noise_seed = 1;
   int supersample = 4;            // samples per axis for pixels on an edge
+  bool keep_radiance = false;     // also return the image before the sensor's noise (RenderResult::radiance)
 };
 
 struct BoardInScene {
@@ -81,7 +82,14 @@ struct RenderResult {
   cv::Mat image;                // CV_8UC1, camera.height x camera.width
   std::vector<TagTruth> tags;
   cv::Mat surface_mask;         // CV_8UC1: 255 where a surface is the nearest thing drawn (empty: no surface)
+  cv::Mat radiance;             // CV_32F, after lighting and blur, before noise (keep_radiance only)
 };
+
+// The sensor's last step: Gaussian noise (noise_sigma, seeded by noise_seed) added to a
+// radiance image, rounded and saturated to 8 bits. render() ends with it, so re-exposing a
+// kept radiance with another seed gives exactly the image render() would have given for the
+// same scene (the synthetic camera reuses a static scene's radiance this way).
+cv::Mat expose_radiance(const cv::Mat& radiance, const RenderOptions& options);
 
 class SyntheticRenderer {
  public:

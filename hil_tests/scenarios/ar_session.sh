@@ -231,10 +231,14 @@ if gr:
           % (gr["grasps"], gr["releases"], gr["stale_releases"], gr["steps_grasping"], gr["max_tip_travel_mm"]))
 i = nav.get("inputs", {}).get("by_input", {})
 print("  pedal (CAN): accept pressed %d, cut pedal pressed %d" % (i.get("pedal_accept", {}).get("presses", 0), i.get("pedal_cut", {}).get("presses", 0)))
-m, lat = nav.get("model", {}), nav.get("motion_to_photon_ms", {})
+m, lat = nav.get("model", {}), nav.get("latency", {})
 if lat:
-    print("  latency (capture -> overlay ready): p50 %.1f ms, p99 %.1f ms; frames dropped by the host %d; model %.1f Hz (step p50 %.2f ms, p99 %.2f ms)"
-          % (lat.get("p50", 0), lat.get("p99", 0), nav.get("frames_dropped", 0), m.get("rate_hz", 0), m.get("step_ms_p50", 0), m.get("step_ms_p99", 0)))
+    # The host's figures (host/app/frame_latency.hpp); exposure -> shown by stage at 60 Hz: latency_session.sh.
+    e, hp, mi = lat["exposure_to_display_ms"], lat["host_processing_latency_ms"], lat["misses"]
+    print("  exposure-to-display (this session's camera, 15 Hz): p50 %.1f ms, p99 %.1f ms; frames not shown %d (never received %d, incl. the outage; dropped by the host %d)"
+          % (e["p50"], e["p99"], mi["total"], mi["not_received"], mi["dropped_by_host"]))
+    print("  host processing latency (frame received -> overlay ready): p50 %.1f ms, p99 %.1f ms; model %.1f Hz (step p50 %.2f ms, p99 %.2f ms)"
+          % (hp["p50"], hp["p99"], m.get("rate_hz", 0), m.get("step_ms_p50", 0), m.get("step_ms_p99", 0)))
 PY
 echo "== files =="
 echo "  phantom:       $out/phantom.txt"

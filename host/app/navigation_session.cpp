@@ -470,8 +470,13 @@ void NavigationSession::submit_frame(const image_frame_t& msg, std::int64_t now_
   // Decoded here, on the receiving thread: the JPEG of frame k+1 is decoded while the
   // rendering thread still draws frame k (same latency per frame, more frames per second).
   const auto t0 = std::chrono::steady_clock::now();
-  PendingFrame f{msg, now_us, cv::imdecode(msg.data, cv::IMREAD_COLOR), 0.0};
+  {
+    std::lock_guard lock(mutex_);
+    latency_.received(msg.sequence);
+  }
+  PendingFrame f{msg, now_us, cv::imdecode(msg.data, cv::IMREAD_COLOR), 0.0, 0};
   f.decode_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  f.decoded_us = monotonic_us();
   f.msg.data.clear();  // decoded: the bytes are not needed again
   f.msg.size = 0;
   bool dropped = false;
@@ -484,6 +489,7 @@ void NavigationSession::submit_frame(const image_frame_t& msg, std::int64_t now_
   if (dropped) {
     std::lock_guard lock(mutex_);
     ++frames_dropped_;
+    latency_.dropped_by_host();
   }
 }
 
@@ -505,7 +511,7 @@ void NavigationSession::render_loop() {
       pending_.reset();
     }
     try {
-      render_decoded(item.msg, std::move(item.image), item.decode_ms, item.now_us);
+      render_decoded(item.msg, std::move(item.image), item.decode_ms, item.decoded_us, item.now_us);
     } catch (const std::exception& e) {
       std::lock_guard lock(mutex_);
       render_error_ = std::string("overlay: ") + e.what();
@@ -647,13 +653,19 @@ NavigationSession::Resolved NavigationSession::resolve_poses(const image_frame_t
 }
 
 FrameResult NavigationSession::render_frame(const image_frame_t& msg, std::int64_t now_us) {
+  {
+    std::lock_guard lock(mutex_);
+    latency_.received(msg.sequence);
+  }
   const auto t0 = std::chrono::steady_clock::now();
   cv::Mat image = cv::imdecode(msg.data, cv::IMREAD_COLOR);
   const double decode_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  return render_decoded(msg, std::move(image), decode_ms, now_us);
+  const std::int64_t decoded_us = options_.threaded ? monotonic_us() : now_us + static_cast<std::int64_t>(decode_ms * 1000.0);
+  return render_decoded(msg, std::move(image), decode_ms, decoded_us, now_us);
 }
 
-FrameResult NavigationSession::render_decoded(const image_frame_t& msg, cv::Mat image, double decode_ms, std::int64_t now_us) {
+FrameResult NavigationSession::render_decoded(const image_frame_t& msg, cv::Mat image, double decode_ms, std::int64_t decoded_us,
+                                              std::int64_t now_us) {
   // The frame's time starts with its decode (done by the caller: live, the thread that
   // received it, while this thread may still draw the previous frame).
   const auto t0 = std::chrono::steady_clock::now() - std::chrono::duration_cast<std::chrono::steady_clock::duration>(
@@ -669,6 +681,7 @@ FrameResult NavigationSession::render_decoded(const image_frame_t& msg, cv::Mat 
   if (image.empty()) {
     std::lock_guard lock(mutex_);
     ++decode_failures_;
+    latency_.undecodable();
     return out;
   }
   const overlay::OverlayCamera camera = ensure_renderer(image.cols, image.rows);
@@ -820,27 +833,37 @@ FrameResult NavigationSession::render_decoded(const image_frame_t& msg, cv::Mat 
   const double render_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   out.row.render_done_mono_us = options_.threaded ? monotonic_us() : now_us + static_cast<std::int64_t>(render_ms * 1000.0);
   out.row.motion_to_photon_ms = static_cast<double>(out.row.render_done_mono_us - msg.capture_time_mono_us) * 1e-3;
+  out.row.publish_time_mono_us = msg.publish_time_mono_us;
+  out.row.receive_time_mono_us = now_us;
+  out.row.decode_done_mono_us = decoded_us;
   out.row.flags = r.flags;
   for (const auto& b : r.banners) out.banners.push_back(b.text);
   {
     std::lock_guard lock(mutex_);
     ++frames_displayed_;
-    latency_ms_.push_back(out.row.motion_to_photon_ms);
-    host_latency_ms_.push_back(static_cast<double>(out.row.render_done_mono_us - now_us) * 1e-3);
     render_ms_.push_back(render_ms);
     decode_ms_.push_back(decode_ms);
     overlay_ms_.push_back(overlay_ms);
     render_cpu_ms_.push_back(thread_cpu_ms() - cpu0);
     note_flags(out.row);
   }
+  double show_ms = 0.0;
   if (window_) {
-    // After "overlay ready" (the latency's end): upload to the window's texture and swap.
+    // After "overlay ready": upload to the window's texture and swap (the display stage).
     const auto d0 = std::chrono::steady_clock::now();
     window_->show(image);
     window_frames_ = window_->frames_shown();
     if (window_->close_requested()) window_closed_ = true;
+    show_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - d0).count();
     std::lock_guard lock(mutex_);
-    display_ms_.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - d0).count());
+    display_ms_.push_back(show_ms);
+  }
+  // Shown: the buffer swap done (window), or the frame handed to the recorder / the caller.
+  out.row.shown_mono_us = options_.threaded ? monotonic_us() : out.row.render_done_mono_us + static_cast<std::int64_t>(show_ms * 1000.0);
+  {
+    std::lock_guard lock(mutex_);
+    latency_.shown({msg.sequence, msg.capture_time_mono_us, msg.publish_time_mono_us, now_us, decoded_us, out.row.render_done_mono_us,
+                    out.row.shown_mono_us});
   }
   if (recorder_) recorder_->add(out.row, options_.keep_last_frame ? image.clone() : image);
   if (options_.keep_last_frame) {
@@ -900,9 +923,10 @@ nlohmann::json NavigationSession::summary_json(double run_s) {
                       {"max_ms", camera_gaps_ms_.empty() ? 0.0 : *std::max_element(camera_gaps_ms_.begin(), camera_gaps_ms_.end())}};
   j["decode_failures"] = decode_failures_;
   if (!options_.record_dir.empty()) j["video_frames_skipped"] = video_frames_skipped_;
-  j["motion_to_photon_ms"] = {{"p50", percentile(latency_ms_, 0.5)}, {"p99", percentile(latency_ms_, 0.99)},
-                              {"max", latency_ms_.empty() ? 0.0 : *std::max_element(latency_ms_.begin(), latency_ms_.end())}};
-  j["host_latency_ms"] = {{"p50", percentile(host_latency_ms_, 0.5)}, {"p99", percentile(host_latency_ms_, 0.99)}};
+  // Exposure -> shown by stage, misses (frame_latency.hpp); host processing latency =
+  // received -> overlay ready (what arnav-host-latency-bench measures).
+  j["latency"] = latency_.json();
+  j["host_processing_latency_ms"] = j["latency"]["host_processing_latency_ms"];
   j["render_ms"] = {{"p50", percentile(render_ms_, 0.5)}, {"p99", percentile(render_ms_, 0.99)}};  // whole frame
   j["jpeg_decode_ms"] = {{"p50", percentile(decode_ms_, 0.5)}, {"p99", percentile(decode_ms_, 0.99)}};
   j["overlay_render_ms"] = {{"p50", percentile(overlay_ms_, 0.5)}, {"p99", percentile(overlay_ms_, 0.99)}};  // OverlayRenderer::render
@@ -1005,12 +1029,24 @@ std::string NavigationSession::format_summary(double run_s) {
     os << "navigation: no camera (model only)\n";
   char line[256];
   if (config_.camera) {
+  const auto& lat = j["latency"];
+  const auto& st = lat["stages_ms"];
   std::snprintf(line, sizeof line,
-                "  motion-to-photon (capture -> overlay ready): p50 %.1f ms, p99 %.1f ms, max %.1f ms; frame arrival -> ready p50 %.1f ms, "
-                "p99 %.1f ms\n",
-                j["motion_to_photon_ms"]["p50"].get<double>(), j["motion_to_photon_ms"]["p99"].get<double>(),
-                j["motion_to_photon_ms"]["max"].get<double>(), j["host_latency_ms"]["p50"].get<double>(),
-                j["host_latency_ms"]["p99"].get<double>());
+                "  host processing latency (frame received -> overlay ready): p50 %.1f ms, p99 %.1f ms, max %.1f ms\n",
+                lat["host_processing_latency_ms"]["p50"].get<double>(), lat["host_processing_latency_ms"]["p99"].get<double>(),
+                lat["host_processing_latency_ms"]["max"].get<double>());
+  os << line;
+  {
+    std::lock_guard lock(mutex_);
+    os << "  " << latency_.summary_line() << "\n";
+  }
+  std::snprintf(line, sizeof line,
+                "    stages p50/p99 ms: exposure->published %.1f/%.1f, transport %.1f/%.1f, decode %.1f/%.1f, render %.1f/%.1f, "
+                "display %.1f/%.1f\n",
+                st["exposure_to_published"]["p50"].get<double>(), st["exposure_to_published"]["p99"].get<double>(),
+                st["transport"]["p50"].get<double>(), st["transport"]["p99"].get<double>(), st["decode"]["p50"].get<double>(),
+                st["decode"]["p99"].get<double>(), st["render"]["p50"].get<double>(), st["render"]["p99"].get<double>(),
+                st["display"]["p50"].get<double>(), st["display"]["p99"].get<double>());
   os << line;
   }
   if (j.contains("model")) {

@@ -36,6 +36,7 @@
 #include "arnav/input_event_t.hpp"
 #include "host/app/cpu_partition.hpp"
 #include "host/app/cut_trace.hpp"
+#include "host/app/frame_latency.hpp"
 #include "host/app/input_state.hpp"
 #include "host/app/live_registration.hpp"
 #include "host/app/model_runner.hpp"
@@ -102,10 +103,10 @@ class NavigationSession {
   // The channel on_cloud wants (empty: the session has no swab step).
   std::string swab_channel() const;
   // Live: decodes the frame (on the calling thread) and hands it to the rendering thread;
-  // a frame still waiting is replaced and counted as dropped.
+  // a frame still waiting is replaced and counted as dropped. now_us: when it was received.
   void submit_frame(const image_frame_t& msg, std::int64_t now_us);
   // Renders on the calling thread. render_done = now_us + the time the rendering took
-  // (live: the monotonic clock at the end).
+  // (live: the monotonic clock at the end); likewise decoded and shown (frame_latency.hpp).
   FrameResult render_frame(const image_frame_t& msg, std::int64_t now_us);
   // Replay: model steps due by now_us.
   void advance_model(std::int64_t now_us);
@@ -179,7 +180,8 @@ class NavigationSession {
   void hand_grasp(const tool_pose_t& msg, const std::optional<Eigen::Isometry3d>& X_RefTool, std::int64_t now_us);
   struct Resolved;
   Resolved resolve_poses(const image_frame_t& msg, std::int64_t now_us);
-  FrameResult render_decoded(const image_frame_t& msg, cv::Mat image, double decode_ms, std::int64_t now_us);
+  // decoded_us: when the decode ended (session clock); now_us: when the frame was received.
+  FrameResult render_decoded(const image_frame_t& msg, cv::Mat image, double decode_ms, std::int64_t decoded_us, std::int64_t now_us);
   void render_loop();
   // The renderer for frames of width x height (intrinsics scaled when they differ).
   overlay::OverlayCamera ensure_renderer(int width, int height);
@@ -252,9 +254,10 @@ class NavigationSession {
   std::condition_variable frame_cv_;
   struct PendingFrame {
     image_frame_t msg;            // without its JPEG bytes (decoded)
-    std::int64_t now_us = 0;
+    std::int64_t now_us = 0;      // received
     cv::Mat image;                // empty: undecodable
     double decode_ms = 0.0;
+    std::int64_t decoded_us = 0;  // decode done
   };
   std::optional<PendingFrame> pending_;
   bool stopping_ = false;
@@ -262,7 +265,8 @@ class NavigationSession {
 
   // Statistics.
   std::int64_t frames_received_ = 0, frames_displayed_ = 0, frames_dropped_ = 0, decode_failures_ = 0;
-  std::vector<double> latency_ms_, host_latency_ms_, render_ms_, decode_ms_, overlay_ms_, render_cpu_ms_;
+  std::vector<double> render_ms_, decode_ms_, overlay_ms_, render_cpu_ms_;
+  FrameLatency latency_;                               // with mutex_: exposure -> shown by stage, misses
   std::map<std::string, std::int64_t> flag_frames_;   // frames showing each flag
   std::map<std::string, std::int64_t> flag_episodes_; // onsets
   std::map<std::string, std::vector<std::pair<std::int64_t, std::int64_t>>> flag_spans_;  // capture time onset, recovery (-1 open)

@@ -15,7 +15,8 @@ namespace arnav::host {
 std::string csv_header() {
   return "camera_sequence,capture_time_mono_us,pose_time_mono_us,model_step_time_mono_us,render_done_mono_us,"
          "motion_to_photon_ms,tumour_u_px,tumour_v_px,blade_to_margin_mm,flags,cutting,cut_faces,cut_area_mm2,cut_path_error_mm,cut_events,"
-         "tumour_x_cam_mm,tumour_y_cam_mm,tumour_z_cam_mm";
+         "tumour_x_cam_mm,tumour_y_cam_mm,tumour_z_cam_mm,"
+         "publish_time_mono_us,receive_time_mono_us,decode_done_mono_us,shown_mono_us";
 }
 
 std::string csv_line(const FrameRow& r) {
@@ -37,6 +38,7 @@ std::string csv_line(const FrameRow& r) {
   os << ',';
   if (r.tumour_Cam_mm) os << std::setprecision(3) << r.tumour_Cam_mm->x << ',' << r.tumour_Cam_mm->y << ',' << r.tumour_Cam_mm->z;
   else os << ",,";
+  os << ',' << r.publish_time_mono_us << ',' << r.receive_time_mono_us << ',' << r.decode_done_mono_us << ',' << r.shown_mono_us;
   return os.str();
 }
 

@@ -5,8 +5,8 @@
 //
 // overlay.csv columns:
 //   camera_sequence, capture_time_mono_us, pose_time_mono_us (newest pose used),
-//   model_step_time_mono_us (model state drawn), render_done_mono_us, motion_to_photon_ms
-//   (capture -> overlay ready), tumour_u_px, tumour_v_px (projected tumour centroid, empty
+//   model_step_time_mono_us (model state drawn), render_done_mono_us (overlay ready),
+//   motion_to_photon_ms (exposure -> overlay ready; the name kept for old readers), tumour_u_px, tumour_v_px (projected tumour centroid, empty
 //   when not drawn), blade_to_margin_mm (empty without a fresh scalpel), flags
 //   ('|'-separated: reference_lost, reference_stale, scalpel_lost, scalpel_stale,
 //   camera_pose_lost, camera_pose_stale, camera_gap, model_unhealthy, pose_not_matched,
@@ -19,7 +19,10 @@
 //   previous frame: margin_entered, tumour_cut, vessel_crossed),
 //   then tumour_x_cam_mm, tumour_y_cam_mm, tumour_z_cam_mm: the drawn tumour centroid in the
 //   camera frame (the 3-D point tumour_u/v_px projects; empty when not drawn), for the
-//   bench's 3-D AR error (hil_tests/scenarios/ar_error.hpp).
+//   bench's 3-D AR error (hil_tests/scenarios/ar_error.hpp),
+//   then the frame's instants (frame_latency.hpp): publish_time_mono_us (the appliance's),
+//   receive_time_mono_us, decode_done_mono_us, shown_mono_us (buffer swap done, or handed
+//   to the recorder).
 // tumour_Cam.bin: the drawn first tumour's surface in the camera frame per frame it was
 // drawn, for the bench's surface distance (format: tumour_surface_file.hpp).
 #include <opencv2/core.hpp>
@@ -58,6 +61,10 @@ struct FrameRow {
   double cut_area_mm2 = 0.0;
   std::optional<double> cut_path_error_mm;
   std::string cut_events;
+  std::int64_t publish_time_mono_us = 0;
+  std::int64_t receive_time_mono_us = 0;
+  std::int64_t decode_done_mono_us = 0;
+  std::int64_t shown_mono_us = 0;
 };
 
 std::string csv_header();

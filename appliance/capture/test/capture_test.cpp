@@ -4,11 +4,14 @@
 
 #include <atomic>
 #include <fstream>
+#include <map>
+#include <sstream>
 #include <thread>
 
 #include "appliance/capture/capture.hpp"
 #include "appliance/capture/opencv_sources.hpp"
 #include "appliance/capture/synthetic_source.hpp"
+#include "protocol/clock.hpp"
 
 namespace arnav::capture {
 namespace {
@@ -153,6 +156,99 @@ TEST(SyntheticSource, WritesFramesAndGroundTruthBesideThem) {
   std::filesystem::remove_all(dir);
 }
 
+// Like a real camera: a frame is exposed at start + k / fps and delivered once its readout
+// (here 5 ms) has ended; rendering is the bench's, done ahead on its own thread.
+TEST(SyntheticSource, DeliversAfterTheReadoutWithTheExposureStamped) {
+  SyntheticSettings s = small_scene();
+  s.fps = 50.0;
+  s.readout_s = 0.005;
+  SyntheticSource src(s);
+  src.open();
+  Frame f;
+  std::int64_t first_exposure = -1;
+  for (int i = 0; i < 5; ++i) {
+    ASSERT_EQ(src.read(f).status, ReadStatus::Ok);
+    if (first_exposure < 0) first_exposure = f.capture_time_mono_us - f.sequence * 20'000;
+    // The exposure is the frame's place on the camera's clock, whatever the delivery.
+    EXPECT_EQ(f.capture_time_mono_us, first_exposure + f.sequence * 20'000);
+    EXPECT_GE(f.delivered_time_mono_us, f.capture_time_mono_us + 5'000);
+    EXPECT_GE(monotonic_us(), f.delivered_time_mono_us);
+  }
+  src.close();
+  EXPECT_EQ(src.counters().delivered, 5);
+}
+
+// A static scene is rendered once and only re-exposed with each frame's noise: every frame
+// is bit-identical to a full render of its scene with its seed (and differs from its
+// neighbour by the noise alone); a moving scene is rendered anew.
+TEST(SyntheticSource, StaticSceneReexposedBitIdenticalToAFullRender) {
+  for (const bool moving : {false, true}) {
+    SyntheticSettings s = small_scene();
+    if (!moving) {
+      s.boards[0].trajectory.amplitude_mm = Eigen::Vector3d::Zero();
+      s.boards[0].trajectory.tilt_deg = 0.0;
+      s.boards[0].trajectory.spin_deg = 0.0;
+    }
+    s.render.noise_sigma = 2.0;
+    s.render.blur_sigma_px = 0.7;
+    s.realtime = false;
+    s.frame_count = 3;
+    SyntheticSource src(s);
+    src.open();
+    camera_sim::SyntheticRenderer renderer(s.camera);
+    Frame f;
+    cv::Mat previous;
+    while (src.read(f).status == ReadStatus::Ok) {
+      camera_sim::RenderOptions opt = s.render;
+      opt.noise_seed = s.render.noise_seed + static_cast<std::uint64_t>(f.sequence);
+      const cv::Mat full = renderer.render({{&s.boards[0].board, src.X_CamBoard(0, f.sequence)}}, opt).image;
+      EXPECT_EQ(cv::countNonZero(full != f.image), 0) << (moving ? "moving" : "static") << " frame " << f.sequence;
+      if (!previous.empty()) {
+        EXPECT_GT(cv::countNonZero(previous != f.image), 0) << "the noise differs per frame";
+      }
+      previous = f.image.clone();
+    }
+  }
+}
+
+// A reader that falls behind loses frames, and each one is counted with its cause (never a
+// silent jump in the sequence): the timing file has every frame exactly once.
+TEST(SyntheticSource, FramesNotTakenInTimeAreCountedAsDropped) {
+  const auto dir = fresh_dir("timing");
+  SyntheticSettings s = small_scene();
+  s.fps = 100.0;
+  s.timing_csv = dir / "timing.csv";
+  SyntheticSource src(s);
+  src.open();
+  Frame f;
+  ASSERT_EQ(src.read(f).status, ReadStatus::Ok);
+  const std::int64_t first = f.sequence;
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));  // ten periods: the camera moves on
+  ASSERT_EQ(src.read(f).status, ReadStatus::Ok);
+  const std::int64_t second = f.sequence;
+  src.close();
+  ASSERT_GT(second, first + 1);
+  const SyntheticCounters c = src.counters();
+  EXPECT_EQ(c.delivered, 2);
+  // (and maybe frames after the second that the renderer, ahead, could no longer make)
+  EXPECT_GE(c.dropped_reader_late + c.dropped_render_late, second - first - 1);
+  std::ifstream in(s.timing_csv);
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line, kTimingCsvHeader);
+  std::map<std::int64_t, std::string> status;
+  while (std::getline(in, line)) {
+    const auto comma = line.find(',');
+    const std::int64_t seq = std::stoll(line.substr(0, comma));
+    EXPECT_TRUE(status.emplace(seq, line.substr(line.rfind(',') + 1)).second) << "frame " << seq << " written twice";
+  }
+  for (std::int64_t k = first; k <= second; ++k) {
+    ASSERT_TRUE(status.count(k)) << "frame " << k << " neither delivered nor counted as dropped";
+    EXPECT_EQ(status[k] == "delivered", k == first || k == second) << k << ": " << status[k];
+  }
+  std::filesystem::remove_all(dir);
+}
+
 TEST(Capture, LostCameraIsReopenedAndReported) {
   SyntheticSettings s = small_scene();
   s.fps = 50.0;
@@ -176,6 +272,48 @@ TEST(Capture, LostCameraIsReopenedAndReported) {
   // The frames of the outage are missing from the sequence and counted as dropped.
   EXPECT_GE(cap.stats().dropped_frames, 5);
   EXPECT_EQ(cap.stats().state, LinkState::Streaming);
+}
+
+// Unplugged for a while: the frames exposed meanwhile are absent, each with one timing row,
+// and every other frame of the run has one too (delivered or dropped).
+TEST(Capture, FramesOfAnOutageAreAbsentWithOneTimingRowEach) {
+  const auto dir = fresh_dir("outage_timing");
+  SyntheticSettings s = small_scene();
+  s.fps = 50.0;
+  s.outage_at_s = 0.2;
+  s.outage_duration_s = 0.3;
+  s.timing_csv = dir / "timing.csv";
+  std::int64_t last_seq = -1;
+  {
+    Capture cap(std::make_unique<SyntheticSource>(s), 0.05, nullptr);
+    std::atomic<bool> stop{false};
+    Frame f;
+    for (int i = 0; i < 40; ++i) {
+      ASSERT_EQ(cap.next(f, stop), Capture::Next::Frame);
+      last_seq = f.sequence;
+    }
+    ASSERT_EQ(cap.stats().reconnects, 1);
+  }
+  std::ifstream in(s.timing_csv);
+  std::string line;
+  std::getline(in, line);
+  std::map<std::int64_t, std::string> status;
+  while (std::getline(in, line)) {
+    const std::int64_t seq = std::stoll(line.substr(0, line.find(',')));
+    EXPECT_TRUE(status.emplace(seq, line.substr(line.rfind(',') + 1)).second) << "frame " << seq << " written twice";
+  }
+  int absent = 0;
+  for (std::int64_t k = 0; k <= last_seq; ++k) {
+    ASSERT_TRUE(status.count(k)) << "frame " << k << " has no timing row:\n" << [&] {
+      std::ifstream again(s.timing_csv);
+      std::stringstream all;
+      all << again.rdbuf();
+      return all.str();
+    }();
+    absent += status[k] == "absent";
+  }
+  EXPECT_GE(absent, 10);  // 0.3 s at 50 Hz (more when the machine stalls the reopen)
+  std::filesystem::remove_all(dir);
 }
 
 TEST(Capture, SlowConsumerSeesDroppedFrames) {

@@ -270,7 +270,9 @@ TEST(PhantomSource, GroundTruthHoldsDeformedTargetsProjectedLikeOpenCv) {
 TEST(PhantomSource, WorldClockEpochPicksThePhantomAtTheCaptureTime) {
   const auto dir = std::filesystem::temp_directory_path() / ("arnav_phepoch_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
-  capture::SyntheticSettings s = phantom_settings(dir, 20, true, 20);
+  // Enough frames that a renderer slowed by a busy machine still delivers three (a frame it
+  // cannot render in time is dropped, docs/camera.md "Timestamps").
+  capture::SyntheticSettings s = phantom_settings(dir, 20, true, 400);
   s.phantom->epoch_mono_us = monotonic_us() - 400'000;  // the world started 0.4 s before the camera opens
   const capture::SyntheticPhantom ph = *s.phantom;
   capture::SyntheticSource src(s);

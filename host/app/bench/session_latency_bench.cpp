@@ -1,10 +1,13 @@
-// arnav-host-latency-bench: motion-to-photon latency of the navigation session on this
-// machine, in process (no LCM, no appliance): frames (JPEG, width x height) and the
-// reference board pose of each are handed to a live NavigationSession at `rate` Hz, with
-// capture time = hand-over time, while its model runs on the scene at model_rate Hz on its
-// own thread. Latency = capture -> overlay frame ready (JPEG decode, poses, overlay render,
-// lens warp, composite, text; recording off). Prints JSON: latency p50/p99/max, frames
-// dropped by the host, model rate and step time.
+// arnav-host-latency-bench: host processing latency of the navigation session on this
+// machine, in process (no LCM, no appliance, no camera): frames (JPEG, width x height) and
+// the reference board pose of each are handed to a live NavigationSession at `rate` Hz
+// (exposure = publish = receive = hand-over time), while its model runs on the scene at
+// model_rate Hz on its own thread. Host processing latency (`host_processing_latency_ms`)
+// = frame received -> overlay ready (JPEG decode, poses, overlay render, lens warp,
+// composite, text; recording off); `latency` has the host's stages (decode, render,
+// display). Exposure to display with a camera, the appliance and the bus:
+// hil_tests/scenarios/latency_session.sh (docs/benchmarks.md). Prints JSON: latency,
+// frames dropped by the host, model rate and step time.
 // --cut (a scene with `cutting:`): the session also has a scalpel whose blade (60 mm,
 // upright in Model) circles the first tumour at --cut-radius mm once every --cut-period s,
 // 10 mm below its centre, with the pedal (inputs.cut_enable) held: the model is the cut
@@ -42,7 +45,7 @@ std::string load_average() {
 }  // namespace
 
 static int main_body(int argc, char** argv) {
-  CLI::App app{"arnav-host-latency-bench: capture -> overlay ready latency of the navigation session (JSON)"};
+  CLI::App app{"arnav-host-latency-bench: host processing latency (frame received -> overlay ready) of the navigation session (JSON)"};
   std::string scene_path;
   int width = 1280, height = 720;
   double rate = 60.0, model_rate = 60.0, seconds = 20.0;
@@ -162,7 +165,9 @@ static int main_body(int argc, char** argv) {
       image_frame_t fr{};
       fr.camera_name = "bench";
       fr.sequence = k;
-      fr.capture_time_mono_us = t;
+      fr.capture_time_mono_us = t;  // exposure = publish = receive = hand-over: only the host's stages are measured
+      fr.capture_time_wall_us = wall_us();
+      fr.publish_time_mono_us = t;
       fr.width = fr.source_width = width;
       fr.height = fr.source_height = height;
       fr.channels = 3;
