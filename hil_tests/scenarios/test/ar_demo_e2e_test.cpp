@@ -100,8 +100,10 @@ std::vector<CutVertexRow> read_cut_vertices(const std::filesystem::path& path) {
 // The cut-path error in the material (docs/overlay.md): the per-step worst new cut vertex
 // against the surfaces the blade swept. The tail (p95 9.4-11.3 mm on some logs) came from
 // completions of tets the blade never crossed (docs/cut.md, issue 20); with completions
-// checked in the material, five logs replay at p95 2.7-3.0, max 3.5-4.3 mm. Issue 20's target
-// (p95 <= 1.0, max <= 3.0 mm) is not met yet: the bound held here is the one before it.
+// checked in the material and mid-points moved onto the cut's lips, four old logs replay at
+// p95 1.0-2.7, max 2.7-4.1 mm, but new logs with realistic sensors still show completions up
+// to 8.7-18.8 mm off (docs/benchmarks.md). Issue 20's target (p95 <= 1.0, max <= 3.0 mm) is
+// not met: the bound held here is the one before it.
 void expect_cut_on_the_blades_path(const nlohmann::json& cutting, const char* run) {
   EXPECT_GT(cutting["cut_faces"].get<int>(), 20) << run << ": " << cutting.dump();
   EXPECT_LT(cutting["path_error_mm"]["p50"].get<double>(), 0.5) << run << ": " << cutting.dump();
