@@ -44,7 +44,7 @@ namespace arnav::host {
 
 struct ModelSnapshot {
   std::int64_t step = 0;
-  std::int64_t step_done_mono_us = 0;   // session clock when the step finished
+  std::int64_t step_done_mono_us = 0;   // session clock the step was run at (advance_to's now, taken before it ran)
   std::int64_t step_device_time_us = -1;  // the step's time on the device clock (-1: the rest state)
   double step_ms = 0.0;                 // wall time of the step
   bool healthy = true;
