@@ -62,7 +62,7 @@ ar_start_host() {
 
 # Waits until the appliance (pid $1) reports its camera's last frame (at most $2 tenths of
 # a second), stops the bus attacker if one runs (attacker_pid), then the appliance, the host
-# and the logger (sets app_rc, the appliance's exit code).
+# and the logger if one runs (sets app_rc, the appliance's exit code).
 ar_finish() {
   local app_pid=$1 limit=$2
   for _ in $(seq 1 "$limit"); do
@@ -81,8 +81,10 @@ ar_finish() {
   wait "$app_pid" || app_rc=$?
   kill -TERM "$host_pid"
   wait "$host_pid" || true
-  kill -TERM "$logger_pid"
-  wait "$logger_pid" || true
+  if [ -n "${logger_pid:-}" ]; then
+    kill -TERM "$logger_pid"
+    wait "$logger_pid" || true
+  fi
 }
 
 # The host's own summary block.

@@ -91,17 +91,7 @@ ar_start_host "$host" >/dev/null
 app_pid=$!
 pids+=("$app_pid")
 limit=$(python3 -c "import sys; print(int(float(sys.argv[1]) * 10) + 600)" "$seconds")
-for _ in $(seq 1 "$limit"); do
-  grep -q "CAMERA_END" "$out/appliance.log" 2>/dev/null && break
-  kill -0 "$app_pid" 2>/dev/null || break
-  sleep 0.1
-done
-sleep 1
-kill -TERM "$app_pid" 2>/dev/null || true
-app_rc=0
-wait "$app_pid" || app_rc=$?
-kill -TERM "$host_pid"
-wait "$host_pid" || true
+ar_finish "$app_pid" "$limit"
 trap - EXIT
 [ "$app_rc" -eq 0 ] || { echo "latency_session.sh: arnav-appliance exited $app_rc:" >&2; tail -20 "$out/appliance.log" >&2; exit 1; }
 rc=0
