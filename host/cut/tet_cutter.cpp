@@ -244,8 +244,7 @@ void TetCutter::place_on_material_stroke(int m, Eigen::Matrix3Xd& x, Eigen::Matr
   // Its place now for a move by `fraction` towards the target: the tet of m's star holding the
   // new rest position, by its weights; false when no tet of the star holds it or the move is
   // not allowed.
-  std::vector<Eigen::Vector3d> x_new(1);
-  Eigen::Vector3d rest_new, v_new;
+  Eigen::Vector3d rest_new, x_new, v_new;
   const auto place = [&](double fraction) {
     rest_new = from + fraction * (target - from);
     for (int tt : vertex_tets_[static_cast<std::size_t>(m)]) {
@@ -255,13 +254,13 @@ void TetCutter::place_on_material_stroke(int m, Eigen::Matrix3Xd& x, Eigen::Matr
       const Eigen::Vector3d l = D.partialPivLu().solve(rest_new - rest.col(tet[0]));
       const Eigen::Vector4d w(1.0 - l.sum(), l[0], l[1], l[2]);
       if (!w.allFinite() || w.minCoeff() < -1e-9) continue;
-      x_new[0].setZero();
+      x_new.setZero();
       v_new.setZero();
       for (int k = 0; k < 4; ++k) {
-        x_new[0] += w[k] * x.col(tet[static_cast<std::size_t>(k)]);
+        x_new += w[k] * x.col(tet[static_cast<std::size_t>(k)]);
         if (v.cols() == x.cols()) v_new += w[k] * v.col(tet[static_cast<std::size_t>(k)]);
       }
-      return can_move({m}, rest_new, x_new, x, true);
+      return can_move(m, rest_new, x_new, x, true);
     }
     return false;
   };
@@ -280,7 +279,7 @@ void TetCutter::place_on_material_stroke(int m, Eigen::Matrix3Xd& x, Eigen::Matr
     if (allowed == 0.0 || !place(allowed)) return;
   }
   mesh_.rest_positions_World_mm.col(m) = rest_new;
-  x.col(m) = x_new[0];
+  x.col(m) = x_new;
   if (v.cols() == x.cols()) v.col(m) = v_new;
 }
 
@@ -611,22 +610,22 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
   return true;
 }
 
-bool TetCutter::can_move(const std::vector<int>& copies, const Eigen::Vector3d& rest_new, const std::vector<Eigen::Vector3d>& x_new,
-                         const Eigen::Matrix3Xd& x, bool on_cut_lips) const {
+bool TetCutter::can_move(int w, const Eigen::Vector3d& rest_new, const Eigen::Vector3d& x_new, const Eigen::Matrix3Xd& x,
+                         bool on_cut_lips) const {
   // Interior vertices only (or on this stroke's lips): moving a vertex of the organ's surface
   // would change the tissue's shape and volume.
+  const std::vector<int>& star = vertex_tets_[static_cast<std::size_t>(w)];
   bool on_boundary = false;
-  for (int w : copies)
-    for (int tt : vertex_tets_[static_cast<std::size_t>(w)]) {
-      const auto& tet = mesh_.tets[static_cast<std::size_t>(tt)];
-      for (const auto& fc : kFaces) {
-        const int f0 = tet[static_cast<std::size_t>(fc[0])], f1 = tet[static_cast<std::size_t>(fc[1])], f2 = tet[static_cast<std::size_t>(fc[2])];
-        if ((f0 != w && f1 != w && f2 != w) || tets_with_face(face_key(f0, f1, f2)) == 2) continue;
-        if (!on_cut_lips || !on_stroke(f0) || !on_stroke(f1) || !on_stroke(f2)) return false;
-        on_boundary = true;
-      }
+  for (int tt : star) {
+    const auto& tet = mesh_.tets[static_cast<std::size_t>(tt)];
+    for (const auto& fc : kFaces) {
+      const int f0 = tet[static_cast<std::size_t>(fc[0])], f1 = tet[static_cast<std::size_t>(fc[1])], f2 = tet[static_cast<std::size_t>(fc[2])];
+      if ((f0 != w && f1 != w && f2 != w) || tets_with_face(face_key(f0, f1, f2)) == 2) continue;
+      if (!on_cut_lips || !on_stroke(f0) || !on_stroke(f1) || !on_stroke(f2)) return false;
+      on_boundary = true;
     }
-  const auto volume_with = [&](const Eigen::Matrix3Xd& pos, int tt, int w, const Eigen::Vector3d& pw) {
+  }
+  const auto volume_with = [&](const Eigen::Matrix3Xd& pos, int tt, const Eigen::Vector3d& pw) {
     Eigen::Vector3d q[4];
     for (int k = 0; k < 4; ++k) {
       const int u = mesh_.tets[static_cast<std::size_t>(tt)][static_cast<std::size_t>(k)];
@@ -640,17 +639,14 @@ bool TetCutter::can_move(const std::vector<int>& copies, const Eigen::Vector3d& 
   // organ's surface moved off it would change the organ).
   const Eigen::Matrix3Xd& rest = mesh_.rest_positions_World_mm;
   double rest_before = 0.0, rest_after = 0.0, now_before = 0.0, now_after = 0.0;
-  for (std::size_t i = 0; i < copies.size(); ++i) {
-    const int w = copies[i];
-    for (int tt : vertex_tets_[static_cast<std::size_t>(w)]) {
-      const double before = volume_with(rest, tt, w, rest.col(w)), after = volume_with(rest, tt, w, rest_new);
-      const double before_now = volume_with(x, tt, w, x.col(w)), after_now = volume_with(x, tt, w, x_new[i]);
-      if (!(after >= 0.25 * before) || !(after_now >= 0.25 * before_now)) return false;
-      rest_before += before;
-      rest_after += after;
-      now_before += before_now;
-      now_after += after_now;
-    }
+  for (int tt : star) {
+    const double before = volume_with(rest, tt, rest.col(w)), after = volume_with(rest, tt, rest_new);
+    const double before_now = volume_with(x, tt, x.col(w)), after_now = volume_with(x, tt, x_new);
+    if (!(after >= 0.25 * before) || !(after_now >= 0.25 * before_now)) return false;
+    rest_before += before;
+    rest_after += after;
+    now_before += before_now;
+    now_after += after_now;
   }
   return !on_boundary ||
          (std::abs(rest_after - rest_before) <= 1e-9 * rest_before && std::abs(now_after - now_before) <= 1e-6 * now_before);
@@ -659,7 +655,7 @@ bool TetCutter::can_move(const std::vector<int>& copies, const Eigen::Vector3d& 
 bool TetCutter::move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r) {
   const Eigen::Vector3d rest_new = (1 - t) * mesh_.rest_positions_World_mm.col(w) + t * mesh_.rest_positions_World_mm.col(o);
   const Eigen::Vector3d x_new = (1 - t) * x.col(w) + t * x.col(o);
-  if (!can_move({w}, rest_new, {x_new}, x, false)) return false;
+  if (!can_move(w, rest_new, x_new, x, false)) return false;
   const std::vector<int>& star = vertex_tets_[static_cast<std::size_t>(w)];
   mesh_.rest_positions_World_mm.col(w) = rest_new;
   x.col(w) = x_new;

@@ -189,13 +189,11 @@ class TetCutter {
   void place_on_material_stroke(int m, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v);
   // Adds tet t to the watch list when it has a vertex on this stroke's cut.
   void watch_tet(int t);
-  // Vertices `copies` (one vertex, or a vertex and its copies) may move to rest_new (shared,
-  // rest) and x_new (each one's, now): every tet around keeps a quarter of its volume at rest
-  // and now, and the vertex is interior, or with on_cut_lips on this stroke's lips with the
-  // tets around keeping their volume together at rest and now (lips still closed there; a
+  // Vertex w may move to rest_new (rest) and x_new (now): every tet around keeps a quarter of
+  // its volume at rest and now, and w is interior, or with on_cut_lips on this stroke's lips
+  // with its tets keeping their volume together at rest and now (lips still closed there; a
   // vertex of the organ's surface moved off it does not keep it).
-  bool can_move(const std::vector<int>& copies, const Eigen::Vector3d& rest_new, const std::vector<Eigen::Vector3d>& x_new,
-                const Eigen::Matrix3Xd& x, bool on_cut_lips) const;
+  bool can_move(int w, const Eigen::Vector3d& rest_new, const Eigen::Vector3d& x_new, const Eigen::Matrix3Xd& x, bool on_cut_lips) const;
   bool move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   int add_vertex(const VertexOrigin& o, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   void split_edge(int a, int b, double t_ab, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r,
