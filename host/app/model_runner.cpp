@@ -40,6 +40,7 @@ ModelRunner::ModelRunner(const Scene& scene, double rate_hz, bool gravity, doubl
       nice_(nice),
       clock_(rate_hz, clock.input_wait_ms, clock.catch_up_ms, clock.tool_gap_ms),
       blade_stale_us_(std::llround(clock.blade_stale_ms * 1e3)),
+      blade_bridge_us_(std::llround(std::max(clock.blade_stale_ms, clock.input_wait_ms) * 1e3)),
       path_meter_(static_cast<int>(120 * rate_hz)) {  // two minutes of cutting at one sweep a step
   if (cutting) {
     Scene copy = scene;
@@ -215,10 +216,21 @@ void ModelRunner::apply_grasp(GraspBody& body, const ModelStepInputs& in) {
 }
 
 void ModelRunner::apply_blade_sample(const BladeSample& b, std::vector<ModelCutEvent>& events, std::optional<CutStepRecord>& record) {
+  // A gap in the blade's samples (the tracker missed the scalpel's markers, replies were lost
+  // or late) does not end the stroke: the blade coming back within the longer of the
+  // scalpel's stale_after_ms and model.input_wait_ms (the time the model waits for a late
+  // stream before it counts it lost) goes on cutting from where it was; the sweep starts from
+  // the last blade carried with the tissue (a 20 mm/s ring: a 4 mm chord after 200 ms, 0.1 mm
+  // from the arc). Only a longer gap ends the stroke (the stroke's end completes the tets the
+  // blade crossed; the next sample then only places itself). Issue 20: a 150 ms tracker
+  // timeout on a loaded machine ended the ring's stroke mid-way, and its completions put cut
+  // vertices up to 18 mm from the blade's path in the material.
+  const bool stale = !last_blade_ || b.device_time_us - last_blade_->device_time_us > blade_bridge_us_;
   if (!b.blade_Model_mm) {
-    blade_gap_ = true;
+    if (stale) blade_gap_ = true;
     return;
   }
+  if (stale) blade_gap_ = true;
   const bool cuts = b.cutting && !blade_gap_;
   const cut::CutFrameReport cr = cut_->apply_blade(cut::BladeSegment{(*b.blade_Model_mm)[0], (*b.blade_Model_mm)[1]}, cuts);
   blade_gap_ = false;
@@ -250,17 +262,27 @@ void ModelRunner::apply_blade_sample(const BladeSample& b, std::vector<ModelCutE
 }
 
 void ModelRunner::apply_blades(const ModelStepInputs& in, std::vector<ModelCutEvent>& events, std::optional<CutStepRecord>& record) {
-  if (in.blades.empty()) {
-    // No new sample: the blade stays where it was while it is fresh (the tissue may move
-    // across it); older, the scalpel is lost and the next sample only places itself.
-    if (last_blade_ && last_blade_->blade_Model_mm && in.device_time_us - last_blade_->device_time_us <= blade_stale_us_)
-      apply_blade_sample(*last_blade_, events, record);
-    else
-      blade_gap_ = true;
+  bool blade_seen = false;
+  for (const BladeSample& b : in.blades) {
+    apply_blade_sample(b, events, record);
+    if (b.blade_Model_mm) {
+      last_blade_ = b;
+      blade_seen = true;
+    }
+  }
+  if (blade_seen) return;
+  // No new sample with the blade: the blade stays where it was while it is fresh (the tissue
+  // may move across it); older, it is not held, and past the bridge the scalpel is lost (the
+  // stroke ends at the next sample, which only places itself).
+  if (!last_blade_) {
+    blade_gap_ = true;
     return;
   }
-  for (const BladeSample& b : in.blades) apply_blade_sample(b, events, record);
-  last_blade_ = in.blades.back();
+  const std::int64_t age_us = in.device_time_us - last_blade_->device_time_us;
+  if (age_us <= blade_stale_us_)
+    apply_blade_sample(*last_blade_, events, record);
+  else if (age_us > blade_bridge_us_)
+    blade_gap_ = true;
 }
 
 void ModelRunner::step_once(const ModelStepInputs* in, std::int64_t now_us) {

@@ -189,7 +189,8 @@ class ModelRunner {
   GraspStatus grasp_status_;              // guarded by mutex_ (copy after each step)
   ModelInputClock clock_;                 // guarded by mutex_
   std::int64_t blade_stale_us_;
-  std::optional<BladeSample> last_blade_;  // model thread: the newest applied
+  std::int64_t blade_bridge_us_;  // a gap in the blade's samples up to this long does not end the stroke
+  std::optional<BladeSample> last_blade_;  // model thread: the newest applied with a blade
   std::deque<std::shared_ptr<const ModelSnapshot>> recent_;  // sessions with inputs: the last second's snapshots (mutex_)
   std::int64_t grasper_device_time_us_ = -1;                 // model thread
   bool blade_gap_ = true;  // no blade applied yet, or it was missing: the next one only places itself
