@@ -529,6 +529,32 @@ void Session::begin_recovery(std::string_view code, const std::string& why) {
   emit(Severity::Warning, "NDI_RECOVERING", "re-initialising " + port_name_ + " after: " + why);
 }
 
+bool Session::last_chance_poll(std::string_view mode, Frame& frame, Outcome& outcome) {
+  // Replies missing timeouts_before_recovery times in a row: before the re-initialisation
+  // (a break, up to reset_wait for RESET, baud probing, ROMs again: ~4 s without poses) the
+  // command is sent once more and given setup_timeout to answer. A link that only stalled (a
+  // pty on a loaded machine; a USB-serial adapter's latency spike) answers and tracking goes
+  // on (NDI_RESYNCED); a device that is gone or reset does not, and recovery starts.
+  const std::string why = std::to_string(consecutive_timeouts_) + " consecutive " + std::string(mode) + " replies missing on " + port_name_;
+  if (!streaming_) {
+    try {
+      outcome = transact(use_bx2_ ? bx2_command_ : use_bx_ ? bx_command_ : tx_command_, config_.setup_timeout, use_bx_ || use_bx2_, frame);
+    } catch (const PortLost& e) {
+      close_port();
+      begin_recovery("NDI_PORT_LOST", e.what());
+      return false;
+    }
+    if (outcome != Outcome::Timeout) {
+      emit(Severity::Warning, "NDI_RESYNCED", why + "; the device answered within " + std::to_string(config_.setup_timeout.count()) + " ms: tracking goes on");
+      consecutive_timeouts_ = 0;
+      return true;
+    }
+    ++counters_.timeouts;
+  }
+  begin_recovery("NDI_TIMEOUT", why);
+  return false;
+}
+
 PollResult Session::poll(TrackingReply& out, std::int64_t& receive_mono_us) {
   out.count = 0;
   if (state_ != LinkState::Tracking || !transport_) return PollResult::Failed;
@@ -550,12 +576,11 @@ PollResult Session::poll(TrackingReply& out, std::int64_t& receive_mono_us) {
   if (outcome == Outcome::Timeout) {
     ++counters_.timeouts;
     ++consecutive_timeouts_;
-    if (consecutive_timeouts_ >= config_.timeouts_before_recovery) {
-      begin_recovery("NDI_TIMEOUT", std::to_string(consecutive_timeouts_) + " consecutive " + std::string(mode) + " replies missing on " + port_name_);
-    } else {
+    if (consecutive_timeouts_ < config_.timeouts_before_recovery) {
       emit(Severity::Warning, "NDI_TIMEOUT", std::string(mode) + " reply missing on " + port_name_);
+      return PollResult::Failed;
     }
-    return PollResult::Failed;
+    if (!last_chance_poll(mode, frame, outcome)) return PollResult::Failed;
   }
   consecutive_timeouts_ = 0;
   if (outcome == Outcome::Reply) {

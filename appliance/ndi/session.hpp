@@ -184,6 +184,8 @@ class Session {
   bool load_tool(LoadedTool& tool);
   void fail_bring_up(const std::string& why);
 
+  // The last poll before a recovery: true when the device answered it (frame, outcome set).
+  bool last_chance_poll(std::string_view mode, Frame& frame, Outcome& outcome);
   void begin_recovery(std::string_view code, const std::string& why);
   void emit(Severity s, std::string_view code, std::string text);
   void set_baud(int baud);

@@ -225,7 +225,7 @@ TEST(Session, RecoversFromASpontaneousDeviceReset) {
   EXPECT_EQ(h.count("NDI_RECOVERED"), 1);
   ASSERT_EQ(h.poll(t), PollResult::NewFrame);
   EXPECT_EQ(t.count, 2u);
-  EXPECT_EQ(h.session->counters().timeouts, 3);
+  EXPECT_EQ(h.session->counters().timeouts, 4);  // three polls and the last-chance poll before recovery
 }
 
 TEST(Session, ResetMessageWhileTrackingIsReported) {
@@ -275,6 +275,34 @@ TEST(Session, IsolatedTimeoutsAndErrorsAreCountedWithoutRecovery) {
   EXPECT_EQ(h.count("NDI_ERROR_REPLY"), 1);
   EXPECT_NE(h.events.back().text.find("INVALID_IN_MODE"), std::string::npos);
   EXPECT_EQ(h.session->state(), LinkState::Tracking);
+}
+
+// A link that stalls (three replies in a row missing: a pty on a loaded machine) but answers
+// the last-chance poll goes on tracking without the ~4 s re-initialisation; one that stays
+// silent is recovered as before.
+TEST(Session, StalledLinkThatAnswersAgainIsNotReinitialised) {
+  Harness h;
+  ASSERT_TRUE(h.session->start());
+  TrackingReply t;
+  h.dev->drop_replies = 3;
+  EXPECT_EQ(h.poll(t), PollResult::Failed);
+  EXPECT_EQ(h.poll(t), PollResult::Failed);
+  EXPECT_EQ(h.poll(t), PollResult::NewFrame);  // the third timeout's last-chance poll is answered
+  EXPECT_EQ(h.session->state(), LinkState::Tracking);
+  EXPECT_EQ(h.count("NDI_RESYNCED"), 1);
+  EXPECT_EQ(h.count("NDI_RECOVERING"), 0);
+  EXPECT_EQ(h.session->counters().timeouts, 3);
+  EXPECT_EQ(h.poll(t), PollResult::NewFrame);
+
+  h.dev->drop_replies = 4;  // silent through the last chance too: recovery
+  EXPECT_EQ(h.poll(t), PollResult::Failed);
+  EXPECT_EQ(h.poll(t), PollResult::Failed);
+  EXPECT_EQ(h.poll(t), PollResult::Failed);
+  EXPECT_EQ(h.session->state(), LinkState::Recovering);
+  EXPECT_EQ(h.count("NDI_RECOVERING"), 1);
+  EXPECT_EQ(h.session->counters().timeouts, 7);
+  ASSERT_TRUE(h.session->start());
+  EXPECT_EQ(h.poll(t), PollResult::NewFrame);
 }
 
 TEST(Session, FrameCounterGapsAreDroppedFrames) {
