@@ -15,6 +15,33 @@ target_compile_options(arnav_warnings INTERFACE
 if(ARNAV_SANITIZE)
   add_compile_options(-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined)
   add_link_options(-fsanitize=address,undefined)
+  # Line tables are all that ASan/UBSan reports need (file:line per frame, inlined frames
+  # included); full -g (RelWithDebInfo) described every type and variable as well, which
+  # cost compile and link time for nothing the sanitizer prints (docs/machine-notes.md,
+  # "Build time"). ARNAV_SANITIZE_FULL_DEBUG_INFO=ON keeps full -g for a debugger session.
+  option(ARNAV_SANITIZE_FULL_DEBUG_INFO "Sanitizer build: full -g instead of line tables only" OFF)
+  if(NOT ARNAV_SANITIZE_FULL_DEBUG_INFO)
+    if(CMAKE_CXX_COMPILER_ID MATCHES "Clang")
+      add_compile_options(-gline-tables-only)  # after the build type's -g: the last one wins
+    else()
+      add_compile_options(-g1)
+    endif()
+  endif()
+endif()
+
+# Linker: ld.lld links the ~150 test programs in a fraction of GNU ld's time (docs/
+# machine-notes.md, "Build time"). Used when the compiler accepts -fuse-ld=lld; otherwise
+# the default linker, with a message. ARNAV_USE_LLD=OFF forces the default.
+option(ARNAV_USE_LLD "Link with ld.lld when the compiler can use it" ON)
+if(ARNAV_USE_LLD)
+  include(CheckLinkerFlag)
+  check_linker_flag(CXX -fuse-ld=lld ARNAV_HAVE_LLD)
+  if(ARNAV_HAVE_LLD)
+    add_link_options(-fuse-ld=lld)
+    message(STATUS "ARNAV: linking with ld.lld")
+  else()
+    message(STATUS "ARNAV: ld.lld not usable with ${CMAKE_CXX_COMPILER} (-fuse-ld=lld failed): default linker")
+  endif()
 endif()
 
 if(ARNAV_FUZZ AND NOT CMAKE_CXX_COMPILER_ID MATCHES "Clang")
@@ -53,6 +80,29 @@ function(arnav_add_test)
   if(T_LABELS)
     set_tests_properties(${T_NAME} PROPERTIES LABELS "${T_LABELS}")
   endif()
+  arnav_note_test_target(${T_NAME} "${T_LABELS}")
+  set_property(GLOBAL APPEND PROPERTY ARNAV_GTEST_TARGETS ${T_NAME})  # precompiled header (ArnavPch.cmake)
+endfunction()
+
+# ARNAV_BUILD_TEST_LABELS (a ctest -L regular expression, e.g. the sanitizer build's
+# "appliance|hil|fuzz|sanitize"): target arnav_label_tests builds the programs of the tests
+# with a matching label, and through their dependencies whatever those tests run; the
+# sanitizer build builds only that (scripts/build asan), not the benchmarks and the tests
+# it never runs. Empty: arnav_label_tests builds every test.
+set(ARNAV_BUILD_TEST_LABELS "" CACHE STRING "ctest -L regex: arnav_label_tests builds the programs of these tests")
+function(arnav_note_test_target target labels)
+  set(match FALSE)
+  if(ARNAV_BUILD_TEST_LABELS STREQUAL "")
+    set(match TRUE)
+  endif()
+  foreach(label ${labels})
+    if(label MATCHES "${ARNAV_BUILD_TEST_LABELS}")
+      set(match TRUE)
+    endif()
+  endforeach()
+  if(match)
+    set_property(GLOBAL APPEND PROPERTY ARNAV_LABEL_TEST_TARGETS ${target})
+  endif()
 endfunction()
 
 # arnav_add_fuzzer(NAME name SOURCES a.cpp LIBS ... [SEEDS dir])
@@ -76,4 +126,5 @@ function(arnav_add_fuzzer)
   add_test(NAME ${F_NAME}_smoke
     COMMAND sh -c "mkdir -p '${corpus}' && exec \"$0\" \"$@\"" $<TARGET_FILE:${F_NAME}> ${args})
   set_tests_properties(${F_NAME}_smoke PROPERTIES LABELS "fuzz" TIMEOUT 120)
+  arnav_note_test_target(${F_NAME} fuzz)
 endfunction()
