@@ -518,6 +518,50 @@ TEST(GraspCutting, TrackerGapsMidStrokeDoNotTakeTheCutOffThePath) {
   EXPECT_LE(e.back(), 3.0);
 }
 
+// A blade that comes back from a tracker gap far from where it was (lifted out and put in
+// 30 mm along while the tracker missed it, the pedal held) starts a new stroke: no cut is
+// drawn across the 30 mm it never went through (the gap bridge holds for a blade back within
+// 10 mm only).
+TEST(GraspCutting, BladeBackFarFromAGapDoesNotCutAChord) {
+  Scene scene = load_scene(data_dir() + "/liver/liver_coarse_cut.scene.yaml");
+  ASSERT_TRUE(scene.cutting.has_value());
+  cut::CutSessionSettings settings;
+  settings.cut.snap_fraction = scene.cutting->snap_fraction;
+  settings.sweep_strips = scene.cutting->sweep_strips;
+  settings.tumour_margin_mm = scene.cutting->tumour_margin_mm;
+  ModelRunner runner(scene, 60.0, false, 5.0, 0, settings);
+  runner.expect_blade();
+  const Eigen::Matrix3Xd rest = scene.organ_embedding.apply(scene.problem.mesh, scene.problem.mesh.rest_positions_World_mm);
+  Eigen::Index v0 = 0;
+  (rest.colwise() - Eigen::Vector3d(70, 160, 60)).colwise().squaredNorm().minCoeff(&v0);
+  const Eigen::Vector3d p0 = rest.col(v0);
+  const auto blade = [&](double y) {
+    return std::array<Eigen::Vector3d, 2>{Eigen::Vector3d(p0.x() + 30, y, p0.z() - 20), Eigen::Vector3d(p0.x() + 30, y, p0.z() + 40)};
+  };
+  const std::int64_t t0 = 60 * 16'667;
+  const double y_gap = p0.y() - 30, y_back = y_gap + 30;  // the blade leaves the tracker at y_gap, is back at y_back
+  std::int64_t host = t0;
+  for (int k = 0; k < 120; ++k) {
+    const std::int64_t t = t0 + k * 16'667;
+    for (int j = 0; j < 4; ++j) {
+      const std::int64_t ts = t + j * 4'167;
+      const double s = (ts - t0) * 1e-6;  // 20 mm/s along y from y_gap - 10, then 200 ms unseen
+      double y = y_gap - 10 + 20.0 * std::min(s, 0.5);
+      if (s > 0.5 && s < 0.7) continue;
+      if (s >= 0.7) y = y_back + 20.0 * (s - 0.7);
+      runner.push_blade({ts, blade(y), true}, ts + 1'000);
+    }
+    host = t + 1'000;
+  }
+  runner.advance_to(host + 50'000);
+  const std::vector<ModelRunner::CutVertex> cut = runner.cut_vertices();
+  ASSERT_GT(cut.size(), 10u);
+  int across = 0;
+  for (const auto& c : cut)
+    if (c.rest_mm.y() > y_gap + 5 && c.rest_mm.y() < y_back - 5) ++across;
+  EXPECT_EQ(across, 0) << "cut vertices in the 30 mm the blade skipped while unseen";
+}
+
 }  // namespace
 }  // namespace arnav::host
 
