@@ -215,6 +215,19 @@ void ModelRunner::apply_grasp(GraspBody& body, const ModelStepInputs& in) {
   grasp_status_ = grasp_->status();
 }
 
+bool ModelRunner::gap_ends_stroke(const BladeSample& b) const {
+  if (!last_blade_) return true;
+  const std::int64_t gap_us = b.device_time_us - last_blade_->device_time_us;
+  if (gap_us > blade_bridge_us_) return true;
+  if (!b.blade_Model_mm || gap_us <= blade_stale_us_) return false;
+  // Bridged only where the straight sweep is a fair guess of the path: a blade back more than
+  // kMaxBridgeMm from where it was (lifted out and put in elsewhere while the tracker missed
+  // it) starts a new stroke instead of cutting a chord through tissue it never went through.
+  constexpr double kMaxBridgeMm = 10.0;  // a 10 mm chord of a 21 mm ring: 0.6 mm from the arc
+  return std::max(((*b.blade_Model_mm)[0] - (*last_blade_->blade_Model_mm)[0]).norm(),
+                  ((*b.blade_Model_mm)[1] - (*last_blade_->blade_Model_mm)[1]).norm()) > kMaxBridgeMm;
+}
+
 void ModelRunner::apply_blade_sample(const BladeSample& b, std::vector<ModelCutEvent>& events, std::optional<CutStepRecord>& record) {
   // A gap in the blade's samples (the tracker missed the scalpel's markers, replies were lost
   // or late) does not end the stroke: the blade coming back within the longer of the
@@ -225,17 +238,8 @@ void ModelRunner::apply_blade_sample(const BladeSample& b, std::vector<ModelCutE
   // blade crossed; the next sample then only places itself). Issue 20: a 150 ms tracker
   // timeout on a loaded machine ended the ring's stroke mid-way, and its completions put cut
   // vertices up to 18 mm from the blade's path in the material.
-  const std::int64_t gap_us = last_blade_ ? b.device_time_us - last_blade_->device_time_us : 0;
-  if (!last_blade_ || gap_us > blade_bridge_us_) blade_gap_ = true;
+  if (gap_ends_stroke(b)) blade_gap_ = true;
   if (!b.blade_Model_mm) return;
-  // Bridged only where the straight sweep is a fair guess of the path: a blade back more than
-  // kMaxBridgeMm from where it was (lifted out and put in elsewhere while the tracker missed
-  // it) starts a new stroke instead of cutting a chord through tissue it never went through.
-  constexpr double kMaxBridgeMm = 10.0;  // a 10 mm chord of a 21 mm ring: 0.6 mm from the arc
-  if (last_blade_ && gap_us > blade_stale_us_ &&
-      std::max(((*b.blade_Model_mm)[0] - (*last_blade_->blade_Model_mm)[0]).norm(),
-               ((*b.blade_Model_mm)[1] - (*last_blade_->blade_Model_mm)[1]).norm()) > kMaxBridgeMm)
-    blade_gap_ = true;
   const bool cuts = b.cutting && !blade_gap_;
   const cut::CutFrameReport cr = cut_->apply_blade(cut::BladeSegment{(*b.blade_Model_mm)[0], (*b.blade_Model_mm)[1]}, cuts);
   blade_gap_ = false;

@@ -173,6 +173,8 @@ class ModelRunner {
   void step_once(const ModelStepInputs* in, std::int64_t now_us);
   // The step's blade samples (or the last one held), applied in order; cut statistics and events.
   void apply_blades(const ModelStepInputs& in, std::vector<ModelCutEvent>& events, std::optional<CutStepRecord>& record);
+  // True when the gap since the last blade ends the stroke (too long, or the blade back far away).
+  bool gap_ends_stroke(const BladeSample& b) const;
   void apply_blade_sample(const BladeSample& b, std::vector<ModelCutEvent>& events, std::optional<CutStepRecord>& record);
   void apply_grasp(GraspBody& body, const ModelStepInputs& in);
   void fill_snapshot(ModelSnapshot& snap);
