@@ -114,6 +114,19 @@ pids=()
 trap ar_stop_pids EXIT
 mkdir -p "$out/can"
 ar_start_logger
+# ARNAV_SESSION_HOGS=N: N processes spinning at the default priority beside the session, from
+# before the host starts until the camera's last frame (issue 20: the cut must land where the
+# blade went with every core busy; hil_ar_demo_e2e_test sets one per core). The phantom's
+# recording before and the replays after run without them.
+session_hogs=${ARNAV_SESSION_HOGS:-0}
+hog_pids=()
+for _ in $(seq 1 "$session_hogs"); do
+  (while :; do :; done) &
+  hog_pids+=("$!")
+done
+pids+=("${hog_pids[@]}")
+printf 'session_hogs=%s\n' "$session_hogs" >>"$out/sensors.txt"
+[ "$session_hogs" = 0 ] || echo "load: $session_hogs spinning process(es) beside the session (ARNAV_SESSION_HOGS)"
 ar_start_host "$host"
 echo "arnav-appliance: synthetic camera filming the deforming phantom, 600 frames at 15 Hz (static board, camera unplugged 1 s at 20 s); simulated Polaris: pointer on 4 landmarks, scalpel ring, the phantom's grasper; CAN pedal (arnav-can-sim)"
 # One world clock for the pointer's and scalpel's paths, the phantom (filmed and its grasper)
@@ -137,6 +150,7 @@ pids+=("$app_pid")
 ar_start_attacker "$attacker" liver_marker bench
 ar_finish "$app_pid" 1800
 kill -TERM "$can_pid" 2>/dev/null || true
+for p in "${hog_pids[@]}"; do kill -TERM "$p" 2>/dev/null || true; done
 trap - EXIT
 ar_print_host_summary
 sec_rc=0

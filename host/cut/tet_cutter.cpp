@@ -235,38 +235,85 @@ bool TetCutter::material_crossing(int a, int b, double near_s, double& s) const 
   return true;
 }
 
-void TetCutter::place_on_material_stroke(int m, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v) {
-  if (stroke_tris_rest_.empty()) return;  // no sweep of this stroke in the material: nothing to move onto
+double TetCutter::nearest_on_material_stroke(int a, int b, double near_s) const {
+  const Eigen::Matrix3Xd& rest = mesh_.rest_positions_World_mm;
+  const Eigen::Vector3d p0 = rest.col(std::min(a, b)), p1 = rest.col(std::max(a, b));
+  const auto distance = [&](double u) { return material_stroke_distance((1.0 - u) * p0 + u * p1); };
+  constexpr double kLo = 0.01, kHi = 0.99;
+  // The distance along the edge need not have one minimum (a curved surface): the best of
+  // near_s and 17 samples, then a golden-section search in the bracket around it.
+  double best_s = std::clamp(near_s, kLo, kHi), best_d = distance(best_s);
+  constexpr int kSamples = 16;
+  for (int i = 0; i <= kSamples; ++i) {
+    const double u = kLo + (kHi - kLo) * i / kSamples;
+    if (const double d = distance(u); d < best_d) {
+      best_d = d;
+      best_s = u;
+    }
+  }
+  const double step = (kHi - kLo) / kSamples;
+  double lo = std::max(kLo, best_s - step), hi = std::min(kHi, best_s + step);
+  constexpr double kGolden = 0.6180339887498949;
+  double u1 = hi - kGolden * (hi - lo), u2 = lo + kGolden * (hi - lo);
+  double d1 = distance(u1), d2 = distance(u2);
+  for (int i = 0; i < 20; ++i) {
+    if (d1 < d2) {
+      hi = u2;
+      u2 = u1;
+      d2 = d1;
+      u1 = hi - kGolden * (hi - lo);
+      d1 = distance(u1);
+    } else {
+      lo = u1;
+      u1 = u2;
+      d1 = d2;
+      u2 = lo + kGolden * (hi - lo);
+      d2 = distance(u2);
+    }
+  }
+  if (d1 < best_d) best_s = u1;
+  if (d2 < std::min(best_d, d1)) best_s = u2;
+  return best_s;
+}
+
+void TetCutter::place_on_material_stroke(const std::vector<int>& copies, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v) {
+  if (stroke_tris_rest_.empty() || copies.empty()) return;  // no sweep of this stroke in the material: nothing to move onto
   Eigen::Vector3d target = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   const Eigen::Matrix3Xd& rest = mesh_.rest_positions_World_mm;
-  const Eigen::Vector3d from = rest.col(m);
+  const Eigen::Vector3d from = rest.col(copies.front());
   if (!(material_stroke_distance(from, &target) > 0.5 * settings_.path_tolerance_mm + 1e-9) || !target.allFinite()) return;
-  // Its place now for a move by `fraction` towards the target: the tet of m's star holding the
-  // new rest position, by its weights; false when no tet of the star holds it or the move is
-  // not allowed.
-  Eigen::Vector3d rest_new, x_new, v_new;
+  // Every copy goes to the same rest position (the lips coincide at rest, so the tissue's
+  // volume is unchanged), and to the place its own side's tissue has for it now: the affine
+  // map of the tet of its star that holds the new rest position best (largest smallest
+  // weight; outside the star it extrapolates, and can_move_copies bounds the result).
+  Eigen::Vector3d rest_new;
+  std::vector<Eigen::Vector3d> x_new(copies.size()), v_new(copies.size());
   const auto place = [&](double fraction) {
     rest_new = from + fraction * (target - from);
-    for (int tt : vertex_tets_[static_cast<std::size_t>(m)]) {
-      const auto& tet = mesh_.tets[static_cast<std::size_t>(tt)];
-      Eigen::Matrix3d D;
-      for (int k = 0; k < 3; ++k) D.col(k) = rest.col(tet[static_cast<std::size_t>(k + 1)]) - rest.col(tet[0]);
-      const Eigen::Vector3d l = D.partialPivLu().solve(rest_new - rest.col(tet[0]));
-      const Eigen::Vector4d w(1.0 - l.sum(), l[0], l[1], l[2]);
-      if (!w.allFinite() || w.minCoeff() < -1e-9) continue;
-      x_new.setZero();
-      v_new.setZero();
-      for (int k = 0; k < 4; ++k) {
-        x_new += w[k] * x.col(tet[static_cast<std::size_t>(k)]);
-        if (v.cols() == x.cols()) v_new += w[k] * v.col(tet[static_cast<std::size_t>(k)]);
+    for (std::size_t c = 0; c < copies.size(); ++c) {
+      double best = -std::numeric_limits<double>::infinity();
+      for (int tt : vertex_tets_[static_cast<std::size_t>(copies[c])]) {
+        const auto& tet = mesh_.tets[static_cast<std::size_t>(tt)];
+        Eigen::Matrix3d D;
+        for (int k = 0; k < 3; ++k) D.col(k) = rest.col(tet[static_cast<std::size_t>(k + 1)]) - rest.col(tet[0]);
+        const Eigen::Vector3d l = D.partialPivLu().solve(rest_new - rest.col(tet[0]));
+        const Eigen::Vector4d w(1.0 - l.sum(), l[0], l[1], l[2]);
+        if (!w.allFinite() || w.minCoeff() <= best) continue;
+        best = w.minCoeff();
+        x_new[c].setZero();
+        v_new[c].setZero();
+        for (int k = 0; k < 4; ++k) {
+          x_new[c] += w[k] * x.col(tet[static_cast<std::size_t>(k)]);
+          if (v.cols() == x.cols()) v_new[c] += w[k] * v.col(tet[static_cast<std::size_t>(k)]);
+        }
       }
-      return can_move(m, rest_new, x_new, x, true);
+      if (!std::isfinite(best)) return false;
     }
-    return false;
+    return can_move_copies(copies, rest_new, x_new, x);
   };
   // All the way to the surface, else as far towards it as the tets around allow (the allowed
   // moves form an interval from zero: each bound is linear in the new position, and the star
-  // is star-shaped about m), found by bisection to 1/1024 of the distance.
+  // is star-shaped about the vertex), found by bisection to 1/1024 of the distance.
   double allowed = 0.0;
   if (place(1.0)) {
     allowed = 1.0;
@@ -278,9 +325,42 @@ void TetCutter::place_on_material_stroke(int m, Eigen::Matrix3Xd& x, Eigen::Matr
     }
     if (allowed == 0.0 || !place(allowed)) return;
   }
-  mesh_.rest_positions_World_mm.col(m) = rest_new;
-  x.col(m) = x_new;
-  if (v.cols() == x.cols()) v.col(m) = v_new;
+  for (std::size_t c = 0; c < copies.size(); ++c) {
+    mesh_.rest_positions_World_mm.col(copies[c]) = rest_new;
+    x.col(copies[c]) = x_new[c];
+    if (v.cols() == x.cols()) v.col(copies[c]) = v_new[c];
+  }
+}
+
+bool TetCutter::can_move_copies(const std::vector<int>& copies, const Eigen::Vector3d& rest_new, const std::vector<Eigen::Vector3d>& x_new,
+                                const Eigen::Matrix3Xd& x) const {
+  const Eigen::Matrix3Xd& rest = mesh_.rest_positions_World_mm;
+  double rest_before = 0.0, rest_after = 0.0;
+  for (std::size_t c = 0; c < copies.size(); ++c) {
+    const int w = copies[c];
+    for (int tt : vertex_tets_[static_cast<std::size_t>(w)]) {
+      const auto& tet = mesh_.tets[static_cast<std::size_t>(tt)];
+      // Boundary faces through the vertex must be this stroke's lips: a vertex of the organ's
+      // surface moved off it would change the organ.
+      for (const auto& fc : kFaces) {
+        const int f0 = tet[static_cast<std::size_t>(fc[0])], f1 = tet[static_cast<std::size_t>(fc[1])], f2 = tet[static_cast<std::size_t>(fc[2])];
+        if ((f0 != w && f1 != w && f2 != w) || tets_with_face(face_key(f0, f1, f2)) == 2) continue;
+        if (!on_stroke(f0) || !on_stroke(f1) || !on_stroke(f2)) return false;
+      }
+      const auto volume_with = [&](const Eigen::Matrix3Xd& pos, const Eigen::Vector3d& pw) {
+        Eigen::Vector3d q[4];
+        for (int k = 0; k < 4; ++k) q[k] = tet[static_cast<std::size_t>(k)] == w ? pw : Eigen::Vector3d(pos.col(tet[static_cast<std::size_t>(k)]));
+        return (q[1] - q[0]).cross(q[2] - q[0]).dot(q[3] - q[0]);
+      };
+      const double before = volume_with(rest, rest.col(w)), after = volume_with(rest, rest_new);
+      if (!(after >= 0.25 * before) || !(volume_with(x, x_new[c]) >= 0.25 * volume_with(x, x.col(w)))) return false;
+      rest_before += before;
+      rest_after += after;
+    }
+  }
+  // The copies' stars together close round the vertex at rest (the lips coincide there): the
+  // move keeps the tissue's volume.
+  return std::abs(rest_after - rest_before) <= 1e-9 * rest_before;
 }
 
 std::string TetCutter::describe_pending() const {
@@ -585,7 +665,8 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
     // may have moved since the blade passed; on a curved cut the plane through the tet's
     // points on the cut is a chord).
     double crossing = -1.0;
-    if (!material_crossing(a, b, s, crossing) && reach >= 0.0) {
+    const bool on_material = material_crossing(a, b, s, crossing);
+    if (!on_material && reach >= 0.0) {
       crossing = world_stroke_crossing(a, b, s, x);  // else where it crosses the surface as swept
       if (crossing < 0.0) {                           // else on the plane, near enough to both
         const Eigen::Matrix3Xd& rest = mesh_.rest_positions_World_mm;
@@ -594,6 +675,10 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
       }
     }
     if (crossing >= 0.0) s = std::clamp(crossing, 0.01, 0.99);
+    // An edge the surface in the material does not cross: its point nearest to that surface
+    // (the plane through the tet's points and the surface as swept are World approximations;
+    // after the tissue moved they can lie far from where the blade went in the material).
+    if (!on_material && !stroke_tris_rest_.empty()) s = nearest_on_material_stroke(a, b, s);
     added.emplace_back(edge_key(a, b), s);
   }
   for (std::size_t i = 0; i < missing.size(); ++i) {
@@ -610,19 +695,16 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
   return true;
 }
 
-bool TetCutter::can_move(int w, const Eigen::Vector3d& rest_new, const Eigen::Vector3d& x_new, const Eigen::Matrix3Xd& x,
-                         bool on_cut_lips) const {
-  // Interior vertices only (or on this stroke's lips): moving a vertex of the organ's surface
-  // would change the tissue's shape and volume.
+
+bool TetCutter::can_move(int w, const Eigen::Vector3d& rest_new, const Eigen::Vector3d& x_new, const Eigen::Matrix3Xd& x) const {
+  // Interior vertices only: moving a vertex of the organ's surface would change the tissue's
+  // shape and volume.
   const std::vector<int>& star = vertex_tets_[static_cast<std::size_t>(w)];
-  bool on_boundary = false;
   for (int tt : star) {
     const auto& tet = mesh_.tets[static_cast<std::size_t>(tt)];
     for (const auto& fc : kFaces) {
       const int f0 = tet[static_cast<std::size_t>(fc[0])], f1 = tet[static_cast<std::size_t>(fc[1])], f2 = tet[static_cast<std::size_t>(fc[2])];
-      if ((f0 != w && f1 != w && f2 != w) || tets_with_face(face_key(f0, f1, f2)) == 2) continue;
-      if (!on_cut_lips || !on_stroke(f0) || !on_stroke(f1) || !on_stroke(f2)) return false;
-      on_boundary = true;
+      if ((f0 == w || f1 == w || f2 == w) && tets_with_face(face_key(f0, f1, f2)) != 2) return false;
     }
   }
   const auto volume_with = [&](const Eigen::Matrix3Xd& pos, int tt, const Eigen::Vector3d& pw) {
@@ -633,29 +715,18 @@ bool TetCutter::can_move(int w, const Eigen::Vector3d& rest_new, const Eigen::Ve
     }
     return (q[1] - q[0]).cross(q[2] - q[0]).dot(q[3] - q[0]);
   };
-  // Every tet around keeps at least a quarter of its volume, at rest and now; on the lips, the
-  // tets around together keep their volume at rest and now: the lips are still closed there
-  // (a move across lips that have opened would drag one lip across the gap; a vertex of the
-  // organ's surface moved off it would change the organ).
+  // Every tet around keeps at least a quarter of its volume, at rest and now.
   const Eigen::Matrix3Xd& rest = mesh_.rest_positions_World_mm;
-  double rest_before = 0.0, rest_after = 0.0, now_before = 0.0, now_after = 0.0;
-  for (int tt : star) {
-    const double before = volume_with(rest, tt, rest.col(w)), after = volume_with(rest, tt, rest_new);
-    const double before_now = volume_with(x, tt, x.col(w)), after_now = volume_with(x, tt, x_new);
-    if (!(after >= 0.25 * before) || !(after_now >= 0.25 * before_now)) return false;
-    rest_before += before;
-    rest_after += after;
-    now_before += before_now;
-    now_after += after_now;
-  }
-  return !on_boundary ||
-         (std::abs(rest_after - rest_before) <= 1e-9 * rest_before && std::abs(now_after - now_before) <= 1e-6 * now_before);
+  for (int tt : star)
+    if (!(volume_with(rest, tt, rest_new) >= 0.25 * volume_with(rest, tt, rest.col(w))) || !(volume_with(x, tt, x_new) >= 0.25 * volume_with(x, tt, x.col(w))))
+      return false;
+  return true;
 }
 
 bool TetCutter::move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r) {
   const Eigen::Vector3d rest_new = (1 - t) * mesh_.rest_positions_World_mm.col(w) + t * mesh_.rest_positions_World_mm.col(o);
   const Eigen::Vector3d x_new = (1 - t) * x.col(w) + t * x.col(o);
-  if (!can_move(w, rest_new, x_new, x, false)) return false;
+  if (!can_move(w, rest_new, x_new, x)) return false;
   const std::vector<int>& star = vertex_tets_[static_cast<std::size_t>(w)];
   mesh_.rest_positions_World_mm.col(w) = rest_new;
   x.col(w) = x_new;
@@ -1414,8 +1485,11 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       // The mid-point of a chord lies off a curved cut by its sagitta: onto the surface the
       // blade swept in the material, as far as the tets around allow, while the lips there
       // are still closed; then separated.
-      place_on_material_stroke(m, x, v);
+      const int before = mesh_.num_vertices();
       separate_vertex(m, x, v, r);
+      std::vector<int> copies{m};
+      for (int c = before; c < mesh_.num_vertices(); ++c) copies.push_back(c);
+      place_on_material_stroke(copies, x, v);
     }
     for (auto it = cut_faces_.begin(); it != cut_faces_.end();) {
       if (tets_with_face(*it) < 2) {

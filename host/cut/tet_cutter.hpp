@@ -181,19 +181,27 @@ class TetCutter {
   // Where edge a-b crosses the stroke's surface in the material (the crossing nearest to
   // parameter near_s, from the smaller vertex id); false when it does not cross it.
   bool material_crossing(int a, int b, double near_s, double& s) const;
+  // The parameter on edge a-b (from the smaller id, in [0.01, 0.99]) nearest in the material
+  // to the stroke's surface there, starting from near_s: where a completion puts an edge's
+  // missing crossing when the edge does not cross that surface.
+  double nearest_on_material_stroke(int a, int b, double near_s) const;
   // The same for the surface as swept, at positions x (-1 when it does not cross it).
   double world_stroke_crossing(int a, int b, double near_s, const Eigen::Matrix3Xd& x) const;
-  // A vertex inserted inside the cut (an edge split at its mid-point, before it is separated)
-  // moved towards the stroke's surface in the material, all the way or as far as can_move
-  // allows (on this stroke's lips while they are still closed).
-  void place_on_material_stroke(int m, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v);
+  // A vertex inserted inside the cut (an edge split at its mid-point) and its copies, one per
+  // side once separated, moved together towards the stroke's surface in the material, all the
+  // way or as far as can_move_copies allows: one rest position for all (the lips coincide at
+  // rest), each copy's position now from its own side's tissue (lips already opened stay open).
+  void place_on_material_stroke(const std::vector<int>& copies, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v);
+  // The copies may move to rest_new (rest) and x_new[c] (now): every tet around each keeps a
+  // quarter of its volume at rest and now, their boundary faces through it are this stroke's
+  // lips, and their tets together keep their rest volume (the lips coincide at rest).
+  bool can_move_copies(const std::vector<int>& copies, const Eigen::Vector3d& rest_new, const std::vector<Eigen::Vector3d>& x_new,
+                       const Eigen::Matrix3Xd& x) const;
   // Adds tet t to the watch list when it has a vertex on this stroke's cut.
   void watch_tet(int t);
-  // Vertex w may move to rest_new (rest) and x_new (now): every tet around keeps a quarter of
-  // its volume at rest and now, and w is interior, or with on_cut_lips on this stroke's lips
-  // with its tets keeping their volume together at rest and now (lips still closed there; a
-  // vertex of the organ's surface moved off it does not keep it).
-  bool can_move(int w, const Eigen::Vector3d& rest_new, const Eigen::Vector3d& x_new, const Eigen::Matrix3Xd& x, bool on_cut_lips) const;
+  // Interior vertex w may move to rest_new (rest) and x_new (now): every tet around keeps a
+  // quarter of its volume at rest and now.
+  bool can_move(int w, const Eigen::Vector3d& rest_new, const Eigen::Vector3d& x_new, const Eigen::Matrix3Xd& x) const;
   bool move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   int add_vertex(const VertexOrigin& o, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   void split_edge(int a, int b, double t_ab, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r,

@@ -20,8 +20,9 @@
 #include <fstream>
 #include <iostream>
 #include <regex>
-#include <sstream>
 #include <cstdint>
+#include <sstream>
+#include <thread>
 #include <vector>
 
 #include <unistd.h>
@@ -118,12 +119,13 @@ TEST(ArDemoSession, LiveRegistrationRingCutFaultAndRecording) {
   std::filesystem::remove_all(out);
   const std::string src = env("ARNAV_SOURCE_DIR", ".");
   const std::string build = env("ARNAV_BINARY_DIR", ".");
-  const std::string cmd = src + "/hil_tests/scenarios/ar_session.sh " + build + " " + out.string() + " >" + (out.string() + ".log") + " 2>&1";
-  // Not run with a CPU hog alongside (issue 20 asks for it): on this 2-core machine the
-  // bench's own simulated devices (the synthetic camera renders the phantom on this CPU)
-  // starve first: with one busy process per core at nice 0 / 5 / 19 the camera made 108 /
-  // 333 / 438 of its 600 frames and the run outgrew its time limit (docs/benchmarks.md,
-  // "Cut-path error in the material and the model clock").
+  // The session runs with one spinning process per core beside it (ar_session.sh,
+  // ARNAV_SESSION_HOGS; issue 20): the cut must land where the blade went with every core
+  // busy, not only on an idle machine. The phantom's recording before it and the replays after
+  // it run without them (the busy replay below has its own).
+  const std::string hogs = std::to_string(std::max(1u, std::thread::hardware_concurrency()));
+  const std::string cmd = "ARNAV_SESSION_HOGS=" + hogs + " " + src + "/hil_tests/scenarios/ar_session.sh " + build + " " + out.string() + " >" +
+                          (out.string() + ".log") + " 2>&1";
   const int rc = std::system(cmd.c_str());
   std::ifstream log_in(out.string() + ".log");
   std::stringstream log;
@@ -232,13 +234,10 @@ TEST(ArDemoSession, LiveRegistrationRingCutFaultAndRecording) {
   // 23.7 mm in a replay under load when the model took the blade at camera frames and
   // stepped on the host's clock).
   expect_cut_on_the_blades_path(replay_nav["cutting"], "replay");
-  // Live: printed, not held (issue 20 item 4 asks for it; not met). Idle, the live run gives
-  // the replay's figures (p95 2.17 / 1.73 mm); with one spinning process per core beside the
-  // session the live run's p95 was 4.5 / 5.7 mm against the replay's 1.6 / 1.5 mm (late
-  // samples and a starved camera's missing references change the live tissue state;
-  // docs/benchmarks.md, "Tracker gaps and stalled links").
-  std::cerr << "[ar demo] live cut-path error in the material: p50 " << nav["cutting"]["path_error_mm"]["p50"].get<double>() << ", p95 "
-            << nav["cutting"]["path_error_mm"]["p95"].get<double>() << ", max " << nav["cutting"]["path_error_mm"]["max"].get<double>() << " mm\n";
+  // Live, with every core busy: the model thread falls behind and skips model time (never
+  // blade samples), so the live tissue differs from the replay's; the cut must still land on
+  // the blade's path in the live tissue.
+  expect_cut_on_the_blades_path(nav["cutting"], "live");
   // The model steps on the tracker's clock (docs/overlay.md, "Model clock"): the same log
   // replayed again with every core kept busy (one spinning process per core beside it) gives
   // the same cut, vertex for vertex.
