@@ -99,12 +99,12 @@ std::vector<CutVertexRow> read_cut_vertices(const std::filesystem::path& path) {
 }
 
 // The cut-path error in the material (docs/overlay.md): the per-step worst new cut vertex
-// against the surfaces the blade swept. The tail (p95 9.4-11.3 mm on some logs) came from
-// completions of tets the blade never crossed (docs/cut.md, issue 20); with completions
-// checked in the material and mid-points moved onto the cut's lips, four old logs replay at
-// p95 1.0-2.7, max 2.7-4.1 mm, but new logs with realistic sensors still show completions up
-// to 8.7-18.8 mm off (docs/benchmarks.md). Issue 20's target (p95 <= 1.0, max <= 3.0 mm) is
-// not met: the bound held here is the one before it.
+// against the surfaces the blade swept. The tail came from completions of tets the blade left
+// and from chords' mid-points (docs/cut.md, issue 20); with both taken onto the surface in the
+// material, demo logs replay at p95 0.9-1.9, max 1.2-5.9 mm and run live beside one spinning
+// process per core at p95 1.8-2.0, max 1.8-2.4 mm (docs/benchmarks.md, "Completions and chord
+// mid-points in the material"). Issue 20's target (p95 <= 1.0, max <= 3.0 mm) is not met: the
+// bound held here is the one before it.
 void expect_cut_on_the_blades_path(const nlohmann::json& cutting, const char* run) {
   EXPECT_GT(cutting["cut_faces"].get<int>(), 20) << run << ": " << cutting.dump();
   EXPECT_LT(cutting["path_error_mm"]["p50"].get<double>(), 0.5) << run << ": " << cutting.dump();
