@@ -102,9 +102,9 @@ std::vector<CutVertexRow> read_cut_vertices(const std::filesystem::path& path) {
 // against the surfaces the blade swept. The tail came from completions of tets the blade left
 // and from chords' mid-points (docs/cut.md, issue 20); with both taken onto the surface in the
 // material, demo logs replay at p95 0.9-2.8, max 1.2-6.9 mm and run live beside one spinning
-// process per core at p95 1.8-4.0, max 1.8-5.3 mm (docs/benchmarks.md, "Completions and chord
+// process per core at p95 1.8-5.9, max 1.8-8.5 mm (docs/benchmarks.md, "Completions and chord
 // mid-points in the material"). Issue 20's target (p95 <= 1.0, max <= 3.0 mm) is not met: the
-// bound held here is the one before it.
+// bound held here (on the replay) is the one before it.
 void print_cut_path(const nlohmann::json& cutting, const char* run) {
   std::cerr << "[ar demo] " << run << " cut-path error in the material: p50 " << cutting["path_error_mm"]["p50"].get<double>() << ", p95 "
             << cutting["path_error_mm"]["p95"].get<double>() << ", max " << cutting["path_error_mm"]["max"].get<double>() << " mm over "
