@@ -40,6 +40,21 @@ double sweep_distance(const std::vector<Triangle>& tris, const Eigen::Vector3d& 
 }
 
 Eigen::Vector3d unit_normal(const Triangle& t) { return (t.b - t.a).cross(t.c - t.a).normalized(); }
+
+// Barycentric weights of p in tet (vertex positions pos); outside the tet some are negative.
+Eigen::Vector4d tet_weights(const Eigen::Matrix3Xd& pos, const std::array<int, 4>& tet, const Eigen::Vector3d& p) {
+  Eigen::Matrix3d D;
+  for (int k = 0; k < 3; ++k) D.col(k) = pos.col(tet[static_cast<std::size_t>(k + 1)]) - pos.col(tet[0]);
+  const Eigen::Vector3d l = D.partialPivLu().solve(p - pos.col(tet[0]));
+  return {1.0 - l.sum(), l[0], l[1], l[2]};
+}
+
+// Six times the volume of tet (positions pos) with its vertex w at pw.
+double volume6_with(const Eigen::Matrix3Xd& pos, const std::array<int, 4>& tet, int w, const Eigen::Vector3d& pw) {
+  Eigen::Vector3d q[4];
+  for (int k = 0; k < 4; ++k) q[k] = tet[static_cast<std::size_t>(k)] == w ? pw : Eigen::Vector3d(pos.col(tet[static_cast<std::size_t>(k)]));
+  return (q[1] - q[0]).cross(q[2] - q[0]).dot(q[3] - q[0]);
+}
 }  // namespace
 
 TetCutter::EdgeKey TetCutter::edge_key(int a, int b) {
@@ -92,11 +107,7 @@ int TetCutter::locate(const Eigen::Vector3d& p, const Eigen::Matrix3Xd& x, Eigen
   double best = -1e300;
   bvh_.query(box, [&](int fam) {
     for (int t : family_[static_cast<std::size_t>(fam)]) {
-      const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
-      Eigen::Matrix3d D;
-      for (int k = 0; k < 3; ++k) D.col(k) = x.col(tet[static_cast<std::size_t>(k + 1)]) - x.col(tet[0]);
-      const Eigen::Vector3d l = D.partialPivLu().solve(p - x.col(tet[0]));
-      const Eigen::Vector4d w(1.0 - l.sum(), l[0], l[1], l[2]);
+      const Eigen::Vector4d w = tet_weights(x, mesh_.tets[static_cast<std::size_t>(t)], p);
       if (w.allFinite() && w.minCoeff() > best) {
         best = w.minCoeff();
         best_tet = t;
@@ -294,10 +305,7 @@ void TetCutter::place_on_material_stroke(const std::vector<int>& copies, Eigen::
       double best = -std::numeric_limits<double>::infinity();
       for (int tt : vertex_tets_[static_cast<std::size_t>(copies[c])]) {
         const auto& tet = mesh_.tets[static_cast<std::size_t>(tt)];
-        Eigen::Matrix3d D;
-        for (int k = 0; k < 3; ++k) D.col(k) = rest.col(tet[static_cast<std::size_t>(k + 1)]) - rest.col(tet[0]);
-        const Eigen::Vector3d l = D.partialPivLu().solve(rest_new - rest.col(tet[0]));
-        const Eigen::Vector4d w(1.0 - l.sum(), l[0], l[1], l[2]);
+        const Eigen::Vector4d w = tet_weights(rest, tet, rest_new);
         if (!w.allFinite() || w.minCoeff() <= best) continue;
         best = w.minCoeff();
         x_new[c].setZero();
@@ -347,15 +355,9 @@ bool TetCutter::can_move_copies(const std::vector<int>& copies, const Eigen::Vec
         if ((f0 != w && f1 != w && f2 != w) || tets_with_face(face_key(f0, f1, f2)) == 2) continue;
         if (!on_stroke(f0) || !on_stroke(f1) || !on_stroke(f2)) return false;
       }
-      const auto volume_with = [&](const Eigen::Matrix3Xd& pos, const Eigen::Vector3d& pw) {
-        Eigen::Vector3d q[4];
-        for (int k = 0; k < 4; ++k) q[k] = tet[static_cast<std::size_t>(k)] == w ? pw : Eigen::Vector3d(pos.col(tet[static_cast<std::size_t>(k)]));
-        return (q[1] - q[0]).cross(q[2] - q[0]).dot(q[3] - q[0]);
-      };
-      const double before = volume_with(rest, rest.col(w)), after = volume_with(rest, rest_new);
-      if (!(after >= 0.25 * before) || !(volume_with(x, x_new[c]) >= 0.25 * volume_with(x, x.col(w)))) return false;
-      rest_before += before;
-      rest_after += after;
+      if (!keeps_a_quarter(tt, w, rest_new, x_new[c], x)) return false;
+      rest_before += volume6_with(rest, tet, w, rest.col(w));
+      rest_after += volume6_with(rest, tet, w, rest_new);
     }
   }
   // The copies' stars together close round the vertex at rest (the lips coincide there): the
@@ -695,7 +697,6 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
   return true;
 }
 
-
 bool TetCutter::can_move(int w, const Eigen::Vector3d& rest_new, const Eigen::Vector3d& x_new, const Eigen::Matrix3Xd& x) const {
   // Interior vertices only: moving a vertex of the organ's surface would change the tissue's
   // shape and volume.
@@ -707,20 +708,16 @@ bool TetCutter::can_move(int w, const Eigen::Vector3d& rest_new, const Eigen::Ve
       if ((f0 == w || f1 == w || f2 == w) && tets_with_face(face_key(f0, f1, f2)) != 2) return false;
     }
   }
-  const auto volume_with = [&](const Eigen::Matrix3Xd& pos, int tt, const Eigen::Vector3d& pw) {
-    Eigen::Vector3d q[4];
-    for (int k = 0; k < 4; ++k) {
-      const int u = mesh_.tets[static_cast<std::size_t>(tt)][static_cast<std::size_t>(k)];
-      q[k] = u == w ? pw : Eigen::Vector3d(pos.col(u));
-    }
-    return (q[1] - q[0]).cross(q[2] - q[0]).dot(q[3] - q[0]);
-  };
-  // Every tet around keeps at least a quarter of its volume, at rest and now.
-  const Eigen::Matrix3Xd& rest = mesh_.rest_positions_World_mm;
   for (int tt : star)
-    if (!(volume_with(rest, tt, rest_new) >= 0.25 * volume_with(rest, tt, rest.col(w))) || !(volume_with(x, tt, x_new) >= 0.25 * volume_with(x, tt, x.col(w))))
-      return false;
+    if (!keeps_a_quarter(tt, w, rest_new, x_new, x)) return false;
   return true;
+}
+
+bool TetCutter::keeps_a_quarter(int tt, int w, const Eigen::Vector3d& rest_new, const Eigen::Vector3d& x_new, const Eigen::Matrix3Xd& x) const {
+  const auto& tet = mesh_.tets[static_cast<std::size_t>(tt)];
+  const Eigen::Matrix3Xd& rest = mesh_.rest_positions_World_mm;
+  return volume6_with(rest, tet, w, rest_new) >= 0.25 * volume6_with(rest, tet, w, rest.col(w)) &&
+         volume6_with(x, tet, w, x_new) >= 0.25 * volume6_with(x, tet, w, x.col(w));
 }
 
 bool TetCutter::move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r) {
@@ -1482,9 +1479,9 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
         }
       }
       cut_faces_.insert(moved.begin(), moved.end());
-      // The mid-point of a chord lies off a curved cut by its sagitta: onto the surface the
-      // blade swept in the material, as far as the tets around allow, while the lips there
-      // are still closed; then separated.
+      // The mid-point of a chord lies off a curved cut by its sagitta: separated, then it
+      // and its copies moved onto the surface the blade swept in the material, as far as the
+      // tets around allow.
       const int before = mesh_.num_vertices();
       separate_vertex(m, x, v, r);
       std::vector<int> copies{m};

@@ -202,6 +202,9 @@ class TetCutter {
   // Interior vertex w may move to rest_new (rest) and x_new (now): every tet around keeps a
   // quarter of its volume at rest and now.
   bool can_move(int w, const Eigen::Vector3d& rest_new, const Eigen::Vector3d& x_new, const Eigen::Matrix3Xd& x) const;
+  // Tet tt keeps at least a quarter of its volume, at rest and now, with its vertex w moved to
+  // rest_new and x_new.
+  bool keeps_a_quarter(int tt, int w, const Eigen::Vector3d& rest_new, const Eigen::Vector3d& x_new, const Eigen::Matrix3Xd& x) const;
   bool move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   int add_vertex(const VertexOrigin& o, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   void split_edge(int a, int b, double t_ab, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r,

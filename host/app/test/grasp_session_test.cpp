@@ -550,9 +550,9 @@ TEST_P(CurvedStroke, StaysOnTheBladesPathWhileTheTissueIsPulled) {
 
 INSTANTIATE_TEST_SUITE_P(GraspCutting, CurvedStroke,
                          ::testing::Values(Arc{20, 100}, Arc{20, 170}, Arc{25, 100}, Arc{25, 170}, Arc{30, 100}, Arc{30, 170}),
-                         [](const ::testing::TestParamInfo<Arc>& info) {
-                           return "Radius" + std::to_string(static_cast<int>(info.param.radius_mm)) + "mmTo" +
-                                  std::to_string(static_cast<int>(info.param.angle_deg)) + "Deg";
+                         [](const ::testing::TestParamInfo<Arc>& arc_info) {
+                           return "Radius" + std::to_string(static_cast<int>(arc_info.param.radius_mm)) + "mmTo" +
+                                  std::to_string(static_cast<int>(arc_info.param.angle_deg)) + "Deg";
                          });
 
 // A blade that comes back from a tracker gap far from where it was (lifted out and put in
