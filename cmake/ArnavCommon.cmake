@@ -106,7 +106,8 @@ function(arnav_note_test_target target labels)
 endfunction()
 
 # arnav_add_fuzzer(NAME name SOURCES a.cpp LIBS ... [SEEDS dir])
-# libFuzzer target plus a short smoke run in ctest (label "fuzz").
+# libFuzzer target plus a short smoke run in ctest (label "fuzz"): 10 s from the seeds; longer
+# campaigns by hand (docs/appliance.md, "libFuzzer targets").
 function(arnav_add_fuzzer)
   cmake_parse_arguments(F "" "NAME;SEEDS" "SOURCES;LIBS" ${ARGN})
   if(NOT ARNAV_FUZZ)
@@ -118,7 +119,7 @@ function(arnav_add_fuzzer)
   target_link_libraries(${F_NAME} PRIVATE ${F_LIBS})
   set(corpus ${CMAKE_CURRENT_BINARY_DIR}/${F_NAME}_corpus)
   # Fixed seed: a CI failure reproduces with the same command; longer runs by hand vary it.
-  set(args -seed=1 -max_total_time=20 -rss_limit_mb=2048 ${corpus})
+  set(args -seed=1 -max_total_time=10 -rss_limit_mb=2048 ${corpus})
   if(F_SEEDS)
     list(APPEND args ${F_SEEDS})
   endif()

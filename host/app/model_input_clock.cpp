@@ -25,10 +25,11 @@ void insert_ordered(std::deque<Sample>& q, const Sample& s) {
 
 }  // namespace
 
-ModelInputClock::ModelInputClock(double rate_hz, double wait_ms, double catch_up_ms, double gap_ms)
+ModelInputClock::ModelInputClock(double rate_hz, double wait_ms, double catch_up_ms, double gap_ms, double cut_catch_up_ms)
     : period_us_(std::max<std::int64_t>(1, std::llround(1e6 / rate_hz))),
       wait_us_(std::llround(wait_ms * 1e3)),
       catch_up_us_(std::llround(catch_up_ms * 1e3)),
+      cut_catch_up_us_(std::llround(std::max(cut_catch_up_ms, catch_up_ms) * 1e3)),
       gap_us_(std::llround(gap_ms * 1e3)) {}
 
 void ModelInputClock::note(Stream& s, std::int64_t device_us, std::int64_t host_now_us) {
@@ -100,12 +101,32 @@ std::optional<std::int64_t> ModelInputClock::due(std::int64_t host_now_us) {
   if (!ready) return std::nullopt;
   if (waited_out) ++counters_.steps_waited_out;
   if (newest - t > catch_up) {  // too far behind: skip grid steps (the samples stay queued, all applied)
-    const std::int64_t to = floor_to(newest, period_us_);
+    const std::int64_t to = skip_target(t, newest);
     counters_.steps_skipped += (to - t) / period_us_;
     t = to;
     next_us_ = t;
   }
   return t;
+}
+
+std::int64_t ModelInputClock::skip_target(std::int64_t t, std::int64_t newest) {
+  const std::int64_t newest_step = floor_to(newest, period_us_);
+  const auto cutting = [](const BladeSample& b) { return b.cutting && b.blade_Model_mm.has_value(); };
+  if (newest - t <= cut_catch_up_us_) {
+    // Not past a cutting sample: the step that takes the first one after t (the samples
+    // before it only place the blade).
+    for (const BladeSample& b : blades_) {
+      if (b.device_time_us <= t || !cutting(b)) continue;
+      const std::int64_t its_step = floor_to(b.device_time_us + period_us_ - 1, period_us_);
+      if (its_step > t + period_us_) return std::min(newest_step, its_step);
+      ++counters_.steps_kept_for_cut;
+      return t;
+    }
+    return newest_step;
+  }
+  for (const BladeSample& b : blades_)
+    if (b.device_time_us > t && b.device_time_us <= newest_step && cutting(b)) ++counters_.cut_samples_merged;
+  return newest_step;
 }
 
 std::int64_t ModelInputClock::deadline_host_us(std::int64_t host_now_us) const {

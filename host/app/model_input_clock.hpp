@@ -17,8 +17,12 @@
 // So a session's cut depends on the blade's path and the tissue's state at each blade
 // sample, not on when the model thread ran: the same log replayed on an idle or a loaded
 // machine gives the same cut, and a live session on a busy machine catches up along the
-// blade's real path (bounded: more than `catch_up_ms` behind, grid steps are skipped, the
-// samples are still all applied).
+// blade's real path. More than `catch_up_ms` behind, grid steps are skipped (the tissue
+// jumps to where the grasper is now), but never past a blade sample taken while cutting:
+// each cutting sample still meets the tissue as it was at its own step, so a late model
+// thread cuts where the blade went and catches up once the stroke ends. Only past
+// `cut_catch_up_ms` behind (a model far too slow for the machine) are steps skipped during
+// a stroke too; the cutting samples that then share a step are counted (cut_samples_merged).
 //
 // Without input streams (no scalpel on a cutting model, no grasper) the grid runs on the
 // host clock alone. Not thread-safe: ModelRunner guards it.
@@ -59,6 +63,8 @@ struct ModelClockCounters {
   std::int64_t steps = 0;
   std::int64_t steps_waited_out = 0;   // run by the host-clock limit with an input stream late
   std::int64_t steps_skipped = 0;      // grid steps skipped to catch up (the model was too far behind)
+  std::int64_t steps_kept_for_cut = 0; // steps run although too far behind: a cutting blade sample was due
+  std::int64_t cut_samples_merged = 0; // cutting samples applied in a step that skipped grid steps (past cut_catch_up_ms)
   std::int64_t late_samples = 0;       // samples measured at or before a step already taken
   double max_lag_ms = 0.0;             // largest host-clock lag of a step behind its device time (offset removed)
 };
@@ -66,8 +72,10 @@ struct ModelClockCounters {
 class ModelInputClock {
  public:
   // wait_ms: how long past a step's device time the host waits for a late stream; gap_ms:
-  // how far the tracker may go on without a stream's tool before it is not waited for.
-  ModelInputClock(double rate_hz, double wait_ms, double catch_up_ms, double gap_ms);
+  // how far the tracker may go on without a stream's tool before it is not waited for;
+  // catch_up_ms: how far behind the grid steps are skipped; cut_catch_up_ms (>= catch_up_ms):
+  // how far behind a stroke in progress may hold the model before its steps are skipped too.
+  ModelInputClock(double rate_hz, double wait_ms, double catch_up_ms, double gap_ms, double cut_catch_up_ms = 5000.0);
   // The streams the model waits for (a cutting model with a scalpel; a grasper).
   void require_blade() { blade_.required = true; }
   void require_grasp() { grasp_.required = true; }
@@ -103,10 +111,13 @@ class ModelInputClock {
   // nothing is known yet.
   std::optional<std::int64_t> complete_through(std::int64_t host_now_us, bool& silent) const;
   void anchor(std::int64_t device_us);
+  // The grid step to skip to from step t when the newest complete input is at `newest`.
+  std::int64_t skip_target(std::int64_t t, std::int64_t newest);
 
   std::int64_t period_us_;
   std::int64_t wait_us_;
   std::int64_t catch_up_us_;
+  std::int64_t cut_catch_up_us_;
   std::int64_t gap_us_;
   Stream blade_, grasp_;
   Stream tracker_;  // any tool's poses

@@ -101,6 +101,7 @@ struct CutStepRecord {
 struct ModelClockSettings {
   double input_wait_ms = 500.0;
   double catch_up_ms = 1000.0;
+  double cut_catch_up_ms = 5000.0;  // a stroke in progress holds steps from being skipped up to this far behind
   double blade_stale_ms = 100.0;
   double tool_gap_ms = 100.0;   // the tracker going on this long without a tool's pose: not waited for
 };
@@ -140,6 +141,7 @@ class ModelRunner {
   // The tracker reached device_time_us (another tool's pose; in the order handed to the model).
   void tracker_at(std::int64_t device_time_us, std::int64_t now_us);
   bool has_grasper() const { return grasp_ != nullptr; }
+  int nice() const { return nice_; }  // the model thread's nice level (live)
   bool has_inputs() const;
   GraspStatus grasp_status() const;
   ModelClockCounters clock_counters() const;

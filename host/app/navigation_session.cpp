@@ -121,11 +121,12 @@ NavigationSession::NavigationSession(const SessionConfig& config, std::unique_pt
       ModelClockSettings clock;
       clock.input_wait_ms = config_.model.input_wait_ms;
       clock.catch_up_ms = std::max(1000.0, 2.0 * config_.model.input_wait_ms);
+      clock.cut_catch_up_ms = std::max(clock.catch_up_ms, config_.model.cut_catch_up_ms);
       if (config_.scalpel) clock.blade_stale_ms = config_.scalpel->stale_after_ms;
       clock.tool_gap_ms = std::max(config_.scalpel ? config_.scalpel->stale_after_ms : 0.0, config_.grasper ? config_.grasper->stale_after_ms : 0.0);
       if (clock.tool_gap_ms <= 0.0) clock.tool_gap_ms = 100.0;
       model_ = std::make_unique<ModelRunner>(*scene_, config_.model.rate_hz, config_.model.gravity, config_.overlay.margin_mm,
-                                             config_.model.nice, cutting, clock);
+                                             config_.model.nice.value_or(cutting ? 0 : 5), cutting, clock);
       if (config_.scalpel && model_->cutting()) model_->expect_blade();
     } catch (const std::exception& e) {
       throw SessionError(at_scene + "the tissue model cannot be built: " + e.what());
@@ -950,12 +951,14 @@ nlohmann::json NavigationSession::summary_json(double run_s) {
                   {"rate_hz", run_s > 0 ? static_cast<double>(steps.size()) / run_s : 0.0},
                   {"step_ms_p50", percentile(steps, 0.5)},
                   {"step_ms_p99", percentile(steps, 0.99)},
-                  {"step_control_steps", model_->step_control_steps()}};
+                  {"step_control_steps", model_->step_control_steps()},
+                  {"nice", model_->nice()}};
     if (model_->has_inputs()) {
       // The model's clock (docs/overlay.md, "Model clock"): steps run without a late input,
       // grid steps skipped to catch up, samples that came after their step, the largest lag.
       const ModelClockCounters c = model_->clock_counters();
       j["model"]["clock"] = {{"steps", c.steps}, {"waited_out", c.steps_waited_out}, {"skipped", c.steps_skipped},
+                             {"kept_for_cut", c.steps_kept_for_cut}, {"cut_samples_merged", c.cut_samples_merged},
                              {"late_samples", c.late_samples}, {"max_lag_ms", c.max_lag_ms}};
     }
   }

@@ -292,11 +292,12 @@ SessionConfig parse_session(const std::string& text, const std::string& source, 
   }
 
   if (const YAML::Node m = root["model"]) {
-    r.only(m, "model", {"rate_hz", "gravity", "nice", "cpu_partition", "input_wait_ms"});
+    r.only(m, "model", {"rate_hz", "gravity", "nice", "cpu_partition", "input_wait_ms", "cut_catch_up_ms"});
     c.model.rate_hz = r.number(m, "model", "rate_hz", c.model.rate_hz, 1.0, 1000.0);
     c.model.input_wait_ms = r.number(m, "model", "input_wait_ms", c.model.input_wait_ms, 0.0, 10000.0);
+    c.model.cut_catch_up_ms = r.number(m, "model", "cut_catch_up_ms", c.model.cut_catch_up_ms, 0.0, 60000.0);
     c.model.gravity = r.boolean(m, "model", "gravity", c.model.gravity);
-    c.model.nice = r.integer(m, "model", "nice", c.model.nice, 0, 19);
+    if (m["nice"]) c.model.nice = r.integer(m, "model", "nice", 5, 0, 19);
     c.model.cpu_partition = r.text(m, "model", "cpu_partition", c.model.cpu_partition);
     c.model.cpu_partition_line = line_of(m["cpu_partition"]);
     if (c.model.cpu_partition != "auto" && c.model.cpu_partition != "on" && c.model.cpu_partition != "off")

@@ -50,7 +50,12 @@ struct CameraSettings {
 struct ModelSettings {
   double rate_hz = 60.0;        // model steps per second on the model thread
   bool gravity = false;         // the scene's gravity; off: the CT shape is already the loaded one
-  int nice = 5;                 // model thread yields to rendering (0: same priority)
+  // The model thread's Linux nice level (0: the rendering thread's priority). Unset: 5 (the
+  // model yields to rendering) unless the session cuts: then 0, because the cut lands where
+  // the blade went only while the model keeps up with the blade (docs/overlay.md, "Threads
+  // and cores"; issue 20: at nice 5 beside one busy process per core the model fell 5 s
+  // behind during the demo's ring cut).
+  std::optional<int> nice;
   // Cores: "on": the model thread (and the solver's workers) on a core of its own, the
   // rendering thread and the software rasteriser's threads on the others (docs/overlay.md,
   // "Threads and cores"); "off": the scheduler places them; "auto": on when the session
@@ -62,6 +67,10 @@ struct ModelSettings {
   // this long (host clock) past its device time for tool poses that are late (the camera's
   // reference, a stalled link) before it runs without them.
   double input_wait_ms = 500.0;
+  // A cut stroke in progress is not skipped over when the model thread falls behind (each
+  // blade sample meets the tissue as it was then; the model catches up after the stroke)
+  // until the model is this far behind; past it, steps are skipped and counted.
+  double cut_catch_up_ms = 5000.0;
 };
 
 // Where the overlay is shown besides the recording: a window (GLFW) on a workstation's

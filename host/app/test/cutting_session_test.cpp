@@ -300,6 +300,29 @@ TEST_F(CuttingRun, ModeAlwaysAndOffWithoutInputs) {
 }
 
 // Without a camera (no overlay) the scalpel's poses drive the cutting stage themselves.
+// The model thread's priority (docs/overlay.md, "Threads and cores"): a session that cuts
+// runs it at the renderer's (nice 0: the cut lands where the blade went only while the model
+// keeps up with the blade; issue 20), one that does not lets it yield (nice 5), and
+// model.nice says otherwise for either. model.cut_catch_up_ms is read, and bounded.
+TEST_F(CuttingRun, ACuttingModelRunsAtTheRenderersPriorityUnlessTheSessionSaysOtherwise) {
+  SessionFolder f("nice");
+  EXPECT_EQ(make(f, "cutting: {mode: always}\n")->summary_json(1.0)["model"]["nice"].get<int>(), 0);
+  std::string text = cut_session_text("cutting: {mode: always}\n");
+  const std::string from = "model: {rate_hz: 60, gravity: false}";
+  text.replace(text.find(from), from.size(), "model: {rate_hz: 60, gravity: false, nice: 7, cut_catch_up_ms: 2000}");
+  SessionOptions o;
+  o.threaded = false;
+  const SessionConfig c = load_session(f.write("nice7.yaml", text));
+  EXPECT_EQ(c.model.cut_catch_up_ms, 2000.0);
+  EXPECT_EQ(NavigationSession(c, std::make_unique<Scene>(*scene_), o).summary_json(1.0)["model"]["nice"].get<int>(), 7);
+  const Scene uncut = load_scene(data_dir() + "/liver/liver_coarse.scene.yaml");
+  NavigationSession plain(load_session(f.session()), std::make_unique<Scene>(uncut), o);
+  EXPECT_EQ(plain.summary_json(1.0)["model"]["nice"].get<int>(), 5);
+  text.replace(text.find("cut_catch_up_ms: 2000"), 21, "cut_catch_up_ms: -1");
+  const std::string error = session_error_of(f, text);
+  EXPECT_NE(error.find("key 'model.cut_catch_up_ms'"), std::string::npos) << error;
+}
+
 TEST_F(CuttingRun, WithoutACameraTheScalpelPosesCut) {
   SessionFolder f("nocamera");
   const std::string text = "arnav_session_version: 1\nlcm_url: \"memq://\"\nscene: " + data_dir() +

@@ -430,12 +430,14 @@ struct PulledStroke {
 // lost BX reply's timeout), mid-stroke.
 // A curved stroke: the blade goes round a circle (radius_mm, from -angle_deg to +angle_deg)
 // instead of along a line. radius_mm 0: the straight stroke.
+// stall_steps: the model thread does not run for that many steps from the stroke's 30th step
+// on (descheduled on a loaded machine), so the model falls further behind than its catch-up.
 struct Arc {
   double radius_mm = 0.0;
   double angle_deg = 0.0;
 };
 
-PulledStroke pulled_stroke(const Scene& scene, int burst, bool gaps = false, Arc arc = {}) {
+PulledStroke pulled_stroke(const Scene& scene, int burst, bool gaps = false, Arc arc = {}, int stall_steps = 0) {
   ModelRunner runner(scene, 60.0, false, 5.0, 0, cut_settings(scene));
   runner.expect_blade();
   GrasperRole g;
@@ -481,7 +483,8 @@ PulledStroke pulled_stroke(const Scene& scene, int burst, bool gaps = false, Arc
     }
     runner.push_grasp({t, c}, t + 1'000);
     host = t + 1'000;
-    if ((k + 1) % burst == 0) runner.advance_to(host + 50'000);  // burst > 1: the model thread ran late
+    const bool stalled = k >= 60 && k < 60 + stall_steps;
+    if ((k + 1) % burst == 0 && !stalled) runner.advance_to(host + 50'000);  // burst > 1: the model thread ran late
   }
   runner.advance_to(host + 50'000);
   PulledStroke out;
@@ -518,6 +521,26 @@ TEST(GraspCutting, CutVerticesLieOnTheSweptSurfaceInTheMaterialWhileTheTissueIsP
     worst = std::max({worst, (loaded.cut[i].rest_mm - idle.cut[i].rest_mm).norm(), (loaded.cut[i].now_mm - idle.cut[i].now_mm).norm()});
   }
   EXPECT_LE(worst, 1e-6) << "same samples, same cut, whatever the thread's timing";
+}
+
+// The model thread stalled for 1.5 s mid-stroke (more than the clock's 1 s catch-up): it
+// used to skip the stalled time's grid steps, so the blade samples of those 1.5 s all met
+// the tissue as it was before the stall and the grasper's pull came after them in one jump.
+// Now the stroke's steps all run, late, each with its own samples and the tissue as it was
+// then: the same cut as the idle run, to 1e-6 mm (issue 20, item 2).
+TEST(GraspCutting, AModelThreadStalledMidStrokeCatchesUpAlongTheBladesPath) {
+  Scene scene = load_scene(data_dir() + "/liver/liver_coarse_cut.scene.yaml");
+  ASSERT_TRUE(scene.cutting.has_value());
+  const PulledStroke idle = pulled_stroke(scene, 1);
+  const PulledStroke stalled = pulled_stroke(scene, 1, false, {}, 90);
+  expect_on_the_blades_path(stalled, "pulled stroke, model stalled 1.5 s");
+  ASSERT_EQ(stalled.cut.size(), idle.cut.size()) << "the stalled model thread cut differently";
+  double worst = 0.0;
+  for (std::size_t i = 0; i < idle.cut.size(); ++i) {
+    ASSERT_EQ(stalled.cut[i].id, idle.cut[i].id);
+    worst = std::max({worst, (stalled.cut[i].rest_mm - idle.cut[i].rest_mm).norm(), (stalled.cut[i].now_mm - idle.cut[i].now_mm).norm()});
+  }
+  EXPECT_LE(worst, 1e-6) << "same samples, same cut, however long the model thread stalled";
 }
 
 // The same stroke with the tracker missing the scalpel (single samples without the blade, two

@@ -129,13 +129,64 @@ TEST(ModelInputClock, FarBehindItSkipsGridStepsButKeepsEverySample) {
   ModelInputClock clock(60.0, 500.0, 1000.0, 100.0);
   clock.require_blade();
   const std::int64_t t0 = 60 * kPeriod;
-  for (int i = 0; i <= 180; ++i) clock.push_blade(blade_at(t0 + i * kPeriod, i), t0 + i * kPeriod + 1'000);  // 3 s of samples, no step
+  for (int i = 0; i <= 180; ++i)  // 3 s of samples, the pedal up, no step
+    clock.push_blade(blade_at(t0 + i * kPeriod, i, false), t0 + i * kPeriod + 1'000);
   const auto steps = drain(clock, t0 + 180 * kPeriod + 1'000);
   EXPECT_GT(clock.counters().steps_skipped, 100);
   std::size_t applied = 0;
   for (const auto& r : steps) applied += r.ys.size();
   EXPECT_EQ(applied, 181u) << "skipped grid steps drop model time, never blade samples";
   EXPECT_EQ(steps.back().t_us, t0 + 180 * kPeriod);
+}
+
+// Issue 20: a late model thread skipped grid steps in the middle of a stroke, so the blade
+// samples of the skipped time all met the tissue as it was before (the grasper's pull of
+// that time came in one jump after them) and the cut left the blade's path in the material.
+// Far behind, it now skips only up to the stroke: the stroke's steps all run, each with its
+// own samples, then it skips to the present.
+TEST(ModelInputClock, FarBehindItSkipsUpToAStrokeRunsEachOfItsStepsThenSkipsOn) {
+  ModelInputClock clock(60.0, 500.0, 1000.0, 100.0);
+  clock.require_blade();
+  const std::int64_t t0 = 60 * kPeriod;
+  // 1 s with the pedal up, 1.5 s cutting, 1.5 s up; 4 samples a step, none stepped yet.
+  const auto cutting_at = [&](std::int64_t t) { return t > t0 + 60 * kPeriod && t <= t0 + 150 * kPeriod; };
+  for (int i = 0; i <= 4 * 240; ++i) {
+    const std::int64_t t = t0 + i * kPeriod / 4;
+    clock.push_blade(blade_at(t, i, cutting_at(t)), t + 1'000);
+  }
+  const auto steps = drain(clock, t0 + 240 * kPeriod + 1'000);
+  int stroke_steps = 0;
+  for (const auto& r : steps) {
+    std::size_t cutting = 0;
+    for (double y : r.ys) cutting += cutting_at(t0 + static_cast<std::int64_t>(y) * kPeriod / 4) ? 1 : 0;
+    if (cutting == 0) continue;
+    ++stroke_steps;
+    EXPECT_EQ(cutting, 4u) << "step at " << r.t_us << ": each step of the stroke holds its own period's cutting samples";
+  }
+  EXPECT_EQ(stroke_steps, 90) << "every grid step of the stroke ran";
+  EXPECT_GT(clock.counters().steps_skipped, 60) << "before and after the stroke it caught up by skipping";
+  EXPECT_GT(clock.counters().steps_kept_for_cut, 30);
+  EXPECT_EQ(clock.counters().cut_samples_merged, 0);
+  std::size_t applied = 0;
+  for (const auto& r : steps) applied += r.ys.size();
+  EXPECT_EQ(applied, 4u * 240 + 1);
+  EXPECT_EQ(steps.back().t_us, t0 + 240 * kPeriod);
+}
+
+// A model far too slow for the machine still comes back to the present: past cut_catch_up_ms
+// behind, steps of a stroke are skipped too, and its samples that share a step are counted.
+TEST(ModelInputClock, PastTheStrokesCatchUpLimitStrokeStepsAreSkippedAndCounted) {
+  ModelInputClock clock(60.0, 500.0, 1000.0, 100.0, 2000.0);
+  clock.require_blade();
+  const std::int64_t t0 = 60 * kPeriod;
+  for (int i = 0; i <= 180; ++i) clock.push_blade(blade_at(t0 + i * kPeriod, i), t0 + i * kPeriod + 1'000);  // 3 s cutting
+  const auto steps = drain(clock, t0 + 180 * kPeriod + 1'000);
+  EXPECT_LT(steps.size(), 10u);
+  EXPECT_GT(clock.counters().steps_skipped, 170);
+  EXPECT_GT(clock.counters().cut_samples_merged, 170);
+  std::size_t applied = 0;
+  for (const auto& r : steps) applied += r.ys.size();
+  EXPECT_EQ(applied, 181u);
 }
 
 TEST(ModelInputClock, WithoutInputsTheHostClockDrivesItAndOverrunsAreNotCaughtUp) {
