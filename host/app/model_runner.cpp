@@ -38,7 +38,7 @@ ModelRunner::ModelRunner(const Scene& scene, double rate_hz, bool gravity, doubl
       rate_hz_(rate_hz),
       margin_mm_(margin_mm),
       nice_(nice),
-      clock_(rate_hz, clock.input_wait_ms, clock.catch_up_ms, clock.tool_gap_ms),
+      clock_(rate_hz, clock.input_wait_ms, clock.catch_up_ms, clock.tool_gap_ms, clock.cut_catch_up_ms),
       blade_stale_us_(std::llround(clock.blade_stale_ms * 1e3)),
       blade_bridge_us_(std::llround(std::max(clock.blade_stale_ms, clock.input_wait_ms) * 1e3)),
       path_meter_(static_cast<int>(120 * rate_hz)) {  // two minutes of cutting at one sweep a step

@@ -377,6 +377,23 @@ std::vector<TipSample> NavigationSession::pointer_tips_Ref(std::int64_t now_us) 
   return out;
 }
 
+// A model more than model.cut_catch_up_ms behind during a stroke applied several cutting
+// samples to one tissue state (docs/overlay.md, "Model clock"): the cut drawn since may lie
+// off the blade's path. Flagged on the frames that show such a step and said in a banner for
+// 5 s after the latest one.
+void NavigationSession::cut_merge_warning(const ModelSnapshot& snap, std::int64_t capture_us, std::string& flags,
+                                          std::vector<overlay::Banner>& banners) {
+  if (snap.clock.cut_samples_merged > cut_merged_seen_) {
+    cut_merged_seen_ = snap.clock.cut_samples_merged;
+    cut_merged_since_us_ = capture_us;
+    add_flag(flags, "cut_samples_merged");
+  }
+  if (cut_merged_since_us_ < 0 || capture_us - cut_merged_since_us_ > 5'000'000) return;
+  banners.push_back({"CUT MAY BE OFF THE BLADE'S PATH: the model fell " + std::to_string(std::lround(snap.clock.max_lag_ms)) +
+                         " ms behind (" + std::to_string(cut_merged_seen_) + " blade samples merged)",
+                     cv::Scalar(0, 140, 230)});
+}
+
 bool NavigationSession::cutting_armed(std::int64_t now_us, std::string* banner) {
   if (config_.cutting.mode == "always") return true;
   if (config_.cutting.mode != "input") return false;
@@ -709,6 +726,7 @@ FrameResult NavigationSession::render_decoded(const image_frame_t& msg, cv::Mat 
     add_flag(r.flags, "model_unhealthy");
     r.banners.push_back({"MODEL: " + snap->warning, cv::Scalar(0, 0, 160)});
   }
+  if (snap) cut_merge_warning(*snap, msg.capture_time_mono_us, r.flags, r.banners);
   if (model_ && model_->has_grasper()) {
     std::vector<std::string> grasp_banners;
     grasp_frame(r.flags, grasp_banners);

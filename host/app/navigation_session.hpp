@@ -45,6 +45,7 @@
 #include "host/app/session_config.hpp"
 #include "host/app/swab_registration.hpp"
 #include "host/app/tool_freshness.hpp"
+#include "host/overlay/overlay_renderer.hpp"
 #include "host/scene/scene.hpp"
 
 struct GLFWwindow;
@@ -189,6 +190,8 @@ class NavigationSession {
   // --record with a cutting model: DIR/cut_vertices.csv (ModelRunner::cut_vertices); its path.
   std::string write_cut_vertices() const;
   void say(const std::string& text);  // with mutex_ held
+  // Flag and banner when the model merged cutting samples (rendering thread).
+  void cut_merge_warning(const ModelSnapshot& snap, std::int64_t capture_us, std::string& flags, std::vector<overlay::Banner>& banners);
   // Cutting armed now (mode always, or cut_enable held with a fresh state); sets *banner
   // when the input is stale; counts disarms. With mutex_ held.
   bool cutting_armed(std::int64_t now_us, std::string* banner);
@@ -274,6 +277,8 @@ class NavigationSession {
   std::optional<FrameResult> last_;
   std::string render_error_;
   std::int64_t last_capture_us_ = -1;                   // rendering thread only
+  std::int64_t cut_merged_seen_ = 0;                    // rendering thread only: cutting samples merged, as last shown
+  std::int64_t cut_merged_since_us_ = -1;               // capture time of the frame that first showed the latest merge
   std::vector<double> camera_gaps_ms_;
   CutTrace cut_trace_;                                  // rendering thread only
   std::size_t events_seen_ = 0, cut_steps_seen_ = 0;    // rendering thread only

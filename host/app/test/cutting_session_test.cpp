@@ -323,6 +323,42 @@ TEST_F(CuttingRun, ACuttingModelRunsAtTheRenderersPriorityUnlessTheSessionSaysOt
   EXPECT_NE(error.find("key 'model.cut_catch_up_ms'"), std::string::npos) << error;
 }
 
+// A model that falls more than model.cut_catch_up_ms behind during a stroke merges cutting
+// samples into one step (docs/overlay.md, "Model clock"): the frames say so (flag
+// cut_samples_merged, a banner for 5 s), the summary counts them; a model that keeps up
+// shows neither.
+TEST_F(CuttingRun, AModelFarBehindDuringAStrokeSaysTheCutMayBeOffThePath) {
+  SessionFolder f("merged");
+  std::string text = cut_session_text("cutting: {mode: always}\n");
+  const std::string from = "model: {rate_hz: 60, gravity: false}";
+  text.replace(text.find(from), from.size(), "model: {rate_hz: 60, gravity: false, cut_catch_up_ms: 1000}");
+  SessionOptions o;
+  o.threaded = false;
+  o.keep_last_frame = true;
+  NavigationSession late(load_session(f.write("late.yaml", text)), std::make_unique<Scene>(*scene_), o);
+  auto timely = make(f, "cutting: {mode: always}\n");
+  // 1.2 s of the stroke with no model step (a stalled model thread), then frames again.
+  for (std::int64_t k = 0; k <= 72; ++k) {
+    scalpel_at(late, k, X_ModelTool(static_cast<int>(k / 3)));
+    late.on_pose(pose_msg("liver_marker", "Cam", test_X_CamRef(k), k, time_of(k)), time_of(k) + 2000);
+  }
+  int flagged = 0, with_banner = 0;
+  for (std::int64_t k = 0; k <= 80; ++k) {
+    if (k > 72) scalpel_at(late, k, X_ModelTool(static_cast<int>(k / 3)));
+    const FrameResult r = k < 72 ? FrameResult{} : step(late, k);
+    flagged += r.row.flags.find("cut_samples_merged") != std::string::npos ? 1 : 0;
+    for (const auto& b : r.banners) with_banner += b.find("CUT MAY BE OFF THE BLADE'S PATH") != std::string::npos ? 1 : 0;
+    scalpel_at(*timely, k, X_ModelTool(static_cast<int>(k / 3)));
+    const FrameResult t = step(*timely, k);
+    EXPECT_EQ(t.row.flags.find("cut_samples_merged"), std::string::npos) << t.row.flags;
+    for (const auto& b : t.banners) EXPECT_EQ(b.find("CUT MAY BE OFF"), std::string::npos) << b;
+  }
+  EXPECT_EQ(flagged, 1) << "the frame that first shows the merged step";
+  EXPECT_EQ(with_banner, 9) << "every frame after it, within 5 s";
+  EXPECT_GT(late.summary_json(1.0)["model"]["clock"]["cut_samples_merged"].get<int>(), 0) << late.summary_json(1.0)["model"].dump();
+  EXPECT_EQ(timely->summary_json(1.0)["model"]["clock"]["cut_samples_merged"].get<int>(), 0);
+}
+
 TEST_F(CuttingRun, WithoutACameraTheScalpelPosesCut) {
   SessionFolder f("nocamera");
   const std::string text = "arnav_session_version: 1\nlcm_url: \"memq://\"\nscene: " + data_dir() +
