@@ -97,12 +97,7 @@ NavigationSession::NavigationSession(const SessionConfig& config, std::unique_pt
                          " declares cutting: say when the scalpel cuts: 'inputs: {cut_enable: <pedal input>}' (while held) or "
                          "'cutting: {mode: always}' / 'cutting: {mode: off}' (the blade only pushes)");
     const CuttingSpec& spec = *scene_->cutting;
-    cut::CutSessionSettings settings;
-    settings.cut.snap_fraction = spec.snap_fraction;
-    settings.min_dihedral_deg = spec.min_dihedral_deg;
-    settings.sweep_strips = spec.sweep_strips;
-    settings.tumour_margin_mm = spec.tumour_margin_mm;
-    settings.push_stiffness_mN_per_mm = spec.push_stiffness_mN_per_mm;
+    cut::CutSessionSettings settings = cut::cut_settings_from(spec);
     // Live: the model is rebuilt on the new mesh on a worker thread while the previous one
     // keeps stepping (the cut shows at once; a bundled-liver rebuild takes ~0.5 s here).
     // Replay (unthreaded): inline, so every replay of a log cuts the same way.

@@ -179,6 +179,10 @@ static int main_body(int argc, char** argv) {
   cut->add_option("--min-dihedral", cut_options.min_dihedral_deg,
                   "quality bound in degrees, overriding the scene's cutting.min_dihedral_deg (0: no embedded treatment, the elements as cut)")
       ->check(CLI::Range(0.0, 30.0));
+  cut->add_option("--sagitta", cut_options.chord_sagitta_mm,
+                  "refinement ahead of the blade where the cut curves: chord sagitta in mm, overriding the scene's cutting.chord_sagitta_mm "
+                  "(0: cut the mesh as it is)")
+      ->check(CLI::Range(0.0, 100.0));
   TransectionBenchOptions transection_options;
   CLI::App* transection = app.add_subcommand("transection", "a full transection of patient livers by the blade, every model, free and held: false stops, side volumes, frame time (JSON lines)");
   transection->add_option("--scene", transection_options.scenes, "scene files (default: data/patients/sksurgery_liver.scene.yaml, sksurgery_liver_fine.scene.yaml, data/liver/liver.scene.yaml)");
@@ -335,7 +339,7 @@ static int main_body(int argc, char** argv) {
       const auto& r = rows[i];
       std::cout << (i ? "," : "") << "{\"mesh\":\"" << r.mesh << "\",\"scenario\":\"" << r.scenario << "\",\"model\":\"" << r.label
                 << "\",\"background_rebuild\":" << (r.background ? "true" : "false") << ",\"frames\":" << r.frames << ",\"topology_p99_ms\":" << r.topology_p99_ms << ",\"frame_median_ms\":" << r.frame_median_ms
-                << ",\"frame_p99_ms\":" << r.frame_p99_ms << ",\"min_dihedral_deg\":" << r.min_dihedral_deg << ",\"min_dihedral_active_deg\":" << r.min_dihedral_active_deg
+                << ",\"frame_p99_ms\":" << r.frame_p99_ms << ",\"chord_sagitta_mm\":" << r.chord_sagitta_mm << ",\"tets_after\":" << r.tets_after << ",\"min_dihedral_deg\":" << r.min_dihedral_deg << ",\"min_dihedral_active_deg\":" << r.min_dihedral_active_deg
                 << ",\"embedded_tets\":" << r.embedded_tets << ",\"embedded_volume_fraction\":" << r.embedded_volume_fraction << ",\"volume_change_rel\":"
                 << r.volume_change_rel << ",\"path_error_mm\":{\"p50\":" << r.path_error_p50_mm << ",\"p95\":" << r.path_error_p95_mm << ",\"max\":" << r.path_error_max_mm << ",\"vertices\":" << r.cut_vertices_measured << "},\"cutter_snap_deviation_mm\":" << r.path_fidelity_mm << ",\"completion_deviation_mm\":" << r.completion_deviation_mm << ",\"pieces\":" << r.pieces << ",\"tumours_freed\":" << r.tumours_freed << ",\"tumours_separated\":" << r.tumours_separated << ",\"freed_drop_mm\":" << r.freed_drop_mm << ",\"organ_drift_mm\":" << r.organ_drift_mm << ",\"local_updates\":" << r.local_updates << ",\"rebuilds\":" << r.rebuilds
                 << ",\"local_updates_enabled\":" << (r.local_updates_enabled ? "true" : "false") << ",\"local_median_ms\":" << r.local_median_ms

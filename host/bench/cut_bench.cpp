@@ -92,20 +92,15 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
       std::stable_sort(local_modes.begin(), local_modes.end());  // rebuilt run first
       for (const bool local_updates : local_modes) {
         if (!selected(variant.label, prefixes)) continue;
-        CutSessionSettings settings;  // docs/cut.md defaults (the scene's cutting section on the coarse mesh)
+        // The scene's cutting section (docs/cut.md defaults without one).
+        CutSessionSettings settings = scene.cutting ? cut_settings_from(*scene.cutting) : CutSessionSettings{};
         settings.rebuild_in_background = background;
         settings.local_updates = local_updates;
         // The ring made from the scene (about 21 mm in radius): sides within 20 mm while the
         // blade passes (CutSettings::side_distance_mm, docs/cut.md).
         if (derived) settings.cut.side_distance_mm = 20.0;
-        if (scene.cutting) {
-          settings.cut.snap_fraction = scene.cutting->snap_fraction;
-          settings.min_dihedral_deg = scene.cutting->min_dihedral_deg;
-          settings.cut.path_tolerance_mm = scene.cutting->path_tolerance_mm;
-          settings.sweep_strips = scene.cutting->sweep_strips;
-          settings.tumour_margin_mm = scene.cutting->tumour_margin_mm;
-        }
         if (o.min_dihedral_deg >= 0) settings.min_dihedral_deg = o.min_dihedral_deg;
+        if (o.chord_sagitta_mm >= 0) settings.cut.chord_sagitta_mm = o.chord_sagitta_mm;
         const std::unique_ptr<CutSession> session_ptr = make_cut_session(scene, variant.config, settings);
         CutSession& session = *session_ptr;
         if (set_rings)
@@ -120,6 +115,7 @@ std::vector<CutBenchRow> run_cut_bench(const CutBenchOptions& o) {
         const bool compare = local_updates && !rebuilt_states.empty();
         bool parted = false;
         row.tets_before = scene.problem.mesh.num_tets();
+        row.chord_sagitta_mm = settings.cut.chord_sagitta_mm;
         row.min_dihedral_input_deg = input.min_dihedral_deg;
         std::vector<double> topology, frame, rebuild, local, frame_cpu, path_error;
         cut::MaterialPathMeter meter(1 << 20);  // the cut-path error in the material, every sweep of the run
@@ -311,7 +307,7 @@ void write_cut_csv(const std::string& path, const std::vector<CutBenchRow>& rows
          "min_dihedral_bound_deg,min_dihedral_active_deg,embedded_tets,embedded_volume_fraction,driven_vertices,rigid_groups,"
          "volume_change_rel,path_fidelity_mm,completion_deviation_mm,completed_tets,pieces,free_pieces,tumours_freed,tumours_separated,freed_drop_mm,organ_drift_mm,ring_radius_mm,local_updates,local_median_ms,local_p99_ms,rebuilds,events,mesh_valid,healthy,warning,"
          "local_updates_enabled,state_diff_max_mm,state_diff_final_mm,state_compared_frames,frame_thread_cpu_median_ms,frame_thread_cpu_p99_ms,"
-         "path_error_p50_mm,path_error_p95_mm,path_error_max_mm,cut_vertices_measured\n";
+         "path_error_p50_mm,path_error_p95_mm,path_error_max_mm,cut_vertices_measured,chord_sagitta_mm\n";
   for (const auto& r : rows) {
     std::string warning = r.warning;
     std::replace(warning.begin(), warning.end(), ',', ';');
@@ -324,7 +320,7 @@ void write_cut_csv(const std::string& path, const std::vector<CutBenchRow>& rows
         << r.completion_deviation_mm << ',' << r.completed_tets << ',' << r.pieces << ',' << r.free_pieces << ',' << r.tumours_freed << ',' << r.tumours_separated << ',' << r.freed_drop_mm << ',' << r.organ_drift_mm << ',' << r.ring_radius_mm << ',' << r.local_updates << ',' << r.local_median_ms << ',' << r.local_p99_ms << ',' << r.rebuilds << ',' << r.events << ',' << (r.mesh_valid ? 1 : 0) << ','
         << (r.healthy ? 1 : 0) << ',' << warning << ',' << (r.local_updates_enabled ? 1 : 0) << ',' << r.state_diff_max_mm << ','
         << r.state_diff_final_mm << ',' << r.state_compared_frames << ',' << r.frame_thread_cpu_median_ms << ',' << r.frame_thread_cpu_p99_ms << ','
-        << r.path_error_p50_mm << ',' << r.path_error_p95_mm << ',' << r.path_error_max_mm << ',' << r.cut_vertices_measured << '\n';
+        << r.path_error_p50_mm << ',' << r.path_error_p95_mm << ',' << r.path_error_max_mm << ',' << r.cut_vertices_measured << ',' << r.chord_sagitta_mm << '\n';
   }
 }
 

@@ -31,6 +31,7 @@ struct CutBenchOptions {
   // (CorotationalFem::set_cut_region_rings; -1 off); its label gains "+cut_rings N".
   int fem_cut_region_rings = -2;
   double min_dihedral_deg = -1;                                // >= 0: overrides the scene's cutting.min_dihedral_deg (0: treatment off)
+  double chord_sagitta_mm = -1;                                     // >= 0: overrides the scene's cutting.chord_sagitta_mm (0: no refinement)
 };
 
 // One frame of a run (cut_frames.csv): where the frame's time went.
@@ -66,6 +67,7 @@ struct CutBenchRow {
   double frame_thread_cpu_median_ms = 0, frame_thread_cpu_p99_ms = 0;  // CPU time of the stepping thread per frame (workers not counted)
   double rebuild_median_ms = 0, rebuild_p99_ms = 0;  // over frames with a topology change
   double min_dihedral_input_deg = 0, min_dihedral_deg = 0;  // every tet (raw)
+  double chord_sagitta_mm = 0;                                   // refinement ahead of the blade (0: off)
   // Quality bound (docs/cut.md "Element quality"): the bound, the smallest dihedral angle of
   // the elastic (active) tets, and the tets below it (embedded: no elastic term) with their
   // share of the volume, the vertices they drive and the rigid pieces.

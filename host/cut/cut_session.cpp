@@ -537,4 +537,17 @@ std::unique_ptr<CutSession> make_cut_session(const Scene& scene, const ModelConf
   return std::make_unique<CutSession>(scene.problem, config, settings, tumours, tumour_tris, vessels, segments);
 }
 
+CutSessionSettings cut_settings_from(const CuttingSpec& spec) {
+  CutSessionSettings settings;
+  settings.cut.snap_fraction = spec.snap_fraction;
+  settings.cut.path_tolerance_mm = spec.path_tolerance_mm;
+  settings.cut.chord_sagitta_mm = spec.chord_sagitta_mm;
+  settings.cut.min_refined_edge_mm = spec.min_refined_edge_mm;
+  settings.min_dihedral_deg = spec.min_dihedral_deg;
+  settings.sweep_strips = spec.sweep_strips;
+  settings.tumour_margin_mm = spec.tumour_margin_mm;
+  settings.push_stiffness_mN_per_mm = spec.push_stiffness_mN_per_mm;
+  return settings;
+}
+
 }  // namespace arnav::host::cut

@@ -198,4 +198,7 @@ class CutSession {
 // place for arnav-sim --scalpel and arnav-bench cut).
 std::unique_ptr<CutSession> make_cut_session(const Scene& scene, const ModelConfig& config, const CutSessionSettings& settings);
 
+// The settings a scene's 'cutting:' section gives (the rest at their defaults).
+CutSessionSettings cut_settings_from(const CuttingSpec& spec);
+
 }  // namespace arnav::host::cut

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <queue>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -79,6 +80,11 @@ TetCutter::TetCutter(const TetMesh& mesh, const CutSettings& settings) : mesh_(m
   require(settings_.path_tolerance_mm >= 0.0 && std::isfinite(settings_.path_tolerance_mm), "path_tolerance_mm must be finite and >= 0",
           settings_.path_tolerance_mm);
   require(settings_.side_distance_mm > 0.0, "side_distance_mm must be > 0", settings_.side_distance_mm);
+  require(settings_.chord_sagitta_mm >= 0.0 && std::isfinite(settings_.chord_sagitta_mm), "chord_sagitta_mm must be finite and >= 0",
+          settings_.chord_sagitta_mm);
+  require(settings_.min_refined_edge_mm > 0.0 && std::isfinite(settings_.min_refined_edge_mm), "min_refined_edge_mm must be finite and > 0",
+          settings_.min_refined_edge_mm);
+  require(settings_.max_refinements_per_step >= 0, "max_refinements_per_step must be >= 0", settings_.max_refinements_per_step);
   const int nv = mesh_.num_vertices();
   vertex_tets_.assign(static_cast<std::size_t>(nv), {});
   for (int t = 0; t < mesh_.num_tets(); ++t)
@@ -220,14 +226,39 @@ double TetCutter::surface_crossing(const std::vector<Triangle>& tris, const std:
 void TetCutter::append_chunk(const std::vector<Triangle>& add, std::vector<Triangle>& tris, std::vector<StrokeChunk>& chunks) {
   StrokeChunk chunk;
   chunk.begin = static_cast<int>(tris.size());
+  double area2 = 0.0;
   for (const auto& t : add) {
     chunk.box.extend(t.a);
     chunk.box.extend(t.b);
     chunk.box.extend(t.c);
+    const Eigen::Vector3d n2 = (t.b - t.a).cross(t.c - t.a);  // twice the area, along the normal
+    chunk.normal += n2;
+    chunk.centroid += n2.norm() * (t.a + t.b + t.c) / 3.0;
+    area2 += n2.norm();
   }
+  if (area2 > 0.0) chunk.centroid /= area2;
+  chunk.normal = chunk.normal.squaredNorm() > 0.0 ? Eigen::Vector3d(chunk.normal.normalized()) : Eigen::Vector3d::Zero();
   tris.insert(tris.end(), add.begin(), add.end());
   chunk.end = static_cast<int>(tris.size());
   chunks.push_back(chunk);
+}
+
+double TetCutter::material_curvature_per_mm() const {
+  // The last frame's surface against the latest one at least kSpan_mm before it: the turn
+  // of its normal over the distance between their centroids.
+  constexpr double kSpan_mm = 4.0;
+  const auto& chunks = stroke_chunks_rest_;
+  int last = static_cast<int>(chunks.size()) - 1;
+  while (last >= 0 && chunks[static_cast<std::size_t>(last)].normal.squaredNorm() == 0.0) --last;
+  if (last < 1) return 0.0;
+  const StrokeChunk& now = chunks[static_cast<std::size_t>(last)];
+  for (int j = last - 1; j >= 0; --j) {
+    const StrokeChunk& before = chunks[static_cast<std::size_t>(j)];
+    const double d = (now.centroid - before.centroid).norm();
+    if (before.normal.squaredNorm() == 0.0 || d < kSpan_mm) continue;
+    return std::atan2(now.normal.cross(before.normal).norm(), now.normal.dot(before.normal)) / d;
+  }
+  return 0.0;
 }
 
 double TetCutter::material_stroke_distance(const Eigen::Vector3d& p, Eigen::Vector3d* closest) const {
@@ -817,6 +848,106 @@ void TetCutter::split_edge(int a, int b, double t_ab, Eigen::Matrix3Xd& x, Eigen
   }
 }
 
+bool TetCutter::untouched(int t) const {
+  const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+  for (int w : tet)
+    if (on_cut_[static_cast<std::size_t>(w)] != 0) return false;
+  for (const auto& e : kEdges)
+    if (pending_.count(edge_key(tet[static_cast<std::size_t>(e[0])], tet[static_cast<std::size_t>(e[1])]))) return false;
+  return true;
+}
+
+void TetCutter::refine_ahead(const std::vector<Triangle>& tris, std::vector<int>& candidates, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v,
+                             CutStepReport& r) {
+  if (!(settings_.chord_sagitta_mm > 0.0) || tris.empty()) return;
+  // A chord of length L across a cut of radius R lies L^2 / (8 R) off it at its middle.
+  const double curvature = material_curvature_per_mm();
+  if (!(curvature > 0.0)) return;  // a straight cut (so far): a plane cuts any tet exactly
+  const double lmax = std::max(settings_.min_refined_edge_mm, std::sqrt(8.0 * settings_.chord_sagitta_mm / curvature));
+  const double lmax2 = lmax * lmax;
+  const Eigen::Matrix3Xd& rest = mesh_.rest_positions_World_mm;
+  auto length2 = [&](int a, int b) { return (rest.col(a) - rest.col(b)).squaredNorm(); };
+  auto ends = [](EdgeKey key) { return std::pair<int, int>(static_cast<int>(key >> 32), static_cast<int>(key & 0xffffffffu)); };
+  // The sweep enters tet t: a blade end passed through it, or it crosses one of its edges.
+  auto entered = [&](int t) {
+    if (tip_tet_[static_cast<std::size_t>(t)]) return true;
+    const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+    for (const auto& e : kEdges)
+      for (const auto& tri : tris) {
+        double s = 0.0;
+        if (segment_triangle_intersection(x.col(tet[static_cast<std::size_t>(e[0])]), x.col(tet[static_cast<std::size_t>(e[1])]), tri, s)) return true;
+      }
+    return false;
+  };
+  // The longest edge of tet t.
+  auto longest = [&](int t) {
+    const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+    std::pair<double, EdgeKey> best{-1.0, 0};
+    for (const auto& e : kEdges) {
+      const int a = tet[static_cast<std::size_t>(e[0])], b = tet[static_cast<std::size_t>(e[1])];
+      best = std::max(best, {length2(a, b), edge_key(a, b)});
+    }
+    return best;
+  };
+  // Longest edge first, and an edge only once it is the longest of every tet around it
+  // (Rivara's longest-edge bisection: the tets' shapes stay within a bounded set of classes).
+  std::priority_queue<std::pair<double, EdgeKey>> queue;
+  auto offer = [&](int t) {
+    if (!untouched(t) || !entered(t)) return;
+    const auto l = longest(t);
+    if (l.first > lmax2) queue.push(l);
+  };
+  for (int t : candidates) offer(t);
+  std::vector<int> touched;
+  std::unordered_set<EdgeKey> refused;  // cannot be bisected this frame (a tet around is cut, or a longer edge is refused)
+  while (!queue.empty() && r.edges_refined < settings_.max_refinements_per_step) {
+    const auto [len2, key] = queue.top();
+    queue.pop();
+    const auto [a, b] = ends(key);
+    const std::vector<int> around = tets_with_edge(a, b);
+    if (around.empty()) continue;  // bisected already
+    // Bisected only where it is the longest edge of every tet around it (else those tets'
+    // longest edges go first; where one of them cannot be bisected, neither is this edge):
+    // bisecting a shorter edge can flatten tets without end (a vertex chain converging on
+    // the longer edge).
+    bool can = !refused.count(key), deferred = false;
+    for (int t : around) {
+      if (!can) break;
+      if (!untouched(t)) {
+        can = false;
+        break;
+      }
+      const auto l = longest(t);
+      if (l.first <= len2 * (1.0 + 1e-12)) continue;
+      const auto [p, q] = ends(l.second);
+      const std::vector<int> around_l = tets_with_edge(p, q);
+      if (refused.count(l.second) || !std::all_of(around_l.begin(), around_l.end(), [&](int u) { return untouched(u); })) {
+        can = false;
+        break;
+      }
+      queue.push(l);
+      deferred = true;
+    }
+    if (!can) {
+      refused.insert(key);
+      continue;
+    }
+    if (deferred) {
+      queue.push({len2, key});
+      continue;
+    }
+    touched.clear();
+    split_edge(a, b, 0.5, x, v, r, touched);
+    const int m = mesh_.num_vertices() - 1;
+    on_cut_[static_cast<std::size_t>(m)] = 0;  // a vertex of the mesh, not of the cut
+    cut_normal_[static_cast<std::size_t>(m)] = Eigen::Vector3d::Zero();
+    ++r.edges_refined;
+    r.changed_tets.insert(r.changed_tets.end(), touched.begin(), touched.end());
+    candidates.insert(candidates.end(), touched.begin(), touched.end());
+    for (int t : touched) offer(t);
+  }
+}
+
 bool TetCutter::ring_is_cut(int p, int q) const {
   const std::vector<int> ring = tets_with_edge(p, q);
   const int k = static_cast<int>(ring.size());
@@ -953,6 +1084,13 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
     }
     const Triangle& t0 = tris.front();
     last_normal_ = (t0.b - t0.a).cross(t0.c - t0.a).normalized();
+  }
+
+
+  refine_ahead(tris, candidates, x, v, r);
+  if (r.edges_refined > 0) {  // the bisected tets' children were appended (their parents' ids are kept)
+    std::sort(candidates.begin(), candidates.end());
+    candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
   }
 
   if (!tris.empty()) {

@@ -397,7 +397,7 @@ SceneSpec parse_scene_spec(const std::string& yaml_text, const std::string& sour
     for (const auto& kv : root)
       if (kv.first.Scalar() == "cutting") cs.line = kv.first.Mark().line + 1;
     if (!c.IsNull()) {
-      r.keys(c, {"blade", "tumour_margin_mm", "snap_fraction", "path_tolerance_mm", "sweep_strips", "push_stiffness_mN_per_mm", "min_dihedral_deg"},
+      r.keys(c, {"blade", "tumour_margin_mm", "snap_fraction", "path_tolerance_mm", "chord_sagitta_mm", "min_refined_edge_mm", "sweep_strips", "push_stiffness_mN_per_mm", "min_dihedral_deg"},
              "cutting");
       if (const YAML::Node b = c["blade"]) {
         r.keys(b, {"tip_mm", "heel_mm"}, "cutting.blade");
@@ -419,6 +419,17 @@ SceneSpec parse_scene_spec(const std::string& yaml_text, const std::string& sour
         cs.path_tolerance_mm = r.number(c["path_tolerance_mm"], "cutting.path_tolerance_mm");
         if (!(cs.path_tolerance_mm >= 0))
           r.fail(c["path_tolerance_mm"], "cutting.path_tolerance_mm must be >= 0", "0.1: a vertex snaps onto the cut only within 0.1 mm of it");
+      }
+      if (c["chord_sagitta_mm"]) {
+        cs.chord_sagitta_mm = r.number(c["chord_sagitta_mm"], "cutting.chord_sagitta_mm");
+        if (!(cs.chord_sagitta_mm >= 0 && cs.chord_sagitta_mm <= 100))
+          r.fail(c["chord_sagitta_mm"], "cutting.chord_sagitta_mm must be in [0, 100] mm",
+                 "1: where the cut curves, tets ahead of the blade are refined until a chord across them lies within 1 mm of the cut (0: off)");
+      }
+      if (c["min_refined_edge_mm"]) {
+        cs.min_refined_edge_mm = r.number(c["min_refined_edge_mm"], "cutting.min_refined_edge_mm");
+        if (!(cs.min_refined_edge_mm >= 1 && cs.min_refined_edge_mm <= 1000))
+          r.fail(c["min_refined_edge_mm"], "cutting.min_refined_edge_mm must be in [1, 1000] mm", "6: refinement ahead of the blade stops at 6 mm edges");
       }
       if (c["sweep_strips"]) cs.sweep_strips = static_cast<int>(r.integer(c["sweep_strips"], "cutting.sweep_strips", 1, 256));
       cs.push_stiffness_mN_per_mm = r.positive(c, "push_stiffness_mN_per_mm", cs.push_stiffness_mN_per_mm, "cutting");

@@ -84,6 +84,10 @@ struct CuttingSpec {
   double tumour_margin_mm = 10.0;         // safety margin event distance
   double snap_fraction = 0.1;             // quality bound: crossings this close (fraction of the edge) snap to its vertex
   double path_tolerance_mm = 0.1;         // a vertex that cannot move onto the cut snaps only this close to it (path fidelity)
+  // Refinement ahead of the blade where the cut curves (docs/cut.md): a chord across the
+  // refined tets lies at most this far off the cut; 0: off (cut the mesh as it is).
+  double chord_sagitta_mm = 0.0;
+  double min_refined_edge_mm = 6.0;       // refinement stops at edges this long
   int sweep_strips = 8;                   // strips of the swept surface
   double push_stiffness_mN_per_mm = 50.0; // contact spring when cutting is off
   // Quality bound (docs/cut.md "Element quality"): tets whose smallest dihedral angle is

@@ -43,13 +43,7 @@ void write_frame(const Scene& scene, const SimRunOptions& o, int frame, const Ei
 SimRunResult run_scene_with_scalpel(const Scene& scene, const SimRunOptions& o, std::ostream& csv) {
   using namespace cut;
   const CuttingSpec& spec = *scene.cutting;
-  CutSessionSettings settings;
-  settings.cut.snap_fraction = spec.snap_fraction;
-  settings.min_dihedral_deg = spec.min_dihedral_deg;
-  settings.cut.path_tolerance_mm = spec.path_tolerance_mm;
-  settings.sweep_strips = spec.sweep_strips;
-  settings.tumour_margin_mm = spec.tumour_margin_mm;
-  settings.push_stiffness_mN_per_mm = spec.push_stiffness_mN_per_mm;
+  CutSessionSettings settings = cut_settings_from(spec);
   const std::unique_ptr<CutSession> session_ptr = make_cut_session(scene, scene.model, settings);
   CutSession& session = *session_ptr;
   std::ofstream events;

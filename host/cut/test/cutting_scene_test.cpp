@@ -1,6 +1,7 @@
 // The scene's cutting section: parsed only when declared, defaults, file:line errors.
 #include <gtest/gtest.h>
 
+#include "host/cut/cut_session.hpp"
 #include "host/scene/load_error.hpp"
 #include "host/scene/scene.hpp"
 #include "host/scene/scene_spec.hpp"
@@ -41,6 +42,16 @@ TEST(CuttingSection, OnlyWhenDeclaredWithDefaults) {
   EXPECT_EQ(t.cutting->push_stiffness_mN_per_mm, 10.0);
   EXPECT_EQ(parse_scene_spec(kBase + "cutting:\n  min_dihedral_deg: 2.5\n", "s.yaml").cutting->min_dihedral_deg, 2.5);
   EXPECT_EQ(parse_scene_spec(kBase + "cutting:\n  min_dihedral_deg: 0\n", "s.yaml").cutting->min_dihedral_deg, 0.0);  // off
+  // Refinement ahead of the blade: off unless the scene asks for it; the settings the
+  // session, the bench and arnav-sim take from the section carry it.
+  EXPECT_EQ(s.cutting->chord_sagitta_mm, 0.0);
+  const SceneSpec r = parse_scene_spec(kBase + "cutting:\n  chord_sagitta_mm: 1.5\n  min_refined_edge_mm: 4\n  path_tolerance_mm: 0.2\n", "s.yaml");
+  EXPECT_EQ(r.cutting->chord_sagitta_mm, 1.5);
+  EXPECT_EQ(r.cutting->min_refined_edge_mm, 4.0);
+  const cut::CutSessionSettings settings = cut::cut_settings_from(*r.cutting);
+  EXPECT_EQ(settings.cut.chord_sagitta_mm, 1.5);
+  EXPECT_EQ(settings.cut.min_refined_edge_mm, 4.0);
+  EXPECT_EQ(settings.cut.path_tolerance_mm, 0.2);  // the live session dropped it before
 }
 
 TEST(CuttingSection, ErrorsNameTheLine) {
@@ -53,6 +64,9 @@ TEST(CuttingSection, ErrorsNameTheLine) {
   EXPECT_NE(error_of(kBase + "cutting:\n  sweep_strips: 0\n").find("s.yaml:7: cutting.sweep_strips = 0 is out of range"), std::string::npos);
   EXPECT_NE(error_of(kBase + "cutting:\n  push_stiffness_mN_per_mm: 0\n").find("must be positive"), std::string::npos);
   EXPECT_NE(error_of(kBase + "cutting:\n  min_dihedral_deg: -1\n").find("s.yaml:7: cutting.min_dihedral_deg must be in [0, 30]"), std::string::npos);
+  EXPECT_NE(error_of(kBase + "cutting:\n  chord_sagitta_mm: -1\n").find("s.yaml:7: cutting.chord_sagitta_mm must be in [0, 100] mm"), std::string::npos);
+  EXPECT_NE(error_of(kBase + "cutting:\n  min_refined_edge_mm: 0.5\n").find("s.yaml:7: cutting.min_refined_edge_mm must be in [1, 1000] mm"),
+            std::string::npos);
   EXPECT_NE(error_of(kBase + "cutting:\n  min_dihedral_deg: 45\n").find("s.yaml:7: cutting.min_dihedral_deg must be in [0, 30]"), std::string::npos);
   EXPECT_NE(error_of(kBase + "cutting:\n  min_dihedral_deg: flat\n").find("s.yaml:7"), std::string::npos);
 }

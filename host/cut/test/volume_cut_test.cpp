@@ -9,6 +9,7 @@
 #include "host/cut/mesh_checks.hpp"
 #include "host/cut/tet_cutter.hpp"
 #include "host/scene/box_mesh.hpp"
+#include "host/scene/mesh_quality.hpp"
 
 using namespace arnav::host;
 using namespace arnav::host::cut;
@@ -272,6 +273,83 @@ TEST(PathFidelity, CurvedCutMidPointsLieOnTheSweptWall) {
   }
 }
 
+// Refinement ahead of the blade (CutSettings::chord_sagitta_mm) on the same ring through
+// coarse cells (20 mm, edges up to 35 mm against the ring's 20 mm radius): tets the blade is
+// about to enter are bisected (longest edge first) until a chord across them lies within the
+// sagitta of the ring. The mesh stays valid with its exact volume, no tet is flattened by
+// the bisections (every tet keeps a bounded shape: Rivara's longest-edge bisection), and the
+// cut's vertices lie closer to the swept wall than without refinement. A straight cut
+// refines nothing.
+TEST(Refinement, CurvedCutIsRefinedAheadOfTheBladeAndLandsOnTheWall) {
+  const auto on_ring = [](double a) { return Eigen::Vector2d(40 + 20 * std::cos(a), 40 + 20 * std::sin(a)); };
+  const auto wall_distance = [&](const Eigen::Vector3d& p) { return std::abs((p.head<2>() - Eigen::Vector2d(40, 40)).norm() - 20.0); };
+  const auto cut_ring = [&](double sagitta_mm, int& refined, double& worst_mm, double& min_volume_ratio, double& min_dihedral_deg) {
+    TetMesh mesh = make_box_tet_mesh(4, 4, 4, Eigen::Vector3d(80, 80, 80));
+    const double input_min_volume = 80.0 * 80 * 80 / (4 * 4 * 4) / 6.0;  // the box's tets: a sixth of a cell each
+    CutSettings settings;
+    settings.chord_sagitta_mm = sagitta_mm;
+    TetCutter cutter(mesh, settings);
+    Eigen::Matrix3Xd x = mesh.rest_positions_World_mm, v;
+    const auto blade = [&](double a) {
+      const Eigen::Vector2d c = on_ring(a);
+      return BladeSegment{Eigen::Vector3d(c.x(), c.y(), 20), Eigen::Vector3d(c.x(), c.y(), 120)};
+    };
+    BladeSegment prev = blade(0);
+    refined = 0;
+    for (int k = 1; k <= 50; ++k) {
+      const BladeSegment cur = blade(2 * M_PI * k / 48);
+      refined += cutter.step({prev, cur, 4, {}}, x, v).edges_refined;
+      prev = cur;
+    }
+    cutter.finish_stroke(x, v);
+    const CutMeshCheck c = check_cut_mesh(cutter.mesh());
+    EXPECT_TRUE(c.valid()) << c.summary();
+    EXPECT_NEAR(c.total_volume_mm3 / 512000.0, 1.0, 1e-12);
+    const Eigen::Matrix3Xd& rest = cutter.mesh().rest_positions_World_mm;
+    worst_mm = 0.0;
+    for (int w = 0; w < rest.cols(); ++w)
+      if (cutter.on_cut(w) && rest(2, w) > 20.0 + 1e-6 && rest.col(w).minCoeff() > 1e-6 && rest.col(w).maxCoeff() < 80.0 - 1e-6)
+        worst_mm = std::max(worst_mm, wall_distance(rest.col(w)));
+    // The tets no cut vertex touches: only the refinement made them.
+    min_volume_ratio = 1.0;
+    min_dihedral_deg = 180.0;
+    for (const auto& tet : cutter.mesh().tets) {
+      if (std::any_of(tet.begin(), tet.end(), [&](int w) { return cutter.on_cut(w); })) continue;
+      min_dihedral_deg = std::min(min_dihedral_deg, tet_dihedral_range_deg(rest.col(tet[0]), rest.col(tet[1]), rest.col(tet[2]), rest.col(tet[3])).first);
+      Eigen::Matrix3d D;
+      for (int k = 0; k < 3; ++k) D.col(k) = rest.col(tet[static_cast<std::size_t>(k + 1)]) - rest.col(tet[0]);
+      min_volume_ratio = std::min(min_volume_ratio, D.determinant() / 6.0 / input_min_volume);
+    }
+  };
+  int refined_off = 0, refined_on = 0;
+  double worst_off = 0, worst_on = 0, ratio_off = 0, ratio_on = 0, dihedral_off = 0, dihedral_on = 0;
+  cut_ring(0.0, refined_off, worst_off, ratio_off, dihedral_off);
+  cut_ring(0.5, refined_on, worst_on, ratio_on, dihedral_on);
+  std::printf("[refinement] ring r 20 mm on 20 mm cells: off: worst %.3f mm; sagitta 0.5 mm: %d edges bisected, worst %.3f mm, "
+              "smallest tet away from the cut %.4f of the input's, smallest dihedral %.1f deg (input %.1f)\n",
+              worst_off, refined_on, worst_on, ratio_on, dihedral_on, dihedral_off);
+  EXPECT_EQ(refined_off, 0);
+  EXPECT_GT(refined_on, 20);
+  EXPECT_LE(worst_on, 0.15) << "on the wall as the unrefined cut at rest (PathFidelity above)";
+  EXPECT_GE(ratio_on, 1.0 / 64) << "bisections stop after six halvings of the 20 mm cells (min_refined_edge_mm 6)";
+  EXPECT_GE(dihedral_on, 0.5 * dihedral_off) << "longest-edge bisection keeps the tets' shapes";
+
+  // A straight cut through the same cells: nothing to refine.
+  TetMesh bar = make_box_tet_mesh(4, 4, 4, Eigen::Vector3d(80, 80, 80));
+  CutSettings settings;
+  settings.chord_sagitta_mm = 0.5;
+  TetCutter cutter(bar, settings);
+  Eigen::Matrix3Xd x = bar.rest_positions_World_mm, v;
+  int refined_straight = 0;
+  BladeSegment prev = vertical(30, -5, 20, 120);
+  for (int k = 1; k <= 40; ++k) {
+    const BladeSegment cur = vertical(30, -5 + 90.0 * k / 40, 20, 120);
+    refined_straight += cutter.step({prev, cur, 4, {}}, x, v).edges_refined;
+    prev = cur;
+  }
+  EXPECT_EQ(refined_straight, 0);
+}
+
 // Path fidelity, analytic: a blade translated across the bar sweeps the plane
 // x = x0 + tilt (z - 10). Every cut face (boundary face not lying on a side of the bar) must
 // lie on that plane to 1e-9, the step reports must say so, and the pieces are 400 x0 and
@@ -374,4 +452,6 @@ TEST(CutSettingsCheck, EverySettingOutOfRangeIsRefusedWithItsValue) {
   EXPECT_NE(message(CutSettings{.path_tolerance_mm = -1.0}).find("path_tolerance_mm must be finite and >= 0, got -1"), std::string::npos);
   EXPECT_NE(message(CutSettings{.path_tolerance_mm = std::nan("")}).find("path_tolerance_mm must be finite"), std::string::npos);
   EXPECT_NE(message(CutSettings{.vertex_tolerance_mm = INFINITY}).find("vertex_tolerance_mm must be finite and >= 0"), std::string::npos);
+  EXPECT_NE(message(CutSettings{.chord_sagitta_mm = -0.5}).find("chord_sagitta_mm must be finite and >= 0, got -0.5"), std::string::npos);
+  EXPECT_NE(message(CutSettings{.min_refined_edge_mm = 0.0}).find("min_refined_edge_mm must be finite and > 0"), std::string::npos);
 }
