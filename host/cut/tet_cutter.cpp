@@ -1014,6 +1014,221 @@ int TetCutter::separate_vertex(int vertex, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd
   return static_cast<int>(roots.size()) - 1;
 }
 
+void TetCutter::mark_tip_tets(const SweptSurface& sweep, const std::vector<int>& candidates, const Eigen::Matrix3Xd& x) {
+  const int n = std::max(1, sweep.strips);
+  const bool advected = static_cast<int>(sweep.from_points.size()) == n + 1;
+  const Eigen::Vector3d tip0 = advected ? sweep.from_points.front() : sweep.from.tip_World_mm;
+  const Eigen::Vector3d heel0 = advected ? sweep.from_points.back() : sweep.from.heel_World_mm;
+  const std::array<std::pair<Eigen::Vector3d, Eigen::Vector3d>, 2> paths{{{tip0, sweep.to.tip_World_mm}, {heel0, sweep.to.heel_World_mm}}};
+  for (int t : candidates) {
+    const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+    for (const auto& [p0, p1] : paths) {
+      bool hit = false;
+      for (const auto& fc : kFaces) {
+        double s = 0;
+        if (segment_triangle_intersection(p0, p1, {x.col(tet[static_cast<std::size_t>(fc[0])]), x.col(tet[static_cast<std::size_t>(fc[1])]),
+                                                   x.col(tet[static_cast<std::size_t>(fc[2])])}, s)) {
+          hit = true;
+          break;
+        }
+      }
+      if (!hit) {
+        Eigen::Matrix3d D;
+        for (int k = 0; k < 3; ++k) D.col(k) = x.col(tet[static_cast<std::size_t>(k + 1)]) - x.col(tet[0]);
+        const Eigen::Vector3d l = D.partialPivLu().solve(p1 - x.col(tet[0]));
+        hit = l.minCoeff() >= 0 && l.sum() <= 1;
+      }
+      if (hit) tip_tet_[static_cast<std::size_t>(t)] = 1;
+    }
+  }
+}
+
+// Step 5 of a frame (docs/cut.md): every vertex of a cut face whose tets fall apart into groups
+// is duplicated; edges inside the cut whose ends stay joined are split at their mid-points.
+void TetCutter::separate_along_cut(Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r) {
+  if (cut_faces_.empty()) return;
+  std::vector<int> vertices;
+  for (const auto& key : cut_faces_) vertices.insert(vertices.end(), key.begin(), key.end());
+  std::sort(vertices.begin(), vertices.end());
+  vertices.erase(std::unique(vertices.begin(), vertices.end()), vertices.end());
+  std::vector<std::pair<int, int>> edges;
+  for (const auto& key : cut_faces_)
+    for (int i = 0; i < 3; ++i) edges.emplace_back(std::min(key[static_cast<std::size_t>(i)], key[static_cast<std::size_t>((i + 1) % 3)]),
+                                                   std::max(key[static_cast<std::size_t>(i)], key[static_cast<std::size_t>((i + 1) % 3)]));
+  std::sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  for (int w : vertices) separate_vertex(w, x, v, r);
+  // Also the edges of every tet that changed (a second cut meeting an earlier one).
+  for (int t : r.changed_tets) {
+    const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+    for (const auto& e : kEdges) {
+      const int p = tet[static_cast<std::size_t>(e[0])], q = tet[static_cast<std::size_t>(e[1])];
+      if (on_cut(p) && on_cut(q)) edges.emplace_back(std::min(p, q), std::max(p, q));
+    }
+  }
+  std::sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  // An edge inside the cut whose two ends stay joined (the cut reaches the edge from both
+  // sides but not past its ends) would be shared by both lips (non-manifold): split it at
+  // its mid-point and separate the new vertex.
+  for (const auto& [p, q] : edges) {
+    if (!ring_is_cut(p, q)) continue;
+    const int m = mesh_.num_vertices();
+    std::vector<int> touched;
+    split_edge(p, q, 0.5, x, v, r, touched);
+    r.changed_tets.insert(r.changed_tets.end(), touched.begin(), touched.end());
+    std::vector<std::array<int, 3>> moved;
+    for (auto it = cut_faces_.begin(); it != cut_faces_.end();) {
+      const auto& face = *it;
+      if (std::find(face.begin(), face.end(), p) != face.end() && std::find(face.begin(), face.end(), q) != face.end()) {
+        const int other = face[0] != p && face[0] != q ? face[0] : (face[1] != p && face[1] != q ? face[1] : face[2]);
+        moved.push_back(face_key(p, m, other));
+        moved.push_back(face_key(m, q, other));
+        it = cut_faces_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    cut_faces_.insert(moved.begin(), moved.end());
+    // The mid-point of a chord lies off a curved cut by its sagitta: separated, then it
+    // and its copies moved onto the surface the blade swept in the material, as far as the
+    // tets around allow.
+    const int before = mesh_.num_vertices();
+    separate_vertex(m, x, v, r);
+    std::vector<int> copies{m};
+    for (int c = before; c < mesh_.num_vertices(); ++c) copies.push_back(c);
+    place_on_material_stroke(copies, x, v);
+  }
+  for (auto it = cut_faces_.begin(); it != cut_faces_.end();) {
+    if (tets_with_face(*it) < 2) {
+      ++r.faces_separated;
+      it = cut_faces_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+}
+
+// Step 4 (docs/cut.md): tets among check whose recorded crossings separate them completely
+// have their crossed edges split (every tet around such an edge bisected: conforming),
+// repeated while splits complete more; cut pieces are marked in cut_piece.
+void TetCutter::split_completed(std::vector<int> check, std::vector<char>& cut_piece, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v,
+                                CutStepReport& r) {
+  for (int round = 0; round < 8 && !check.empty(); ++round) {
+    std::set<EdgeKey> to_split;
+    for (int t : check) {
+      const int pattern = complete_pattern(t);
+      if (pattern == 0) continue;
+      ++r.tets_cut;
+      if (static_cast<std::size_t>(t) >= cut_piece.size()) cut_piece.resize(static_cast<std::size_t>(t) + 1, 0);
+      cut_piece[static_cast<std::size_t>(t)] = 1;
+      const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+      for (int e = 0; e < 6; ++e)
+        if (pattern & (1 << e)) to_split.insert(edge_key(tet[static_cast<std::size_t>(kEdges[e][0])], tet[static_cast<std::size_t>(kEdges[e][1])]));
+    }
+    std::vector<int> touched;
+    for (EdgeKey key : to_split) {
+      const int a = static_cast<int>(key >> 32), b = static_cast<int>(key & 0xffffffffu);
+      const auto it = pending_.find(key);
+      if (it == pending_.end()) continue;
+      const double t_ab = it->second;
+      pending_.erase(it);
+      const std::size_t first_pair = touched.size();
+      split_edge(a, b, t_ab, x, v, r, touched);
+      // Children inherit the parent's mark (each piece of a cut tet lies on one side).
+      cut_piece.resize(mesh_.tets.size(), 0);
+      for (std::size_t i = first_pair; i + 1 < touched.size(); i += 2)
+        cut_piece[static_cast<std::size_t>(touched[i + 1])] = cut_piece[static_cast<std::size_t>(touched[i])];
+    }
+    r.changed_tets.insert(r.changed_tets.end(), touched.begin(), touched.end());
+    std::sort(touched.begin(), touched.end());
+    touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+    check = touched;
+  }
+}
+
+// Step 4b (docs/cut.md): tets the blade has left with their crossings incomplete, and watched
+// tets whose free vertices lie on both sides of the stroke's surface, are completed from the
+// stroke's surface in the material and split. Candidates of this frame, and tets made since old_tets,
+// are near the blade.
+void TetCutter::complete_left_tets(const std::vector<int>& candidates, int old_tets, std::vector<char>& cut_piece, Eigen::Matrix3Xd& x,
+                                   Eigen::Matrix3Xd& v, CutStepReport& r) {
+  std::vector<char> near(mesh_.tets.size(), 0);
+  for (int t : candidates) near[static_cast<std::size_t>(t)] = 1;
+  for (std::size_t t = static_cast<std::size_t>(old_tets); t < near.size(); ++t) near[t] = 1;
+  std::vector<int> stale;
+  for (const auto& [key, param] : pending_) {
+    (void)param;
+    for (int t : tets_with_edge(static_cast<int>(key >> 32), static_cast<int>(key & 0xffffffffu)))
+      if (!near[static_cast<std::size_t>(t)] && !tip_tet_[static_cast<std::size_t>(t)]) stale.push_back(t);
+  }
+  // Tets the cut has reached (a vertex on this stroke's cut) are watched until the blade has
+  // left them: one whose free vertices lie on both sides of the stroke's surface with no
+  // crossing recorded on the edge between them is completed the same way. The tissue moves
+  // between frames, so the strip of one frame (started from the previous blade carried with
+  // the tissue: a polyline through strips + 1 carried points) and the strip of the last one
+  // (straight between the points as they were) leave slivers of material between them that
+  // neither swept: an edge crossing the cut there has no crossing (docs/cut.md, "The ring in
+  // the running simulation").
+  // At the stroke's end every tet round a vertex on this stroke's cut is looked at once
+  // (O(vertices + cut), once per stroke): a tet the sweep never reached because the tissue
+  // carried it across the blade's path between two frames (an organ recoiling as the cut
+  // frees it moved a vertex 1.5 mm across the blade in one frame) is otherwise never
+  // watched. Free vertices without a side then get one from the complete surface
+  // (45 degrees, within an edge of their tets), as the faces on the cut do.
+  {
+    for (int t : candidates) watch_tet(t);
+    for (int t : r.changed_tets) watch_tet(t);
+    if (finishing_) {
+      for (int w = 0; w < mesh_.num_vertices(); ++w)
+        if (on_stroke(w))
+          for (int t : vertex_tets_[static_cast<std::size_t>(w)]) watch_tet(t);
+      for (int t : watch_) {
+        if (tip_tet_[static_cast<std::size_t>(t)]) continue;
+        for (int w : mesh_.tets[static_cast<std::size_t>(t)]) {
+          if (on_stroke(w) || side_[static_cast<std::size_t>(w)] != 0) continue;
+          if (const int sd = stroke_side(w, x, kLazyCone); sd != 0) {
+            side_[static_cast<std::size_t>(w)] = static_cast<signed char>(sd);
+            sided_.push_back(w);
+          }
+        }
+      }
+    }
+    std::vector<int> keep;
+    for (int t : watch_) {
+      if (near[static_cast<std::size_t>(t)] || tip_tet_[static_cast<std::size_t>(t)]) {
+        keep.push_back(t);
+        continue;
+      }
+      if (side_pattern(t) != 0 || complete_pattern(t) != 0) {
+        stale.push_back(t);
+        watched_[static_cast<std::size_t>(t)] = 0;
+        continue;
+      }
+      bool unknown = false;
+      for (int w : mesh_.tets[static_cast<std::size_t>(t)]) unknown |= !on_stroke(w) && side_[static_cast<std::size_t>(w)] == 0;
+      if (unknown && !finishing_) {
+        keep.push_back(t);
+      } else {
+        watched_[static_cast<std::size_t>(t)] = 0;
+      }
+    }
+    watch_ = std::move(keep);
+  }
+  std::sort(stale.begin(), stale.end());
+  stale.erase(std::unique(stale.begin(), stale.end()), stale.end());
+  std::vector<int> completed;
+  for (int t : stale) {
+    if (complete_pattern(t) != 0) {
+      completed.push_back(t);  // complete since (a neighbour's completion): split
+    } else if (complete_from_sides(t, x, r)) {
+      completed.push_back(t);
+    }
+  }
+  r.tets_completed = static_cast<int>(completed.size());
+  split_completed(completed, cut_piece, x, v, r);
+}
+
 CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v) {
   const auto start = std::chrono::steady_clock::now();
   CutStepReport r;
@@ -1056,32 +1271,7 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
   const int old_tets = mesh_.num_tets();
   // Tets a blade end (tip or heel path) passes through hold the crack front.
   if (!tris.empty()) {
-    const int n = std::max(1, sweep.strips);
-    const bool advected = static_cast<int>(sweep.from_points.size()) == n + 1;
-    const Eigen::Vector3d tip0 = advected ? sweep.from_points.front() : sweep.from.tip_World_mm;
-    const Eigen::Vector3d heel0 = advected ? sweep.from_points.back() : sweep.from.heel_World_mm;
-    const std::array<std::pair<Eigen::Vector3d, Eigen::Vector3d>, 2> paths{{{tip0, sweep.to.tip_World_mm}, {heel0, sweep.to.heel_World_mm}}};
-    for (int t : candidates) {
-      const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
-      for (const auto& [p0, p1] : paths) {
-        bool hit = false;
-        for (const auto& fc : kFaces) {
-          double s = 0;
-          if (segment_triangle_intersection(p0, p1, {x.col(tet[static_cast<std::size_t>(fc[0])]), x.col(tet[static_cast<std::size_t>(fc[1])]),
-                                                     x.col(tet[static_cast<std::size_t>(fc[2])])}, s)) {
-            hit = true;
-            break;
-          }
-        }
-        if (!hit) {
-          Eigen::Matrix3d D;
-          for (int k = 0; k < 3; ++k) D.col(k) = x.col(tet[static_cast<std::size_t>(k + 1)]) - x.col(tet[0]);
-          const Eigen::Vector3d l = D.partialPivLu().solve(p1 - x.col(tet[0]));
-          hit = l.minCoeff() >= 0 && l.sum() <= 1;
-        }
-        if (hit) tip_tet_[static_cast<std::size_t>(t)] = 1;
-      }
-    }
+    mark_tip_tets(sweep, candidates, x);
     const Triangle& t0 = tris.front();
     last_normal_ = (t0.b - t0.a).cross(t0.c - t0.a).normalized();
   }
@@ -1260,119 +1450,11 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
   // 4. Tets the recorded crossings separate completely: split their crossed edges (every
   // tet around such an edge is bisected: conforming). Repeated while splits complete more.
   std::vector<char> cut_piece(static_cast<std::size_t>(mesh_.num_tets()), 0);
-  auto split_completed = [&](std::vector<int> check) {
-    for (int round = 0; round < 8 && !check.empty(); ++round) {
-      std::set<EdgeKey> to_split;
-      for (int t : check) {
-        const int pattern = complete_pattern(t);
-        if (pattern == 0) continue;
-        ++r.tets_cut;
-        if (static_cast<std::size_t>(t) >= cut_piece.size()) cut_piece.resize(static_cast<std::size_t>(t) + 1, 0);
-        cut_piece[static_cast<std::size_t>(t)] = 1;
-        const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
-        for (int e = 0; e < 6; ++e)
-          if (pattern & (1 << e)) to_split.insert(edge_key(tet[static_cast<std::size_t>(kEdges[e][0])], tet[static_cast<std::size_t>(kEdges[e][1])]));
-      }
-      std::vector<int> touched;
-      for (EdgeKey key : to_split) {
-        const int a = static_cast<int>(key >> 32), b = static_cast<int>(key & 0xffffffffu);
-        const auto it = pending_.find(key);
-        if (it == pending_.end()) continue;
-        const double t_ab = it->second;
-        pending_.erase(it);
-        const std::size_t first_pair = touched.size();
-        split_edge(a, b, t_ab, x, v, r, touched);
-        // Children inherit the parent's mark (each piece of a cut tet lies on one side).
-        cut_piece.resize(mesh_.tets.size(), 0);
-        for (std::size_t i = first_pair; i + 1 < touched.size(); i += 2)
-          cut_piece[static_cast<std::size_t>(touched[i + 1])] = cut_piece[static_cast<std::size_t>(touched[i])];
-      }
-      r.changed_tets.insert(r.changed_tets.end(), touched.begin(), touched.end());
-      std::sort(touched.begin(), touched.end());
-      touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
-      check = touched;
-    }
-  };
-  split_completed(candidates);
+  split_completed(candidates, cut_piece, x, v, r);
   // 4b. Tets the blade has left (no longer near the sweep) whose crossings stay incomplete
   // because the tissue moved between frames, and that no blade end passed through (those are
   // the crack tip): the missing crossings are put on the plane of the recorded ones.
-  {
-    std::vector<char> near(mesh_.tets.size(), 0);
-    for (int t : candidates) near[static_cast<std::size_t>(t)] = 1;
-    for (std::size_t t = static_cast<std::size_t>(old_tets); t < near.size(); ++t) near[t] = 1;
-    std::vector<int> stale;
-    for (const auto& [key, param] : pending_) {
-      (void)param;
-      for (int t : tets_with_edge(static_cast<int>(key >> 32), static_cast<int>(key & 0xffffffffu)))
-        if (!near[static_cast<std::size_t>(t)] && !tip_tet_[static_cast<std::size_t>(t)]) stale.push_back(t);
-    }
-    // Tets the cut has reached (a vertex on this stroke's cut) are watched until the blade has
-    // left them: one whose free vertices lie on both sides of the stroke's surface with no
-    // crossing recorded on the edge between them is completed the same way. The tissue moves
-    // between frames, so the strip of one frame (started from the previous blade carried with
-    // the tissue: a polyline through strips + 1 carried points) and the strip of the last one
-    // (straight between the points as they were) leave slivers of material between them that
-    // neither swept: an edge crossing the cut there has no crossing (docs/cut.md, "The ring in
-    // the running simulation").
-    // At the stroke's end every tet round a vertex on this stroke's cut is looked at once
-    // (O(vertices + cut), once per stroke): a tet the sweep never reached because the tissue
-    // carried it across the blade's path between two frames (an organ recoiling as the cut
-    // frees it moved a vertex 1.5 mm across the blade in one frame) is otherwise never
-    // watched. Free vertices without a side then get one from the complete surface
-    // (45 degrees, within an edge of their tets), as the faces on the cut do.
-    {
-      for (int t : candidates) watch_tet(t);
-      for (int t : r.changed_tets) watch_tet(t);
-      if (finishing_) {
-        for (int w = 0; w < mesh_.num_vertices(); ++w)
-          if (on_stroke(w))
-            for (int t : vertex_tets_[static_cast<std::size_t>(w)]) watch_tet(t);
-        for (int t : watch_) {
-          if (tip_tet_[static_cast<std::size_t>(t)]) continue;
-          for (int w : mesh_.tets[static_cast<std::size_t>(t)]) {
-            if (on_stroke(w) || side_[static_cast<std::size_t>(w)] != 0) continue;
-            if (const int sd = stroke_side(w, x, kLazyCone); sd != 0) {
-              side_[static_cast<std::size_t>(w)] = static_cast<signed char>(sd);
-              sided_.push_back(w);
-            }
-          }
-        }
-      }
-      std::vector<int> keep;
-      for (int t : watch_) {
-        if (near[static_cast<std::size_t>(t)] || tip_tet_[static_cast<std::size_t>(t)]) {
-          keep.push_back(t);
-          continue;
-        }
-        if (side_pattern(t) != 0 || complete_pattern(t) != 0) {
-          stale.push_back(t);
-          watched_[static_cast<std::size_t>(t)] = 0;
-          continue;
-        }
-        bool unknown = false;
-        for (int w : mesh_.tets[static_cast<std::size_t>(t)]) unknown |= !on_stroke(w) && side_[static_cast<std::size_t>(w)] == 0;
-        if (unknown && !finishing_) {
-          keep.push_back(t);
-        } else {
-          watched_[static_cast<std::size_t>(t)] = 0;
-        }
-      }
-      watch_ = std::move(keep);
-    }
-    std::sort(stale.begin(), stale.end());
-    stale.erase(std::unique(stale.begin(), stale.end()), stale.end());
-    std::vector<int> completed;
-    for (int t : stale) {
-      if (complete_pattern(t) != 0) {
-        completed.push_back(t);  // complete since (a neighbour's completion): split
-      } else if (complete_from_sides(t, x, r)) {
-        completed.push_back(t);
-      }
-    }
-    r.tets_completed = static_cast<int>(completed.size());
-    split_completed(completed);
-  }
+  complete_left_tets(candidates, old_tets, cut_piece, x, v, r);
   // Cut faces: faces of the separated pieces with their three vertices on this stroke (the
   // cut polygons), and faces with their three vertices on this stroke between two tets on
   // opposite sides (a cut through existing vertices and faces).
@@ -1573,68 +1655,7 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
     }
   }
   // 5. Separate: duplicate each vertex of a cut face whose tets fall apart into groups.
-  if (!cut_faces_.empty()) {
-    std::vector<int> vertices;
-    for (const auto& key : cut_faces_) vertices.insert(vertices.end(), key.begin(), key.end());
-    std::sort(vertices.begin(), vertices.end());
-    vertices.erase(std::unique(vertices.begin(), vertices.end()), vertices.end());
-    std::vector<std::pair<int, int>> edges;
-    for (const auto& key : cut_faces_)
-      for (int i = 0; i < 3; ++i) edges.emplace_back(std::min(key[static_cast<std::size_t>(i)], key[static_cast<std::size_t>((i + 1) % 3)]),
-                                                     std::max(key[static_cast<std::size_t>(i)], key[static_cast<std::size_t>((i + 1) % 3)]));
-    std::sort(edges.begin(), edges.end());
-    edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
-    for (int w : vertices) separate_vertex(w, x, v, r);
-    // Also the edges of every tet that changed (a second cut meeting an earlier one).
-    for (int t : r.changed_tets) {
-      const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
-      for (const auto& e : kEdges) {
-        const int p = tet[static_cast<std::size_t>(e[0])], q = tet[static_cast<std::size_t>(e[1])];
-        if (on_cut(p) && on_cut(q)) edges.emplace_back(std::min(p, q), std::max(p, q));
-      }
-    }
-    std::sort(edges.begin(), edges.end());
-    edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
-    // An edge inside the cut whose two ends stay joined (the cut reaches the edge from both
-    // sides but not past its ends) would be shared by both lips (non-manifold): split it at
-    // its mid-point and separate the new vertex.
-    for (const auto& [p, q] : edges) {
-      if (!ring_is_cut(p, q)) continue;
-      const int m = mesh_.num_vertices();
-      std::vector<int> touched;
-      split_edge(p, q, 0.5, x, v, r, touched);
-      r.changed_tets.insert(r.changed_tets.end(), touched.begin(), touched.end());
-      std::vector<std::array<int, 3>> moved;
-      for (auto it = cut_faces_.begin(); it != cut_faces_.end();) {
-        const auto& face = *it;
-        if (std::find(face.begin(), face.end(), p) != face.end() && std::find(face.begin(), face.end(), q) != face.end()) {
-          const int other = face[0] != p && face[0] != q ? face[0] : (face[1] != p && face[1] != q ? face[1] : face[2]);
-          moved.push_back(face_key(p, m, other));
-          moved.push_back(face_key(m, q, other));
-          it = cut_faces_.erase(it);
-        } else {
-          ++it;
-        }
-      }
-      cut_faces_.insert(moved.begin(), moved.end());
-      // The mid-point of a chord lies off a curved cut by its sagitta: separated, then it
-      // and its copies moved onto the surface the blade swept in the material, as far as the
-      // tets around allow.
-      const int before = mesh_.num_vertices();
-      separate_vertex(m, x, v, r);
-      std::vector<int> copies{m};
-      for (int c = before; c < mesh_.num_vertices(); ++c) copies.push_back(c);
-      place_on_material_stroke(copies, x, v);
-    }
-    for (auto it = cut_faces_.begin(); it != cut_faces_.end();) {
-      if (tets_with_face(*it) < 2) {
-        ++r.faces_separated;
-        it = cut_faces_.erase(it);
-      } else {
-        ++it;
-      }
-    }
-  }
+  separate_along_cut(x, v, r);
   // Tets made after the watch list was updated (the completions' splits, the separation's
   // mid-point splits of edges inside the cut) are watched like the others: the blade may
   // already have left them, and a tet never watched is never completed.

@@ -230,6 +230,17 @@ class TetCutter {
   // candidates.
   void refine_ahead(const std::vector<Triangle>& tris, std::vector<int>& candidates, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v,
                     CutStepReport& r);
+  // Marks the candidates a blade end (tip or heel path of this frame's sweep) passes through:
+  // they hold the crack front.
+  void mark_tip_tets(const SweptSurface& sweep, const std::vector<int>& candidates, const Eigen::Matrix3Xd& x);
+  // Splits the tets among check whose recorded crossings separate them, while splits complete
+  // more (step 4); marks the pieces in cut_piece.
+  void split_completed(std::vector<int> check, std::vector<char>& cut_piece, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
+  // Completes and splits the tets the blade has left with crossings missing (step 4b).
+  void complete_left_tets(const std::vector<int>& candidates, int old_tets, std::vector<char>& cut_piece, Eigen::Matrix3Xd& x,
+                          Eigen::Matrix3Xd& v, CutStepReport& r);
+  // Duplicates the vertices of cut faces whose tets fall apart into groups (step 5).
+  void separate_along_cut(Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   // No vertex of tet t is on a cut and no edge of it has a crossing recorded.
   bool untouched(int t) const;
   // True when the tets around edge p-q fall into several groups once cut faces no longer
