@@ -63,12 +63,14 @@ struct CutSettings {
   // taken, every edge of a tet the sweep is about to enter (no vertex on a cut, no crossing
   // recorded yet) longer than L = sqrt(8 s R) at rest is bisected, longest first, with s this
   // setting and R the cut's radius of curvature in the material over its last few mm. A chord
-  // of length L across the cut then lies at most s off it (a 40 mm edge on the demo's 21 mm
-  // ring: 9.5 mm). A straight cut refines nothing. 0: off (the mesh as given). Volumes stay
+  // of length L across the cut then lies at most s off it (unrefined, a 40 mm chord of the
+  // demo's 21 mm ring lies 9.5 mm off it). A straight cut refines nothing. 0: off (the mesh as given). Volumes stay
   // exact (bisections partition their tets).
   double chord_sagitta_mm = 0.0;
   // L is never below this (a tight turn would otherwise refine without bound).
   double min_refined_edge_mm = 6.0;
+  // At most this many bisections per frame (bounds a frame's cost; a tet the blade reaches
+  // before its turn is cut as it is).
   int max_refinements_per_step = 200;
 };
 
