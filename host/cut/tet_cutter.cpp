@@ -63,6 +63,10 @@ TetCutter::EdgeKey TetCutter::edge_key(int a, int b) {
   return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) | static_cast<std::uint32_t>(b);
 }
 
+std::pair<int, int> TetCutter::edge_ends(EdgeKey key) {
+  return {static_cast<int>(key >> 32), static_cast<int>(key & 0xffffffffu)};
+}
+
 std::array<int, 3> TetCutter::face_key(int a, int b, int c) {
   std::array<int, 3> f{a, b, c};
   std::sort(f.begin(), f.end());
@@ -867,7 +871,6 @@ void TetCutter::refine_ahead(const std::vector<Triangle>& tris, std::vector<int>
   const double lmax2 = lmax * lmax;
   const Eigen::Matrix3Xd& rest = mesh_.rest_positions_World_mm;
   auto length2 = [&](int a, int b) { return (rest.col(a) - rest.col(b)).squaredNorm(); };
-  auto ends = [](EdgeKey key) { return std::pair<int, int>(static_cast<int>(key >> 32), static_cast<int>(key & 0xffffffffu)); };
   // The sweep enters tet t: a blade end passed through it, or it crosses one of its edges.
   auto entered = [&](int t) {
     if (tip_tet_[static_cast<std::size_t>(t)]) return true;
@@ -903,7 +906,7 @@ void TetCutter::refine_ahead(const std::vector<Triangle>& tris, std::vector<int>
   while (!queue.empty() && r.edges_refined < settings_.max_refinements_per_step) {
     const auto [len2, key] = queue.top();
     queue.pop();
-    const auto [a, b] = ends(key);
+    const auto [a, b] = edge_ends(key);
     const std::vector<int> around = tets_with_edge(a, b);
     if (around.empty()) continue;  // bisected already
     // Bisected only where it is the longest edge of every tet around it (else those tets'
@@ -919,7 +922,7 @@ void TetCutter::refine_ahead(const std::vector<Triangle>& tris, std::vector<int>
       }
       const auto l = longest(t);
       if (l.first <= len2 * (1.0 + 1e-12)) continue;
-      const auto [p, q] = ends(l.second);
+      const auto [p, q] = edge_ends(l.second);
       const std::vector<int> around_l = tets_with_edge(p, q);
       if (refused.count(l.second) || !std::all_of(around_l.begin(), around_l.end(), [&](int u) { return untouched(u); })) {
         can = false;
@@ -1128,7 +1131,7 @@ void TetCutter::split_completed(std::vector<int> check, std::vector<char>& cut_p
     }
     std::vector<int> touched;
     for (EdgeKey key : to_split) {
-      const int a = static_cast<int>(key >> 32), b = static_cast<int>(key & 0xffffffffu);
+      const auto [a, b] = edge_ends(key);
       const auto it = pending_.find(key);
       if (it == pending_.end()) continue;
       const double t_ab = it->second;
@@ -1159,7 +1162,8 @@ void TetCutter::complete_left_tets(const std::vector<int>& candidates, int old_t
   std::vector<int> stale;
   for (const auto& [key, param] : pending_) {
     (void)param;
-    for (int t : tets_with_edge(static_cast<int>(key >> 32), static_cast<int>(key & 0xffffffffu)))
+    const auto [a, b] = edge_ends(key);
+    for (int t : tets_with_edge(a, b))
       if (!near[static_cast<std::size_t>(t)] && !tip_tet_[static_cast<std::size_t>(t)]) stale.push_back(t);
   }
   // Tets the cut has reached (a vertex on this stroke's cut) are watched until the blade has

@@ -25,6 +25,7 @@
 #include <string>
 #include <unordered_map>
 #include <unordered_set>
+#include <utility>
 #include <vector>
 
 #include "host/cut/blade.hpp"
@@ -173,6 +174,7 @@ class TetCutter {
   using FaceSet = std::unordered_set<std::array<int, 3>, FaceHash>;
 
   static EdgeKey edge_key(int a, int b);
+  static std::pair<int, int> edge_ends(EdgeKey key);  // the smaller id first
   static std::array<int, 3> face_key(int a, int b, int c);
   std::vector<int> tets_with_edge(int a, int b) const;
   int tets_with_face(const std::array<int, 3>& f, int* tets = nullptr) const;
