@@ -26,6 +26,7 @@ struct Aabb {
   }
   bool overlaps(const Aabb& b) const { return (min.array() <= b.max.array()).all() && (b.min.array() <= max.array()).all(); }
   Aabb inflated(double r) const { return {min.array() - r, max.array() + r}; }
+  bool contains(const Eigen::Vector3d& p) const { return (min.array() <= p.array()).all() && (p.array() <= max.array()).all(); }
 };
 
 // Primitives are given by their boxes; the caller computes them from its own vertices (a

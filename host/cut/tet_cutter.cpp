@@ -44,10 +44,14 @@ Eigen::Vector3d unit_normal(const Triangle& t) { return (t.b - t.a).cross(t.c - 
 
 // Barycentric weights of p in tet (vertex positions pos); outside the tet some are negative.
 Eigen::Vector4d tet_weights(const Eigen::Matrix3Xd& pos, const std::array<int, 4>& tet, const Eigen::Vector3d& p) {
-  Eigen::Matrix3d D;
-  for (int k = 0; k < 3; ++k) D.col(k) = pos.col(tet[static_cast<std::size_t>(k + 1)]) - pos.col(tet[0]);
-  const Eigen::Vector3d l = D.partialPivLu().solve(p - pos.col(tet[0]));
-  return {1.0 - l.sum(), l[0], l[1], l[2]};
+  // Cramer's rule on the edge vectors from vertex 0: each weight is the signed volume of the
+  // tet with that vertex replaced by p over the tet's (a flat tet: non-finite weights).
+  const Eigen::Vector3d e1 = pos.col(tet[1]) - pos.col(tet[0]), e2 = pos.col(tet[2]) - pos.col(tet[0]),
+                        e3 = pos.col(tet[3]) - pos.col(tet[0]), q = p - pos.col(tet[0]);
+  const Eigen::Vector3d c23 = e2.cross(e3);
+  const double inv = 1.0 / e1.dot(c23);
+  const double l1 = q.dot(c23) * inv, l2 = e1.dot(q.cross(e3)) * inv, l3 = e1.dot(e2.cross(q)) * inv;
+  return {1.0 - l1 - l2 - l3, l1, l2, l3};
 }
 
 // Six times the volume of tet (positions pos) with its vertex w at pw.
@@ -116,8 +120,15 @@ int TetCutter::locate(const Eigen::Vector3d& p, const Eigen::Matrix3Xd& x, Eigen
   int best_tet = -1;
   double best = -1e300;
   bvh_.query(box, [&](int fam) {
-    for (int t : family_[static_cast<std::size_t>(fam)]) {
-      const Eigen::Vector4d w = tet_weights(x, mesh_.tets[static_cast<std::size_t>(t)], p);
+    const std::vector<int>& family = family_[static_cast<std::size_t>(fam)];
+    for (int t : family) {
+      const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+      if (family.size() > 1) {  // a refined or cut input tet: only its children whose box holds p
+        Aabb b;
+        for (int w : tet) b.extend(Eigen::Vector3d(x.col(w)));
+        if (!b.inflated(1e-4).contains(p)) continue;
+      }
+      const Eigen::Vector4d w = tet_weights(x, tet, p);
       if (w.allFinite() && w.minCoeff() > best) {
         best = w.minCoeff();
         best_tet = t;
@@ -235,34 +246,67 @@ void TetCutter::append_chunk(const std::vector<Triangle>& add, std::vector<Trian
     chunk.box.extend(t.a);
     chunk.box.extend(t.b);
     chunk.box.extend(t.c);
-    const Eigen::Vector3d n2 = (t.b - t.a).cross(t.c - t.a);  // twice the area, along the normal
-    chunk.normal += n2;
-    chunk.centroid += n2.norm() * (t.a + t.b + t.c) / 3.0;
-    area2 += n2.norm();
+    const double a2 = (t.b - t.a).cross(t.c - t.a).norm();  // twice the area
+    chunk.centroid += a2 * (t.a + t.b + t.c) / 3.0;
+    area2 += a2;
   }
-  if (area2 > 0.0) chunk.centroid /= area2;
-  chunk.normal = chunk.normal.squaredNorm() > 0.0 ? Eigen::Vector3d(chunk.normal.normalized()) : Eigen::Vector3d::Zero();
+  if (area2 > 0.0) {
+    chunk.centroid /= area2;
+    // One frame's strip is long along the blade and short along its motion: the principal
+    // direction of its points is the blade's (its normal is not reliable, see
+    // material_curvature_per_mm).
+    Eigen::Matrix3d spread = Eigen::Matrix3d::Zero();
+    for (const auto& t : add)
+      for (const Eigen::Vector3d& q : {t.a, t.b, t.c}) spread += (q - chunk.centroid) * (q - chunk.centroid).transpose();
+    chunk.axis = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(spread).eigenvectors().col(2);
+  }
   tris.insert(tris.end(), add.begin(), add.end());
   chunk.end = static_cast<int>(tris.size());
   chunks.push_back(chunk);
 }
 
 double TetCutter::material_curvature_per_mm() const {
-  // The last frame's surface against the latest one at least kSpan_mm before it: the turn
-  // of its normal over the distance between their centroids.
-  constexpr double kSpan_mm = 4.0;
+  // The circle through three points of the blade's path in the material, seen along the
+  // blade: the centroids of this stroke's frames' surfaces, the latest, one leg of path
+  // before it and one two legs before it, projected on the plane normal to the blade's mean
+  // axis there. The bend of a surface swept by a straight blade is the bend of that
+  // projected path; the centroids' depth along the blade changes with how much of the blade
+  // is in the tissue (+-2 mm from frame to frame on the demo's ring) and is left out.
+  // Not the turn of the frames' normals: a strip 0.3 mm wide whose ends moved 0.1 mm with
+  // the tissue (a grasper pulling) turns by tens of degrees, which read as radii of 1-6 mm on
+  // a 21 mm ring (issue 20). A projected centroid's jitter of d mm reads as a curvature of
+  // about 2 d / leg^2: legs of kLeg_mm (0.1 mm on a straight cut: a radius of 125 mm); over a
+  // stroke's first 2 kLeg_mm, half its path so far (from kMinLeg_mm: a curve from the start
+  // is refined from the start, a straight stroke's start a little more than it needs).
+  constexpr double kLeg_mm = 5.0, kMinLeg_mm = 1.0;
   const auto& chunks = stroke_chunks_rest_;
-  int last = static_cast<int>(chunks.size()) - 1;
-  while (last >= 0 && chunks[static_cast<std::size_t>(last)].normal.squaredNorm() == 0.0) --last;
-  if (last < 1) return 0.0;
-  const StrokeChunk& now = chunks[static_cast<std::size_t>(last)];
-  for (int j = last - 1; j >= 0; --j) {
-    const StrokeChunk& before = chunks[static_cast<std::size_t>(j)];
-    const double d = (now.centroid - before.centroid).norm();
-    if (before.normal.squaredNorm() == 0.0 || d < kSpan_mm) continue;
-    return std::atan2(now.normal.cross(before.normal).norm(), now.normal.dot(before.normal)) / d;
+  std::vector<std::pair<int, double>> back;  // chunk, path to the latest (mm), latest first
+  Eigen::Vector3d axis = Eigen::Vector3d::Zero();
+  for (int j = static_cast<int>(chunks.size()) - 1; j >= 0; --j) {
+    const StrokeChunk& c = chunks[static_cast<std::size_t>(j)];
+    if (c.axis.squaredNorm() == 0.0) continue;  // nothing of this frame's surface in the tissue
+    axis += axis.dot(c.axis) < 0.0 ? Eigen::Vector3d(-c.axis) : c.axis;
+    double path_mm = 0.0;
+    if (!back.empty()) {
+      const Eigen::Vector3d step = c.centroid - chunks[static_cast<std::size_t>(back.back().first)].centroid, u = axis.normalized();
+      path_mm = back.back().second + (step - step.dot(u) * u).norm();
+    }
+    back.emplace_back(j, path_mm);
+    if (path_mm >= 2.0 * kLeg_mm) break;
   }
-  return 0.0;
+  if (back.empty()) return 0.0;
+  const double leg = std::min(kLeg_mm, 0.5 * back.back().second);
+  if (leg < kMinLeg_mm) return 0.0;
+  const Eigen::Vector3d u = axis.normalized();
+  const auto flat = [&](double at_mm) {
+    const auto k = std::find_if(back.begin(), back.end(), [&](const auto& b) { return b.second >= at_mm * (1.0 - 1e-9); });
+    const Eigen::Vector3d& c = chunks[static_cast<std::size_t>((k == back.end() ? back.back() : *k).first)].centroid;
+    return Eigen::Vector3d(c - c.dot(u) * u);
+  };
+  const Eigen::Vector3d p0 = flat(0.0), p1 = flat(leg), p2 = flat(2.0 * leg);
+  const Eigen::Vector3d a = p1 - p0, b = p2 - p1, c = p2 - p0;
+  const double denominator = a.norm() * b.norm() * c.norm();
+  return denominator > 0.0 ? 2.0 * a.cross(b).norm() / denominator : 0.0;
 }
 
 double TetCutter::material_stroke_distance(const Eigen::Vector3d& p, Eigen::Vector3d* closest) const {
@@ -436,20 +480,34 @@ std::string TetCutter::describe_pending() const {
 }
 
 int TetCutter::stroke_side(int w, const Eigen::Matrix3Xd& x, double cone, bool within_reach) const {
+  return surface_side(stroke_tris_, stroke_chunks_, x, w, cone, within_reach);
+}
+
+int TetCutter::finishing_side(int w, const Eigen::Matrix3Xd& x, double cone, bool within_reach) const {
+  if (!stroke_tris_rest_.empty()) return material_stroke_side(w, cone, within_reach);
+  return stroke_side(w, x, cone, within_reach);
+}
+
+int TetCutter::material_stroke_side(int w, double cone, bool within_reach) const {
+  return surface_side(stroke_tris_rest_, stroke_chunks_rest_, mesh_.rest_positions_World_mm, w, cone, within_reach);
+}
+
+int TetCutter::surface_side(const std::vector<Triangle>& tris, const std::vector<StrokeChunk>& chunks, const Eigen::Matrix3Xd& x, int w,
+                            double cone, bool within_reach) const {
   // The nearest point of the whole stroke's swept surface so far (every frame's triangles, as
   // swept; frames whose box is farther than the best distance found are skipped): the side of
   // its triangle's plane when w lies about across from it (distance to the triangle at most
   // `cone` times the distance to its plane; near the surface's border, the blade's ends or the
   // sweep's front, it may not) and within one edge of a tet around w.
-  if (stroke_tris_.empty()) return 0;
+  if (tris.empty()) return 0;
   const Eigen::Vector3d p = x.col(w);
   double best = 1e300;
   int nearest = -1;
-  for (const auto& chunk : stroke_chunks_) {
+  for (const auto& chunk : chunks) {
     const Eigen::Vector3d gap = (chunk.box.min - p).cwiseMax(p - chunk.box.max).cwiseMax(0.0);
     if (gap.norm() >= best) continue;
     for (int i = chunk.begin; i < chunk.end; ++i) {
-      const double d = point_triangle_distance(p, stroke_tris_[static_cast<std::size_t>(i)]);
+      const double d = point_triangle_distance(p, tris[static_cast<std::size_t>(i)]);
       if (d < best) {
         best = d;
         nearest = i;
@@ -457,7 +515,7 @@ int TetCutter::stroke_side(int w, const Eigen::Matrix3Xd& x, double cone, bool w
     }
   }
   if (nearest < 0) return 0;
-  const Triangle& near = stroke_tris_[static_cast<std::size_t>(nearest)];
+  const Triangle& near = tris[static_cast<std::size_t>(nearest)];
   // The plane: through the nearest point, normal to the stroke's surface averaged (by area,
   // as oriented) over the triangles within max(distance, 1 mm) of that point. One frame's
   // strip can be far from the surface's direction: when the tissue moves across the blade
@@ -468,11 +526,11 @@ int TetCutter::stroke_side(int w, const Eigen::Matrix3Xd& x, double cone, bool w
   point_triangle_distance(p, near, &q);
   const double radius = std::max(best, 1.0);
   Eigen::Vector3d n_sum = Eigen::Vector3d::Zero();
-  for (const auto& chunk : stroke_chunks_) {
+  for (const auto& chunk : chunks) {
     const Eigen::Vector3d gap = (chunk.box.min - q).cwiseMax(q - chunk.box.max).cwiseMax(0.0);
     if (gap.norm() > radius) continue;
     for (int i = chunk.begin; i < chunk.end; ++i) {
-      const Triangle& tri = stroke_tris_[static_cast<std::size_t>(i)];
+      const Triangle& tri = tris[static_cast<std::size_t>(i)];
       if (point_triangle_distance(q, tri) <= radius) n_sum += 0.5 * (tri.b - tri.a).cross(tri.c - tri.a);
     }
   }
@@ -1191,7 +1249,7 @@ void TetCutter::complete_left_tets(const std::vector<int>& candidates, int old_t
         if (tip_tet_[static_cast<std::size_t>(t)]) continue;
         for (int w : mesh_.tets[static_cast<std::size_t>(t)]) {
           if (on_stroke(w) || side_[static_cast<std::size_t>(w)] != 0) continue;
-          if (const int sd = stroke_side(w, x, kLazyCone); sd != 0) {
+          if (const int sd = finishing_side(w, x, kLazyCone, true); sd != 0) {
             side_[static_cast<std::size_t>(w)] = static_cast<signed char>(sd);
             sided_.push_back(w);
           }
@@ -1515,7 +1573,7 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
         // At the stroke's end (finish_stroke) the surface is complete: the side of the plane
         // of its nearest triangle, wherever that lies (a face left undecided would stay a
         // hole in the cut).
-        if (const int sd = finishing_ ? stroke_side(w, x, 1e300, false) : stroke_side(w, x, kLazyCone); sd != 0) {
+        if (const int sd = finishing_ ? finishing_side(w, x, 1e300, false) : stroke_side(w, x, kLazyCone); sd != 0) {
           side_[static_cast<std::size_t>(w)] = static_cast<signed char>(sd);
           sided_.push_back(w);
         }

@@ -190,6 +190,12 @@ class TetCutter {
   // Side of free vertex w from the nearest point of this stroke's whole swept surface so far
   // (0: not across from it, or farther than an edge of its tets).
   int stroke_side(int w, const Eigen::Matrix3Xd& x, double cone, bool within_reach = true) const;
+  // The same from the stroke's surface in the material (w and its tets at rest).
+  int material_stroke_side(int w, double cone, bool within_reach) const;
+  // At the stroke's end: the side in the material, where the blade went in the tissue (the
+  // surface as swept is where the tissue was then, not where it is now); as swept when no
+  // sweep reached the tissue.
+  int finishing_side(int w, const Eigen::Matrix3Xd& x, double cone, bool within_reach) const;
   // Distance of p from this stroke's whole swept surface (as swept).
   double stroke_distance(const Eigen::Vector3d& p) const;
   // The same in the rest configuration: p at rest against the stroke's surface in the material.
@@ -267,13 +273,16 @@ class TetCutter {
   struct StrokeChunk {
     Aabb box;
     int begin = 0, end = 0;
-    Eigen::Vector3d normal = Eigen::Vector3d::Zero();    // area-weighted unit normal (0: no area)
     Eigen::Vector3d centroid = Eigen::Vector3d::Zero();  // area-weighted
+    Eigen::Vector3d axis = Eigen::Vector3d::Zero();      // unit, its longest extent (the blade; 0: no area)
   };
   std::vector<StrokeChunk> stroke_chunks_;       // stroke_tris_ by frame, with their box
   // A stroke's surface (as swept, or in the material) queried by frame chunk: distance of p
   // (closest point optional), the crossing of segment p0-p1 nearest parameter near_s (-1 when
-  // none), and a frame's triangles appended as a new chunk.
+  // none), the side of vertex w at positions x (stroke_side), and a frame's triangles
+  // appended as a new chunk.
+  int surface_side(const std::vector<Triangle>& tris, const std::vector<StrokeChunk>& chunks, const Eigen::Matrix3Xd& x, int w, double cone,
+                   bool within_reach) const;
   static double surface_distance(const std::vector<Triangle>& tris, const std::vector<StrokeChunk>& chunks, const Eigen::Vector3d& p,
                                  Eigen::Vector3d* closest);
   static double surface_crossing(const std::vector<Triangle>& tris, const std::vector<StrokeChunk>& chunks, const Eigen::Vector3d& p0,
