@@ -133,7 +133,8 @@ class TetCutter {
   void begin_stroke();
 
   // The tet containing p at positions x (or the nearest one of those whose box holds p, by
-  // barycentric weights), with its weights; tet -1 when no tet box holds p.
+  // barycentric weights; of a refined or cut input tet's children only those whose own box
+  // holds p), with its weights; tet -1 when no tet box holds p.
   // refit false: the hierarchy was refitted to x by an earlier call (several points, one refit).
   int locate(const Eigen::Vector3d& p_World_mm, const Eigen::Matrix3Xd& x_World_mm, Eigen::Vector4d& weights, bool refit = true);
 

@@ -86,7 +86,7 @@ struct CuttingSpec {
   double path_tolerance_mm = 0.1;         // a vertex that cannot move onto the cut snaps only this close to it (path fidelity)
   // Refinement ahead of the blade where the cut curves (docs/cut.md): a chord across the
   // refined tets lies at most this far off the cut; 0: off (cut the mesh as it is). Off by
-  // default: at 1.5-2 mm it meets issue 20's targets on the demo's logs replayed, but the
+  // default: at 1.5 mm it meets issue 20's targets on the five demo logs replayed, but the
   // model's steps cost about three times more during the ring, and a live session on a
   // machine with every core busy falls 5 s behind the blade (docs/benchmarks.md).
   double chord_sagitta_mm = 0.0;
