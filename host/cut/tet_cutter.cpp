@@ -1093,12 +1093,7 @@ void TetCutter::mark_tip_tets(const SweptSurface& sweep, const std::vector<int>&
           break;
         }
       }
-      if (!hit) {
-        Eigen::Matrix3d D;
-        for (int k = 0; k < 3; ++k) D.col(k) = x.col(tet[static_cast<std::size_t>(k + 1)]) - x.col(tet[0]);
-        const Eigen::Vector3d l = D.partialPivLu().solve(p1 - x.col(tet[0]));
-        hit = l.minCoeff() >= 0 && l.sum() <= 1;
-      }
+      if (!hit) hit = tet_weights(x, tet, p1).minCoeff() >= 0;  // the blade end inside the tet
       if (hit) tip_tet_[static_cast<std::size_t>(t)] = 1;
     }
   }
