@@ -127,6 +127,11 @@ class CutSession {
   const std::vector<std::vector<std::array<int, 3>>>& tumour_tris() const { return tumour_tris_; }
   const std::optional<CarriedPoints>& vessels() const { return vessels_; }
   const std::vector<std::array<int, 2>>& vessel_segments() const { return vessel_segments_; }
+  // The split made again from the uncut structure against the cut mesh as it is now: what
+  // tumours()[k] / tumour_tris()[k] and vessels() / vessel_segments() hold (they are kept
+  // across steps whose cut cannot change them; tests compare the two).
+  SplitStructure tumour_split_from_input(int k) const;
+  SplitStructure vessel_split_from_input() const;
   // Per vessel point: the input node it was made from (its radius, ...); itself for input nodes.
   const std::vector<int>& vessel_node_source() const { return vessel_node_source_; }
   int frame() const { return frame_; }
@@ -148,6 +153,9 @@ class CutSession {
   void reembed(CarriedPoints& points, const CutStepReport& step, const std::vector<int>& region);
   void split_structures(const CutStepReport& step, CutFrameReport& report);
   std::vector<int> region_tets(const std::vector<int>& input_tets) const;
+  std::vector<Triangle> new_cut_faces(const CutStepReport& step, const std::vector<int>& region) const;
+  bool split_still_holds(const CarriedPoints& split, int input_points, const CutStepReport& step, const StructureEdges& edges,
+                         const std::vector<int>& region) const;
   void check_events(const BladeSegment& blade, const SweptSurface* sweep, CutFrameReport& report);
 
   SimProblem problem_;
@@ -170,6 +178,11 @@ class CutSession {
   std::vector<int> vessel_node_source_;
   std::vector<int> tumour_edges_cut_;
   int vessel_segments_cut_ = 0;
+  // The uncut structures' edges (rest): a step whose new cut faces none of them passes
+  // through leaves the split as it is (only the embeddings follow the new tets).
+  std::vector<StructureEdges> tumour_edges_;
+  StructureEdges vessel_edges_;
+  std::vector<int> tumour_caps_;  // loops the last split closed (their centres lie on lips)
   std::vector<char> in_margin_, tumour_cut_;
   std::vector<char> vessel_segment_crossed_;
   std::optional<BladeSegment> previous_blade_;

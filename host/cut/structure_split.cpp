@@ -225,6 +225,48 @@ Eigen::Vector4d rest_weights(const TetMesh& mesh, int tet, const Eigen::Vector3d
   return {1.0 - l.sum(), l[0], l[1], l[2]};
 }
 
+StructureEdges::StructureEdges(const Eigen::Matrix3Xd& rest_World_mm, std::vector<std::array<int, 2>> edges)
+    : rest_(rest_World_mm), edges_(std::move(edges)) {
+  std::vector<Aabb> boxes;
+  boxes.reserve(edges_.size());
+  for (const auto& [a, b] : edges_) {
+    Aabb box;
+    box.extend(Eigen::Vector3d(rest_.col(a)));
+    box.extend(Eigen::Vector3d(rest_.col(b)));
+    boxes.push_back(box);
+  }
+  bvh_.build(boxes);
+}
+
+bool StructureEdges::crossed_by(const Triangle& face) const {
+  if (edges_.empty()) return false;
+  constexpr double kGrow = 1e-3;
+  const Eigen::Vector3d c = (face.a + face.b + face.c) / 3.0;
+  const Triangle grown{c + (1 + kGrow) * (face.a - c), c + (1 + kGrow) * (face.b - c), c + (1 + kGrow) * (face.c - c)};
+  Aabb box;
+  box.extend(grown.a);
+  box.extend(grown.b);
+  box.extend(grown.c);
+  bool crossed = false;
+  bvh_.query(box.inflated(kLipTolerance_mm), [&](int i) {
+    double s = 0;
+    const auto& [a, b] = edges_[static_cast<std::size_t>(i)];
+    crossed = crossed || segment_triangle_intersection(rest_.col(a), rest_.col(b), grown, s);
+  });
+  return crossed;
+}
+
+std::vector<std::array<int, 2>> surface_edges(const std::vector<std::array<int, 3>>& tris) {
+  std::unordered_set<std::uint64_t> seen;
+  std::vector<std::array<int, 2>> out;
+  for (const auto& t : tris)
+    for (int k = 0; k < 3; ++k) {
+      const int a = t[static_cast<std::size_t>(k)], b = t[static_cast<std::size_t>((k + 1) % 3)];
+      if (seen.insert(edge_key(a, b)).second) out.push_back({std::min(a, b), std::max(a, b)});
+    }
+  return out;
+}
+
 CutLips::CutLips(const TetMesh& mesh, const std::vector<int>& region_tets) : mesh_(mesh), region_tets_(region_tets) {
   // Faces used by one region tet. A face inside the mesh whose other tet is outside the
   // region also shows up once, but its twin lip is missing, so it never pairs (below).

@@ -69,6 +69,27 @@ class CutLips {
   Bvh bvh_;
 };
 
+// The edges (segments) of an uncut structure in the rest configuration, in a hierarchy: which
+// faces a cut added could split it. A face no edge passes through leaves the split as it was
+// (split_surface and split_segments only split edges that pass through a lip), so a step
+// whose new cut faces miss the structure need not split it again (CutSession).
+class StructureEdges {
+ public:
+  StructureEdges() = default;
+  StructureEdges(const Eigen::Matrix3Xd& rest_World_mm, std::vector<std::array<int, 2>> edges);
+  // Some edge passes through the face, or within a thousandth of its size beyond its sides
+  // (a segment through the common edge of two faces is split by either).
+  bool crossed_by(const Triangle& face) const;
+
+ private:
+  Eigen::Matrix3Xd rest_;
+  std::vector<std::array<int, 2>> edges_;
+  Bvh bvh_;
+};
+
+// The edges of a triangle mesh, each once.
+std::vector<std::array<int, 2>> surface_edges(const std::vector<std::array<int, 3>>& tris);
+
 // Barycentric weights of rest point p in tet t of mesh.
 Eigen::Vector4d rest_weights(const TetMesh& mesh, int tet, const Eigen::Vector3d& p);
 

@@ -463,3 +463,73 @@ TEST(StructureSplit, BundledLiverTumourCutThrough) {
   EXPECT_EQ(session->vessel_segments().size() - scene.vessels->rest.segments.size(),
             static_cast<std::size_t>(session->vessels()->rest_World_mm.cols() - scene.vessels->rest.nodes_World_mm.cols()) / 2);
 }
+
+namespace {
+
+// The split the session keeps equals the split made again from the uncut structure.
+void expect_split_as_from_input(const CutSession& session, int frame) {
+  for (int k = 0; k < static_cast<int>(session.tumours().size()); ++k) {
+    const SplitStructure again = session.tumour_split_from_input(k);
+    const auto i = static_cast<std::size_t>(k);
+    ASSERT_EQ(again.tris, session.tumour_tris()[i]) << "frame " << frame;
+    ASSERT_TRUE(again.rest_World_mm == session.tumours()[i].rest_World_mm) << "frame " << frame;
+    ASSERT_EQ(again.embedding.tet, session.tumours()[i].embedding.tet) << "frame " << frame;
+    ASSERT_TRUE(again.embedding.weights == session.tumours()[i].embedding.weights) << "frame " << frame;
+  }
+  const SplitStructure again = session.vessel_split_from_input();
+  ASSERT_EQ(again.segments, session.vessel_segments()) << "frame " << frame;
+  ASSERT_TRUE(again.rest_World_mm == session.vessels()->rest_World_mm) << "frame " << frame;
+  ASSERT_EQ(again.embedding.tet, session.vessels()->embedding.tet) << "frame " << frame;
+  ASSERT_TRUE(again.embedding.weights == session.vessels()->embedding.weights) << "frame " << frame;
+}
+
+}  // namespace
+
+// The session splits a structure again only when a step's cut can change its split (a new cut
+// face one of its edges passes through, or a lip a point of the split sits on); every other
+// step only carries the split's embedding over. Checked against the split made from scratch
+// after every frame of: a curved stroke refined ahead of the blade through the tumour's tets
+// under the tumour (touching them, crossing none of its edges) and across the vessel, then a
+// second stroke through the tumour (caps: split again at every step after), the column
+// hanging and moving under gravity.
+TEST(StructureSplit, SplitKeptAcrossStepsEqualsTheSplitMadeAgain) {
+  SimProblem problem = bar_problem(Eigen::Vector3d(20, 20, 100), 3, 3, 9);
+  for (int v = 0; v < problem.mesh.num_vertices(); ++v)
+    if (problem.mesh.rest_positions_World_mm(2, v) > 100 - 1e-9) problem.fixed_vertices.push_back(v);
+  const TriMesh sphere = make_ellipsoid_surface(Eigen::Vector3d(10, 10, 60), Eigen::Vector3d::Constant(6.0), 2);
+  CarriedPoints tumour{"tumour", sphere.positions_World_mm, embed_points(problem.mesh, sphere.positions_World_mm, 0.0, "tumour")};
+  CarriedPoints vessel{"vessel", Eigen::Matrix3Xd(3, 9), {}};
+  std::vector<std::array<int, 2>> segments;
+  for (int i = 0; i < 9; ++i) {
+    vessel.rest_World_mm.col(i) = Eigen::Vector3d(12.3, 8.1, 10.0 + 10.0 * i);
+    if (i > 0) segments.push_back({i - 1, i});
+  }
+  vessel.embedding = embed_points(problem.mesh, vessel.rest_World_mm, 0.0, "vessel");
+  CutSessionSettings settings;
+  settings.cut.chord_sagitta_mm = 1.0;
+  settings.cut.min_refined_edge_mm = 3.0;
+  CutSession session(problem, variant("xpbd"), settings, {tumour}, {sphere.tris}, vessel, segments);
+  const double dt = 1.0 / 60.0;
+  int refined = 0, vessel_cut_at = -1, tumour_cut_at = -1, frame = 0;
+  const auto run = [&](double z0, double bend, bool cutting, int frames) {
+    for (int f = 0; f <= frames; ++f, ++frame) {
+      const double y = -5 + 2 * f, z = z0 + bend * (y - 10) * (y - 10);
+      const CutFrameReport rep = session.apply_blade({Eigen::Vector3d(-10, y, z), Eigen::Vector3d(30, y, z)}, cutting);
+      refined += rep.cut.edges_refined;
+      if (vessel_cut_at < 0 && session.vessel_segments().size() > segments.size()) vessel_cut_at = frame;
+      if (tumour_cut_at < 0 && !session.tumour_tris()[0].empty() && session.tumour_tris()[0].size() > sphere.tris.size()) tumour_cut_at = frame;
+      ASSERT_TRUE(session.step(dt).healthy);
+      ASSERT_NO_FATAL_FAILURE(expect_split_as_from_input(session, frame));
+    }
+  };
+  run(44.0, 0.02, true, 15);   // under the tumour (bottom at z 54), across the vessel
+  run(44.0, 0.02, false, 3);   // the stroke ends
+  run(60.0, 0.0, true, 15);    // through the tumour
+  run(60.0, 0.0, false, 3);
+  EXPECT_GT(refined, 0);
+  EXPECT_GE(vessel_cut_at, 0);
+  EXPECT_GT(tumour_cut_at, vessel_cut_at);
+  const SurfaceCheck sc = check_surface(session.tumour_tris()[0]);
+  EXPECT_TRUE(sc.closed_manifold());
+  EXPECT_EQ(sc.components, 2);
+}
