@@ -321,12 +321,11 @@ std::vector<int> CutSession::region_tets(const std::vector<int>& input_tets) con
 std::vector<Triangle> CutSession::new_cut_faces(const CutStepReport& step, const std::vector<int>& region) const {
   const TetMesh& mesh = cutter_.mesh();
   const auto& rest = mesh.rest_positions_World_mm;
-  constexpr int kFaces[4][3] = {{0, 1, 2}, {0, 1, 3}, {0, 2, 3}, {1, 2, 3}};
   std::vector<Triangle> out;
   for (int t : step.changed_tets) {
     if (!std::binary_search(region.begin(), region.end(), cutter_.origin_tet(t))) continue;
     const auto& tet = mesh.tets[static_cast<std::size_t>(t)];
-    for (const auto& f : kFaces) {
+    for (const auto& f : kTetFaces) {
       const int a = tet[static_cast<std::size_t>(f[0])], b = tet[static_cast<std::size_t>(f[1])], c = tet[static_cast<std::size_t>(f[2])];
       if (cutter_.on_cut(a) && cutter_.on_cut(b) && cutter_.on_cut(c)) out.push_back({rest.col(a), rest.col(b), rest.col(c)});
     }

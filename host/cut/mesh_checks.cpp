@@ -20,7 +20,7 @@ CutMeshCheck check_cut_mesh(const TetMesh& mesh, const Eigen::Matrix3Xd& x_in) {
   CutMeshCheck c;
   const int nt = mesh.num_tets();
   c.min_tet_volume_mm3 = nt > 0 ? 1e300 : 0.0;
-  static const int kFaces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+  const auto& kFaces = kTetFaces;
   std::map<std::array<int, 3>, std::vector<std::pair<int, std::array<int, 3>>>> faces;
   for (int t = 0; t < nt; ++t) {
     const auto& tet = mesh.tets[static_cast<std::size_t>(t)];

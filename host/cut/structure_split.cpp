@@ -12,7 +12,7 @@ namespace arnav::host::cut {
 
 namespace {
 
-constexpr int kFaces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+constexpr const auto& kFaces = kTetFaces;
 // Two lip hits belong to the same cut face when they lie this close along the segment (the
 // lips coincide in the rest configuration, up to the round-off of separate edge splits).
 constexpr double kLipTolerance_mm = 1e-3;
@@ -29,10 +29,6 @@ struct Face3Hash {
                                       (static_cast<std::uint64_t>(f[2]) * 83492791ULL));
   }
 };
-
-std::uint64_t edge_key(int a, int b) {
-  return (static_cast<std::uint64_t>(std::min(a, b)) << 32) | static_cast<std::uint32_t>(std::max(a, b));
-}
 
 // New points of a structure under construction.
 struct Builder {
@@ -172,7 +168,7 @@ bool close_slit(const std::vector<int>& loop, int input_points, const std::vecto
     std::sort(sorted.begin(), sorted.end());
     if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) return false;
     const int c0 = a.front(), c1 = a.back();
-    const auto key = [](int i, int j) { return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(i)) << 32) | static_cast<std::uint32_t>(j); };
+    const auto key = [](int i, int j) { return directed_edge_key(i, j); };
     if (directed.count(key(c0, c1)) || directed.count(key(c1, c0))) return false;
     std::vector<Eigen::Vector3d> pa;
     for (int v : a) pa.push_back(rest[static_cast<std::size_t>(v)]);
@@ -203,7 +199,7 @@ bool sew_slit(const std::vector<int>& loop, const std::vector<Eigen::Vector3d>& 
   std::vector<Eigen::Vector3d> p;
   for (int v : loop) p.push_back(rest[static_cast<std::size_t>(v)]);
   const auto tris = least_area_triangulation(p);
-  const auto key = [](int i, int j) { return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(i)) << 32) | static_cast<std::uint32_t>(j); };
+  const auto key = [](int i, int j) { return directed_edge_key(i, j); };
   for (const auto& [i, k, j] : tris)
     for (const auto& [u, w] : {std::pair{i, k}, std::pair{k, j}, std::pair{i, j}}) {
       if (w - u == 1 || (u == 0 && w == static_cast<int>(n) - 1)) continue;  // a loop edge
@@ -451,7 +447,7 @@ SplitStructure split_surface(const TetMesh& mesh, const CutLips& lips, const Eig
   const std::size_t first_cap = out.size();
   int caps = 0, slits = 0, ragged = 0;
   if (crossed > 0) {
-    const auto key = [](int i, int j) { return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(i)) << 32) | static_cast<std::uint32_t>(j); };
+    const auto key = [](int i, int j) { return directed_edge_key(i, j); };
     std::unordered_set<std::uint64_t> directed;
     directed.reserve(3 * out.size());
     for (const auto& t : out)

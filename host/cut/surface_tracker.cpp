@@ -8,7 +8,7 @@ namespace arnav::host::cut {
 
 namespace {
 // Faces of a positively oriented tet (v0, v1, v2, v3) with outward normals (as boundary_faces).
-constexpr int kFaces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+constexpr const auto& kFaces = kTetFaces;
 constexpr int kVertexBits = 21;  // three ids in one 64-bit key
 const std::array<int, 3> kEmpty{{-1, -1, -1}};
 }  // namespace

@@ -18,8 +18,8 @@
 namespace arnav::host::cut {
 
 namespace {
-constexpr int kEdges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
-constexpr int kFaces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+constexpr const auto& kEdges = kTetEdges;
+constexpr const auto& kFaces = kTetFaces;
 // Smallest split parameter: a crossing closer to a vertex snaps whatever the tolerance
 // (no degenerate tets).
 constexpr double kMinSplitFraction = 1e-6;
@@ -62,10 +62,7 @@ double volume6_with(const Eigen::Matrix3Xd& pos, const std::array<int, 4>& tet, 
 }
 }  // namespace
 
-TetCutter::EdgeKey TetCutter::edge_key(int a, int b) {
-  if (a > b) std::swap(a, b);
-  return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) | static_cast<std::uint32_t>(b);
-}
+TetCutter::EdgeKey TetCutter::edge_key(int a, int b) { return arnav::host::edge_key(a, b); }
 
 std::pair<int, int> TetCutter::edge_ends(EdgeKey key) {
   return {static_cast<int>(key >> 32), static_cast<int>(key & 0xffffffffu)};

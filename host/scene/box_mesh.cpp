@@ -44,7 +44,7 @@ TetMesh make_box_tet_mesh(int nx, int ny, int nz, const Eigen::Vector3d& size_mm
 
 std::vector<std::array<int, 3>> boundary_faces(const TetMesh& mesh) {
   // Faces of a positively oriented tet (v0,v1,v2,v3) with outward normals.
-  static const int kFaces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+  const auto& kFaces = kTetFaces;
   std::map<std::array<int, 3>, std::pair<int, std::array<int, 3>>> count;
   for (const auto& tet : mesh.tets)
     for (const auto& f : kFaces) {

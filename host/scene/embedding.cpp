@@ -69,9 +69,8 @@ Eigen::Vector4d barycentric(const TetMesh& mesh, int t, const Eigen::Vector3d& p
 double distance_to_tet(const TetMesh& mesh, int t, const Eigen::Vector3d& p, const Eigen::Vector4d& w) {
   if (w.minCoeff() >= 0) return 0.0;
   const auto& x = mesh.rest_positions_World_mm;
-  static const int kFaces[4][3] = {{1, 2, 3}, {0, 2, 3}, {0, 1, 3}, {0, 1, 2}};
   double best = INFINITY;
-  for (const auto& f : kFaces) {
+  for (const auto& f : kTetFaces) {
     // Closest point on triangle (Ericson, Real-Time Collision Detection 5.1.5).
     const Eigen::Vector3d a = x.col(mesh.tets[t][f[0]]), b = x.col(mesh.tets[t][f[1]]), c = x.col(mesh.tets[t][f[2]]);
     const Eigen::Vector3d ab = b - a, ac = c - a, ap = p - a;

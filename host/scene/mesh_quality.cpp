@@ -41,7 +41,7 @@ Face face_key(const std::array<int, 4>& t, int skip) {
   std::sort(f.begin(), f.end());
   return f;
 }
-Edge edge_key(int a, int b) { return a < b ? Edge{a, b} : Edge{b, a}; }
+Edge sorted_edge(int a, int b) { return a < b ? Edge{a, b} : Edge{b, a}; }
 
 }  // namespace
 
@@ -54,7 +54,7 @@ int peel_boundary_slivers(TetMesh& mesh, double min_dihedral_deg, double* max_th
     for (int k = 0; k < 4; ++k) ++face_count[face_key(t, k)];
   std::map<Edge, int> boundary_edge_faces;  // boundary faces on each edge
   auto add_boundary_face = [&](const Face& f, int d) {
-    for (int i = 0; i < 3; ++i) boundary_edge_faces[edge_key(f[i], f[(i + 1) % 3])] += d;
+    for (int i = 0; i < 3; ++i) boundary_edge_faces[sorted_edge(f[i], f[(i + 1) % 3])] += d;
   };
   for (const auto& [f, c] : face_count)
     if (c == 1) add_boundary_face(f, 1);
@@ -78,7 +78,7 @@ int peel_boundary_slivers(TetMesh& mesh, double min_dihedral_deg, double* max_th
       int cd[2], m = 0;
       for (int k = 0; k < 4; ++k)
         if (on_boundary[k]) cd[m++] = v[k];
-      const auto it = boundary_edge_faces.find(edge_key(cd[0], cd[1]));
+      const auto it = boundary_edge_faces.find(sorted_edge(cd[0], cd[1]));
       if (it != boundary_edge_faces.end() && it->second > 0) continue;
       removed[t] = 1;
       ++total;

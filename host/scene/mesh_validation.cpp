@@ -196,7 +196,7 @@ TetMeshCheck validate_tet_mesh(TetMesh& m, const std::string& source, const Elem
   // Faces shared by more than two tets mean overlapping elements.
   std::map<std::array<int, 3>, int> faces;
   for (std::size_t t = 0; t < m.tets.size(); ++t) {
-    static const int kFaces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+    const auto& kFaces = kTetFaces;
     for (const auto& f : kFaces) {
       std::array<int, 3> key{m.tets[t][f[0]], m.tets[t][f[1]], m.tets[t][f[2]]};
       std::sort(key.begin(), key.end());

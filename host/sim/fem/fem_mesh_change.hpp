@@ -89,9 +89,7 @@ class TetPairCounts {
   std::vector<std::pair<int, int>> update(const std::vector<TetChange>& changes, const std::vector<std::vector<int>>& kept);
 
  private:
-  static std::uint64_t key(int a, int b) {  // a > b
-    return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) | static_cast<std::uint32_t>(b);
-  }
+  static std::uint64_t key(int a, int b) { return directed_edge_key(a, b); }  // a > b
   std::unordered_map<std::uint64_t, int> count_;
 };
 

@@ -199,7 +199,7 @@ MassSpringModel::MassSpringModel(const SimProblem& problem, Integrator integrato
 
 std::optional<MeshChangeStats> MassSpringModel::apply_mesh_change(const SimProblem& problem, const std::vector<int>& changed_tets,
                                                                   const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v) {
-  static const int kEdges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
+  const auto& kEdges = kTetEdges;
   const TetMesh& mesh = problem.mesh;
   const int n_old = static_cast<int>(x_.cols()), n = mesh.num_vertices();
   const int nt_old = static_cast<int>(tets_.size()), nt = mesh.num_tets();
@@ -209,10 +209,7 @@ std::optional<MeshChangeStats> MassSpringModel::apply_mesh_change(const SimProbl
   // The embedding's mass moves undone first (the lumped masses change below).
   std::vector<int> embedded_touched;
   embedded_.restore_mass({&mass_, &mass_damping_}, embedded_touched);
-  auto key = [](int a, int b) {
-    if (a > b) std::swap(a, b);
-    return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) | static_cast<std::uint32_t>(b);
-  };
+  const auto key = [](int a, int b) { return edge_key(a, b); };
   if (spring_tets_.empty()) {  // once: edge -> spring, tets per spring
     spring_of_edge_.reserve(static_cast<std::size_t>(springs_.size()) * 2);
     for (int sp = 0; sp < springs_.size(); ++sp) spring_of_edge_[key(springs_.ends[sp][0], springs_.ends[sp][1])] = sp;

@@ -12,7 +12,7 @@ namespace arnav::host {
 
 SpringNetwork build_spring_network(const TetMesh& mesh, const std::vector<Material>& region_materials,
                                    const std::vector<std::uint8_t>& passive) {
-  static const int kEdges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
+  const auto& kEdges = kTetEdges;
   std::unordered_map<std::uint64_t, int> index;
   index.reserve(mesh.tets.size() * 2);
   SpringNetwork net;
@@ -31,7 +31,7 @@ SpringNetwork build_spring_network(const TetMesh& mesh, const std::vector<Materi
     for (const auto& e : kEdges) {
       int a = tet[e[0]], b = tet[e[1]];
       if (a > b) std::swap(a, b);
-      const std::uint64_t key = (static_cast<std::uint64_t>(a) << 32) | static_cast<std::uint32_t>(b);
+      const std::uint64_t key = edge_key(a, b);
       auto [it, inserted] = index.emplace(key, net.size());
       if (inserted) {
         const double length = (X.col(b) - X.col(a)).norm();
