@@ -197,6 +197,8 @@ class TetCutter {
   // surface as swept is where the tissue was then, not where it is now); as swept when no
   // sweep reached the tissue.
   int finishing_side(int w, const Eigen::Matrix3Xd& x, double cone, bool within_reach) const;
+  // How far from the stroke's surface in the material a completion may put a point mid-stroke.
+  double completion_wait_mm(const std::array<int, 4>& tet) const;
   // Distance of p from this stroke's whole swept surface (as swept).
   double stroke_distance(const Eigen::Vector3d& p) const;
   // The same in the rest configuration: p at rest against the stroke's surface in the material.
