@@ -480,15 +480,6 @@ int TetCutter::stroke_side(int w, const Eigen::Matrix3Xd& x, double cone, bool w
   return surface_side(stroke_tris_, stroke_chunks_, x, w, cone, within_reach);
 }
 
-int TetCutter::finishing_side(int w, const Eigen::Matrix3Xd& x, double cone, bool within_reach) const {
-  if (!stroke_tris_rest_.empty()) return material_stroke_side(w, cone, within_reach);
-  return stroke_side(w, x, cone, within_reach);
-}
-
-int TetCutter::material_stroke_side(int w, double cone, bool within_reach) const {
-  return surface_side(stroke_tris_rest_, stroke_chunks_rest_, mesh_.rest_positions_World_mm, w, cone, within_reach);
-}
-
 int TetCutter::surface_side(const std::vector<Triangle>& tris, const std::vector<StrokeChunk>& chunks, const Eigen::Matrix3Xd& x, int w,
                             double cone, bool within_reach) const {
   // The nearest point of the whole stroke's swept surface so far (every frame's triangles, as
@@ -1249,7 +1240,11 @@ void TetCutter::complete_left_tets(const std::vector<int>& candidates, int old_t
   // carried it across the blade's path between two frames (an organ recoiling as the cut
   // frees it moved a vertex 1.5 mm across the blade in one frame) is otherwise never
   // watched. Free vertices without a side then get one from the complete surface
-  // (45 degrees, within an edge of their tets), as the faces on the cut do.
+  // (45 degrees, within an edge of their tets), as the faces on the cut do. The surface as
+  // swept, as everywhere else: taken from the surface in the material instead (issue 20,
+  // seventh session) the scene ring following the tumour no longer freed its block with the
+  // FEM (RingInSessionLong), and after the curvature fix it changed nothing on the demo's
+  // logs (eighth session, docs/cut.md).
   {
     for (int t : candidates) watch_tet(t);
     for (int t : r.changed_tets) watch_tet(t);
@@ -1261,7 +1256,7 @@ void TetCutter::complete_left_tets(const std::vector<int>& candidates, int old_t
         if (tip_tet_[static_cast<std::size_t>(t)]) continue;
         for (int w : mesh_.tets[static_cast<std::size_t>(t)]) {
           if (on_stroke(w) || side_[static_cast<std::size_t>(w)] != 0) continue;
-          if (const int sd = finishing_side(w, x, kLazyCone, true); sd != 0) {
+          if (const int sd = stroke_side(w, x, kLazyCone); sd != 0) {
             side_[static_cast<std::size_t>(w)] = static_cast<signed char>(sd);
             sided_.push_back(w);
           }
@@ -1585,7 +1580,7 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
         // At the stroke's end (finish_stroke) the surface is complete: the side of the plane
         // of its nearest triangle, wherever that lies (a face left undecided would stay a
         // hole in the cut).
-        if (const int sd = finishing_ ? finishing_side(w, x, 1e300, false) : stroke_side(w, x, kLazyCone); sd != 0) {
+        if (const int sd = finishing_ ? stroke_side(w, x, 1e300, false) : stroke_side(w, x, kLazyCone); sd != 0) {
           side_[static_cast<std::size_t>(w)] = static_cast<signed char>(sd);
           sided_.push_back(w);
         }

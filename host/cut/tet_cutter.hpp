@@ -191,12 +191,6 @@ class TetCutter {
   // Side of free vertex w from the nearest point of this stroke's whole swept surface so far
   // (0: not across from it, or farther than an edge of its tets).
   int stroke_side(int w, const Eigen::Matrix3Xd& x, double cone, bool within_reach = true) const;
-  // The same from the stroke's surface in the material (w and its tets at rest).
-  int material_stroke_side(int w, double cone, bool within_reach) const;
-  // At the stroke's end: the side in the material, where the blade went in the tissue (the
-  // surface as swept is where the tissue was then, not where it is now); as swept when no
-  // sweep reached the tissue.
-  int finishing_side(int w, const Eigen::Matrix3Xd& x, double cone, bool within_reach) const;
   // How far from the stroke's surface in the material a completion may put a point mid-stroke.
   double completion_wait_mm(const std::array<int, 4>& tet) const;
   // Distance of p from this stroke's whole swept surface (as swept).
