@@ -36,6 +36,32 @@ SimProblem bar_problem(const Eigen::Vector3d& size, int nx, int ny, int nz) {
   return test::box_problem(nx, ny, nz, size, test::soft_tissue(10.0));
 }
 
+// A 20 x 20 x 100 mm column hanging from its top face, a tumour sphere (r 6 mm) on its axis at
+// height z_tumour_mm and a vessel line of 9 nodes along it, both embedded at rest.
+struct HangingColumn {
+  SimProblem problem;
+  TriMesh sphere;
+  CarriedPoints tumour;
+  CarriedPoints vessel;
+  std::vector<std::array<int, 2>> segments;
+};
+
+HangingColumn hanging_column(double z_tumour_mm) {
+  HangingColumn c;
+  c.problem = bar_problem(Eigen::Vector3d(20, 20, 100), 3, 3, 9);
+  for (int v = 0; v < c.problem.mesh.num_vertices(); ++v)
+    if (c.problem.mesh.rest_positions_World_mm(2, v) > 100 - 1e-9) c.problem.fixed_vertices.push_back(v);
+  c.sphere = make_ellipsoid_surface(Eigen::Vector3d(10, 10, z_tumour_mm), Eigen::Vector3d::Constant(6.0), 2);
+  c.tumour = {"tumour", c.sphere.positions_World_mm, embed_points(c.problem.mesh, c.sphere.positions_World_mm, 0.0, "tumour")};
+  c.vessel = {"vessel", Eigen::Matrix3Xd(3, 9), {}};
+  for (int i = 0; i < 9; ++i) {
+    c.vessel.rest_World_mm.col(i) = Eigen::Vector3d(12.3, 8.1, 10.0 + 10.0 * i);
+    if (i > 0) c.segments.push_back({i - 1, i});
+  }
+  c.vessel.embedding = embed_points(c.problem.mesh, c.vessel.rest_World_mm, 0.0, "vessel");
+  return c;
+}
+
 struct SurfaceCheck {
   int open_edges = 0, misoriented_edges = 0, nonmanifold_edges = 0;
   std::vector<int> component;  // per triangle
@@ -204,20 +230,10 @@ TEST(StructureSplit, SphereTumourCutByAPlaneGivesTwoClosedHalves) {
 // along its axis; cut through at z = 52 by a quick horizontal stroke: the lower piece falls
 // with its half of the tumour and its part of the vessel; nothing stretches over the gap.
 TEST(StructureSplit, HalvesAndVesselEndsSeparateWhenTheCutOpensUnderGravity) {
-  SimProblem problem = bar_problem(Eigen::Vector3d(20, 20, 100), 3, 3, 9);
-  for (int v = 0; v < problem.mesh.num_vertices(); ++v)
-    if (problem.mesh.rest_positions_World_mm(2, v) > 100 - 1e-9) problem.fixed_vertices.push_back(v);
   // The column hangs and stretches while the blade crosses it at z = 52: the cut lies at
   // rest z ~ 58 (the vessel's crossing), so the sphere sits there.
-  const TriMesh sphere = make_ellipsoid_surface(Eigen::Vector3d(10, 10, 57), Eigen::Vector3d::Constant(6.0), 2);
-  CarriedPoints tumour{"tumour", sphere.positions_World_mm, embed_points(problem.mesh, sphere.positions_World_mm, 0.0, "tumour")};
-  CarriedPoints vessel{"vessel", Eigen::Matrix3Xd(3, 9), {}};
-  std::vector<std::array<int, 2>> segments;
-  for (int i = 0; i < 9; ++i) {
-    vessel.rest_World_mm.col(i) = Eigen::Vector3d(12.3, 8.1, 10.0 + 10.0 * i);
-    if (i > 0) segments.push_back({i - 1, i});
-  }
-  vessel.embedding = embed_points(problem.mesh, vessel.rest_World_mm, 0.0, "vessel");
+  const HangingColumn c = hanging_column(57.0);
+  const auto& [problem, sphere, tumour, vessel, segments] = c;
   CutSession session(problem, variant("xpbd"), CutSessionSettings{}, {tumour}, {sphere.tris}, vessel, segments);
   const double dt = 1.0 / 60.0;
   int crossed_events = 0;
@@ -493,18 +509,8 @@ void expect_split_as_from_input(const CutSession& session, int frame) {
 // second stroke through the tumour (caps: split again at every step after), the column
 // hanging and moving under gravity.
 TEST(StructureSplit, SplitKeptAcrossStepsEqualsTheSplitMadeAgain) {
-  SimProblem problem = bar_problem(Eigen::Vector3d(20, 20, 100), 3, 3, 9);
-  for (int v = 0; v < problem.mesh.num_vertices(); ++v)
-    if (problem.mesh.rest_positions_World_mm(2, v) > 100 - 1e-9) problem.fixed_vertices.push_back(v);
-  const TriMesh sphere = make_ellipsoid_surface(Eigen::Vector3d(10, 10, 60), Eigen::Vector3d::Constant(6.0), 2);
-  CarriedPoints tumour{"tumour", sphere.positions_World_mm, embed_points(problem.mesh, sphere.positions_World_mm, 0.0, "tumour")};
-  CarriedPoints vessel{"vessel", Eigen::Matrix3Xd(3, 9), {}};
-  std::vector<std::array<int, 2>> segments;
-  for (int i = 0; i < 9; ++i) {
-    vessel.rest_World_mm.col(i) = Eigen::Vector3d(12.3, 8.1, 10.0 + 10.0 * i);
-    if (i > 0) segments.push_back({i - 1, i});
-  }
-  vessel.embedding = embed_points(problem.mesh, vessel.rest_World_mm, 0.0, "vessel");
+  const HangingColumn c = hanging_column(60.0);
+  const auto& [problem, sphere, tumour, vessel, segments] = c;
   CutSessionSettings settings;
   settings.cut.chord_sagitta_mm = 1.0;
   settings.cut.min_refined_edge_mm = 3.0;
