@@ -233,7 +233,10 @@ TEST(StructureSplit, HalvesAndVesselEndsSeparateWhenTheCutOpensUnderGravity) {
   // The column hangs and stretches while the blade crosses it at z = 52: the cut lies at
   // rest z ~ 58 (the vessel's crossing), so the sphere sits there.
   const HangingColumn c = hanging_column(57.0);
-  const auto& [problem, sphere, tumour, vessel, segments] = c;
+  const SimProblem& problem = c.problem;
+  const TriMesh& sphere = c.sphere;
+  const CarriedPoints &tumour = c.tumour, &vessel = c.vessel;
+  const std::vector<std::array<int, 2>>& segments = c.segments;
   CutSession session(problem, variant("xpbd"), CutSessionSettings{}, {tumour}, {sphere.tris}, vessel, segments);
   const double dt = 1.0 / 60.0;
   int crossed_events = 0;
@@ -510,7 +513,10 @@ void expect_split_as_from_input(const CutSession& session, int frame) {
 // hanging and moving under gravity.
 TEST(StructureSplit, SplitKeptAcrossStepsEqualsTheSplitMadeAgain) {
   const HangingColumn c = hanging_column(60.0);
-  const auto& [problem, sphere, tumour, vessel, segments] = c;
+  const SimProblem& problem = c.problem;
+  const TriMesh& sphere = c.sphere;
+  const CarriedPoints &tumour = c.tumour, &vessel = c.vessel;
+  const std::vector<std::array<int, 2>>& segments = c.segments;
   CutSessionSettings settings;
   settings.cut.chord_sagitta_mm = 1.0;
   settings.cut.min_refined_edge_mm = 3.0;
