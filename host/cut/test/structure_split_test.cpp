@@ -44,6 +44,10 @@ struct HangingColumn {
   CarriedPoints tumour;
   CarriedPoints vessel;
   std::vector<std::array<int, 2>> segments;
+  // An XPBD cut session on the column carrying both.
+  CutSession session(const CutSessionSettings& settings) const {
+    return CutSession(problem, variant("xpbd"), settings, {tumour}, {sphere.tris}, vessel, segments);
+  }
 };
 
 HangingColumn hanging_column(double z_tumour_mm) {
@@ -233,11 +237,7 @@ TEST(StructureSplit, HalvesAndVesselEndsSeparateWhenTheCutOpensUnderGravity) {
   // The column hangs and stretches while the blade crosses it at z = 52: the cut lies at
   // rest z ~ 58 (the vessel's crossing), so the sphere sits there.
   const HangingColumn c = hanging_column(57.0);
-  const SimProblem& problem = c.problem;
-  const TriMesh& sphere = c.sphere;
-  const CarriedPoints &tumour = c.tumour, &vessel = c.vessel;
-  const std::vector<std::array<int, 2>>& segments = c.segments;
-  CutSession session(problem, variant("xpbd"), CutSessionSettings{}, {tumour}, {sphere.tris}, vessel, segments);
+  CutSession session = c.session(CutSessionSettings{});
   const double dt = 1.0 / 60.0;
   int crossed_events = 0;
   for (int f = 0; f <= 15; ++f) {
@@ -513,14 +513,10 @@ void expect_split_as_from_input(const CutSession& session, int frame) {
 // hanging and moving under gravity.
 TEST(StructureSplit, SplitKeptAcrossStepsEqualsTheSplitMadeAgain) {
   const HangingColumn c = hanging_column(60.0);
-  const SimProblem& problem = c.problem;
-  const TriMesh& sphere = c.sphere;
-  const CarriedPoints &tumour = c.tumour, &vessel = c.vessel;
-  const std::vector<std::array<int, 2>>& segments = c.segments;
   CutSessionSettings settings;
   settings.cut.chord_sagitta_mm = 1.0;
   settings.cut.min_refined_edge_mm = 3.0;
-  CutSession session(problem, variant("xpbd"), settings, {tumour}, {sphere.tris}, vessel, segments);
+  CutSession session = c.session(settings);
   const double dt = 1.0 / 60.0;
   int refined = 0, vessel_cut_at = -1, tumour_cut_at = -1, frame = 0;
   const auto run = [&](double z0, double bend, bool cutting, int frames) {
@@ -528,8 +524,8 @@ TEST(StructureSplit, SplitKeptAcrossStepsEqualsTheSplitMadeAgain) {
       const double y = -5 + 2 * f, z = z0 + bend * (y - 10) * (y - 10);
       const CutFrameReport rep = session.apply_blade({Eigen::Vector3d(-10, y, z), Eigen::Vector3d(30, y, z)}, cutting);
       refined += rep.cut.edges_refined;
-      if (vessel_cut_at < 0 && session.vessel_segments().size() > segments.size()) vessel_cut_at = frame;
-      if (tumour_cut_at < 0 && !session.tumour_tris()[0].empty() && session.tumour_tris()[0].size() > sphere.tris.size()) tumour_cut_at = frame;
+      if (vessel_cut_at < 0 && session.vessel_segments().size() > c.segments.size()) vessel_cut_at = frame;
+      if (tumour_cut_at < 0 && !session.tumour_tris()[0].empty() && session.tumour_tris()[0].size() > c.sphere.tris.size()) tumour_cut_at = frame;
       ASSERT_TRUE(session.step(dt).healthy);
       ASSERT_NO_FATAL_FAILURE(expect_split_as_from_input(session, frame));
     }
