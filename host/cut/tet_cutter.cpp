@@ -723,17 +723,24 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
   // tissue, tets the blade never crossed arrive where it swept seconds earlier; their sides
   // call for a cut, the surface as swept is near, the material says it never passed there).
   // A crack front (the blade's end inside the tissue) is not extended.
-  double reach = -1.0, reach_material = -1.0;
+  // The same reach in the material (from the tet's vertices on the cut at rest), taken once
+  // when a check needs it.
+  double reach_material = -1.0;
+  const auto material_reach = [&] {
+    if (reach_material < 0.0) {
+      reach_material = 0.0;
+      for (int w : tet)
+        if (on_stroke(w)) reach_material = std::max(reach_material, material_stroke_distance(mesh_.rest_positions_World_mm.col(w)));
+      reach_material = 2.0 * reach_material + settings_.path_tolerance_mm + settings_.vertex_tolerance_mm;
+    }
+    return reach_material;
+  };
+  double reach = -1.0;
   if (!recorded) {
     reach = 0.0;
-    reach_material = 0.0;
     for (int w : tet)
-      if (on_stroke(w)) {
-        reach = std::max(reach, stroke_distance(x.col(w)));
-        reach_material = std::max(reach_material, material_stroke_distance(mesh_.rest_positions_World_mm.col(w)));
-      }
+      if (on_stroke(w)) reach = std::max(reach, stroke_distance(x.col(w)));
     reach = 2.0 * reach + settings_.path_tolerance_mm + settings_.vertex_tolerance_mm;
-    reach_material = 2.0 * reach_material + settings_.path_tolerance_mm + settings_.vertex_tolerance_mm;
   }
   std::vector<std::pair<EdgeKey, double>> added;
   for (int e : missing) {
@@ -754,7 +761,7 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
       if (crossing < 0.0) {                           // else on the plane, near enough to both
         const Eigen::Matrix3Xd& rest = mesh_.rest_positions_World_mm;
         if (stroke_distance((1 - s) * x.col(a) + s * x.col(b)) > reach) return false;
-        if (!stroke_tris_rest_.empty() && material_stroke_distance((1 - s) * rest.col(a) + s * rest.col(b)) > reach_material) return false;
+        if (!stroke_tris_rest_.empty() && material_stroke_distance((1 - s) * rest.col(a) + s * rest.col(b)) > material_reach()) return false;
       }
     }
     if (crossing >= 0.0) s = std::clamp(crossing, 0.01, 0.99);
@@ -767,8 +774,13 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
       // looked at again next step, and completed at the stroke's end): the sides call for a
       // crossing the surface in the material has not reached yet (issue 20: the 15 mm curve of
       // GraspCutting/RefinedTightCurve got points 7.6 and 8.0 mm off the path at s = 1.5, 3).
+      // Farther than the material reach and kCompletionWait_mm: a smaller floor (0 and 0.5 mm
+      // tried) left the bundled ring joined with XPBD (RingInSession): points 0.5-2 mm off the
+      // path close it there; the issue's bound on any cut vertex is 3 mm.
+      constexpr double kCompletionWait_mm = 2.0;
       if (!finishing_ && material_stroke_distance((1 - s) * mesh_.rest_positions_World_mm.col(a) +
-                                                  s * mesh_.rest_positions_World_mm.col(b)) > completion_wait_mm(tet)) return false;
+                                                  s * mesh_.rest_positions_World_mm.col(b)) > std::max(material_reach(), kCompletionWait_mm))
+        return false;
     }
     added.emplace_back(edge_key(a, b), s);
   }
@@ -784,18 +796,6 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
     pending_normal_.erase(edge_key(a, b));
   }
   return true;
-}
-
-double TetCutter::completion_wait_mm(const std::array<int, 4>& tet) const {
-  // Twice the farthest of the tet's vertices on the cut from the surface in the material,
-  // plus the tolerances, and at least kCompletionWait_mm. A smaller floor (0 and 0.5 mm
-  // tried) left the bundled ring joined with XPBD (RingInSession): points 0.5-2 mm off the
-  // path close it there; the issue's bound on any cut vertex is 3 mm.
-  constexpr double kCompletionWait_mm = 2.0;
-  double on_cut_mm = 0.0;
-  for (int w : tet)
-    if (on_stroke(w)) on_cut_mm = std::max(on_cut_mm, material_stroke_distance(mesh_.rest_positions_World_mm.col(w)));
-  return std::max(2.0 * on_cut_mm + settings_.path_tolerance_mm + settings_.vertex_tolerance_mm, kCompletionWait_mm);
 }
 
 bool TetCutter::can_move(int w, const Eigen::Vector3d& rest_new, const Eigen::Vector3d& x_new, const Eigen::Matrix3Xd& x) const {

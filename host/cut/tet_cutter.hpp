@@ -191,8 +191,6 @@ class TetCutter {
   // Side of free vertex w from the nearest point of this stroke's whole swept surface so far
   // (0: not across from it, or farther than an edge of its tets).
   int stroke_side(int w, const Eigen::Matrix3Xd& x, double cone, bool within_reach = true) const;
-  // How far from the stroke's surface in the material a completion may put a point mid-stroke.
-  double completion_wait_mm(const std::array<int, 4>& tet) const;
   // Distance of p from this stroke's whole swept surface (as swept).
   double stroke_distance(const Eigen::Vector3d& p) const;
   // The same in the rest configuration: p at rest against the stroke's surface in the material.

@@ -582,7 +582,7 @@ INSTANTIATE_TEST_SUITE_P(GraspCutting, CurvedStroke,
 // model thread (bursts of six steps) still cuts the same, vertex by vertex: the refinement
 // depends on the blade's path in the material only. At s = 1.5 and 3 mm a tet completed
 // mid-stroke took points 7.6-8.0 mm off the path from sides the surface in the material had
-// not reached yet (such completions now wait: TetCutter::completion_wait_mm).
+// not reached yet (such completions now wait: TetCutter::complete_from_sides).
 class RefinedTightCurve : public ::testing::TestWithParam<double> {};
 
 TEST_P(RefinedTightCurve, StaysOnThePathAndCutsTheSameWhenTheModelIsLate) {
