@@ -287,12 +287,18 @@ TEST(HostSwabE2e, PedalHeldSwabRefinesTheLandmarkRegistration) {
   const double release_at = swab_start_s + 0.85 * (swab_end_s - swab_start_s);
   ASSERT_TRUE(wait_path(press_at, 60.0));
   const double pressed_path_s = bus.path_time_s();
+  const std::int64_t pressed_wall_us = wall_us();
   ASSERT_EQ(run.inject("press pedal_cut"), "OK");
   ASSERT_TRUE(run.lcm().wait_for([](const CanCapture& c) { return c.count_inputs("pedal_cut", input_event_t::STATE_PRESSED) >= 1; }, 5.0));
   ASSERT_TRUE(wait_path(release_at, 60.0));
   ASSERT_EQ(run.inject("release pedal_cut"), "OK");
   ASSERT_TRUE(run.lcm().wait_for([](const CanCapture& c) { return c.count_inputs("pedal_cut", input_event_t::STATE_RELEASED) >= 1; }, 5.0));
   const double released_path_s = bus.path_time_s();
+  for (const auto& e : run.lcm().inputs())
+    if (e.input_name == "pedal_cut" && e.state == input_event_t::STATE_PRESSED)
+      std::printf("[ swab-e2e ] the press: the appliance received it %.3f s, decided %.3f s, published %.3f s after the inject (wall)\n",
+                  (e.receive_time_wall_us - pressed_wall_us) * 1e-6, (e.receive_time_wall_us + (e.decided_time_mono_us - e.receive_time_mono_us) - pressed_wall_us) * 1e-6,
+                  (e.publish_time_wall_us - pressed_wall_us) * 1e-6);
   std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the release flush
   click("pedal_accept", landmarks.size() + 1);
   // The refinement: reported on the host's console (its stdout, read here).
@@ -329,6 +335,7 @@ TEST(HostSwabE2e, PedalHeldSwabRefinesTheLandmarkRegistration) {
     return best_t;
   };
   for (const auto& [m, arrival] : clouds) {
+    if (&m == &clouds.front().first) std::printf("[ swab-e2e ] the first swab point captured %.3f s after the inject\n", (m.capture_time_wall_us - pressed_wall_us) * 1e-6);
     EXPECT_EQ(m.frame_name, "Ref");
     for (const auto& p : m.p_mm) {
       double d = 0;
