@@ -60,14 +60,14 @@ class YamlReader {
     const YAML::Node n = map[key];
     if (!n) return def;
     const double v = get<double>(n, prefix + "." + key, "a number");
-    if (!(v >= lo && v <= hi)) fail(n, prefix + "." + key, "must be between " + fmt(lo) + " and " + fmt(hi));
+    if (!(v >= lo && v <= hi)) fail(n, prefix + "." + key, "must be between " + fmt(lo) + " and " + fmt(hi) + ", got " + n.Scalar());
     return v;
   }
   int integer(const YAML::Node& map, const std::string& prefix, const char* key, int def, int lo, int hi) const {
     const YAML::Node n = map[key];
     if (!n) return def;
     const int v = get<int>(n, prefix + "." + key, "an integer");
-    if (v < lo || v > hi) fail(n, prefix + "." + key, "must be between " + std::to_string(lo) + " and " + std::to_string(hi));
+    if (v < lo || v > hi) fail(n, prefix + "." + key, "must be between " + std::to_string(lo) + " and " + std::to_string(hi) + ", got " + n.Scalar());
     return v;
   }
   bool boolean(const YAML::Node& map, const std::string& prefix, const char* key, bool def) const {

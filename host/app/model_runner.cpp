@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <set>
 #include <stdexcept>
 
@@ -63,7 +65,13 @@ void ModelRunner::start() {
   thread_ = std::thread([this] {
     // The overlay's latency matters more than the model's rate: on a machine with few
     // cores the model thread (and the solver threads it starts) yields to rendering.
-    if (nice_ > 0) setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), nice_);
+    // A negative level (above the rest of the machine) needs CAP_SYS_NICE; refused, the
+    // thread keeps the process's level and the summary says so.
+    if (nice_ != 0 && setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), nice_) != 0) {
+      const std::string e = std::strerror(errno);
+      std::lock_guard lock(mutex_);
+      nice_error_ = "nice " + std::to_string(nice_) + " refused (" + e + "): the model thread runs at the process's level";
+    }
     // A core of its own (cpu_partition): the solver's workers started from here inherit it.
     if (!cpus_.empty()) {
       const std::string e = pin_current_thread(cpus_);  // refused (cgroup): the scheduler places it, reported in the summary
@@ -194,6 +202,11 @@ std::vector<ModelRunner::CutVertex> ModelRunner::cut_vertices() const {
   for (Eigen::Index v = 0; v < rest.cols(); ++v)
     if (cutter.on_cut(static_cast<int>(v))) out.push_back({static_cast<int>(v), rest.col(v), x.col(v)});
   return out;
+}
+
+std::string ModelRunner::nice_error() const {
+  std::lock_guard lock(mutex_);
+  return nice_error_;
 }
 
 std::string ModelRunner::pin_error() const {

@@ -108,8 +108,9 @@ struct ModelClockSettings {
 
 class ModelRunner {
  public:
-  // Builds the scene's tissue model (gravity per `gravity`). `nice` > 0 lowers the model
-  // thread's scheduling priority (Linux nice, per thread). Throws std::invalid_argument.
+  // Builds the scene's tissue model (gravity per `gravity`). `nice` sets the model thread's
+  // scheduling priority (Linux nice, per thread: > 0 lower, < 0 higher, which needs
+  // CAP_SYS_NICE: refused, nice_error() says so). Throws std::invalid_argument.
   ModelRunner(const Scene& scene, double rate_hz, bool gravity, double margin_mm, int nice = 0,
               std::optional<cut::CutSessionSettings> cutting = std::nullopt, const ModelClockSettings& clock = {});
   ~ModelRunner();
@@ -141,7 +142,8 @@ class ModelRunner {
   // The tracker reached device_time_us (another tool's pose; in the order handed to the model).
   void tracker_at(std::int64_t device_time_us, std::int64_t now_us);
   bool has_grasper() const { return grasp_ != nullptr; }
-  int nice() const { return nice_; }  // the model thread's nice level (live)
+  int nice() const { return nice_; }  // the model thread's nice level asked for (live)
+  std::string nice_error() const;     // why that level was refused; empty when in effect
   bool has_inputs() const;
   GraspStatus grasp_status() const;
   ModelClockCounters clock_counters() const;
@@ -184,6 +186,7 @@ class ModelRunner {
   double rate_hz_;
   double margin_mm_;
   int nice_ = 0;
+  std::string nice_error_;
   std::vector<int> cpus_;
   std::string pin_error_;  // mutex_
   std::unique_ptr<TissueModel> model_;

@@ -121,7 +121,7 @@ NavigationSession::NavigationSession(const SessionConfig& config, std::unique_pt
       clock.tool_gap_ms = std::max(config_.scalpel ? config_.scalpel->stale_after_ms : 0.0, config_.grasper ? config_.grasper->stale_after_ms : 0.0);
       if (clock.tool_gap_ms <= 0.0) clock.tool_gap_ms = 100.0;
       model_ = std::make_unique<ModelRunner>(*scene_, config_.model.rate_hz, config_.model.gravity, config_.overlay.margin_mm,
-                                             config_.model.nice.value_or(cutting ? 0 : 5), cutting, clock);
+                                             config_.model.nice.value_or(cutting ? kCuttingModelNice : kModelNice), cutting, clock);
       if (config_.scalpel && model_->cutting()) model_->expect_blade();
     } catch (const std::exception& e) {
       throw SessionError(at_scene + "the tissue model cannot be built: " + e.what());
@@ -966,6 +966,7 @@ nlohmann::json NavigationSession::summary_json(double run_s) {
                   {"step_ms_p99", percentile(steps, 0.99)},
                   {"step_control_steps", model_->step_control_steps()},
                   {"nice", model_->nice()}};
+    if (!model_->nice_error().empty()) j["model"]["nice_error"] = model_->nice_error();
     if (model_->has_inputs()) {
       // The model's clock (docs/overlay.md, "Model clock"): steps run without a late input,
       // grid steps skipped to catch up, samples that came after their step, the largest lag.

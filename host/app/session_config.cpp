@@ -297,7 +297,7 @@ SessionConfig parse_session(const std::string& text, const std::string& source, 
     c.model.input_wait_ms = r.number(m, "model", "input_wait_ms", c.model.input_wait_ms, 0.0, 10000.0);
     c.model.cut_catch_up_ms = r.number(m, "model", "cut_catch_up_ms", c.model.cut_catch_up_ms, 0.0, 60000.0);
     c.model.gravity = r.boolean(m, "model", "gravity", c.model.gravity);
-    if (m["nice"]) c.model.nice = r.integer(m, "model", "nice", 5, 0, 19);
+    if (m["nice"]) c.model.nice = r.integer(m, "model", "nice", 5, -20, 19);
     c.model.cpu_partition = r.text(m, "model", "cpu_partition", c.model.cpu_partition);
     c.model.cpu_partition_line = line_of(m["cpu_partition"]);
     if (c.model.cpu_partition != "auto" && c.model.cpu_partition != "on" && c.model.cpu_partition != "off")

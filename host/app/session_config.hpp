@@ -47,14 +47,20 @@ struct CameraSettings {
   double stale_after_ms = 150.0;             // frame gap over this: flag camera_gap, counted; also the camera marker's limit
 };
 
+inline constexpr int kModelNice = 5;
+inline constexpr int kCuttingModelNice = -5;
+
 struct ModelSettings {
   double rate_hz = 60.0;        // model steps per second on the model thread
   bool gravity = false;         // the scene's gravity; off: the CT shape is already the loaded one
-  // The model thread's Linux nice level (0: the rendering thread's priority). Unset: 5 (the
-  // model yields to rendering) unless the session cuts: then 0, because the cut lands where
-  // the blade went only while the model keeps up with the blade (docs/overlay.md, "Threads
-  // and cores"; issue 20: at nice 5 beside one busy process per core the model fell 5 s
-  // behind during the demo's ring cut).
+  // The model thread's Linux nice level (0: the rendering thread's priority). Unset:
+  // kModelNice (the model yields to rendering) unless the session cuts: then
+  // kCuttingModelNice, above the machine's other work, because the cut lands where the
+  // blade went only while the model keeps up with the blade (docs/overlay.md, "Threads and
+  // cores"; issue 20: beside one busy process per core the model fell 5 s behind during the
+  // demo's ring cut at nice 5, and still 5 s at nice 0 with the cut refined ahead of the
+  // blade; 1 s at -5). A negative level needs CAP_SYS_NICE (root): refused, the thread
+  // keeps the process's level and the summary's model.nice_error says so.
   std::optional<int> nice;
   // Cores: "on": the model thread (and the solver's workers) on a core of its own, the
   // rendering thread and the software rasteriser's threads on the others (docs/overlay.md,

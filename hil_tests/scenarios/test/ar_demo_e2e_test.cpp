@@ -101,12 +101,13 @@ std::vector<CutVertexRow> read_cut_vertices(const std::filesystem::path& path) {
 // The cut-path error in the material (docs/overlay.md): the per-step worst new cut vertex
 // against the surfaces the blade swept, live and replayed. Live, it came from a model thread
 // that fell seconds behind beside busy processes and skipped model time in the middle of the
-// stroke; with the model at the renderer's priority and the stroke's steps never skipped the
-// live cut matches the replay's in most runs (docs/overlay.md, "Model clock";
-// docs/benchmarks.md, "The model keeps up with the blade"). What remains in both is the cutter's: chords' mid-points
-// on the coarse mesh (edges 16-40 mm, the ring's radius 21 mm) that cannot move onto the
-// curved cut (docs/cut.md): p95 0.7-2.1, max 1.1-4.4 mm on the demo's logs, so issue 20's
-// target (p95 <= 1.0, max <= 3.0 mm) is printed, not met; the bound held is the one before.
+// stroke; the stroke's steps are never skipped and a cutting session runs the model above
+// the machine's other work (docs/overlay.md, "Model clock", "Threads and cores"). The
+// cutter's own tail (chords' mid-points on the coarse mesh, edges 16-40 mm against the
+// ring's 21 mm radius) is removed by refining the tets ahead of the blade where the cut
+// curves (the demo scene's chord_sagitta_mm 3; docs/cut.md). Issue 20's target: p95 <= 1.0
+// (held, live and replay), max <= 3.0 mm (printed: 3.8 mm on one of the kept logs, at the
+// corner where the entry turns into the ring; docs/benchmarks.md).
 void print_cut_path(const nlohmann::json& cutting, const char* run) {
   std::cerr << "[ar demo] " << run << " cut-path error in the material: p50 " << cutting["path_error_mm"]["p50"].get<double>() << ", p95 "
             << cutting["path_error_mm"]["p95"].get<double>() << ", max " << cutting["path_error_mm"]["max"].get<double>() << " mm over "
@@ -116,7 +117,7 @@ void print_cut_path(const nlohmann::json& cutting, const char* run) {
 void expect_cut_on_the_blades_path(const nlohmann::json& cutting, const char* run) {
   EXPECT_GT(cutting["cut_faces"].get<int>(), 20) << run << ": " << cutting.dump();
   EXPECT_LT(cutting["path_error_mm"]["p50"].get<double>(), 0.5) << run << ": " << cutting.dump();
-  EXPECT_LT(cutting["path_error_mm"]["p95"].get<double>(), 4.0) << run << ": " << cutting.dump();
+  EXPECT_LE(cutting["path_error_mm"]["p95"].get<double>(), 1.0) << run << ": " << cutting.dump();
   print_cut_path(cutting, run);
 }
 
@@ -241,17 +242,13 @@ TEST(ArDemoSession, LiveRegistrationRingCutFaultAndRecording) {
   // 23.7 mm in a replay under load when the model took the blade at camera frames and
   // stepped on the host's clock).
   expect_cut_on_the_blades_path(replay_nav["cutting"], "replay");
-  // Live, with every core busy: the model thread (nice 0 in a cutting session) keeps up with
+  // Live, with every core busy: the model thread (nice -5 in a cutting session) keeps up with
   // the blade, and when it falls behind it does not skip model time in a stroke (at nice 5 it
-  // fell 5 s behind and merged the stroke's samples: p95 4.5, and up to 5.9 / max 8.5 mm in
-  // the full suite, while the replays of those logs gave 0.4-1.0 / 1.9-3.0 mm).
-  // Still printed, not held: beside the host's unit tests under ctest -j2 one live run gave
-  // p95 8.8 / max 9.5 mm against its replay's 1.5 / 6.9 mm with no sample merged (candidate:
-  // live, the model is rebuilt after a cut on a worker while the old one steps on; the
-  // replay rebuilds inline; docs/benchmarks.md, "The model keeps up with the blade").
-  EXPECT_GT(nav["cutting"]["cut_faces"].get<int>(), 20) << nav["cutting"].dump();
-  print_cut_path(nav["cutting"], "live");
-  EXPECT_EQ(nav["model"]["nice"].get<int>(), 0) << nav["model"].dump();
+  // fell 5 s behind and merged the stroke's samples: p95 4.5, and up to 5.9 / max 8.5 mm; at
+  // nice 0 with the refined cut it fell 5 s behind too; at -5 about 1 s).
+  expect_cut_on_the_blades_path(nav["cutting"], "live");
+  EXPECT_EQ(nav["model"]["nice"].get<int>(), -5) << nav["model"].dump();
+  EXPECT_FALSE(nav["model"].contains("nice_error")) << nav["model"].dump();
   EXPECT_EQ(nav["model"]["clock"]["cut_samples_merged"].get<int>(), 0) << nav["model"].dump();
   // The model steps on the tracker's clock (docs/overlay.md, "Model clock"): the same log
   // replayed again with every core kept busy (one spinning process per core beside it) gives
