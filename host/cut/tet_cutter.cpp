@@ -927,6 +927,26 @@ bool TetCutter::untouched(int t) const {
   return true;
 }
 
+bool TetCutter::refinable(int t) const {
+  for (int w : mesh_.tets[static_cast<std::size_t>(t)])
+    if (on_cut_[static_cast<std::size_t>(w)] != 0) return false;
+  return true;
+}
+
+void TetCutter::record_material_crossings(int m) {
+  std::vector<int> others;
+  for (int t : vertex_tets_[static_cast<std::size_t>(m)])
+    for (int w : mesh_.tets[static_cast<std::size_t>(t)])
+      if (w != m && std::find(others.begin(), others.end(), w) == others.end()) others.push_back(w);
+  for (int w : others) {
+    const EdgeKey key = edge_key(m, w);
+    double s = 0.0;
+    if (pending_.count(key) || !material_crossing(m, w, 0.5, s)) continue;
+    pending_[key] = s;
+    pending_normal_.erase(key);
+  }
+}
+
 void TetCutter::refine_ahead(const std::vector<Triangle>& tris, std::vector<int>& candidates, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v,
                              CutStepReport& r) {
   if (!(settings_.chord_sagitta_mm > 0.0) || tris.empty()) return;
@@ -962,7 +982,7 @@ void TetCutter::refine_ahead(const std::vector<Triangle>& tris, std::vector<int>
   // (Rivara's longest-edge bisection: the tets' shapes stay within a bounded set of classes).
   std::priority_queue<std::pair<double, EdgeKey>> queue;
   auto offer = [&](int t) {
-    if (!untouched(t) || !entered(t)) return;
+    if (!refinable(t) || !entered(t)) return;
     const auto l = longest(t);
     if (l.first > lmax2) queue.push(l);
   };
@@ -979,10 +999,14 @@ void TetCutter::refine_ahead(const std::vector<Triangle>& tris, std::vector<int>
     // longest edges go first; where one of them cannot be bisected, neither is this edge):
     // bisecting a shorter edge can flatten tets without end (a vertex chain converging on
     // the longer edge).
-    bool can = !refused.count(key), deferred = false;
+    // An edge with a crossing recorded is not bisected (the crossing would have to move to
+    // a half); the tets around it are refined by their other edges.
+    bool can = !refused.count(key) && !pending_.count(key), deferred = false;
+    bool recorded = false;  // a tet around has crossings recorded: its new edges take theirs from the material
     for (int t : around) {
       if (!can) break;
-      if (!untouched(t)) {
+      recorded = recorded || !untouched(t);
+      if (!refinable(t)) {
         can = false;
         break;
       }
@@ -990,7 +1014,8 @@ void TetCutter::refine_ahead(const std::vector<Triangle>& tris, std::vector<int>
       if (l.first <= len2 * (1.0 + 1e-12)) continue;
       const auto [p, q] = edge_ends(l.second);
       const std::vector<int> around_l = tets_with_edge(p, q);
-      if (refused.count(l.second) || !std::all_of(around_l.begin(), around_l.end(), [&](int u) { return untouched(u); })) {
+      if (refused.count(l.second) || pending_.count(l.second) ||
+          !std::all_of(around_l.begin(), around_l.end(), [&](int u) { return refinable(u); })) {
         can = false;
         break;
       }
@@ -1010,6 +1035,7 @@ void TetCutter::refine_ahead(const std::vector<Triangle>& tris, std::vector<int>
     const int m = mesh_.num_vertices() - 1;
     on_cut_[static_cast<std::size_t>(m)] = 0;  // a vertex of the mesh, not of the cut
     cut_normal_[static_cast<std::size_t>(m)] = Eigen::Vector3d::Zero();
+    if (recorded) record_material_crossings(m);
     ++r.edges_refined;
     r.changed_tets.insert(r.changed_tets.end(), touched.begin(), touched.end());
     candidates.insert(candidates.end(), touched.begin(), touched.end());

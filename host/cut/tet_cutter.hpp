@@ -248,6 +248,14 @@ class TetCutter {
   void separate_along_cut(Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   // No vertex of tet t is on a cut and no edge of it has a crossing recorded.
   bool untouched(int t) const;
+  // Tet t may be refined ahead of the blade: no vertex of it is on a cut (crossings already
+  // recorded on its edges stay where they are, and its new edges take theirs from the
+  // stroke's surface in the material: record_material_crossings).
+  bool refinable(int t) const;
+  // After an edge split at new vertex m: the new edges from m that cross the stroke's surface
+  // in the material get that crossing recorded, as the sweep would have recorded it had the
+  // edges been there when the blade passed (tets refined after the blade reached them).
+  void record_material_crossings(int m);
   // True when the tets around edge p-q fall into several groups once cut faces no longer
   // connect them.
   bool ring_is_cut(int p, int q) const;
