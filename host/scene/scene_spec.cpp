@@ -16,8 +16,11 @@ class Reader {
  public:
   explicit Reader(std::string source) : source_(std::move(source)) {}
 
+  // A value refused is quoted back (issue 28: "must be in (0, 0.5)" alone sends the reader
+  // to the file to find what was given).
   [[noreturn]] void fail(const YAML::Node& at, const std::string& what, const std::string& fix) const {
-    throw_load_error(source_, at.IsDefined() ? at.Mark().line + 1 : 0, what, fix);
+    const bool quote = at.IsDefined() && at.IsScalar() && what.find("got ") == std::string::npos;
+    throw_load_error(source_, at.IsDefined() ? at.Mark().line + 1 : 0, quote ? what + " (got " + at.Scalar() + ")" : what, fix);
   }
 
   // The node must be a map whose keys are all in `allowed`.

@@ -56,8 +56,8 @@ TEST(CuttingSection, OnlyWhenDeclaredWithDefaults) {
 
 TEST(CuttingSection, ErrorsNameTheLine) {
   EXPECT_NE(error_of(kBase + "cutting:\n  margin: 3\n").find("s.yaml:7: unknown key 'margin' in cutting"), std::string::npos);
-  EXPECT_NE(error_of(kBase + "cutting:\n  snap_fraction: 0.7\n").find("s.yaml:7: cutting.snap_fraction must be in (0, 0.5)"), std::string::npos);
-  EXPECT_NE(error_of(kBase + "cutting:\n  path_tolerance_mm: -1\n").find("s.yaml:7: cutting.path_tolerance_mm must be >= 0"), std::string::npos);
+  EXPECT_NE(error_of(kBase + "cutting:\n  snap_fraction: 0.7\n").find("s.yaml:7: cutting.snap_fraction must be in (0, 0.5) (got 0.7)"), std::string::npos);
+  EXPECT_NE(error_of(kBase + "cutting:\n  path_tolerance_mm: -1\n").find("s.yaml:7: cutting.path_tolerance_mm must be >= 0 (got -1)"), std::string::npos);
   EXPECT_NE(error_of(kBase + "cutting:\n  tumour_margin_mm: -1\n").find("s.yaml:7: cutting.tumour_margin_mm must be >= 0"), std::string::npos);
   EXPECT_NE(error_of(kBase + "cutting:\n  blade: {tip_mm: [0, 0, 0], heel_mm: [0, 0, 0]}\n").find("s.yaml:7: cutting.blade: tip and heel"),
             std::string::npos);
