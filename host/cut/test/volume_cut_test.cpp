@@ -31,6 +31,21 @@ BladeSegment vertical(double x, double y, double z_tip, double z_heel) {
   return {Eigen::Vector3d(x, y, z_tip), Eigen::Vector3d(x, y, z_heel)};
 }
 
+// Paper 000's lesion on the 80 mm cube: a vertical blade (z 20-120) goes round the circle of
+// radius 20 mm about (40, 40) from angle 0 through `chords` of its 48 chords, cutting every
+// frame (50: a little past the start, the ring closes). Returns the edges refined.
+int sweep_ring(TetCutter& cutter, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, int chords) {
+  const auto on_ring = [](double a) { return vertical(40 + 20 * std::cos(a), 40 + 20 * std::sin(a), 20, 120); };
+  BladeSegment prev = on_ring(0);
+  int refined = 0;
+  for (int k = 1; k <= chords; ++k) {
+    const BladeSegment cur = on_ring(2 * M_PI * k / 48);
+    refined += cutter.step({prev, cur, 4, {}}, x, v).edges_refined;
+    prev = cur;
+  }
+  return refined;
+}
+
 void expect_two_halves_at_x50(const TetMesh& mesh) {
   const CutMeshCheck c = check_cut_mesh(mesh);
   EXPECT_TRUE(c.valid()) << c.summary();
@@ -195,16 +210,7 @@ TEST(RingCut, RingAndBottomCutSeparateThePlug) {
     TetMesh mesh = make_box_tet_mesh(cells, cells, cells, Eigen::Vector3d(80, 80, 80));
     TetCutter cutter(mesh, CutSettings{});
     Eigen::Matrix3Xd x = mesh.rest_positions_World_mm, v;
-    auto on_ring = [](double a) {
-      const double cx = 40 + 20 * std::cos(a), cy = 40 + 20 * std::sin(a);
-      return BladeSegment{Eigen::Vector3d(cx, cy, 20), Eigen::Vector3d(cx, cy, 120)};
-    };
-    BladeSegment prev = on_ring(0);
-    for (int k = 1; k <= 50; ++k) {  // a little past the start: the ring closes
-      const BladeSegment cur = on_ring(2 * M_PI * k / 48);
-      cutter.step({prev, cur, 4, {}}, x, v);
-      prev = cur;
-    }
+    sweep_ring(cutter, x, v, 50);
     cutter.finish_stroke(x, v);
     EXPECT_EQ(check_cut_mesh(cutter.mesh()).piece_volume_mm3.size(), 1u);  // the ring ends at z = 20, inside
     cutter.begin_stroke();
@@ -243,16 +249,7 @@ TEST(PathFidelity, CurvedCutMidPointsLieOnTheSweptWall) {
     TetMesh mesh = make_box_tet_mesh(cells, cells, cells, Eigen::Vector3d(80, 80, 80));
     TetCutter cutter(mesh, CutSettings{});
     Eigen::Matrix3Xd x = mesh.rest_positions_World_mm, v;
-    const auto blade = [&](double a) {
-      const Eigen::Vector2d c = on_ring(a);
-      return BladeSegment{Eigen::Vector3d(c.x(), c.y(), 20), Eigen::Vector3d(c.x(), c.y(), 120)};
-    };
-    BladeSegment prev = blade(0);
-    for (int k = 1; k <= 50; ++k) {
-      const BladeSegment cur = blade(2 * M_PI * k / 48);
-      cutter.step({prev, cur, 4, {}}, x, v);
-      prev = cur;
-    }
+    sweep_ring(cutter, x, v, 50);
     cutter.finish_stroke(x, v);
     const CutMeshCheck c = check_cut_mesh(cutter.mesh());
     EXPECT_TRUE(c.valid()) << c.summary();
@@ -281,7 +278,6 @@ TEST(PathFidelity, CurvedCutMidPointsLieOnTheSweptWall) {
 // cut's vertices lie closer to the swept wall than without refinement. A straight cut
 // refines nothing.
 TEST(Refinement, CurvedCutIsRefinedAheadOfTheBladeAndLandsOnTheWall) {
-  const auto on_ring = [](double a) { return Eigen::Vector2d(40 + 20 * std::cos(a), 40 + 20 * std::sin(a)); };
   const auto wall_distance = [&](const Eigen::Vector3d& p) { return std::abs((p.head<2>() - Eigen::Vector2d(40, 40)).norm() - 20.0); };
   const auto cut_ring = [&](double sagitta_mm, int& refined, double& worst_mm, double& min_volume_ratio, double& min_dihedral_deg) {
     TetMesh mesh = make_box_tet_mesh(4, 4, 4, Eigen::Vector3d(80, 80, 80));
@@ -290,17 +286,7 @@ TEST(Refinement, CurvedCutIsRefinedAheadOfTheBladeAndLandsOnTheWall) {
     settings.chord_sagitta_mm = sagitta_mm;
     TetCutter cutter(mesh, settings);
     Eigen::Matrix3Xd x = mesh.rest_positions_World_mm, v;
-    const auto blade = [&](double a) {
-      const Eigen::Vector2d c = on_ring(a);
-      return BladeSegment{Eigen::Vector3d(c.x(), c.y(), 20), Eigen::Vector3d(c.x(), c.y(), 120)};
-    };
-    BladeSegment prev = blade(0);
-    refined = 0;
-    for (int k = 1; k <= 50; ++k) {
-      const BladeSegment cur = blade(2 * M_PI * k / 48);
-      refined += cutter.step({prev, cur, 4, {}}, x, v).edges_refined;
-      prev = cur;
-    }
+    refined = sweep_ring(cutter, x, v, 50);
     cutter.finish_stroke(x, v);
     const CutMeshCheck c = check_cut_mesh(cutter.mesh());
     EXPECT_TRUE(c.valid()) << c.summary();
@@ -464,7 +450,6 @@ TEST(CutSettingsCheck, EverySettingOutOfRangeIsRefusedWithItsValue) {
 // across: 6426 / 3213 / 5398 mm^2 (+14 / -43 / -4 %). Refined ahead of the blade (s = 3 and
 // 1.5 mm) it stays within 15 % (-14 to +1 %).
 TEST(Refinement, TheCutsAreaIsTheSweptWallsAsItCurves) {
-  const auto on_ring = [](double a) { return Eigen::Vector2d(40 + 20 * std::cos(a), 40 + 20 * std::sin(a)); };
   const double wall_mm2 = 36 * 2 * 20 * std::sin(M_PI / 48) * 60;  // 36 of 48 sides, z 20-80 inside the cube
   for (double sagitta_mm : {0.0, 3.0, 1.5}) {
     for (int cells : {2, 3, 4}) {
@@ -473,16 +458,7 @@ TEST(Refinement, TheCutsAreaIsTheSweptWallsAsItCurves) {
       settings.chord_sagitta_mm = sagitta_mm;
       TetCutter cutter(mesh, settings);
       Eigen::Matrix3Xd x = mesh.rest_positions_World_mm, v;
-      const auto blade = [&](double a) {
-        const Eigen::Vector2d c = on_ring(a);
-        return BladeSegment{Eigen::Vector3d(c.x(), c.y(), 20), Eigen::Vector3d(c.x(), c.y(), 120)};
-      };
-      BladeSegment prev = blade(0);
-      for (int k = 1; k <= 36; ++k) {
-        const BladeSegment cur = blade(2 * M_PI * k / 48);
-        cutter.step({prev, cur, 4, {}}, x, v);
-        prev = cur;
-      }
+      sweep_ring(cutter, x, v, 36);
       cutter.finish_stroke(x, v);
       const Eigen::Matrix3Xd& rest = cutter.mesh().rest_positions_World_mm;
       double lips_mm2 = 0.0;
@@ -492,7 +468,9 @@ TEST(Refinement, TheCutsAreaIsTheSweptWallsAsItCurves) {
       const double area_mm2 = 0.5 * lips_mm2;
       std::printf("[cut area] sagitta %.1f mm, %d cells: %d tets, cut area %.0f mm^2 against the wall's %.0f (%+.1f %%)\n", sagitta_mm, cells,
                   cutter.mesh().num_tets(), area_mm2, wall_mm2, 100.0 * (area_mm2 / wall_mm2 - 1.0));
-      if (sagitta_mm > 0.0) EXPECT_NEAR(area_mm2 / wall_mm2, 1.0, 0.15) << "sagitta " << sagitta_mm << " mm, " << cells << " cells";
+      if (sagitta_mm > 0.0) {
+        EXPECT_NEAR(area_mm2 / wall_mm2, 1.0, 0.15) << "sagitta " << sagitta_mm << " mm, " << cells << " cells";
+      }
     }
   }
 }
