@@ -13,11 +13,14 @@
 #include "calibration/lib/camera_intrinsics.hpp"
 #include "calibration/lib/pose_file.hpp"
 #include "calibration/lib/rigid_transform_file.hpp"
+#include "protocol/testing/error_of.hpp"
 
 namespace fs = std::filesystem;
 using namespace arnav::calib;
 
 namespace {
+
+using arnav::testing::error_of;
 
 fs::path temp_dir() {
   fs::path dir = fs::temp_directory_path() /
@@ -28,17 +31,6 @@ fs::path temp_dir() {
 
 void write_text(const fs::path& p, const std::string& text) {
   std::ofstream(p, std::ios::binary) << text;
-}
-
-// Runs f and returns the CalibError message ("" when nothing was thrown).
-template <typename F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const CalibError& e) {
-    return e.what();
-  }
-  return "";
 }
 
 CameraIntrinsics sample_intrinsics() {
@@ -89,21 +81,21 @@ TEST(Intrinsics, RejectsMissingKeyAndBadValuesNamingTheFile) {
   const std::string text = read_text_file(p, "test file");
   const std::string no_date = text.substr(0, text.find("calibration_date"));
   write_text(p, no_date);
-  const std::string msg = error_of([&] { read_intrinsics(p); });
+  const std::string msg = error_of<CalibError>([&] { read_intrinsics(p); });
   EXPECT_NE(msg.find(p.string()), std::string::npos) << msg;
   EXPECT_NE(msg.find("calibration_date"), std::string::npos) << msg;
 
-  EXPECT_NE(error_of([&] { read_intrinsics(temp_dir() / "does_not_exist.yaml"); }).find("cannot open"),
+  EXPECT_NE(error_of<CalibError>([&] { read_intrinsics(temp_dir() / "does_not_exist.yaml"); }).find("cannot open"),
             std::string::npos);
-  EXPECT_NE(error_of([] { parse_intrinsics("%YAML:1.0\n[unclosed", "mem"); }).find("mem"),
+  EXPECT_NE(error_of<CalibError>([] { parse_intrinsics("%YAML:1.0\n[unclosed", "mem"); }).find("mem"),
             std::string::npos);
 
   CameraIntrinsics bad = sample_intrinsics();
   bad.distortion = {1, 2, 3};
-  EXPECT_NE(error_of([&] { write_intrinsics(p, bad); }).find("4, 5, 8, 12 or 14"), std::string::npos);
+  EXPECT_NE(error_of<CalibError>([&] { write_intrinsics(p, bad); }).find("4, 5, 8, 12 or 14"), std::string::npos);
   bad = sample_intrinsics();
   bad.camera_matrix(0, 2) = 5000;
-  EXPECT_NE(error_of([&] { write_intrinsics(p, bad); }).find("principal point"), std::string::npos);
+  EXPECT_NE(error_of<CalibError>([&] { write_intrinsics(p, bad); }).find("principal point"), std::string::npos);
 }
 
 TEST(Transform, RoundTripIsExactAndNamed) {
@@ -125,7 +117,7 @@ TEST(Transform, RoundTripIsExactAndNamed) {
   EXPECT_EQ(back.date, r.date);
   EXPECT_EQ(back.samples, 20);
   EXPECT_DOUBLE_EQ(back.residuals.at("rms_mm"), 0.31);
-  EXPECT_NE(error_of([&] { read_transform(p, "X_ToolTip"); }).find("X_ToolTip"), std::string::npos);
+  EXPECT_NE(error_of<CalibError>([&] { read_transform(p, "X_ToolTip"); }).find("X_ToolTip"), std::string::npos);
 }
 
 TEST(Transform, RejectsBadFilesWithLine) {
@@ -133,30 +125,30 @@ TEST(Transform, RejectsBadFilesWithLine) {
       "arnav_transform_version: 1\nname: X_CamNdi\nparent_frame: Cam\nchild_frame: Ndi\n"
       "units: mm\nmatrix_row_major: [1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,1]\n";
   EXPECT_NO_THROW(parse_transform(good, "t.yaml"));
-  std::string msg = error_of([&] {
+  std::string msg = error_of<CalibError>([&] {
     parse_transform("arnav_transform_version: 1\nname: X_CamNdi\nparent_frame: Cam\n"
                     "child_frame: Ndi\nunits: mm\nmatrix_row_major: [2,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,1]\n",
                     "t.yaml");
   });
   EXPECT_NE(msg.find("t.yaml:6"), std::string::npos) << msg;
   EXPECT_NE(msg.find("not a rotation"), std::string::npos) << msg;
-  msg = error_of([&] {
+  msg = error_of<CalibError>([&] {
     parse_transform("arnav_transform_version: 1\nname: X_NdiCam\nparent_frame: Cam\n"
                     "child_frame: Ndi\nunits: mm\nmatrix_row_major: [1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,1]\n",
                     "t.yaml");
   });
   EXPECT_NE(msg.find("t.yaml:2"), std::string::npos) << msg;
-  msg = error_of([&] {
+  msg = error_of<CalibError>([&] {
     parse_transform("arnav_transform_version: 1\nname: X_CamNdi\nparent_frame: Cam\n"
                     "child_frame: Ndi\nunits: m\nmatrix_row_major: [1,0,0,0]\n", "t.yaml");
   });
   EXPECT_NE(msg.find("units"), std::string::npos) << msg;
-  msg = error_of([&] {
+  msg = error_of<CalibError>([&] {
     parse_transform("arnav_transform_version: 1\nname: X_CamNdi\nparent_frame: Cam\n"
                     "child_frame: Ndi\nunits: mm\nmatrix_row_major: [1,0,0,0, 0,1,0,0]\n", "t.yaml");
   });
   EXPECT_NE(msg.find("16 numbers"), std::string::npos) << msg;
-  EXPECT_NE(error_of([] { parse_transform("a: [", "t.yaml"); }).find("t.yaml:"), std::string::npos);
+  EXPECT_NE(error_of<CalibError>([] { parse_transform("a: [", "t.yaml"); }).find("t.yaml:"), std::string::npos);
   EXPECT_FALSE(valid_frame_name("cam"));
   EXPECT_FALSE(valid_frame_name("Cam-1"));
   EXPECT_TRUE(valid_frame_name("Ref2"));
@@ -222,31 +214,31 @@ TEST(BoardLayout, RejectsBadLayoutsWithLine) {
   const std::string tag0 = "  - id: 0\n    corners_mm: [[0,0,0],[20,0,0],[20,20,0],[0,20,0]]\n";
   EXPECT_NO_THROW(parse_board_layout(head + tag0, "b.yaml"));
   // Duplicate id.
-  std::string msg = error_of([&] { parse_board_layout(head + tag0 + tag0, "b.yaml"); });
+  std::string msg = error_of<CalibError>([&] { parse_board_layout(head + tag0 + tag0, "b.yaml"); });
   EXPECT_NE(msg.find("twice"), std::string::npos) << msg;
   // Wrong size, reported at the tag's line (line 10).
-  msg = error_of([&] {
+  msg = error_of<CalibError>([&] {
     parse_board_layout(head + "  - id: 1\n    corners_mm: [[0,0,0],[25,0,0],[25,25,0],[0,25,0]]\n",
                        "b.yaml");
   });
   EXPECT_NE(msg.find("b.yaml:10"), std::string::npos) << msg;
   // Mirrored corner order.
-  msg = error_of([&] {
+  msg = error_of<CalibError>([&] {
     parse_board_layout(head + "  - id: 1\n    corners_mm: [[0,20,0],[20,20,0],[20,0,0],[0,0,0]]\n",
                        "b.yaml");
   });
   EXPECT_NE(msg.find("mirrored"), std::string::npos) << msg;
   // Three corners only.
-  msg = error_of([&] {
+  msg = error_of<CalibError>([&] {
     parse_board_layout(head + "  - id: 1\n    corners_mm: [[0,0,0],[20,0,0],[20,20,0]]\n", "b.yaml");
   });
   EXPECT_NE(msg.find("4 corners"), std::string::npos) << msg;
   // Unknown family, id out of range.
-  msg = error_of([&] {
+  msg = error_of<CalibError>([&] {
     parse_board_layout(std::string(head).replace(head.find("tag36h11"), 8, "tag99h9") + tag0, "b.yaml");
   });
   EXPECT_NE(msg.find("not supported"), std::string::npos) << msg;
-  msg = error_of([&] {
+  msg = error_of<CalibError>([&] {
     parse_board_layout(head + "  - id: 600\n    corners_mm: [[0,0,0],[20,0,0],[20,20,0],[0,20,0]]\n",
                        "b.yaml");
   });
@@ -266,19 +258,19 @@ TEST(PoseFile, ParsesCommentsSeparatorsAndRejectsBadLines) {
   EXPECT_NEAR(poses[0].X_ParentChild.translation().y(), 20.0, 1e-12);
   EXPECT_NEAR(poses[1].X_ParentChild.linear()(1, 2), -1.0, 1e-12);
 
-  std::string msg = error_of([] { parse_pose_list("1 0 0 0\n1 0 0 10 0 1 0 20 0 0 1 30 0 0 0\n", "p.txt"); });
+  std::string msg = error_of<CalibError>([] { parse_pose_list("1 0 0 0\n1 0 0 10 0 1 0 20 0 0 1 30 0 0 0\n", "p.txt"); });
   EXPECT_NE(msg.find("p.txt:1: expected 16 numbers"), std::string::npos) << msg;
   EXPECT_NE(msg.find("found 4"), std::string::npos) << msg;
-  msg = error_of([] { parse_pose_list("# c\n1 0 0 10 0 1 0 20 0 0 1 30 0 0 0\n", "p.txt"); });
+  msg = error_of<CalibError>([] { parse_pose_list("# c\n1 0 0 10 0 1 0 20 0 0 1 30 0 0 0\n", "p.txt"); });
   EXPECT_NE(msg.find("p.txt:2:"), std::string::npos) << msg;
   EXPECT_NE(msg.find("found 15"), std::string::npos) << msg;
-  msg = error_of([] { parse_pose_list("1 0 0 x 0 1 0 20 0 0 1 30 0 0 0 1\n", "p.txt"); });
+  msg = error_of<CalibError>([] { parse_pose_list("1 0 0 x 0 1 0 20 0 0 1 30 0 0 0 1\n", "p.txt"); });
   EXPECT_NE(msg.find("'x' is not a finite number"), std::string::npos) << msg;
-  msg = error_of([] { parse_pose_list("1 0 0 1 0 1 0 20 0 0 1 30 1 2 3 1\n", "p.txt"); });
+  msg = error_of<CalibError>([] { parse_pose_list("1 0 0 1 0 1 0 20 0 0 1 30 1 2 3 1\n", "p.txt"); });
   EXPECT_NE(msg.find("last row"), std::string::npos) << msg;
-  msg = error_of([] { parse_pose_list("2 0 0 1 0 1 0 20 0 0 1 30 0 0 0 1\n", "p.txt"); });
+  msg = error_of<CalibError>([] { parse_pose_list("2 0 0 1 0 1 0 20 0 0 1 30 0 0 0 1\n", "p.txt"); });
   EXPECT_NE(msg.find("not a rotation"), std::string::npos) << msg;
-  msg = error_of([] { parse_pose_list("nan 0 0 1 0 1 0 20 0 0 1 30 0 0 0 1\n", "p.txt"); });
+  msg = error_of<CalibError>([] { parse_pose_list("nan 0 0 1 0 1 0 20 0 0 1 30 0 0 0 1\n", "p.txt"); });
   EXPECT_NE(msg.find("finite"), std::string::npos) << msg;
 
   const fs::path p = temp_dir() / "poses.txt";
@@ -293,6 +285,6 @@ TEST(PointFile, ParsesAndNamesBadLines) {
   const auto pts = parse_point_list("# fiducials\n1 2 3\n4,5,6\n", "f.txt");
   ASSERT_EQ(pts.size(), 2u);
   EXPECT_DOUBLE_EQ(pts[1].z(), 6.0);
-  const std::string msg = error_of([] { parse_point_list("1 2 3\n\n1 2\n", "f.txt"); });
+  const std::string msg = error_of<CalibError>([] { parse_point_list("1 2 3\n\n1 2\n", "f.txt"); });
   EXPECT_NE(msg.find("f.txt:3: expected 3 numbers"), std::string::npos) << msg;
 }

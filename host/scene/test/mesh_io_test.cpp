@@ -4,7 +4,6 @@
 
 #include <cmath>
 #include <cstring>
-#include <functional>
 
 #include "host/scene/box_mesh.hpp"
 #include "host/scene/load_error.hpp"
@@ -12,9 +11,12 @@
 #include "host/scene/mesh_io.hpp"
 #include "host/scene/test/test_paths.hpp"
 #include "host/scene/vtk_legacy.hpp"
+#include "protocol/testing/error_of.hpp"
 
 namespace arnav::host {
 namespace {
+
+using arnav::testing::error_of;
 
 using test::scratch;
 using test::data_meshes;
@@ -25,15 +27,6 @@ const char* kTetObj =
     "# tiny\n"
     "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 5 5 5\n"
     "f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
-
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const LoadError& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
 
 TEST(SurfaceLoaders, TinyObjLoadsDropsUnusedVertex) {
   const std::string path = write_file(scratch("obj"), "tet.obj", kTetObj);
@@ -202,7 +195,7 @@ TEST(SurfaceLoaders, PlyErrorsNameLineOrByteOffsetAndFix) {
       {"long.ply", bin + "xx", "2 bytes after the last declared element"},
   };
   for (const auto& c : cases) {
-    const std::string e = error_of([&] { load_surface(write_file(dir, c.name, c.text)); });
+    const std::string e = error_of<LoadError>([&] { load_surface(write_file(dir, c.name, c.text)); });
     SCOPED_TRACE(c.name + ": " + e);
     EXPECT_NE(e.find(c.expect), std::string::npos);
     EXPECT_NE(e.find("Fix:"), std::string::npos);
@@ -211,7 +204,7 @@ TEST(SurfaceLoaders, PlyErrorsNameLineOrByteOffsetAndFix) {
 
 TEST(SurfaceLoaders, BrokenSofaVtkIsRejectedWithLocationAndFix) {
   const std::string path = data_meshes() + "liver_for_test_broken.vtk";
-  const std::string e = error_of([&] { load_surface(path); });
+  const std::string e = error_of<LoadError>([&] { load_surface(path); });
   SCOPED_TRACE(e);
   EXPECT_NE(e.find("liver_for_test_broken.vtk"), std::string::npos);
   EXPECT_NE(e.find("byte offset"), std::string::npos);
@@ -237,14 +230,14 @@ TEST(SurfaceValidation, EachErrorNamesLineAndFix) {
       {"badface.obj", "v 0 0 0\nf 1 x 2\n", "bad face vertex reference"},
   };
   for (const auto& c : cases) {
-    const std::string e = error_of([&] { load_surface(write_file(dir, c.name, c.text)); });
+    const std::string e = error_of<LoadError>([&] { load_surface(write_file(dir, c.name, c.text)); });
     SCOPED_TRACE(e);
     EXPECT_NE(e.find(c.name), std::string::npos);
     EXPECT_NE(e.find(c.expect), std::string::npos);
     EXPECT_NE(e.find("Fix:"), std::string::npos);
   }
   // Line numbers: the open edge belongs to the face on line 5 or later.
-  const std::string e = error_of([&] { load_surface(dir + "/open.obj"); });
+  const std::string e = error_of<LoadError>([&] { load_surface(dir + "/open.obj"); });
   EXPECT_TRUE(e.find("open.obj:5:") != std::string::npos || e.find("open.obj:6:") != std::string::npos ||
               e.find("open.obj:7:") != std::string::npos)
       << e;
@@ -277,7 +270,7 @@ TEST(VolumeLoaders, GmshV2WithPhysicalRegions) {
 
 TEST(VolumeLoaders, GmshErrors) {
   const std::string dir = scratch("gmsh_bad");
-  auto err = [&](const char* name, const std::string& text) { return error_of([&] { load_volume(write_file(dir, name, text)); }); };
+  auto err = [&](const char* name, const std::string& text) { return error_of<LoadError>([&] { load_volume(write_file(dir, name, text)); }); };
   EXPECT_NE(err("v4.msh", "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n").find("msh2"), std::string::npos);
   EXPECT_NE(err("bin.msh", "$MeshFormat\n2.2 1 8\n$EndMeshFormat\n").find("binary"), std::string::npos);
   const std::string nodes = "$NOD\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n$ENDNOD\n";
@@ -313,12 +306,12 @@ TEST(VolumeLoaders, TetGenFilesOneBasedWithRegions) {
   EXPECT_EQ(r.region_names, (std::vector<std::string>{"region_0.5", "region_5.88888888888889e+54"}));
   write_file(dir, "bad.node", "4 3 0 0\n0 0 0 0\n1 1 0 0\n2 0 1 0\n3 0 0 1\n");
   write_file(dir, "bad.ele", "1 4 0\n0 0 1 2 7\n");
-  const std::string e = error_of([&] { load_volume(dir + "/bad.node"); });
+  const std::string e = error_of<LoadError>([&] { load_volume(dir + "/bad.node"); });
   EXPECT_NE(e.find("bad.ele:2:"), std::string::npos) << e;
   EXPECT_NE(e.find("node 7"), std::string::npos) << e;
   write_file(dir, "inv.node", "4 3 0 0\n0 0 0 0\n1 1 0 0\n2 0 1 0\n3 0 0 1\n");
   write_file(dir, "inv.ele", "1 4 0\n0 0 2 1 3\n");
-  const std::string inv = error_of([&] { load_volume(dir + "/inv.ele"); });
+  const std::string inv = error_of<LoadError>([&] { load_volume(dir + "/inv.ele"); });
   EXPECT_NE(inv.find("inv.ele:2:"), std::string::npos) << inv;
   EXPECT_NE(inv.find("tetrahedron 0"), std::string::npos) << inv;
 }
@@ -332,12 +325,12 @@ TEST(VolumeLoaders, VtkUnstructuredRoundTrip) {
   EXPECT_EQ(back.tets, box.tets);
   EXPECT_TRUE(back.rest_positions_World_mm.isApprox(box.rest_positions_World_mm));
   // A surface given as a volume (and the reverse) is refused clearly.
-  EXPECT_NE(error_of([&] { load_volume(data_meshes() + "liver.vtk"); }).find("POLYDATA"), std::string::npos);
-  EXPECT_NE(error_of([&] { load_surface(path); }).find("UNSTRUCTURED_GRID"), std::string::npos);
+  EXPECT_NE(error_of<LoadError>([&] { load_volume(data_meshes() + "liver.vtk"); }).find("POLYDATA"), std::string::npos);
+  EXPECT_NE(error_of<LoadError>([&] { load_surface(path); }).find("UNSTRUCTURED_GRID"), std::string::npos);
 }
 
 TEST(VtkLegacy, HeaderErrors) {
-  auto err = [](const std::string& text) { return error_of([&] { parse_vtk_legacy(text, "h.vtk"); }); };
+  auto err = [](const std::string& text) { return error_of<LoadError>([&] { parse_vtk_legacy(text, "h.vtk"); }); };
   EXPECT_NE(err("hello\n").find("not a legacy VTK"), std::string::npos);
   EXPECT_NE(err("# vtk DataFile Version 5.1\nt\nASCII\nDATASET POLYDATA\n").find("4.2"), std::string::npos);
   EXPECT_NE(err("# vtk DataFile Version 3.0\nt\nASCII\nDATASET STRUCTURED_POINTS\n").find("not supported"), std::string::npos);

@@ -4,7 +4,6 @@
 
 #include <cmath>
 
-#include <functional>
 
 #include "host/scene/box_mesh.hpp"
 #include "host/scene/load_error.hpp"
@@ -13,21 +12,15 @@
 #include "host/scene/scene_spec.hpp"
 #include "host/scene/surface_shapes.hpp"
 #include "host/scene/test/test_paths.hpp"
+#include "protocol/testing/error_of.hpp"
 
 namespace arnav::host {
 namespace {
 
+using arnav::testing::error_of;
+
 using test::scratch;
 using test::write_file;
-
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const LoadError& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
 
 // A 40 x 20 x 20 mm box block: volume as legacy VTK, surface as OBJ.
 std::string make_box_files(const std::string& dir) {
@@ -210,12 +203,12 @@ TEST(SceneFile, RestMeshQualityIsReportedAndCanBeRequired) {
   for (const auto& n : s.notes) noted = noted || n.find("rest mesh quality: min dihedral 45.0 deg") != std::string::npos;
   EXPECT_TRUE(noted);
   const std::string path = write_file(dir, "strict.scene.yaml", with("  min_dihedral_required_deg: 50\n"));
-  const std::string e = error_of([&] { load_scene(path); });
+  const std::string e = error_of<LoadError>([&] { load_scene(path); });
   EXPECT_NE(e.find(path + ":5:"), std::string::npos) << e;
   EXPECT_NE(e.find("dihedral angle of 45"), std::string::npos) << e;
   EXPECT_NE(e.find("Fix:"), std::string::npos) << e;
   const std::string bad = write_file(dir, "range.scene.yaml", with("  min_dihedral_required_deg: 80\n"));
-  EXPECT_NE(error_of([&] { load_scene(bad); }).find(bad + ":5:"), std::string::npos);
+  EXPECT_NE(error_of<LoadError>([&] { load_scene(bad); }).find(bad + ":5:"), std::string::npos);
 }
 
 TEST(SceneFile, SchemaErrorsNameFileAndLine) {
@@ -254,18 +247,18 @@ TEST(SceneFile, SchemaErrorsNameFileAndLine) {
   };
   for (std::size_t i = 0; i < cases.size(); ++i) {
     const std::string path = write_file(dir, "bad" + std::to_string(i) + ".scene.yaml", cases[i].text);
-    const std::string e = error_of([&] { check_scene_text(cases[i].text, path); });
+    const std::string e = error_of<LoadError>([&] { check_scene_text(cases[i].text, path); });
     SCOPED_TRACE("case " + std::to_string(i) + ": " + e);
     EXPECT_NE(e.find(path + ":" + std::to_string(cases[i].line) + ":"), std::string::npos);
     EXPECT_NE(e.find(cases[i].expect), std::string::npos);
     EXPECT_NE(e.find("Fix:"), std::string::npos);
-    EXPECT_EQ(error_of([&] { load_scene(path); }), e);  // load_scene reports the same
+    EXPECT_EQ(error_of<LoadError>([&] { load_scene(path); }), e);  // load_scene reports the same
   }
 }
 
 TEST(SceneFile, BuildErrorsNameTheCause) {
   const std::string dir = make_box_files(scratch("build_errors"));
-  auto err = [&](const std::string& name, const std::string& text) { return error_of([&] { load_scene(write_file(dir, name, text)); }); };
+  auto err = [&](const std::string& name, const std::string& text) { return error_of<LoadError>([&] { load_scene(write_file(dir, name, text)); }); };
   std::string e = err("far.scene.yaml", kBase + "structures:\n  tumours:\n    - name: t\n      ellipsoid: {center_mm: [100, 0, 0], radii_mm: [3, 3, 3]}\n");
   EXPECT_NE(e.find("tumour 't'"), std::string::npos) << e;
   EXPECT_NE(e.find("outside the volume mesh"), std::string::npos) << e;

@@ -10,9 +10,12 @@
 #include "protocol/seal/key.hpp"
 #include "protocol/seal/security_config.hpp"
 #include "protocol/testing/child_process.hpp"
+#include "protocol/testing/error_of.hpp"
 
 namespace arnav::seal {
 namespace {
+
+using arnav::testing::error_of;
 
 namespace fs = std::filesystem;
 
@@ -21,15 +24,6 @@ struct TempDir {
   TempDir() { fs::create_directories(dir); }
   ~TempDir() { fs::remove_all(dir); }
 };
-
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "";
-}
 
 TEST(Key, WrittenOwnerOnlyAndLoadedWithTheSameId) {
   TempDir t;
