@@ -10,6 +10,7 @@
 
 #include "appliance/app/config.hpp"
 #include "appliance/app/realtime.hpp"
+#include "protocol/testing/error_of.hpp"
 
 namespace arnav::app {
 namespace {
@@ -87,14 +88,7 @@ TEST(Realtime, ConfigDefaultsAndValues) {
 }
 
 TEST(Realtime, ConfigErrorsNameKeyAndLine) {
-  auto error_of = [](const std::string& text) -> std::string {
-    try {
-      parse(text);
-    } catch (const ConfigError& e) {
-      return e.what();
-    }
-    return "accepted";
-  };
+  auto error_of = [](const std::string& text) { return arnav::testing::error_of<ConfigError>([&] { parse(text); }); };
   EXPECT_NE(error_of(kBase + "realtime: {priority: 120}\n").find("cfg.yaml:4: key 'realtime.priority'"), std::string::npos);
   EXPECT_NE(error_of(kBase + "realtime: {cpu_latency_us: -5}\n").find("key 'realtime.cpu_latency_us'"), std::string::npos);
   EXPECT_NE(error_of(kBase + "realtime:\n  nice: 3\n").find("cfg.yaml:5: key 'realtime.nice': unknown key"), std::string::npos);

@@ -8,6 +8,7 @@
 
 #include "hil_tests/polaris_sim/device_model.hpp"
 #include "hil_tests/polaris_sim/scenario.hpp"
+#include "protocol/testing/error_of.hpp"
 
 namespace arnav::hil {
 namespace {
@@ -46,12 +47,7 @@ faults:
 
 TEST(Scenario, ErrorsNameTheInput) {
   const auto error_of = [](const std::string& yaml) {
-    try {
-      parse_scenario(yaml, "bad.yaml", "/nonexistent");
-    } catch (const ScenarioError& e) {
-      return std::string(e.what());
-    }
-    return std::string("no error");
+    return arnav::testing::error_of<ScenarioError>([&] { parse_scenario(yaml, "bad.yaml", "/nonexistent"); });
   };
   EXPECT_NE(error_of("frame_rate_hz: 1000").find("bad.yaml: frame_rate_hz"), std::string::npos);
   EXPECT_NE(error_of("tools: [{name: a, colour: red}]").find("unknown key 'colour'"), std::string::npos);
@@ -175,14 +171,7 @@ tools:
   // device time 2 s = boot (100/50) -> path time start_s = 1 s -> x = 10.
   EXPECT_TRUE(s.tools[0].motion.X_NdiTool(2.0).translation().isApprox(Eigen::Vector3d(15, 6, -1500)));
   EXPECT_TRUE(s.tools[0].motion.X_NdiTool(6.0).translation().isApprox(Eigen::Vector3d(55, 6, -1500)));
-  auto err = [&](const std::string& y) {
-    try {
-      parse_scenario(y, "sc.yaml", dir);
-    } catch (const ScenarioError& e) {
-      return std::string(e.what());
-    }
-    return std::string("no error");
-  };
+  auto err = [&](const std::string& y) { return arnav::testing::error_of<ScenarioError>([&] { parse_scenario(y, "sc.yaml", dir); }); };
   EXPECT_NE(err("tools:\n  - name: a\n    motion: {path: nope.csv, X_NdiModel: [1,0,0,0,0,1,0,0,0,0,1,0,0,0,0,1]}\n").find("cannot read"), std::string::npos);
   EXPECT_NE(err("tools:\n  - name: a\n    motion: {path: tip.csv}\n").find("X_NdiModel: missing"), std::string::npos);
   EXPECT_NE(err("tools:\n  - name: a\n    motion: {path: tip.csv, X_NdiModel: [2,0,0,0,0,1,0,0,0,0,1,0,0,0,0,1]}\n").find("not a rigid"), std::string::npos);
@@ -197,14 +186,7 @@ tools:
 }
 
 TEST(ToolPath, BadRowsNameTheLine) {
-  auto err = [](const std::string& text) {
-    try {
-      parse_tool_path_csv(text, "p.csv");
-    } catch (const ToolPathError& e) {
-      return std::string(e.what());
-    }
-    return std::string("no error");
-  };
+  auto err = [](const std::string& text) { return arnav::testing::error_of<ToolPathError>([&] { parse_tool_path_csv(text, "p.csv"); }); };
   EXPECT_NE(err("").find("p.csv: no path rows"), std::string::npos);
   EXPECT_NE(err("t_s,x_mm,y_mm,z_mm\n").find("no path rows"), std::string::npos);
   EXPECT_NE(err("0,1,2\n").find("p.csv:1: expected 4 columns"), std::string::npos);

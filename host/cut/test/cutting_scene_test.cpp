@@ -5,6 +5,7 @@
 #include "host/scene/load_error.hpp"
 #include "host/scene/scene.hpp"
 #include "host/scene/scene_spec.hpp"
+#include "protocol/testing/error_of.hpp"
 
 using namespace arnav::host;
 
@@ -14,12 +15,7 @@ const std::string kBase =
     "materials:\n  default: {youngs_modulus_kPa: 5, poisson_ratio: 0.45, density_kg_per_mm3: 1e-6}\n"
     "model: {kind: xpbd}\n";
 std::string error_of(const std::string& text) {
-  try {
-    parse_scene_spec(text, "s.yaml");
-  } catch (const LoadError& e) {
-    return e.what();
-  }
-  return "(no error)";
+  return arnav::testing::error_of<LoadError>([&] { parse_scene_spec(text, "s.yaml"); });
 }
 }  // namespace
 

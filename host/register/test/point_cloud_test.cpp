@@ -11,18 +11,14 @@
 #include "arnav/point_cloud_t.hpp"
 #include "host/register/point_cloud.hpp"
 #include "host/scene/load_error.hpp"
+#include "protocol/testing/error_of.hpp"
 
 using namespace arnav::host;
 
 namespace {
 
 std::string error_of(const std::string& text, const std::string& format, const std::string& source = "cloud") {
-  try {
-    parse_point_cloud(text, source + "." + format, format);
-  } catch (const LoadError& e) {
-    return e.what();
-  }
-  return "";
+  return arnav::testing::error_of<LoadError>([&] { parse_point_cloud(text, source + "." + format, format); });
 }
 
 }  // namespace
