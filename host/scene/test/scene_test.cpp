@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 
 
 #include "host/scene/box_mesh.hpp"
@@ -387,6 +388,39 @@ TEST(PatientScenes, BoundarySliversArePeeledAndTheBoundaryStaysClosed) {
   } catch (const LoadError& e) {
     EXPECT_NE(std::string(e.what()).find("peel_boundary_slivers_deg must be in [0, 30]"), std::string::npos) << e.what();
   }
+}
+
+}  // namespace
+}  // namespace arnav::host
+
+namespace arnav::host {
+namespace {
+
+// Every scene the project ships (data/, the HIL bench's) is valid as written: its YAML
+// parses with every key known and in range, and the files it names exist next to it. A
+// newcomer's first run must not meet an error in our own configuration (issue 28).
+TEST(BundledScenes, EverySceneShippedIsValidAndItsFilesExist) {
+  namespace fs = std::filesystem;
+  int scenes = 0;
+  for (const char* folder : {"data", "hil_tests"})
+    for (const auto& entry : fs::recursive_directory_iterator(fs::path(test::source_dir()) / folder)) {
+      const std::string name = entry.path().filename().string();
+      if (!entry.is_regular_file() || name.size() < 11 || name.substr(name.size() - 11) != ".scene.yaml") continue;
+      ++scenes;
+      const std::string path = entry.path().string();
+      SceneSpec spec;
+      const std::string error = error_of<LoadError>([&] { spec = parse_scene_spec(read_text_file(path), path); });
+      EXPECT_EQ(error, "") << path;
+      if (!error.empty()) continue;
+      std::vector<const FileSpec*> files{&spec.organ};
+      if (spec.volume.file) files.push_back(&*spec.volume.file);
+      for (const auto& t : spec.tumours)
+        if (t.surface) files.push_back(&*t.surface);
+      if (spec.vessels && spec.vessels->file) files.push_back(&*spec.vessels->file);
+      for (const FileSpec* f : files)
+        EXPECT_TRUE(fs::exists(entry.path().parent_path() / f->path)) << path << ":" << f->line << ": " << f->path << " does not exist";
+    }
+  EXPECT_GE(scenes, 13);
 }
 
 }  // namespace
