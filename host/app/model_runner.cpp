@@ -64,7 +64,8 @@ void ModelRunner::start() {
   stop_ = false;
   thread_ = std::thread([this] {
     // The overlay's latency matters more than the model's rate: on a machine with few
-    // cores the model thread (and the solver threads it starts) yields to rendering.
+    // cores the model thread (and the solver threads it starts) yields to rendering, unless
+    // the session cuts (then it runs above other work: session_config.hpp, kCuttingModelNice).
     // A negative level (above the rest of the machine) needs CAP_SYS_NICE; refused, the
     // thread keeps the process's level and the summary says so.
     if (nice_ != 0 && setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), nice_) != 0) {
