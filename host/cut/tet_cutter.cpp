@@ -723,25 +723,22 @@ bool TetCutter::complete_from_sides(int t, const Eigen::Matrix3Xd& x, CutStepRep
   // tissue, tets the blade never crossed arrive where it swept seconds earlier; their sides
   // call for a cut, the surface as swept is near, the material says it never passed there).
   // A crack front (the blade's end inside the tissue) is not extended.
-  // The same reach in the material (from the tet's vertices on the cut at rest), taken once
+  // The reach from a distance to the surface: twice the farthest of the tet's vertices on the
+  // cut, plus the tolerances. The one in the material (the vertices at rest) is taken once,
   // when a check needs it.
+  const auto reach_from = [&](const auto& distance_of_vertex) {
+    double d = 0.0;
+    for (int w : tet)
+      if (on_stroke(w)) d = std::max(d, distance_of_vertex(w));
+    return 2.0 * d + settings_.path_tolerance_mm + settings_.vertex_tolerance_mm;
+  };
   double reach_material = -1.0;
   const auto material_reach = [&] {
-    if (reach_material < 0.0) {
-      reach_material = 0.0;
-      for (int w : tet)
-        if (on_stroke(w)) reach_material = std::max(reach_material, material_stroke_distance(mesh_.rest_positions_World_mm.col(w)));
-      reach_material = 2.0 * reach_material + settings_.path_tolerance_mm + settings_.vertex_tolerance_mm;
-    }
+    if (reach_material < 0.0)
+      reach_material = reach_from([&](int w) { return material_stroke_distance(mesh_.rest_positions_World_mm.col(w)); });
     return reach_material;
   };
-  double reach = -1.0;
-  if (!recorded) {
-    reach = 0.0;
-    for (int w : tet)
-      if (on_stroke(w)) reach = std::max(reach, stroke_distance(x.col(w)));
-    reach = 2.0 * reach + settings_.path_tolerance_mm + settings_.vertex_tolerance_mm;
-  }
+  const double reach = recorded ? -1.0 : reach_from([&](int w) { return stroke_distance(x.col(w)); });
   std::vector<std::pair<EdgeKey, double>> added;
   for (int e : missing) {
     const int a = std::min(tet[static_cast<std::size_t>(kEdges[e][0])], tet[static_cast<std::size_t>(kEdges[e][1])]);
@@ -919,9 +916,8 @@ void TetCutter::split_edge(int a, int b, double t_ab, Eigen::Matrix3Xd& x, Eigen
 }
 
 bool TetCutter::untouched(int t) const {
+  if (!refinable(t)) return false;
   const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
-  for (int w : tet)
-    if (on_cut_[static_cast<std::size_t>(w)] != 0) return false;
   for (const auto& e : kEdges)
     if (pending_.count(edge_key(tet[static_cast<std::size_t>(e[0])], tet[static_cast<std::size_t>(e[1])]))) return false;
   return true;
