@@ -608,8 +608,6 @@ CutSessionSettings cut_settings_from(const CuttingSpec& spec) {
   settings.cut.chord_sagitta_mm = spec.chord_sagitta_mm;
   settings.cut.min_refined_edge_mm = spec.min_refined_edge_mm;
   settings.min_dihedral_deg = spec.min_dihedral_deg;
-  // Refinement takes no elastic term away (with the bound off, it keeps the cutter's default floor).
-  if (spec.min_dihedral_deg > 0.0) settings.cut.min_refined_dihedral_deg = spec.min_dihedral_deg;
   settings.sweep_strips = spec.sweep_strips;
   settings.tumour_margin_mm = spec.tumour_margin_mm;
   settings.push_stiffness_mN_per_mm = spec.push_stiffness_mN_per_mm;

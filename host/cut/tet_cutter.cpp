@@ -14,7 +14,6 @@
 #include <string>
 
 #include "host/scene/box_mesh.hpp"
-#include "host/scene/mesh_quality.hpp"
 
 namespace arnav::host::cut {
 
@@ -90,8 +89,6 @@ TetCutter::TetCutter(const TetMesh& mesh, const CutSettings& settings) : mesh_(m
           settings_.chord_sagitta_mm);
   require(settings_.min_refined_edge_mm > 0.0 && std::isfinite(settings_.min_refined_edge_mm), "min_refined_edge_mm must be finite and > 0",
           settings_.min_refined_edge_mm);
-  require(settings_.min_refined_dihedral_deg >= 0.0 && settings_.min_refined_dihedral_deg < 70.5, "min_refined_dihedral_deg must be in [0, 70.5)",
-          settings_.min_refined_dihedral_deg);
   require(settings_.max_refinements_per_step >= 0, "max_refinements_per_step must be >= 0", settings_.max_refinements_per_step);
   const int nv = mesh_.num_vertices();
   vertex_tets_.assign(static_cast<std::size_t>(nv), {});
@@ -919,22 +916,16 @@ void TetCutter::split_edge(int a, int b, double t_ab, Eigen::Matrix3Xd& x, Eigen
 }
 
 bool TetCutter::untouched(int t) const {
+  if (!refinable(t)) return false;
   const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
-  for (int w : tet)
-    if (on_cut_[static_cast<std::size_t>(w)] != 0) return false;
   for (const auto& e : kEdges)
     if (pending_.count(edge_key(tet[static_cast<std::size_t>(e[0])], tet[static_cast<std::size_t>(e[1])]))) return false;
   return true;
 }
 
 bool TetCutter::refinable(int t) const {
-  const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
-  for (int w : tet)
-    if (on_cut_[static_cast<std::size_t>(w)] != 0 && !on_stroke(w)) return false;
-  for (const auto& fc : kFaces)
-    if (on_stroke(tet[static_cast<std::size_t>(fc[0])]) && on_stroke(tet[static_cast<std::size_t>(fc[1])]) &&
-        on_stroke(tet[static_cast<std::size_t>(fc[2])]))
-      return false;
+  for (int w : mesh_.tets[static_cast<std::size_t>(t)])
+    if (on_cut_[static_cast<std::size_t>(w)] != 0) return false;
   return true;
 }
 
@@ -946,8 +937,7 @@ void TetCutter::record_material_crossings(int m) {
   for (int w : others) {
     const EdgeKey key = edge_key(m, w);
     double s = 0.0;
-    // An end on the cut is the edge's crossing already.
-    if (on_stroke(w) || pending_.count(key) || !material_crossing(m, w, 0.5, s)) continue;
+    if (pending_.count(key) || !material_crossing(m, w, 0.5, s)) continue;
     pending_[key] = s;
     pending_normal_.erase(key);
   }
@@ -963,20 +953,15 @@ void TetCutter::refine_ahead(const std::vector<Triangle>& tris, std::vector<int>
   const double lmax2 = lmax * lmax;
   const Eigen::Matrix3Xd& rest = mesh_.rest_positions_World_mm;
   auto length2 = [&](int a, int b) { return (rest.col(a) - rest.col(b)).squaredNorm(); };
-  // The sweep enters tet t: a blade end passed through it, or it crosses one of its edges
-  // whose ends are off the cut (a tet that only touches the cut at a vertex or an edge is not
-  // crossed there).
+  // The sweep enters tet t: a blade end passed through it, or it crosses one of its edges.
   auto entered = [&](int t) {
     if (tip_tet_[static_cast<std::size_t>(t)]) return true;
     const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
-    for (const auto& e : kEdges) {
-      const int a = tet[static_cast<std::size_t>(e[0])], b = tet[static_cast<std::size_t>(e[1])];
-      if (on_stroke(a) || on_stroke(b)) continue;
+    for (const auto& e : kEdges)
       for (const auto& tri : tris) {
         double s = 0.0;
-        if (segment_triangle_intersection(x.col(a), x.col(b), tri, s)) return true;
+        if (segment_triangle_intersection(x.col(tet[static_cast<std::size_t>(e[0])]), x.col(tet[static_cast<std::size_t>(e[1])]), tri, s)) return true;
       }
-    }
     return false;
   };
   // The longest edge of tet t.
@@ -1041,46 +1026,17 @@ void TetCutter::refine_ahead(const std::vector<Triangle>& tris, std::vector<int>
       queue.push({len2, key});
       continue;
     }
-    if (!bisection_keeps_shapes(a, b, around)) {
-      refused.insert(key);
-      continue;
-    }
     touched.clear();
     split_edge(a, b, 0.5, x, v, r, touched);
     const int m = mesh_.num_vertices() - 1;
-    // A vertex of the mesh, not of the cut; unless both ends are on the cut and the cut
-    // passes through their mid-point too (within path_tolerance_mm, in the material: an edge
-    // along a straight stretch of the cut).
-    if (!(on_stroke(a) && on_stroke(b) && material_stroke_distance(mesh_.rest_positions_World_mm.col(m)) <= settings_.path_tolerance_mm)) {
-      on_cut_[static_cast<std::size_t>(m)] = 0;
-      cut_normal_[static_cast<std::size_t>(m)] = Eigen::Vector3d::Zero();
-      if (recorded) record_material_crossings(m);
-    }
+    on_cut_[static_cast<std::size_t>(m)] = 0;  // a vertex of the mesh, not of the cut
+    cut_normal_[static_cast<std::size_t>(m)] = Eigen::Vector3d::Zero();
+    if (recorded) record_material_crossings(m);
     ++r.edges_refined;
     r.changed_tets.insert(r.changed_tets.end(), touched.begin(), touched.end());
     candidates.insert(candidates.end(), touched.begin(), touched.end());
     for (int t : touched) offer(t);
   }
-}
-
-double TetCutter::min_dihedral_deg(int t, const Eigen::Matrix3Xd& rest) const {
-  const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
-  return tet_dihedral_range_deg(rest.col(tet[0]), rest.col(tet[1]), rest.col(tet[2]), rest.col(tet[3])).first;
-}
-
-bool TetCutter::bisection_keeps_shapes(int a, int b, const std::vector<int>& around) const {
-  const Eigen::Matrix3Xd& rest = mesh_.rest_positions_World_mm;
-  const Eigen::Vector3d m = 0.5 * (rest.col(a) + rest.col(b));
-  for (int t : around) {
-    const double floor_deg = std::min(settings_.min_refined_dihedral_deg, min_dihedral_deg(t, rest));
-    const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
-    for (int replaced : {a, b}) {  // the two children: t with a, or b, moved to the mid-point
-      std::array<Eigen::Vector3d, 4> p;
-      for (std::size_t k = 0; k < 4; ++k) p[k] = tet[k] == replaced ? m : Eigen::Vector3d(rest.col(tet[k]));
-      if (tet_dihedral_range_deg(p[0], p[1], p[2], p[3]).first < floor_deg) return false;
-    }
-  }
-  return true;
 }
 
 bool TetCutter::ring_is_cut(int p, int q) const {

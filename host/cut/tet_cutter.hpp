@@ -61,8 +61,8 @@ struct CutSettings {
   // <= 20 (ring_path.hpp users set it so).
   double side_distance_mm = 30.0;
   // Refinement ahead of the blade, where the cut curves: before the sweep's crossings are
-  // taken, every edge of a tet the sweep is about to enter (no face of it on the cut yet, no
-  // crossing recorded on the edge) longer than L = sqrt(8 s R) at rest is bisected, longest first, with s this
+  // taken, every edge of a tet the sweep is about to enter (no vertex on a cut, no crossing
+  // recorded yet) longer than L = sqrt(8 s R) at rest is bisected, longest first, with s this
   // setting and R the cut's radius of curvature in the material over its last few mm. A chord
   // of length L across the cut then lies at most s off it (unrefined, a 40 mm chord of the
   // demo's 21 mm ring lies 9.5 mm off it). A straight cut refines nothing. 0: off (the mesh as given). Volumes stay
@@ -70,13 +70,6 @@ struct CutSettings {
   double chord_sagitta_mm = 0.0;
   // L is never below this (a tight turn would otherwise refine without bound).
   double min_refined_edge_mm = 6.0;
-  // Refinement makes no tet flatter than this (smallest dihedral angle, degrees) unless the
-  // tet it bisects already is, and then none flatter than that tet. Longest-edge bisection
-  // keeps the input's shapes by itself; a tet that a vertex move flattened (a vertex the
-  // blade's entry moved onto the cut before the cut curved) passes its flatness on to its
-  // children. The cut session sets it to its quality bound (CutSessionSettings::min_dihedral_deg:
-  // flatter tets carry no elastic term), so refinement never takes an elastic term away.
-  double min_refined_dihedral_deg = 5.0;
   // At most this many bisections per frame (bounds a frame's cost; a tet the blade reaches
   // before its turn is cut as it is).
   int max_refinements_per_step = 200;
@@ -255,21 +248,14 @@ class TetCutter {
   void separate_along_cut(Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   // No vertex of tet t is on a cut and no edge of it has a crossing recorded.
   bool untouched(int t) const;
-  // Tet t may be refined ahead of the blade: no vertex of it is on an earlier stroke's cut and
-  // no face of it lies on this stroke's (the cut has not passed through it yet). Crossings
-  // already recorded on its edges stay where they are; its new edges take theirs from the
-  // stroke's surface in the material (record_material_crossings), and vertices this stroke
-  // put on the cut (moved or snapped as the blade entered) stay on it.
+  // Tet t may be refined ahead of the blade: no vertex of it is on a cut (crossings already
+  // recorded on its edges stay where they are, and its new edges take theirs from the
+  // stroke's surface in the material: record_material_crossings).
   bool refinable(int t) const;
   // After an edge split at new vertex m: the new edges from m that cross the stroke's surface
   // in the material get that crossing recorded, as the sweep would have recorded it had the
   // edges been there when the blade passed (tets refined after the blade reached them).
   void record_material_crossings(int m);
-  // Smallest dihedral angle (degrees) of tet t at positions rest.
-  double min_dihedral_deg(int t, const Eigen::Matrix3Xd& rest) const;
-  // Bisecting edge a-b at its mid-point makes no child of the tets around it flatter than
-  // min_refined_dihedral_deg unless its parent is, and then no flatter than its parent.
-  bool bisection_keeps_shapes(int a, int b, const std::vector<int>& around) const;
   // True when the tets around edge p-q fall into several groups once cut faces no longer
   // connect them.
   bool ring_is_cut(int p, int q) const;
