@@ -363,6 +363,19 @@ double TetCutter::nearest_on_material_stroke(int a, int b, double near_s) const 
   return best_s;
 }
 
+void TetCutter::place_new_cut_points(int first_new_vertex, const CutStepReport& r, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v) {
+  if (stroke_tris_rest_.empty()) return;
+  const Eigen::Matrix3Xd& rest = mesh_.rest_positions_World_mm;
+  for (std::size_t k = 0; k < r.new_vertices.size(); ++k) {
+    const int w = first_new_vertex + static_cast<int>(k);
+    if (r.new_vertices[k].b < 0 || !on_stroke(w) || material_stroke_distance(rest.col(w)) <= settings_.path_tolerance_mm) continue;
+    std::vector<int> copies{w};
+    for (std::size_t j = k + 1; j < r.new_vertices.size(); ++j)
+      if (r.new_vertices[j].b < 0 && r.new_vertices[j].a == w) copies.push_back(first_new_vertex + static_cast<int>(j));
+    place_on_material_stroke(copies, x, v);
+  }
+}
+
 void TetCutter::place_on_material_stroke(const std::vector<int>& copies, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v) {
   if (stroke_tris_rest_.empty() || copies.empty()) return;  // no sweep of this stroke in the material: nothing to move onto
   Eigen::Vector3d target = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
@@ -1323,6 +1336,7 @@ void TetCutter::complete_left_tets(const std::vector<int>& candidates, int old_t
 CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v) {
   const auto start = std::chrono::steady_clock::now();
   CutStepReport r;
+  const int first_new_vertex = mesh_.num_vertices();
   if (x.cols() != mesh_.num_vertices()) throw std::invalid_argument("cut: positions do not match the mesh");
   if (v.cols() != 0 && v.cols() != mesh_.num_vertices()) throw std::invalid_argument("cut: velocities do not match the mesh");
   std::vector<Triangle> tris;
@@ -1747,6 +1761,7 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
   }
   // 5. Separate: duplicate each vertex of a cut face whose tets fall apart into groups.
   separate_along_cut(x, v, r);
+  place_new_cut_points(first_new_vertex, r, x, v);
   // Tets made after the watch list was updated (the completions' splits, the separation's
   // mid-point splits of edges inside the cut) are watched like the others: the blade may
   // already have left them, and a tet never watched is never completed.
