@@ -1761,6 +1761,7 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
   }
   // 5. Separate: duplicate each vertex of a cut face whose tets fall apart into groups.
   separate_along_cut(x, v, r);
+  // 6. Points put on the cut off the path in the material go onto it (docs/cut.md, step 8).
   place_new_cut_points(first_new_vertex, r, x, v);
   // Tets made after the watch list was updated (the completions' splits, the separation's
   // mid-point splits of edges inside the cut) are watched like the others: the blade may
