@@ -209,10 +209,12 @@ class TetCutter {
   // way or as far as can_move_copies allows: one rest position for all (the lips coincide at
   // rest), each copy's position now from its own side's tissue (lips already opened stay open).
   void place_on_material_stroke(const std::vector<int>& copies, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v);
-  // After the separation (docs/cut.md, step 8): every point this step put on the cut (split points, with the copies the
-  // separation made of them) that lies farther than path_tolerance_mm from the surface in the
-  // material (a completion's point nearest that surface on an edge it does not cross) goes
-  // onto it as far as the tets around allow (place_on_material_stroke).
+  // After the separation (docs/cut.md, step 8): every point this step put on the cut (split
+  // points, with the copies the separation made of them) that lies farther than
+  // path_tolerance_mm from the surface in the material (a completion's point nearest that
+  // surface on an edge it does not cross) goes onto it as far as the tets around allow
+  // (place_on_material_stroke). A separation mid-point that its first move left short is
+  // tried again here (the star may have changed since).
   void place_new_cut_points(int first_new_vertex, const CutStepReport& r, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v);
   // The copies may move to rest_new (rest) and x_new[c] (now): every tet around each keeps a
   // quarter of its volume at rest and now, their boundary faces through it are this stroke's
