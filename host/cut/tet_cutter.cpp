@@ -444,7 +444,7 @@ bool TetCutter::can_move_copies(const std::vector<int>& copies, const Eigen::Vec
         if ((f0 != w && f1 != w && f2 != w) || tets_with_face(face_key(f0, f1, f2)) == 2) continue;
         if (!on_stroke(f0) || !on_stroke(f1) || !on_stroke(f2)) return false;
       }
-      if (!keeps_a_quarter(tt, w, rest_new, x_new[c], x)) return false;
+      if (!keeps_a_quarter(tt, w, rest_new, x_new[c], x, /*inverted_may_move=*/true)) return false;
       rest_before += volume6_with(rest, tet, w, rest.col(w));
       rest_after += volume6_with(rest, tet, w, rest_new);
     }
@@ -820,15 +820,21 @@ bool TetCutter::can_move(int w, const Eigen::Vector3d& rest_new, const Eigen::Ve
     }
   }
   for (int tt : star)
-    if (!keeps_a_quarter(tt, w, rest_new, x_new, x)) return false;
+    if (!keeps_a_quarter(tt, w, rest_new, x_new, x, /*inverted_may_move=*/false)) return false;
   return true;
 }
 
-bool TetCutter::keeps_a_quarter(int tt, int w, const Eigen::Vector3d& rest_new, const Eigen::Vector3d& x_new, const Eigen::Matrix3Xd& x) const {
+bool keeps_a_quarter_of_volume(double volume6_before, double volume6_after) {
+  return volume6_before >= 0.0 ? volume6_after >= 0.25 * volume6_before : (volume6_after >= volume6_before && volume6_after <= 0.0);
+}
+
+bool TetCutter::keeps_a_quarter(int tt, int w, const Eigen::Vector3d& rest_new, const Eigen::Vector3d& x_new, const Eigen::Matrix3Xd& x,
+                                bool inverted_may_move) const {
   const auto& tet = mesh_.tets[static_cast<std::size_t>(tt)];
   const Eigen::Matrix3Xd& rest = mesh_.rest_positions_World_mm;
-  return volume6_with(rest, tet, w, rest_new) >= 0.25 * volume6_with(rest, tet, w, rest.col(w)) &&
-         volume6_with(x, tet, w, x_new) >= 0.25 * volume6_with(x, tet, w, x.col(w));
+  return keeps_a_quarter_of_volume(volume6_with(rest, tet, w, rest.col(w)), volume6_with(rest, tet, w, rest_new)) &&
+         (inverted_may_move ? keeps_a_quarter_of_volume(volume6_with(x, tet, w, x.col(w)), volume6_with(x, tet, w, x_new))
+                            : volume6_with(x, tet, w, x_new) >= 0.25 * volume6_with(x, tet, w, x.col(w)));
 }
 
 bool TetCutter::move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r) {

@@ -227,8 +227,11 @@ class TetCutter {
   // quarter of its volume at rest and now.
   bool can_move(int w, const Eigen::Vector3d& rest_new, const Eigen::Vector3d& x_new, const Eigen::Matrix3Xd& x) const;
   // Tet tt keeps at least a quarter of its volume, at rest and now, with its vertex w moved to
-  // rest_new and x_new.
-  bool keeps_a_quarter(int tt, int w, const Eigen::Vector3d& rest_new, const Eigen::Vector3d& x_new, const Eigen::Matrix3Xd& x) const;
+  // rest_new and x_new. With inverted_may_move, a tet inverted now may also get less inverted
+  // (keeps_a_quarter_of_volume): points going onto the cut in the material do; snaps do not
+  // (allowed there too, the bundled ring on mass_spring/local_global created energy at its end).
+  bool keeps_a_quarter(int tt, int w, const Eigen::Vector3d& rest_new, const Eigen::Vector3d& x_new, const Eigen::Matrix3Xd& x,
+                       bool inverted_may_move) const;
   bool move_vertex(int w, int o, double t, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   int add_vertex(const VertexOrigin& o, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   void split_edge(int a, int b, double t_ab, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r,
@@ -313,5 +316,13 @@ class TetCutter {
   std::vector<std::vector<int>> family_;         // per input tet: its current pieces
   Bvh bvh_;                                      // over input tets (boxes of their families)
 };
+
+// Whether a tet whose (signed, 6x) volume goes from `volume6_before` to `volume6_after` by a
+// vertex move stays usable: an upright tet keeps at least a quarter of its volume; a tet the
+// load has turned inside out (a mass-spring or XPBD model lets that happen) may get less
+// inverted, down to flat, but not more inverted nor flipped upright. Points the cutter moves
+// onto the cut in the material use it; a "quarter" of a negative volume refused every move of
+// an inverted tet's vertex (issue 20: a chord's mid-point left 3.06 mm off the cut).
+bool keeps_a_quarter_of_volume(double volume6_before, double volume6_after);
 
 }  // namespace arnav::host::cut

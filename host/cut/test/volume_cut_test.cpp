@@ -270,6 +270,76 @@ TEST(PathFidelity, CurvedCutMidPointsLieOnTheSweptWall) {
   }
 }
 
+// The rule for the cutter's vertex moves (issue 20): an upright tet keeps a quarter of its
+// volume; a tet the load has inverted (a demo log: the grasper's pull on the mass-spring
+// model inverted two tets round a chord's mid-point, which then stayed 3.06 mm off the cut)
+// may take a move that leaves it less inverted (not flipped through flat), and no other.
+TEST(VertexMoves, AnInvertedTetTakesMovesThatLeaveItNoMoreInverted) {
+  EXPECT_TRUE(keeps_a_quarter_of_volume(8.0, 2.0));
+  EXPECT_FALSE(keeps_a_quarter_of_volume(8.0, 1.99));
+  EXPECT_FALSE(keeps_a_quarter_of_volume(8.0, -1.0));
+  EXPECT_TRUE(keeps_a_quarter_of_volume(0.0, 0.0));
+  EXPECT_FALSE(keeps_a_quarter_of_volume(0.0, -1e-12));
+  EXPECT_TRUE(keeps_a_quarter_of_volume(-0.49, -0.48));  // less inverted
+  EXPECT_TRUE(keeps_a_quarter_of_volume(-0.49, -0.49));
+  EXPECT_TRUE(keeps_a_quarter_of_volume(-0.49, 0.0));
+  EXPECT_FALSE(keeps_a_quarter_of_volume(-0.49, 3.0));    // flipped through flat: refused
+  EXPECT_FALSE(keeps_a_quarter_of_volume(-0.49, -0.50));  // more inverted
+}
+
+// The same ring cut with the tissue turned inside out: the current shape is the rest shape
+// mirrored (x -> 80 - x), every tet inverted now, and the blade goes round the mirrored
+// ring. In the material the cut is the same wall. The cut mesh is valid with its exact
+// volume, every vertex the cut made or moved sits where the mirror puts its rest position
+// (copies placed by their own tets' maps), and the cut lies on the wall within the chords'
+// sagitta (0.62 / 0.68 mm on these meshes: a move that would deepen an inverted tet is
+// refused, so some mid-points stay on their chords).
+TEST(PathFidelity, TissueTurnedInsideOutIsCutConsistently) {
+  const auto wall_distance = [](const Eigen::Vector3d& p) {
+    double best = 1e300;
+    for (int k = 0; k < 48; ++k) {
+      const Eigen::Vector2d a(40 + 20 * std::cos(2 * M_PI * k / 48), 40 + 20 * std::sin(2 * M_PI * k / 48));
+      const Eigen::Vector2d b(40 + 20 * std::cos(2 * M_PI * (k + 1) / 48), 40 + 20 * std::sin(2 * M_PI * (k + 1) / 48));
+      const double s = std::clamp((p.head<2>() - a).dot(b - a) / (b - a).squaredNorm(), 0.0, 1.0);
+      best = std::min(best, (p.head<2>() - (a + s * (b - a))).norm());
+    }
+    return best;
+  };
+  const auto mirrored = [](Eigen::Vector3d p) {
+    p.x() = 80.0 - p.x();
+    return p;
+  };
+  for (int cells : {7, 8}) {
+    TetMesh mesh = make_box_tet_mesh(cells, cells, cells, Eigen::Vector3d(80, 80, 80));
+    TetCutter cutter(mesh, CutSettings{});
+    Eigen::Matrix3Xd x = mesh.rest_positions_World_mm, v;
+    for (int w = 0; w < x.cols(); ++w) x.col(w) = mirrored(x.col(w));
+    const auto on_ring = [&](int k) {
+      const BladeSegment b = vertical(40 + 20 * std::cos(2 * M_PI * k / 48), 40 + 20 * std::sin(2 * M_PI * k / 48), 20, 120);
+      return BladeSegment{mirrored(b.tip_World_mm), mirrored(b.heel_World_mm)};
+    };
+    for (int k = 1; k <= 50; ++k) cutter.step({on_ring(k - 1), on_ring(k), 4, {}}, x, v);
+    cutter.finish_stroke(x, v);
+    const CutMeshCheck c = check_cut_mesh(cutter.mesh());
+    EXPECT_TRUE(c.valid()) << c.summary();
+    EXPECT_NEAR(c.total_volume_mm3 / 512000.0, 1.0, 1e-12);
+    double inside_max = 0.0, mirror_max = 0.0;
+    int inside = 0;
+    const Eigen::Matrix3Xd& rest = cutter.mesh().rest_positions_World_mm;
+    for (int w = 0; w < rest.cols(); ++w) {
+      mirror_max = std::max(mirror_max, (x.col(w) - mirrored(rest.col(w))).norm());
+      if (!cutter.on_cut(w) || rest(2, w) < 20.0 + 1e-6 || rest.col(w).minCoeff() < 1e-6 || rest.col(w).maxCoeff() > 80.0 - 1e-6) continue;
+      inside_max = std::max(inside_max, wall_distance(rest.col(w)));
+      ++inside;
+    }
+    std::printf("[curved cut, tissue inside out] %d cells: %d vertices on the cut inside the cube, max %.3f mm off the swept wall; "
+                "current places off the mirror by %.1e mm\n", cells, inside, inside_max, mirror_max);
+    EXPECT_GT(inside, 20);
+    EXPECT_LE(mirror_max, 1e-9);
+    EXPECT_LE(inside_max, 0.7) << cells << " cells";
+  }
+}
+
 // Refinement ahead of the blade (CutSettings::chord_sagitta_mm) on the same ring through
 // coarse cells (20 mm, edges up to 35 mm against the ring's 20 mm radius): tets the blade is
 // about to enter are bisected (longest edge first) until a chord across them lies within the
