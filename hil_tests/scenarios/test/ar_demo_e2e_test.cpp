@@ -105,9 +105,9 @@ std::vector<CutVertexRow> read_cut_vertices(const std::filesystem::path& path) {
 // the machine's other work (docs/overlay.md, "Model clock", "Threads and cores"). The
 // cutter's own tail (chords' mid-points on the coarse mesh, edges 16-40 mm against the
 // ring's 21 mm radius) is removed by refining the tets ahead of the blade where the cut
-// curves (the demo scene's chord_sagitta_mm 3; docs/cut.md). Issue 20's target: p95 <= 1.0
-// (held, live and replay), max <= 3.0 mm (printed: met on every log measured, 0.9-2.99 mm,
-// but by little on some; docs/benchmarks.md).
+// curves (the demo scene's chord_sagitta_mm 3; docs/cut.md). Issue 20's targets, held live
+// and replayed: p95 <= 1.0, max <= 3.0 mm (five logs with the code of the eleventh session:
+// max 0.80-2.80 mm; docs/benchmarks.md).
 void print_cut_path(const nlohmann::json& cutting, const char* run) {
   std::cerr << "[ar demo] " << run << " cut-path error in the material: p50 " << cutting["path_error_mm"]["p50"].get<double>() << ", p95 "
             << cutting["path_error_mm"]["p95"].get<double>() << ", max " << cutting["path_error_mm"]["max"].get<double>() << " mm over "
@@ -118,6 +118,7 @@ void expect_cut_on_the_blades_path(const nlohmann::json& cutting, const char* ru
   EXPECT_GT(cutting["cut_faces"].get<int>(), 20) << run << ": " << cutting.dump();
   EXPECT_LT(cutting["path_error_mm"]["p50"].get<double>(), 0.5) << run << ": " << cutting.dump();
   EXPECT_LE(cutting["path_error_mm"]["p95"].get<double>(), 1.0) << run << ": " << cutting.dump();
+  EXPECT_LE(cutting["path_error_mm"]["max"].get<double>(), 3.0) << run << ": " << cutting.dump();
   print_cut_path(cutting, run);
 }
 
