@@ -46,6 +46,19 @@ int sweep_ring(TetCutter& cutter, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, int 
   return refined;
 }
 
+// Distance of p from the wall sweep_ring's blade sweeps (the 48-gon prism about (40, 40),
+// radius 20 mm), in the xy plane.
+double ring_wall_distance_mm(const Eigen::Vector3d& p) {
+  const auto on_ring = [](int k) { return Eigen::Vector2d(40 + 20 * std::cos(2 * M_PI * k / 48), 40 + 20 * std::sin(2 * M_PI * k / 48)); };
+  double best = 1e300;
+  for (int k = 0; k < 48; ++k) {
+    const Eigen::Vector2d a = on_ring(k), b = on_ring(k + 1);
+    const double s = std::clamp((p.head<2>() - a).dot(b - a) / (b - a).squaredNorm(), 0.0, 1.0);
+    best = std::min(best, (p.head<2>() - (a + s * (b - a))).norm());
+  }
+  return best;
+}
+
 void expect_two_halves_at_x50(const TetMesh& mesh) {
   const CutMeshCheck c = check_cut_mesh(mesh);
   EXPECT_TRUE(c.valid()) << c.summary();
@@ -235,16 +248,6 @@ TEST(RingCut, RingAndBottomCutSeparateThePlug) {
 // is farther than 0.15 mm (0.04 / 0.00 measured); on the cube's faces, where a vertex may
 // not move off the surface, the sagitta would remain (none there on these meshes).
 TEST(PathFidelity, CurvedCutMidPointsLieOnTheSweptWall) {
-  const auto on_ring = [](double a) { return Eigen::Vector2d(40 + 20 * std::cos(a), 40 + 20 * std::sin(a)); };
-  const auto wall_distance = [&](const Eigen::Vector3d& p) {
-    double best = 1e300;
-    for (int k = 0; k < 48; ++k) {
-      const Eigen::Vector2d a = on_ring(2 * M_PI * k / 48), b = on_ring(2 * M_PI * (k + 1) / 48);
-      const double s = std::clamp((p.head<2>() - a).dot(b - a) / (b - a).squaredNorm(), 0.0, 1.0);
-      best = std::min(best, (p.head<2>() - (a + s * (b - a))).norm());
-    }
-    return best;
-  };
   for (int cells : {7, 8}) {
     TetMesh mesh = make_box_tet_mesh(cells, cells, cells, Eigen::Vector3d(80, 80, 80));
     TetCutter cutter(mesh, CutSettings{});
@@ -260,7 +263,7 @@ TEST(PathFidelity, CurvedCutMidPointsLieOnTheSweptWall) {
     for (int w = 0; w < rest.cols(); ++w) {
       if (!cutter.on_cut(w) || rest(2, w) < 20.0 + 1e-6) continue;  // below the blade's tip: the crack front
       const bool on_face = rest.col(w).minCoeff() < 1e-6 || rest.col(w).maxCoeff() > 80.0 - 1e-6;
-      (on_face ? face_max : inside_max) = std::max(on_face ? face_max : inside_max, wall_distance(rest.col(w)));
+      (on_face ? face_max : inside_max) = std::max(on_face ? face_max : inside_max, ring_wall_distance_mm(rest.col(w)));
       inside += on_face ? 0 : 1;
     }
     std::printf("[curved cut] %d cells: %d vertices on the cut inside the cube, max %.3f mm off the swept wall; on the cube's faces max %.3f mm\n",
@@ -295,16 +298,6 @@ TEST(VertexMoves, AnInvertedTetTakesMovesThatLeaveItNoMoreInverted) {
 // sagitta (0.62 / 0.68 mm on these meshes: a move that would deepen an inverted tet is
 // refused, so some mid-points stay on their chords).
 TEST(PathFidelity, TissueTurnedInsideOutIsCutConsistently) {
-  const auto wall_distance = [](const Eigen::Vector3d& p) {
-    double best = 1e300;
-    for (int k = 0; k < 48; ++k) {
-      const Eigen::Vector2d a(40 + 20 * std::cos(2 * M_PI * k / 48), 40 + 20 * std::sin(2 * M_PI * k / 48));
-      const Eigen::Vector2d b(40 + 20 * std::cos(2 * M_PI * (k + 1) / 48), 40 + 20 * std::sin(2 * M_PI * (k + 1) / 48));
-      const double s = std::clamp((p.head<2>() - a).dot(b - a) / (b - a).squaredNorm(), 0.0, 1.0);
-      best = std::min(best, (p.head<2>() - (a + s * (b - a))).norm());
-    }
-    return best;
-  };
   const auto mirrored = [](Eigen::Vector3d p) {
     p.x() = 80.0 - p.x();
     return p;
@@ -329,7 +322,7 @@ TEST(PathFidelity, TissueTurnedInsideOutIsCutConsistently) {
     for (int w = 0; w < rest.cols(); ++w) {
       mirror_max = std::max(mirror_max, (x.col(w) - mirrored(rest.col(w))).norm());
       if (!cutter.on_cut(w) || rest(2, w) < 20.0 + 1e-6 || rest.col(w).minCoeff() < 1e-6 || rest.col(w).maxCoeff() > 80.0 - 1e-6) continue;
-      inside_max = std::max(inside_max, wall_distance(rest.col(w)));
+      inside_max = std::max(inside_max, ring_wall_distance_mm(rest.col(w)));
       ++inside;
     }
     std::printf("[curved cut, tissue inside out] %d cells: %d vertices on the cut inside the cube, max %.3f mm off the swept wall; "
@@ -365,7 +358,7 @@ TEST(Refinement, CurvedCutIsRefinedAheadOfTheBladeAndLandsOnTheWall) {
     worst_mm = 0.0;
     for (int w = 0; w < rest.cols(); ++w)
       if (cutter.on_cut(w) && rest(2, w) > 20.0 + 1e-6 && rest.col(w).minCoeff() > 1e-6 && rest.col(w).maxCoeff() < 80.0 - 1e-6)
-        worst_mm = std::max(worst_mm, wall_distance(rest.col(w)));
+        worst_mm = std::max(worst_mm, ring_wall_distance_mm(rest.col(w)));
     // The tets no cut vertex touches: only the refinement made them.
     min_volume_ratio = 1.0;
     min_dihedral_deg = 180.0;
