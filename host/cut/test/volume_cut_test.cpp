@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 #include <random>
 
 #include "host/cut/mesh_checks.hpp"
@@ -33,9 +34,14 @@ BladeSegment vertical(double x, double y, double z_tip, double z_heel) {
 
 // Paper 000's lesion on the 80 mm cube: a vertical blade (z 20-120) goes round the circle of
 // radius 20 mm about (40, 40) from angle 0 through `chords` of its 48 chords, cutting every
-// frame (50: a little past the start, the ring closes). Returns the edges refined.
-int sweep_ring(TetCutter& cutter, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, int chords) {
-  const auto on_ring = [](double a) { return vertical(40 + 20 * std::cos(a), 40 + 20 * std::sin(a), 20, 120); };
+// frame (50: a little past the start, the ring closes). `to_current` maps the blade from the
+// rest shape into the current one (identity: the tissue at rest). Returns the edges refined.
+int sweep_ring(TetCutter& cutter, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, int chords,
+               const std::function<Eigen::Vector3d(const Eigen::Vector3d&)>& to_current = nullptr) {
+  const auto on_ring = [&](double a) {
+    const BladeSegment b = vertical(40 + 20 * std::cos(a), 40 + 20 * std::sin(a), 20, 120);
+    return to_current ? BladeSegment{to_current(b.tip_World_mm), to_current(b.heel_World_mm)} : b;
+  };
   BladeSegment prev = on_ring(0);
   int refined = 0;
   for (int k = 1; k <= chords; ++k) {
@@ -298,20 +304,13 @@ TEST(VertexMoves, AnInvertedTetTakesMovesThatLeaveItNoMoreInverted) {
 // sagitta (0.62 / 0.68 mm on these meshes: a move that would deepen an inverted tet is
 // refused, so some mid-points stay on their chords).
 TEST(PathFidelity, TissueTurnedInsideOutIsCutConsistently) {
-  const auto mirrored = [](Eigen::Vector3d p) {
-    p.x() = 80.0 - p.x();
-    return p;
-  };
+  const auto mirrored = [](const Eigen::Vector3d& p) { return Eigen::Vector3d(80.0 - p.x(), p.y(), p.z()); };
   for (int cells : {7, 8}) {
     TetMesh mesh = make_box_tet_mesh(cells, cells, cells, Eigen::Vector3d(80, 80, 80));
     TetCutter cutter(mesh, CutSettings{});
     Eigen::Matrix3Xd x = mesh.rest_positions_World_mm, v;
     for (int w = 0; w < x.cols(); ++w) x.col(w) = mirrored(x.col(w));
-    const auto on_ring = [&](int k) {
-      const BladeSegment b = vertical(40 + 20 * std::cos(2 * M_PI * k / 48), 40 + 20 * std::sin(2 * M_PI * k / 48), 20, 120);
-      return BladeSegment{mirrored(b.tip_World_mm), mirrored(b.heel_World_mm)};
-    };
-    for (int k = 1; k <= 50; ++k) cutter.step({on_ring(k - 1), on_ring(k), 4, {}}, x, v);
+    sweep_ring(cutter, x, v, 50, mirrored);
     cutter.finish_stroke(x, v);
     const CutMeshCheck c = check_cut_mesh(cutter.mesh());
     EXPECT_TRUE(c.valid()) << c.summary();
@@ -358,7 +357,7 @@ TEST(Refinement, CurvedCutIsRefinedAheadOfTheBladeAndLandsOnTheWall) {
     worst_mm = 0.0;
     for (int w = 0; w < rest.cols(); ++w)
       if (cutter.on_cut(w) && rest(2, w) > 20.0 + 1e-6 && rest.col(w).minCoeff() > 1e-6 && rest.col(w).maxCoeff() < 80.0 - 1e-6)
-        worst_mm = std::max(worst_mm, ring_wall_distance_mm(rest.col(w)));
+        worst_mm = std::max(worst_mm, wall_distance(rest.col(w)));
     // The tets no cut vertex touches: only the refinement made them.
     min_volume_ratio = 1.0;
     min_dihedral_deg = 180.0;
