@@ -66,8 +66,10 @@ Eigen::Vector3d material_position(const TetMesh& input, const Eigen::Matrix3Xd& 
   return (1 - l.sum()) * x0.col(in[0]) + l[0] * x0.col(in[1]) + l[1] * x0.col(in[2]) + l[2] * x0.col(in[3]);
 }
 
-// The explicit mass-spring integrator refuses a substep beyond its stability bound at load
-// (check_setting_holds): the smallest substep count (in 25 % steps) it accepts, +25 %.
+// The explicit mass-spring integrator is refused at load when even the step control's budget
+// (8x its substeps at 1/60 s) is beyond its stability bound (check_setting_holds): the smallest
+// substep count (in 25 % steps) it accepts, +25 % when raised. Within the budget it takes the
+// factor its bound needs itself (MassSpringModel::explicit_substeps).
 ModelConfig holding_config(const Scene& sc, ModelConfig config) {
   for (int k = 0; k < 40; ++k) {
     try {

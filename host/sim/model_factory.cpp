@@ -153,15 +153,20 @@ void check_setting_holds(const SimProblem& problem, const ModelConfig& config, d
   const std::string at_dt = dt_source.empty() ? "time_step_s " + std::to_string(dt_s) : dt_source;
 #ifdef ARNAV_SIM_HAVE_MASS_SPRING
   if (config.kind == "mass_spring" && config.integrator == "explicit") {
+    // Beyond the stability bound the model takes the substeps the bound needs, up to the step
+    // control's budget (MassSpringModel::explicit_substeps); refused only when that budget
+    // cannot hold it.
     const MassSpringModel probe(problem, MassSpringModel::Integrator::kExplicit, config);
-    const double h_s = dt_s / config.substeps, h_max_s = probe.explicit_stable_substep_s();
-    if (h_s > h_max_s) {
-      const long needed = static_cast<long>(std::ceil(dt_s / h_max_s));
+    if (probe.explicit_substeps(dt_s) == 0) {
+      const double h_s = dt_s / config.substeps, h_max_s = probe.explicit_stable_substep_s();
       throw std::invalid_argument(
           "model.substeps: " + std::to_string(config.substeps) + " substeps of the explicit mass-spring integrator give " +
           std::to_string(h_s) + " s per substep, beyond its stability bound " + std::to_string(h_max_s) +
-          " s for the stiffest springs (every step would be refused): use model.substeps >= " + std::to_string(needed) +
-          " at " + at_dt + ", or model.integrator: semi_implicit or local_global");
+          " s for the stiffest springs even at the step control's budget of " +
+          std::to_string(SubstepControl::budget_substeps(config.substeps, dt_s)) +
+          " substeps (every step would be refused): use model.substeps >= " +
+          std::to_string(probe.explicit_substeps_needed(dt_s)) + " at " + at_dt +
+          ", or model.integrator: semi_implicit or local_global");
     }
   }
 #endif

@@ -1,5 +1,8 @@
 #include "host/sim/step_control.hpp"
 
+#include <algorithm>
+#include <cmath>
+
 namespace arnav::host {
 namespace {
 
@@ -16,6 +19,11 @@ int SubstepControl::budget_factor(double dt_s) {
   int f = kMaxFactor;
   while (2 * f <= kMaxBudgetFactor && 2 * f <= kMaxFactor * per_frame) f *= 2;
   return f;
+}
+
+int SubstepControl::budget_substeps(int configured, double dt_s) {
+  const double factor = std::clamp(kMaxFactor * dt_s * 60.0 * (1.0 + 1e-6), double{kMaxFactor}, double{kMaxBudgetFactor});
+  return static_cast<int>(std::floor(configured * factor));
 }
 
 int SubstepControl::start_factor() {
@@ -46,6 +54,8 @@ void SubstepControl::finish(StepSummary& s, int factor, const std::string& first
     report(s, "step control: " + std::to_string(factor) + "x the substeps (" + counts() + ")", false);
   }
 }
+
+void SubstepControl::count_step_at(int factor) { ++steps_at_[static_cast<std::size_t>(level_of(factor))]; }
 
 std::string SubstepControl::counts() const {
   std::string out = "steps at 1x/2x/4x/8x/16x/32x substeps: ";

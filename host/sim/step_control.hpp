@@ -28,6 +28,11 @@ class SubstepControl {
   // The largest factor a step of dt_s may use: kMaxFactor per 1/60 s of it, rounded down to
   // a power of two, between kMaxFactor and kMaxBudgetFactor.
   static int budget_factor(double dt_s);
+  // The same budget as a substep count for a model that knows the count it needs before the
+  // step (the explicit mass-spring integrator's stability bound): kMaxFactor times the
+  // configured substeps per 1/60 s of the step, not rounded, between kMaxFactor and
+  // kMaxBudgetFactor times them.
+  static int budget_substeps(int configured, double dt_s);
 
   // One step: save() keeps the state it starts from, step(factor) runs it with factor times
   // the configured substeps from the current state, restore() brings the saved state back
@@ -49,6 +54,10 @@ class SubstepControl {
     finish(s, factor, first);
     return s;
   }
+
+  // Counts a step that a model ran at `factor` times its configured substeps by its own
+  // choice, with no redo (the explicit mass-spring integrator within its stability bound).
+  void count_step_at(int factor);
 
   int factor() const { return factor_; }  // the factor the next step starts from
   int redone_steps() const { return redone_; }

@@ -40,7 +40,7 @@ double process_cpu_ms() {
 
 // --stress-matrix: the matrix on a scene (stress_matrix.hpp).
 int stress_matrix_main(const std::string& scene_path, const std::string& csv_path, const std::vector<std::string>& cases,
-                       const std::vector<std::string>& models, int frames) {
+                       const std::vector<std::string>& models, int frames, int reference_factor) {
   if (scene_path.empty()) {
     std::cerr << "arnav-sim-bench: --stress-matrix needs --scene (e.g. data/patients/sksurgery_liver_coarse.scene.yaml)\n";
     return 2;
@@ -64,6 +64,7 @@ int stress_matrix_main(const std::string& scene_path, const std::string& csv_pat
   o.frames = frames;
   o.models = models;
   o.cases = cases;
+  o.reference_factor = reference_factor;
   try {
     const nlohmann::json summary = run_stress_matrix(scene, o, csv_path == "-" ? std::cout : file, std::cerr);
     std::cout << summary.dump(2) << "\n";
@@ -118,9 +119,15 @@ static int main_body(int argc, char** argv) {
                  "sudden 50 mm pull; each held, refused at load or stopped; docs/benchmarks.md \"Stress matrix\"): one CSV "
                  "row per case to this file (- for stdout), the JSON summary to stdout; --frames per case (default 60)");
   app.add_option("--stress-case", stress_cases_wanted, "with --stress-matrix: only these cases (e.g. baseline nu_0.499 pull_50mm)");
+  int reference_factor = 0;
+  app.add_option("--reference-factor", reference_factor,
+                 "with --stress-matrix: compare the adapted runs and each baseline frame by frame with the same case at "
+                 "this factor times the run's largest substep count (and half that, to show it converged); 0: none")
+      ->check(CLI::NonNegativeNumber);
   CLI11_PARSE(app, argc, argv);
   if (!stress_csv.empty())
-    return stress_matrix_main(scene_path, stress_csv, stress_cases_wanted, models, app.count("--frames") ? frames : 60);
+    return stress_matrix_main(scene_path, stress_csv, stress_cases_wanted, models, app.count("--frames") ? frames : 60,
+                              reference_factor);
 
   SimProblem problem;
   int grasp = 0;

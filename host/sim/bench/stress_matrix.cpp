@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <ctime>
+#include <limits>
 #include <stdexcept>
 
 #include "host/sim/model_factory.hpp"
@@ -73,10 +75,12 @@ struct CaseResult {
   std::vector<double> wall_ms, cpu_ms;
   double max_displacement_mm = 0.0;
   double build_ms = 0.0;
+  int max_substeps = 0;                        // the most substeps a frame took (configured x factor)
+  std::vector<Eigen::Matrix3Xd> trajectory;    // volume vertices after each frame (when recorded)
 };
 
 CaseResult run_case(const Scene& scene, const ModelConfig& config, const StressCase& c, const StressMatrixOptions& o,
-                    bool try_named = true) {
+                    bool try_named = true, bool record = false) {
   CaseResult r;
   const SimProblem problem = case_problem(scene, c);
   try {
@@ -121,6 +125,7 @@ CaseResult run_case(const Scene& scene, const ModelConfig& config, const StressC
     r.frames_run = f;
     const int factor = control_factor(s.warning);
     r.max_factor = std::max(r.max_factor, factor);
+    r.max_substeps = std::max(r.max_substeps, config.substeps * factor);
     if (s.warning.find("step control") != std::string::npos) ++r.control_frames;
     if (s.warning.find("step redone") != std::string::npos) ++r.redone_frames;
     if (s.warning.find("fallback") != std::string::npos) ++r.fallback_frames;
@@ -131,7 +136,52 @@ CaseResult run_case(const Scene& scene, const ModelConfig& config, const StressC
       break;
     }
     r.max_displacement_mm = std::max(r.max_displacement_mm, (x - rest).colwise().norm().maxCoeff());
+    if (record) r.trajectory.push_back(x);
   }
+  return r;
+}
+
+// A run against a reference, frame by frame: the largest over frames of the RMS and of the
+// maximum vertex distance (mm); infinity when either did not run every frame.
+struct TrajectoryDistance {
+  double rms_mm = 0.0, max_mm = 0.0;
+};
+TrajectoryDistance distance(const std::vector<Eigen::Matrix3Xd>& a, const std::vector<Eigen::Matrix3Xd>& b, int frames) {
+  const double inf = std::numeric_limits<double>::infinity();
+  if (static_cast<int>(a.size()) != frames || static_cast<int>(b.size()) != frames) return {inf, inf};
+  TrajectoryDistance d;
+  for (int f = 0; f < frames; ++f) {
+    const Eigen::VectorXd e = (a[f] - b[f]).colwise().norm();
+    d.rms_mm = std::max(d.rms_mm, std::sqrt(e.squaredNorm() / static_cast<double>(e.size())));
+    d.max_mm = std::max(d.max_mm, e.maxCoeff());
+  }
+  return d;
+}
+
+// The error of a held run against its converged reference (StressMatrixOptions::reference_factor).
+struct ReferenceError {
+  int substeps = 0;            // the reference's configured substeps
+  std::string outcome;         // the reference run's (held, or why not)
+  TrajectoryDistance error;    // the run against the reference
+  TrajectoryDistance change;   // the reference against the same at half its substeps (its own error, about)
+  double displacement_rms_mm = 0.0;  // the reference's largest RMS displacement from rest (scale)
+};
+
+ReferenceError reference_error(const Scene& scene, const ModelConfig& config, const StressCase& c,
+                               const StressMatrixOptions& o, const CaseResult& run) {
+  ReferenceError r;
+  ModelConfig fine = config, half = config;
+  fine.substeps = o.reference_factor * std::max(run.max_substeps, config.substeps);
+  half.substeps = std::max(1, fine.substeps / 2);
+  r.substeps = fine.substeps;
+  const CaseResult ref = run_case(scene, fine, c, o, false, true);
+  const CaseResult ref_half = run_case(scene, half, c, o, false, true);
+  r.outcome = ref.outcome + (ref.note.empty() ? "" : ": " + ref.note.substr(0, 120));
+  r.error = distance(run.trajectory, ref.trajectory, o.frames);
+  r.change = distance(ref_half.trajectory, ref.trajectory, o.frames);
+  const Eigen::Matrix3Xd& rest = scene.problem.mesh.rest_positions_World_mm;
+  for (const Eigen::Matrix3Xd& x : ref.trajectory)
+    r.displacement_rms_mm = std::max(r.displacement_rms_mm, std::sqrt((x - rest).colwise().squaredNorm().mean()));
   return r;
 }
 
@@ -186,7 +236,8 @@ nlohmann::json run_stress_matrix(const Scene& scene, const StressMatrixOptions& 
     throw std::invalid_argument("--stress-case: an unknown case name (baseline, nu_0.3, contrast_1000, dt_1/20, load_10g, pull_50mm, ...)");
 
   csv << "model,case,poisson_ratio,contrast,dt_s,load_g,pull_mm,outcome,frames_run,step_control_frames,redone_frames,"
-         "max_factor,fallback_frames,median_ms,p95_ms,max_ms,median_cpu_ms,within_16.7ms,build_ms,max_displacement_mm,named_setting,note\n";
+         "max_factor,fallback_frames,median_ms,p95_ms,max_ms,median_cpu_ms,within_16.7ms,build_ms,max_displacement_mm,named_setting,"
+         "ref_substeps,ref_outcome,err_rms_mm,err_max_mm,ref_change_rms_mm,ref_change_max_mm,ref_displacement_rms_mm,note\n";
   nlohmann::json summary;
   summary["scene"] = scene.source;
   summary["mesh"] = {{"tets", scene.problem.mesh.num_tets()}, {"vertices", scene.problem.mesh.num_vertices()}};
@@ -194,11 +245,11 @@ nlohmann::json run_stress_matrix(const Scene& scene, const StressMatrixOptions& 
   summary["budget_ms"] = kBudget_ms;
   int held = 0, refused = 0, refused_named_held = 0, stopped = 0, adapted = 0, adapted_within = 0, held_within = 0;
   std::vector<double> adapted_medians;
-  nlohmann::json stops = nlohmann::json::array(), per_model = nlohmann::json::object();
+  nlohmann::json stops = nlohmann::json::array(), per_model = nlohmann::json::object(), references = nlohmann::json::array();
   for (const ModelVariant& v : variants) {
     nlohmann::json m = {{"held", 0}, {"refused_at_load", 0}, {"stopped", 0}, {"adapted", 0}};
     for (const StressCase& c : cases) {
-      const CaseResult r = run_case(scene, v.config, c, o);
+      const CaseResult r = run_case(scene, v.config, c, o, true, o.reference_factor > 0);
       const double median = percentile(r.wall_ms, 0.5);
       const bool within = !r.wall_ms.empty() && median <= kBudget_ms;
       m[r.outcome] = m[r.outcome].get<int>() + 1;
@@ -220,6 +271,22 @@ nlohmann::json run_stress_matrix(const Scene& scene, const StressMatrixOptions& 
         ++stopped;
         stops.push_back({{"model", v.label}, {"case", c.name}, {"note", r.note.substr(0, 300)}});
       }
+      // Error against run time: the adapted runs and the baseline against their reference.
+      std::string ref_columns = ",,,,,,";
+      if (o.reference_factor > 0 && r.outcome == "held" && (r.control_frames > 0 || c.name == "baseline")) {
+        const ReferenceError e = reference_error(scene, v.config, c, o, r);
+        ref_columns = std::to_string(e.substeps) + ',' + csv_text(e.outcome) + ',' + std::to_string(e.error.rms_mm) + ',' +
+                      std::to_string(e.error.max_mm) + ',' + std::to_string(e.change.rms_mm) + ',' +
+                      std::to_string(e.change.max_mm) + ',' + std::to_string(e.displacement_rms_mm);
+        references.push_back({{"model", v.label}, {"case", c.name}, {"adapted", r.control_frames > 0},
+                              {"median_ms", median}, {"median_cpu_ms", percentile(r.cpu_ms, 0.5)},
+                              {"max_factor", r.max_factor}, {"ref_substeps", e.substeps}, {"ref_outcome", e.outcome},
+                              {"err_rms_mm", e.error.rms_mm}, {"err_max_mm", e.error.max_mm},
+                              {"ref_change_rms_mm", e.change.rms_mm}, {"ref_displacement_rms_mm", e.displacement_rms_mm}});
+        log << "  reference at " << e.substeps << " substeps (" << e.outcome << "): error RMS " << e.error.rms_mm
+            << " mm, max " << e.error.max_mm << " mm; reference's own change at half " << e.change.rms_mm << " mm RMS"
+            << std::endl;
+      }
       const SimProblem p = case_problem(scene, c);
       const Material& liver = p.region_materials[liver_region(p)];
       double contrast = 1.0;
@@ -228,7 +295,7 @@ nlohmann::json run_stress_matrix(const Scene& scene, const StressMatrixOptions& 
           << c.load_g << ',' << c.pull_mm << ',' << r.outcome << ',' << r.frames_run << ',' << r.control_frames << ','
           << r.redone_frames << ',' << r.max_factor << ',' << r.fallback_frames << ',' << median << ','
           << percentile(r.wall_ms, 0.95) << ',' << percentile(r.wall_ms, 1.0) << ',' << percentile(r.cpu_ms, 0.5) << ',' << (within ? 1 : 0) << ',' << r.build_ms << ','
-          << r.max_displacement_mm << ',' << csv_text(r.named_outcome) << ',' << csv_text(r.note) << '\n'
+          << r.max_displacement_mm << ',' << csv_text(r.named_outcome) << ',' << ref_columns << ',' << csv_text(r.note) << '\n'
           << std::flush;
       log << v.label << " " << c.name << ": " << r.outcome << " median " << median << " ms, step control " << r.control_frames
           << " frames (max " << r.max_factor << "x)" << (r.note.empty() ? "" : " - " + r.note.substr(0, 160))
@@ -247,6 +314,10 @@ nlohmann::json run_stress_matrix(const Scene& scene, const StressMatrixOptions& 
   summary["adapted_median_within_budget"] = adapted_within;
   summary["adapted_median_of_medians_ms"] = percentile(adapted_medians, 0.5);
   summary["per_model"] = per_model;
+  if (o.reference_factor > 0) {
+    summary["reference_factor"] = o.reference_factor;
+    summary["references"] = references;  // error against run time (adapted runs and baselines)
+  }
   return summary;
 }
 

@@ -6,7 +6,10 @@
 // once and all extremes but one. Each case is refused at load (check_setting_holds; the
 // setting the refusal names is then run too) or run: held (healthy every frame) or stopped
 // (an unhealthy frame: what issue 29 forbids). Frame time (wall and process CPU, ms) of the
-// runs against the 16.7 ms budget; frames where the step control acted.
+// runs against the 16.7 ms budget; frames where the step control acted. With
+// reference_factor > 0, the adapted runs (and each model's baseline) are compared frame by
+// frame with a reference: the same case at reference_factor times the largest substep count
+// the run used, its convergence shown by the same at half that count (error against run time).
 #include <nlohmann/json.hpp>
 
 #include <ostream>
@@ -36,6 +39,7 @@ struct StressMatrixOptions {
   std::vector<std::string> models;   // variant labels (empty: every model_variants())
   std::vector<std::string> cases;    // case names (empty: every stress_cases())
   double pull_stiffness_mN_per_mm = 200.0;  // the pulled patch in all (the patient suite's grasp)
+  int reference_factor = 0;          // > 0: reference runs (above) at this factor; 0: none
 };
 
 // Runs the matrix on `scene` (its problem, materials and fixed set); one CSV row per case to

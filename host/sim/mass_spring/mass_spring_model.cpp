@@ -476,6 +476,35 @@ double MassSpringModel::explicit_stable_substep_s() const {
   return 2.0 / omega_max_ * (std::sqrt(1.0 + zeta_ * zeta_) - zeta_);
 }
 
+int MassSpringModel::explicit_substeps_needed(double dt_s) const {
+  const double h_max = explicit_stable_substep_s();
+  return std::isfinite(h_max) ? std::max(1, static_cast<int>(std::ceil(dt_s / h_max))) : 1;
+}
+
+int MassSpringModel::explicit_substeps(double dt_s) const {
+  const int configured = config_.substeps, needed = explicit_substeps_needed(dt_s);
+  if (needed <= configured) return configured;
+  if (bound_lowered_by_cut_) return std::max(configured, static_cast<int>(std::ceil(1.25 * needed)));
+  const int budget = SubstepControl::budget_substeps(configured, dt_s);
+  if (needed > budget) return 0;
+  return std::min(budget, static_cast<int>(std::ceil(1.1 * dt_s / explicit_stable_substep_s())));
+}
+
+// The warning of an explicit step that took more substeps than configured: after a cut, as
+// before; otherwise in the step control's words ("step control: Nx the substeps", N the
+// power-of-two level it is counted at), which the session counts as a step under step control.
+std::string MassSpringModel::explicit_substeps_warning(double dt_s, int substeps) const {
+  const std::string bound = std::to_string(explicit_stable_substep_s()) + " s";
+  if (bound_lowered_by_cut_)
+    return "explicit mass-spring: " + std::to_string(substeps) + " substeps instead of " + std::to_string(config_.substeps) +
+           " (a cut lowered the stability bound to " + bound + ")";
+  int level = 1;
+  while (level * config_.substeps < substeps) level *= 2;
+  return "step control: " + std::to_string(level) + "x the substeps (explicit mass-spring: " + std::to_string(substeps) +
+         " substeps instead of " + std::to_string(config_.substeps) + " for the stiffest springs' stability bound " + bound +
+         "; model.substeps >= " + std::to_string(explicit_substeps_needed(dt_s)) + " needs none)";
+}
+
 AttachmentId MassSpringModel::add_attachment(const AttachmentSpec& spec) {
   double work = 0.0;
   const AttachmentId id = attachments_.add(spec, x_, work);
@@ -889,6 +918,8 @@ StepSummary MassSpringModel::step_guarded(double dt_s) {
   v_before_step_ = v_;
   const InversionMonitor inversions0 = inversions_;
   StepSummary first = step_unguarded(dt_s);
+  if (first.healthy && integrator_ == Integrator::kExplicit)  // the factor its stability bound took
+    control_.count_step_at((first.iterations + config_.substeps - 1) / config_.substeps);
   if (first.healthy || first.termination == "refused_unstable_dt") return first;
   x_ = x_before_step_;  // restored before the redo saves its own start in the same buffers
   v_ = v_before_step_;
@@ -909,26 +940,19 @@ StepSummary MassSpringModel::step_unguarded(double dt_s) {
   double h = dt_s / config_.substeps;
   int substeps = config_.substeps;
   if (integrator_ == Integrator::kExplicit) {
-    const double h_max = explicit_stable_substep_s();
-    if (h > h_max && bound_lowered_by_cut_) {
-      // The cut's small pieces lowered the bound: the model takes the substeps it needs
-      // (a counted warning; the step costs that much more) rather than stopping.
-      substeps = static_cast<int>(std::ceil(1.25 * dt_s / h_max));
-      h = dt_s / substeps;
-      report(summary,
-             "explicit mass-spring: " + std::to_string(substeps) + " substeps instead of " + std::to_string(config_.substeps) +
-                 " (a cut lowered the stability bound to " + std::to_string(h_max) + " s)",
-             false);
-    }
-    if (h > h_max) {
-      const int needed = static_cast<int>(std::ceil(dt_s / h_max));
+    substeps = explicit_substeps(dt_s);
+    if (substeps == 0) {
       report(summary,
              "explicit mass-spring: substep " + std::to_string(h) + " s exceeds the stability bound " +
-                 std::to_string(h_max) + " s (2/omega_max); step not taken: use substeps >= " + std::to_string(needed) +
-                 " or integrator semi_implicit",
+                 std::to_string(explicit_stable_substep_s()) + " s (2/omega_max) even at the step control's budget of " +
+                 std::to_string(SubstepControl::budget_substeps(config_.substeps, dt_s)) +
+                 " substeps; step not taken: use substeps >= " +
+                 std::to_string(explicit_substeps_needed(dt_s)) + " or integrator semi_implicit",
              true);
       summary.termination = "refused_unstable_dt";
     } else {
+      if (substeps != config_.substeps) report(summary, explicit_substeps_warning(dt_s, substeps), false);
+      h = dt_s / substeps;
       for (int k = 0; k < substeps; ++k) explicit_substep(h);
       summary.iterations = substeps;
       summary.termination = "explicit";

@@ -90,6 +90,14 @@ class MassSpringModel final : public TissueModel {
 
   // Largest explicit substep (s) that is stable for the current springs and attachments.
   double explicit_stable_substep_s() const;
+  // The substeps an explicit step of dt_s takes (docs/sim.md, "Step control and refusal at
+  // load"): the configured count when its substep is within the stability bound; beyond it,
+  // the count the bound needs with 10 % margin, up to SubstepControl::budget_substeps; 0 when
+  // the bound needs more than that budget (the step is refused). After a cut lowered the
+  // bound, 1.25x the count the bound needs, whatever the budget (a cut never stops the model).
+  int explicit_substeps(double dt_s) const;
+  // The smallest substep count whose substep is within the stability bound at dt_s.
+  int explicit_substeps_needed(double dt_s) const;
   // Elastic energy of springs and attachments at the current state (mN*mm).
   double elastic_energy() const;
   const SpringNetwork& springs() const { return springs_; }
@@ -121,12 +129,14 @@ class MassSpringModel final : public TissueModel {
   // unhealthy (energy created, non-finite), up to kMaxRetrySubsteps times the configured ones
   // for a step of up to 1/60 s, more for a longer one (SubstepControl::budget_factor; the
   // factor that held is kept until the tissue calms).
+  // explicit: its steps count at the factor explicit_substeps() took (steps_at_factor()).
   int retries() const { return control_.redone_steps(); }
   const SubstepControl& step_control() const { return control_; }
   static constexpr int kMaxRetrySubsteps = SubstepControl::kMaxFactor;
 
  private:
   StepSummary step_guarded(double dt_s);    // step() before the embedded vertices are driven
+  std::string explicit_substeps_warning(double dt_s, int substeps) const;
   StepSummary semi_implicit_guarded(double dt_s);  // semi-implicit step, redone with more substeps when unhealthy
   StepSummary step_unguarded(double dt_s);  // one step with integrator_ and config_
   bool passive(int t) const { return static_cast<std::size_t>(t) < passive_.size() && passive_[static_cast<std::size_t>(t)] != 0; }

@@ -116,9 +116,10 @@ TEST(ModelFactory, QuasiStaticFemWithoutFixedVertexIsRefusedAtLoad) {
   }
 }
 
-// check_setting_holds (issue 29): an explicit mass-spring setting beyond its stability bound is
-// refused before the run, naming the key and the substeps that hold; that count, and the
-// models the step control holds at run time, are accepted.
+// check_setting_holds (issue 29): an explicit mass-spring setting beyond its stability bound
+// even at the step control's budget (8x the substeps at 1/60 s) is refused before the run,
+// naming the key and the substeps that hold; that count is accepted, and so is a count the
+// budget holds (the model then takes the substeps the bound needs, counted as step control).
 TEST(ModelFactory, SettingThatCannotHoldIsRefusedAtLoadNamingTheFix) {
   SimProblem p = small_problem();
   p.region_materials[0].youngs_modulus_kPa = 5000.0;  // stiff: the explicit bound shrinks
@@ -136,13 +137,22 @@ TEST(ModelFactory, SettingThatCannotHoldIsRefusedAtLoadNamingTheFix) {
       message = e.what();
     }
     ASSERT_NE(message.find("model.substeps"), std::string::npos) << message;
+    EXPECT_NE(message.find("even at the step control's budget of 8 substeps"), std::string::npos) << message;
     const std::size_t at = message.find("model.substeps >= ");
     ASSERT_NE(at, std::string::npos) << message;
-    c.substeps = std::stoi(message.substr(at + 18));
-    EXPECT_GT(c.substeps, 1);
+    const int named = std::stoi(message.substr(at + 18));
+    EXPECT_GT(named, 8);
+    c.substeps = named;
     EXPECT_NO_THROW(check_setting_holds(p, c, 1.0 / 60.0));
-    auto model = make_tissue_model(p, c);
-    EXPECT_TRUE(model->step(1.0 / 60.0).healthy);  // the named setting does hold
+    StepSummary s = make_tissue_model(p, c)->step(1.0 / 60.0);
+    EXPECT_TRUE(s.healthy) << s.warning;  // the named setting does hold
+    EXPECT_EQ(s.warning.find("step control"), std::string::npos) << s.warning;
+    c.substeps = (named + 7) / 8;  // within the budget: accepted, the step control takes the rest
+    EXPECT_NO_THROW(check_setting_holds(p, c, 1.0 / 60.0));
+    s = make_tissue_model(p, c)->step(1.0 / 60.0);
+    EXPECT_TRUE(s.healthy) << s.warning;
+    EXPECT_NE(s.warning.find("step control: "), std::string::npos) << s.warning;
+    EXPECT_GE(s.iterations, named);
   }
 }
 

@@ -64,15 +64,15 @@ std::vector<Case> cases() {
 // created; neo_hookean 40 x 1: its explicit-like shear blew up) left this list with the step
 // control (issue 29): those steps are redone with 2-8x the substeps (the counts are printed).
 const std::map<std::pair<std::string, std::string>, std::string>& known_limits() {
+  // The explicit integrator takes a power-of-two factor of its substeps up to the step's
+  // budget (8x at 1/60 s) when its bound needs it (contrast 100, a 100 ms step and the 100x
+  // attachment now hold that way); beyond the budget it is refused.
   const std::string explicit_bound =
-      "explicit bound 2/omega ~ sqrt(m/k) shrinks with stiffness: refused at load naming the substeps needed "
-      "(attachment_100x: the attachment comes at run time, so the step is refused then)";
+      "explicit bound 2/omega ~ sqrt(m/k) shrinks with stiffness: beyond 8x the substeps refused at load naming the "
+      "substeps needed";
   static const std::map<std::pair<std::string, std::string>, std::string> limits = {
-      {{"mass_spring/explicit", "contrast_1e2"}, explicit_bound},
       {{"mass_spring/explicit", "contrast_1e3"}, explicit_bound},
       {{"mass_spring/explicit", "contrast_1e4"}, explicit_bound},
-      {{"mass_spring/explicit", "dt_100ms"}, explicit_bound},
-      {{"mass_spring/explicit", "attachment_100x"}, explicit_bound},
   };
   return limits;
 }

@@ -94,6 +94,12 @@ TEST(SubstepControl, LongerStepsHaveALargerBudget) {
   EXPECT_EQ(SubstepControl::budget_factor(1.0 / 20), 16);
   EXPECT_EQ(SubstepControl::budget_factor(0.1), 32);
   EXPECT_EQ(SubstepControl::budget_factor(10.0), SubstepControl::kMaxBudgetFactor);
+  // The same rate as a count, not rounded to a power of two (the explicit integrator's).
+  EXPECT_EQ(SubstepControl::budget_substeps(20, 1.0 / 120), 160);
+  EXPECT_EQ(SubstepControl::budget_substeps(20, 1.0 / 60), 160);
+  EXPECT_EQ(SubstepControl::budget_substeps(20, 1.0 / 20), 480);
+  EXPECT_EQ(SubstepControl::budget_substeps(20, 0.1), 640);
+  EXPECT_EQ(SubstepControl::budget_substeps(1, 10.0), SubstepControl::kMaxBudgetFactor);
   SubstepControl c;
   RuleStep r{.need = 16};
   auto run = [&](int budget) { return c.run([&] { r.saved = r.state; }, [&] { r.state = r.saved; }, [&](int f) { return r.step(f); }, budget); };

@@ -114,20 +114,46 @@ TEST(MassSpring, VoigtDampingDissipatesEnergy) {
   }
 }
 
-TEST(MassSpring, ExplicitDetectsDtBeyondStabilityBound) {
+// Beyond its stability bound the explicit integrator takes the substeps the bound needs, with
+// 10 % margin (step control, counted at the power-of-two level above), up to the step's budget
+// (8x the configured substeps at up to 1/60 s); beyond that budget the step is refused and
+// the state untouched.
+TEST(MassSpring, ExplicitTakesTheSubstepsItsBoundNeedsWithinTheBudget) {
   const SimProblem p = box_problem(4, 2, 2, {40, 20, 20}, Material{}, true);
   MassSpringModel model(p, Integrator::kExplicit, config());
+  ASSERT_EQ(config().substeps, 1);
   const double h_max = model.explicit_stable_substep_s();
   // Scale check: the bound is of the order sqrt(m/k) of one vertex.
   const double m = 1.06e-6 * 1000.0;  // one 10 mm cell
   const double k = 5.0 * 10.0;        // E * L
   EXPECT_GT(h_max, 0.05 * std::sqrt(m / k));
   EXPECT_LT(h_max, 2.0 * std::sqrt(m / k));
+  // A step of 1.5 bounds needs 2 substeps (1.65 with the margin); 1.9 bounds need 2, 3 with
+  // the margin (counted at 4x); 7.5 bounds need 8, the budget, which the margin may not pass.
+  EXPECT_EQ(model.explicit_substeps_needed(1.5 * h_max), 2);
+  EXPECT_EQ(model.explicit_substeps(1.5 * h_max), 2);
+  EXPECT_EQ(model.explicit_substeps(1.9 * h_max), 3);
+  EXPECT_EQ(model.explicit_substeps(7.5 * h_max), 8);
+  EXPECT_EQ(model.explicit_substeps(0.9 * h_max), 1);
+  StepSummary s = model.step(1.5 * h_max);
+  EXPECT_TRUE(s.healthy) << s.warning;
+  EXPECT_EQ(s.iterations, 2);
+  EXPECT_NE(s.warning.find("step control: 2x the substeps (explicit mass-spring: 2 substeps instead of 1"), std::string::npos)
+      << s.warning;
+  EXPECT_EQ(model.step_control().steps_at_factor()[1], 1);
+  s = model.step(1.9 * h_max);
+  EXPECT_TRUE(s.healthy) << s.warning;
+  EXPECT_EQ(s.iterations, 3);
+  EXPECT_NE(s.warning.find("step control: 4x the substeps (explicit mass-spring: 3 substeps"), std::string::npos) << s.warning;
+  EXPECT_EQ(model.step_control().steps_at_factor()[2], 1);
+  // Beyond 8x the substeps: refused, the state untouched.
+  EXPECT_EQ(model.explicit_substeps(8.5 * h_max), 0);
   const Eigen::Matrix3Xd before = model.positions_World_mm();
-  const StepSummary s = model.step(1.5 * h_max);
+  s = model.step(8.5 * h_max);
   EXPECT_FALSE(s.healthy);
   EXPECT_EQ(s.termination, "refused_unstable_dt");
   EXPECT_NE(s.warning.find("stability bound"), std::string::npos) << s.warning;
+  EXPECT_NE(s.warning.find("use substeps >= 9"), std::string::npos) << s.warning;
   EXPECT_EQ((model.positions_World_mm() - before).cwiseAbs().maxCoeff(), 0.0);
   // A stiff attachment lowers the bound.
   model.add_attachment({.point = {{0}, {1.0}}, .target_World_mm = Eigen::Vector3d::Zero(), .stiffness_mN_per_mm = 1e4});
