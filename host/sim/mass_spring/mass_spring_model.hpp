@@ -92,9 +92,9 @@ class MassSpringModel final : public TissueModel {
   double explicit_stable_substep_s() const;
   // The substeps an explicit step of dt_s takes (docs/sim.md, "Step control and refusal at
   // load"): the configured count when its substep is within the stability bound; beyond it,
-  // the count the bound needs with 10 % margin, up to SubstepControl::budget_substeps; 0 when
+  // the count the bound needs with 25 % margin, up to SubstepControl::budget_substeps; 0 when
   // the bound needs more than that budget (the step is refused). After a cut lowered the
-  // bound, 1.25x the count the bound needs, whatever the budget (a cut never stops the model).
+  // bound, the same with no budget (a cut never stops the model).
   int explicit_substeps(double dt_s) const;
   // The smallest substep count whose substep is within the stability bound at dt_s.
   int explicit_substeps_needed(double dt_s) const;
