@@ -59,7 +59,10 @@ void SubstepControl::count_step_at(int factor) { ++steps_at_[static_cast<std::si
 
 std::string SubstepControl::counts() const {
   std::string out = "steps at 1x/2x/4x/8x/16x/32x substeps: ";
-  for (int l = 0; l < kLevels; ++l) out += (l ? "/" : "") + std::to_string(steps_at_[static_cast<std::size_t>(l)]);
+  for (int l = 0; l < kLevels; ++l) {
+    if (l > 0) out += '/';
+    out += std::to_string(steps_at_[static_cast<std::size_t>(l)]);
+  }
   return out + ", redone " + std::to_string(redone_) + ", not held " + std::to_string(failed_);
 }
 

@@ -11,9 +11,11 @@
 #include <ctime>
 #include <fstream>
 #include <iostream>
+#include <optional>
 
 #include "host/scene/box_mesh.hpp"
 #include "host/scene/load_error.hpp"
+#include "host/scene/reshape.hpp"
 #include "host/scene/scene.hpp"
 #include "host/sim/bench/stress_matrix.hpp"
 #include "host/sim/model_factory.hpp"
@@ -38,20 +40,32 @@ double process_cpu_ms() {
   return 1e3 * static_cast<double>(ts.tv_sec) + 1e-6 * static_cast<double>(ts.tv_nsec);
 }
 
+// The --scene, reshaped when --mesh-scale / --mesh-warp-mm ask (another patient from ours,
+// host/scene/reshape.hpp); nullopt after saying why not.
+std::optional<Scene> load_bench_scene(const std::string& path, const SceneReshape& reshape) {
+  try {
+    Scene scene = load_scene(path);
+    if (reshape.scale != 1.0 || reshape.warp_mm != 0.0) scene = reshaped_scene(scene, reshape);
+    return scene;
+  } catch (const LoadError& e) {
+    std::cerr << "arnav-sim-bench: " << e.what() << "\n";
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "arnav-sim-bench: --mesh-scale / --mesh-warp-mm: " << e.what() << "\n";
+  }
+  return std::nullopt;
+}
+
 // --stress-matrix: the matrix on a scene (stress_matrix.hpp).
-int stress_matrix_main(const std::string& scene_path, const std::string& csv_path, const std::vector<std::string>& cases,
-                       const std::vector<std::string>& models, int frames, int reference_factor) {
+int stress_matrix_main(const std::string& scene_path, const SceneReshape& reshape, const std::string& csv_path,
+                       const std::vector<std::string>& cases, const std::vector<std::string>& models, int frames,
+                       int reference_factor) {
   if (scene_path.empty()) {
     std::cerr << "arnav-sim-bench: --stress-matrix needs --scene (e.g. data/patients/sksurgery_liver_coarse.scene.yaml)\n";
     return 2;
   }
-  Scene scene;
-  try {
-    scene = load_scene(scene_path);
-  } catch (const LoadError& e) {
-    std::cerr << "arnav-sim-bench: " << e.what() << "\n";
-    return 2;
-  }
+  const std::optional<Scene> loaded = load_bench_scene(scene_path, reshape);
+  if (!loaded) return 2;
+  const Scene& scene = *loaded;
   std::ofstream file;
   if (csv_path != "-") {
     file.open(csv_path);
@@ -124,9 +138,17 @@ static int main_body(int argc, char** argv) {
                  "with --stress-matrix: compare the adapted runs and each baseline frame by frame with the same case at "
                  "this factor times the run's largest substep count (and half that, to show it converged); 0: none")
       ->check(CLI::NonNegativeNumber);
+  SceneReshape reshape;
+  app.add_option("--mesh-scale", reshape.scale,
+                 "with --scene: scale its volume about the centroid (another patient's size; host/scene/reshape.hpp)")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--mesh-warp-mm", reshape.warp_mm,
+                 "with --scene: warp its volume by a smooth random field moving the farthest vertex this far (mm)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--mesh-seed", reshape.seed, "the warp's random field (default 1)");
   CLI11_PARSE(app, argc, argv);
   if (!stress_csv.empty())
-    return stress_matrix_main(scene_path, stress_csv, stress_cases_wanted, models, app.count("--frames") ? frames : 60,
+    return stress_matrix_main(scene_path, reshape, stress_csv, stress_cases_wanted, models, app.count("--frames") ? frames : 60,
                               reference_factor);
 
   SimProblem problem;
@@ -138,12 +160,9 @@ static int main_body(int argc, char** argv) {
       for (int i = 0; i <= nx; ++i) problem.fixed_vertices.push_back(box_vertex_index(nx, ny, i, j, 0));
     grasp = box_vertex_index(nx, ny, nx, ny, nz);
   } else {
-    try {
-      problem = load_scene(scene_path).problem;
-    } catch (const LoadError& e) {
-      std::cerr << "arnav-sim-bench: " << e.what() << "\n";
-      return 2;
-    }
+    const std::optional<Scene> scene = load_bench_scene(scene_path, reshape);
+    if (!scene) return 2;
+    problem = scene->problem;
     const Eigen::Matrix3Xd& X = problem.mesh.rest_positions_World_mm;
     for (Eigen::Index i = 1; i < X.cols(); ++i)
       if (X(2, i) < X(2, grasp)) grasp = static_cast<int>(i);
