@@ -4,7 +4,9 @@
 // the same map. Used where a benchmark must run on livers the models were not developed on
 // (the stress matrix of issue 29, arnav-sim-bench --mesh-scale/--mesh-warp-mm). Fixed
 // vertices, regions and tets keep their indices; materials, gravity and the model setting are
-// the scene's. Units: mm.
+// the scene's. The embeddings' barycentric weights are kept: exact for the scale, and for the
+// warp to second order in its curvature over a tet. The set of tets treated as embedded
+// elements (quality below the bound) is kept too; the mesh quality is measured again. Units: mm.
 #include <string>
 
 #include "host/scene/scene.hpp"
