@@ -422,7 +422,7 @@ void ModelRunner::fill_snapshot(ModelSnapshot& snap) {
       for (int src : cut_->vessel_node_source()) v.radius_mm.push_back(scene_.vessels->rest.radius_mm[static_cast<std::size_t>(src)]);
       snap.vessels = std::move(v);
     }
-    snap.volume_positions_mm = x;
+    snap.volume_positions_World_mm = x;
   } else {
     const Eigen::Matrix3Xd& x = model_->positions_World_mm();
     const TetMesh& mesh = scene_.problem.mesh;
@@ -441,7 +441,7 @@ void ModelRunner::fill_snapshot(ModelSnapshot& snap) {
       v.nodes_World_mm = scene_.vessels->embedding.apply(mesh, x);
       snap.vessels = std::move(v);
     }
-    snap.volume_positions_mm = x;
+    snap.volume_positions_World_mm = x;
   }
 }
 

@@ -55,7 +55,7 @@ struct ModelSnapshot {
   std::vector<Eigen::Vector3d> tumour_centroids_mm;
   std::optional<VesselTree> vessels;
   std::optional<TriMesh> cut_surface;   // filled by the cutting stage (host/cut) when it exists
-  Eigen::Matrix3Xd volume_positions_mm; // the tet mesh's vertices (carries the cut trace)
+  Eigen::Matrix3Xd volume_positions_World_mm; // the tet mesh's vertices (carries the cut trace)
   // Cutting only:
   bool cutting = false;                 // the model is a cut session
   int cut_faces = 0;                    // cut faces on the boundary (both sides of every cut)

@@ -802,12 +802,12 @@ FrameResult NavigationSession::render_decoded(const image_frame_t& msg, cv::Mat 
         distance = distance ? std::min(*distance, d) : d;
       }
       // Without cutting the overlay shows the blade tip's trace through the tissue.
-      if (!cut_model) cut_trace_.add(scene_->problem.mesh, snap->volume_positions_mm, tip);
+      if (!cut_model) cut_trace_.add(scene_->problem.mesh, snap->volume_positions_World_mm, tip);
     }
     if (cut_model)
       for (const auto& seg : snap->cut_rim_mm) content.cut_paths_mm.push_back({seg[0], seg[1]});
     if (!cut_model && cut_trace_.size() > 0) {
-      last_strokes_ = cut_trace_.strokes(snap->volume_positions_mm, scene_->problem.mesh);
+      last_strokes_ = cut_trace_.strokes(snap->volume_positions_World_mm, scene_->problem.mesh);
       content.cut_paths_mm = last_strokes_;
     }
     overlay::RenderTiming timing;
@@ -984,7 +984,7 @@ nlohmann::json NavigationSession::summary_json(double run_s) {
       ++by_kind[e.event.kind];
       events.push_back({{"kind", e.event.kind}, {"structure", e.event.structure}, {"model_step", e.step},
                         {"distance_mm", e.event.distance_mm},
-                        {"location_Model_mm", {e.event.location_World_mm.x(), e.event.location_World_mm.y(), e.event.location_World_mm.z()}}});
+                        {"location_World_mm", {e.event.location_World_mm.x(), e.event.location_World_mm.y(), e.event.location_World_mm.z()}}});
     }
     j["cutting"] = {{"mode", config_.cutting.mode},
                     {"frames_cutting", cutting_frames_},

@@ -341,7 +341,7 @@ TEST(GraspCutting, GraspHoldsThroughCutsAndReleasesForGood) {
   Eigen::Index v0 = 0;
   (rest.colwise() - Eigen::Vector3d(70, 160, 60)).colwise().squaredNorm().minCoeff(&v0);
   const Eigen::Vector3d p0 = rest.col(v0);
-  const auto surface_at = [&](const ModelSnapshot& s) { return Eigen::Vector3d(scene.organ_embedding.apply(scene.problem.mesh, s.volume_positions_mm).col(v0)); };
+  const auto surface_at = [&](const ModelSnapshot& s) { return Eigen::Vector3d(scene.organ_embedding.apply(scene.problem.mesh, s.volume_positions_World_mm).col(v0)); };
   const auto grasp = [&](const Eigen::Vector3d& tip, std::int64_t t, bool requested) {
     GraspCommand c;
     c.X_ModelTool = Eigen::Isometry3d(Eigen::Translation3d(tip));
