@@ -14,16 +14,14 @@ int level_of(int factor) {
 
 }  // namespace
 
-int SubstepControl::budget_factor(double dt_s) {
-  const double per_frame = dt_s * 60.0 * (1.0 + 1e-6);  // 1/60 s steps: exactly one frame
-  int f = kMaxFactor;
-  while (2 * f <= kMaxBudgetFactor && 2 * f <= kMaxFactor * per_frame) f *= 2;
-  return f;
+double SubstepControl::budget_rate(double dt_s) {
+  return std::clamp(kMaxFactor * dt_s * 60.0 * (1.0 + 1e-6), double{kMaxFactor}, double{kMaxBudgetFactor});
 }
 
+int SubstepControl::budget_factor(double dt_s) { return static_cast<int>(std::floor(budget_rate(dt_s))); }
+
 int SubstepControl::budget_substeps(int configured, double dt_s) {
-  const double factor = std::clamp(kMaxFactor * dt_s * 60.0 * (1.0 + 1e-6), double{kMaxFactor}, double{kMaxBudgetFactor});
-  return static_cast<int>(std::floor(configured * factor));
+  return static_cast<int>(std::floor(configured * budget_rate(dt_s)));
 }
 
 int SubstepControl::start_factor() {

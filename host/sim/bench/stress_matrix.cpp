@@ -240,7 +240,9 @@ nlohmann::json run_stress_matrix(const Scene& scene, const StressMatrixOptions& 
          "ref_substeps,ref_outcome,err_rms_mm,err_max_mm,ref_change_rms_mm,ref_change_max_mm,ref_displacement_rms_mm,note\n";
   nlohmann::json summary;
   summary["scene"] = scene.source;
-  summary["mesh"] = {{"tets", scene.problem.mesh.num_tets()}, {"vertices", scene.problem.mesh.num_vertices()}};
+  summary["mesh"] = {{"tets", scene.problem.mesh.num_tets()},
+                     {"vertices", scene.problem.mesh.num_vertices()},
+                     {"quality", describe(scene.mesh_quality)}};
   summary["frames_per_case"] = o.frames;
   summary["budget_ms"] = kBudget_ms;
   int held = 0, refused = 0, refused_named_held = 0, stopped = 0, adapted = 0, adapted_within = 0, held_within = 0;

@@ -91,7 +91,7 @@ TEST(SubstepControl, LongerStepsHaveALargerBudget) {
   EXPECT_EQ(SubstepControl::budget_factor(1.0 / 120), 8);
   EXPECT_EQ(SubstepControl::budget_factor(1.0 / 60), 8);
   EXPECT_EQ(SubstepControl::budget_factor(1.0 / 30), 16);
-  EXPECT_EQ(SubstepControl::budget_factor(1.0 / 20), 16);
+  EXPECT_EQ(SubstepControl::budget_factor(1.0 / 20), 24);  // the rate, not rounded to a power of two
   EXPECT_EQ(SubstepControl::budget_factor(0.1), 32);
   EXPECT_EQ(SubstepControl::budget_factor(10.0), SubstepControl::kMaxBudgetFactor);
   // The same rate as a count, not rounded to a power of two (the explicit integrator's).
@@ -110,6 +110,25 @@ TEST(SubstepControl, LongerStepsHaveALargerBudget) {
   EXPECT_EQ(c.steps_at_factor()[3], 1);  // the first step, not held at 8x
   EXPECT_EQ(c.steps_at_factor()[4], 1);
   EXPECT_EQ(c.factor(), 16);
+}
+
+// The last redo of a long step runs at the budget itself, not at the power of two below it:
+// a 1/20 s step that needs 20x holds at 24x (before: the budget was rounded down to 16x).
+TEST(SubstepControl, TheLastRedoRunsAtTheBudget) {
+  SubstepControl c;
+  RuleStep r{.need = 20};
+  const StepSummary s = c.run([&] { r.saved = r.state; }, [&] { r.state = r.saved; }, [&](int f) { return r.step(f); },
+                              SubstepControl::budget_factor(1.0 / 20));
+  EXPECT_TRUE(s.healthy) << s.warning;
+  EXPECT_NE(s.warning.find("step redone with 24x"), std::string::npos) << s.warning;
+  EXPECT_EQ(r.attempts, 6);  // 1, 2, 4, 8, 16, 24
+  EXPECT_EQ(c.factor(), 24);
+  EXPECT_EQ(c.steps_at_factor()[5], 1);  // counted at the level above (32x)
+  r.need = 40;  // beyond the budget: not held, and no attempt beyond it
+  r.attempts = 0;
+  EXPECT_FALSE(c.run([&] { r.saved = r.state; }, [&] { r.state = r.saved; }, [&](int f) { return r.step(f); },
+                     SubstepControl::budget_factor(1.0 / 20)).healthy);
+  EXPECT_EQ(r.attempts, 1);  // started at the kept 24x, the budget
 }
 
 TEST(SubstepControl, RefusedConfigurationIsNotRedone) {
