@@ -58,7 +58,7 @@ std::optional<Scene> load_bench_scene(const std::string& path, const SceneReshap
 // --stress-matrix: the matrix on a scene (stress_matrix.hpp).
 int stress_matrix_main(const std::string& scene_path, const SceneReshape& reshape, const std::string& csv_path,
                        const std::vector<std::string>& cases, const std::vector<std::string>& models, int frames,
-                       int reference_factor) {
+                       int reference_factor, int substeps) {
   if (scene_path.empty()) {
     std::cerr << "arnav-sim-bench: --stress-matrix needs --scene (e.g. data/patients/sksurgery_liver_coarse.scene.yaml)\n";
     return 2;
@@ -79,6 +79,7 @@ int stress_matrix_main(const std::string& scene_path, const SceneReshape& reshap
   o.models = models;
   o.cases = cases;
   o.reference_factor = reference_factor;
+  o.substeps = substeps;
   try {
     const nlohmann::json summary = run_stress_matrix(scene, o, csv_path == "-" ? std::cout : file, std::cerr);
     std::cout << summary.dump(2) << "\n";
@@ -110,7 +111,7 @@ static int main_body(int argc, char** argv) {
   app.add_option("--threads", threads, "thread counts to run")->check(CLI::PositiveNumber);
   app.add_option("--model", models, "variant labels (default: every variant of model_variants())");
   app.add_option("--iterations", iterations, "override iterations (XPBD sweeps per substep, CG max)");
-  app.add_option("--substeps", substeps, "override substeps per frame");
+  app.add_option("--substeps", substeps, "override substeps per frame (--stress-matrix: every variant's configured substeps)");
   app.add_option("--energy", energy, "override the XPBD energy (neo_hookean, corotated)");
   app.add_option("--tolerance", tolerance, "override the tolerance (early stop; 0 = run all iterations)");
   app.add_option("--positions-csv", positions_csv,
@@ -149,7 +150,7 @@ static int main_body(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   if (!stress_csv.empty())
     return stress_matrix_main(scene_path, reshape, stress_csv, stress_cases_wanted, models, app.count("--frames") ? frames : 60,
-                              reference_factor);
+                              reference_factor, substeps);
 
   SimProblem problem;
   int grasp = 0;

@@ -250,8 +250,10 @@ nlohmann::json run_stress_matrix(const Scene& scene, const StressMatrixOptions& 
   nlohmann::json stops = nlohmann::json::array(), per_model = nlohmann::json::object(), references = nlohmann::json::array();
   for (const ModelVariant& v : variants) {
     nlohmann::json m = {{"held", 0}, {"refused_at_load", 0}, {"stopped", 0}, {"adapted", 0}};
+    ModelConfig config = v.config;
+    if (o.substeps > 0) config.substeps = o.substeps;
     for (const StressCase& c : cases) {
-      const CaseResult r = run_case(scene, v.config, c, o, true, o.reference_factor > 0);
+      const CaseResult r = run_case(scene, config, c, o, true, o.reference_factor > 0);
       const double median = percentile(r.wall_ms, 0.5);
       const bool within = !r.wall_ms.empty() && median <= kBudget_ms;
       m[r.outcome] = m[r.outcome].get<int>() + 1;
@@ -276,7 +278,7 @@ nlohmann::json run_stress_matrix(const Scene& scene, const StressMatrixOptions& 
       // Error against run time: the adapted runs and the baseline against their reference.
       std::string ref_columns = ",,,,,,";
       if (o.reference_factor > 0 && r.outcome == "held" && (r.control_frames > 0 || c.name == "baseline")) {
-        const ReferenceError e = reference_error(scene, v.config, c, o, r);
+        const ReferenceError e = reference_error(scene, config, c, o, r);
         ref_columns = std::to_string(e.substeps) + ',' + csv_text(e.outcome) + ',' + std::to_string(e.error.rms_mm) + ',' +
                       std::to_string(e.error.max_mm) + ',' + std::to_string(e.change.rms_mm) + ',' +
                       std::to_string(e.change.max_mm) + ',' + std::to_string(e.displacement_rms_mm);

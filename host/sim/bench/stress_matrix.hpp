@@ -40,6 +40,7 @@ struct StressMatrixOptions {
   std::vector<std::string> cases;    // case names (empty: every stress_cases())
   double pull_stiffness_mN_per_mm = 200.0;  // the pulled patch in all (the patient suite's grasp)
   int reference_factor = 0;          // > 0: reference runs (above) at this factor; 0: none
+  int substeps = 0;                  // > 0: every variant at this many configured substeps
 };
 
 // Runs the matrix on `scene` (its problem, materials and fixed set); one CSV row per case to
