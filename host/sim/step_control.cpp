@@ -35,6 +35,19 @@ bool SubstepControl::retry_allowed(const StepSummary& s) {
   return s.termination != "refused_unstable_dt" && s.termination != "factorization_failed";
 }
 
+bool SubstepControl::strained(const StepSummary& s) const {
+  if (!(s.energy_allowance_mN_mm > 0.0)) return false;  // no ledger (the implicit FEMs)
+  const double margin = s.energy_allowance_mN_mm - created_before_mN_mm_;
+  return s.energy_created_mN_mm - created_before_mN_mm_ > kStrainedMarginShare * std::max(margin, 0.0);
+}
+
+std::string SubstepControl::strain_note(const StepSummary& s) const {
+  const double margin = std::max(s.energy_allowance_mN_mm - created_before_mN_mm_, 0.0);
+  const double spent = s.energy_created_mN_mm - created_before_mN_mm_;
+  const std::string share = margin > 0.0 ? std::to_string(std::lround(100.0 * spent / margin)) + " %" : "more than all";
+  return "energy ledger: the step created " + share + " of the margin left";
+}
+
 void SubstepControl::finish(StepSummary& s, int factor, const std::string& first_warning) {
   ++steps_at_[static_cast<std::size_t>(level_of(factor))];
   if (!s.healthy) {
@@ -43,7 +56,8 @@ void SubstepControl::finish(StepSummary& s, int factor, const std::string& first
   }
   if (factor != factor_ || relaxing_) calm_ = 0;  // a new level, or a relaxed step that needed the finer one again
   factor_ = factor;
-  ++calm_;
+  calm_ = strained(s) ? 0 : calm_ + 1;
+  if (s.energy_allowance_mN_mm > 0.0) created_before_mN_mm_ = s.energy_created_mN_mm;
   if (!first_warning.empty()) {
     report(s, "step control: step redone with " + std::to_string(factor) + "x the substeps (" + first_warning +
                   "); kept until " + std::to_string(kCalmSteps) + " calm steps",

@@ -26,6 +26,15 @@ class SubstepControl {
   static constexpr int kMaxBudgetFactor = 32;  // the budget of any step
   static constexpr int kLevels = 6;            // factors 1, 2, 4, 8, 16, 32 (a factor between two counts at the higher)
   static constexpr int kCalmSteps = 30;        // healthy steps at a factor before it is halved (0.5 s at 60 Hz)
+  // A healthy step that creates more than this share of the energy ledger's margin left at
+  // its start (StepSummary::energy_allowance_mN_mm at its end less the energy created before
+  // it) is strained: redone finer while the budget allows, and not calm. The ledger is
+  // cumulative, so a step control that waited for the stop would meet a margin spent by
+  // earlier steps that no redo of the current one recovers; a steady state whose unconverged
+  // energy stays put (XPBD at few iterations) spends nothing and is left alone (docs/sim.md
+  // "Step control").
+  static constexpr double kStrainedMarginShare = 0.5;
+  bool strained(const StepSummary& s) const;
 
   // The largest factor a step of dt_s may use: kMaxFactor per 1/60 s of it, rounded down to
   // an integer, between kMaxFactor and kMaxBudgetFactor. (Before 2026-12-04 it was rounded
@@ -51,8 +60,8 @@ class SubstepControl {
     int factor = start_factor();
     StepSummary s = step(factor);
     std::string first;
-    while (!s.healthy && retry_allowed(s) && factor < max_factor) {
-      if (first.empty()) first = s.warning.substr(0, 160);
+    while ((!s.healthy || strained(s)) && retry_allowed(s) && factor < max_factor) {
+      if (first.empty()) first = s.healthy ? strain_note(s) : s.warning.substr(0, 160);
       factor = std::min(2 * factor, max_factor);
       restore();
       ++redone_;
@@ -61,6 +70,9 @@ class SubstepControl {
     finish(s, factor, first);
     return s;
   }
+
+  // The model reset its energy ledger (nothing created from here on).
+  void ledger_reset() { created_before_mN_mm_ = 0.0; }
 
   // Counts a step that a model ran at `factor` times its configured substeps by its own
   // choice, with no redo (the explicit mass-spring integrator within its stability bound).
@@ -77,12 +89,14 @@ class SubstepControl {
  private:
   int start_factor();
   static bool retry_allowed(const StepSummary& s);
+  std::string strain_note(const StepSummary& s) const;
   void finish(StepSummary& s, int factor, const std::string& first_warning);
 
   int factor_ = 1;
   int calm_ = 0;  // healthy steps at factor_ in a row
   bool relaxing_ = false;
   int redone_ = 0, failed_ = 0;
+  double created_before_mN_mm_ = 0.0;  // the ledger's created energy at the end of the last held step
   std::array<long long, kLevels> steps_at_{};
 };
 

@@ -48,6 +48,8 @@ void EnergyLedger::check(double ke_ee, double u_g, StepSummary& summary) const {
   const double created = (ke_ee + u_g) - (e0_ + u0_ + work_);
   const double budget = e0_ + abs_work_ + std::abs(u_g - u0_);
   const double tolerance = std::max(floor_, kLedgerRelativeTolerance * budget);
+  summary.energy_created_mN_mm = created;
+  summary.energy_allowance_mN_mm = budget + tolerance;
   if (created > budget + tolerance) {
     report(summary,
            "energy balance violated: " + std::to_string(created) + " mN*mm created against a budget of " +

@@ -66,6 +66,11 @@ struct StepSummary {
   std::string warning;            // why not healthy, or a known limit hit (e.g. "inverted tets: 12")
   int inverted_elements = 0;      // elements with det F <= 0 at the end of the step (a counted
                                   // warning, not unhealthy by itself: InversionMonitor)
+  // The energy ledger at the end of the step (EnergyLedger::check), for the models that keep
+  // one (XPBD, mass-spring): energy created since the ledger's reset, and the most that may
+  // be (budget + tolerance; 0: no ledger). Created beyond the allowance is unhealthy.
+  double energy_created_mN_mm = 0.0;
+  double energy_allowance_mN_mm = 0.0;
 };
 
 // Per-element measure for display and checks.

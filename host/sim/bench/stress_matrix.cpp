@@ -76,6 +76,7 @@ struct CaseResult {
   double max_displacement_mm = 0.0;
   double build_ms = 0.0;
   int max_substeps = 0;                        // the most substeps a frame took (configured x factor)
+  double peak_ledger_use = 0.0;                // the most of the energy ledger's allowance used (> 1: stopped)
   std::vector<Eigen::Matrix3Xd> trajectory;    // volume vertices after each frame (when recorded)
 };
 
@@ -129,6 +130,7 @@ CaseResult run_case(const Scene& scene, const ModelConfig& config, const StressC
     if (s.warning.find("step control") != std::string::npos) ++r.control_frames;
     if (s.warning.find("step redone") != std::string::npos) ++r.redone_frames;
     if (s.warning.find("fallback") != std::string::npos) ++r.fallback_frames;
+    if (s.energy_allowance_mN_mm > 0.0) r.peak_ledger_use = std::max(r.peak_ledger_use, s.energy_created_mN_mm / s.energy_allowance_mN_mm);
     const Eigen::Matrix3Xd& x = model->positions_World_mm();
     if (!s.healthy || !x.allFinite()) {
       r.outcome = "stopped";
@@ -236,7 +238,7 @@ nlohmann::json run_stress_matrix(const Scene& scene, const StressMatrixOptions& 
     throw std::invalid_argument("--stress-case: an unknown case name (baseline, nu_0.3, contrast_1000, dt_1/20, load_10g, pull_50mm, ...)");
 
   csv << "model,case,poisson_ratio,contrast,dt_s,load_g,pull_mm,outcome,frames_run,step_control_frames,redone_frames,"
-         "max_factor,fallback_frames,median_ms,p95_ms,max_ms,median_cpu_ms,within_16.7ms,build_ms,max_displacement_mm,named_setting,"
+         "max_factor,fallback_frames,median_ms,p95_ms,max_ms,median_cpu_ms,within_16.7ms,build_ms,max_displacement_mm,peak_ledger_use,named_setting,"
          "ref_substeps,ref_outcome,err_rms_mm,err_max_mm,ref_change_rms_mm,ref_change_max_mm,ref_displacement_rms_mm,note\n";
   nlohmann::json summary;
   summary["scene"] = scene.source;
@@ -299,7 +301,7 @@ nlohmann::json run_stress_matrix(const Scene& scene, const StressMatrixOptions& 
           << c.load_g << ',' << c.pull_mm << ',' << r.outcome << ',' << r.frames_run << ',' << r.control_frames << ','
           << r.redone_frames << ',' << r.max_factor << ',' << r.fallback_frames << ',' << median << ','
           << percentile(r.wall_ms, 0.95) << ',' << percentile(r.wall_ms, 1.0) << ',' << percentile(r.cpu_ms, 0.5) << ',' << (within ? 1 : 0) << ',' << r.build_ms << ','
-          << r.max_displacement_mm << ',' << csv_text(r.named_outcome) << ',' << ref_columns << ',' << csv_text(r.note) << '\n'
+          << r.max_displacement_mm << ',' << r.peak_ledger_use << ',' << csv_text(r.named_outcome) << ',' << ref_columns << ',' << csv_text(r.note) << '\n'
           << std::flush;
       log << v.label << " " << c.name << ": " << r.outcome << " median " << median << " ms, step control " << r.control_frames
           << " frames (max " << r.max_factor << "x)" << (r.note.empty() ? "" : " - " + r.note.substr(0, 160))

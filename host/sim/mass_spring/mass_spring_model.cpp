@@ -546,6 +546,7 @@ void MassSpringModel::set_state(const Eigen::Matrix3Xd& positions_World_mm, cons
 
 void MassSpringModel::reset_ledger() {
   ledger_.reset(kinetic_energy(mass_, v_) + elastic_energy(), gravity_potential(mass_, x_, gravity_));
+  control_.ledger_reset();
 }
 
 void MassSpringModel::assemble(double h) {

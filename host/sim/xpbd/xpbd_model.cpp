@@ -801,6 +801,7 @@ void XpbdModel::remove_attachment(AttachmentId id) { ledger_.add_work(attachment
 
 void XpbdModel::reset_ledger() {
   ledger_.reset(kinetic_energy(mass_, v_) + elastic_energy(), gravity_potential(mass_, x_, gravity_));
+  control_.ledger_reset();
 }
 
 double XpbdModel::total_energy() const {
