@@ -45,8 +45,6 @@ double percentile(std::vector<double> v, double q) {
   return v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5))];
 }
 
-void add_flag(std::string& flags, const std::string& f) { flags += (flags.empty() ? "" : "|") + f; }
-
 // Issue 29: a scene setting the tissue model cannot hold at the session's step rate is refused
 // here, before anything starts (arnav-host exit 2), not stopped mid-session. at_scene names the
 // session file, its line and key 'scene'.
@@ -63,6 +61,11 @@ void refuse_setting_that_cannot_hold(const Scene& scene, double rate_hz, const s
 }
 
 }  // namespace
+
+void add_flag(std::string& flags, std::string_view flag) {
+  if (!flags.empty()) flags += '|';
+  flags += flag;
+}
 
 std::vector<std::string> split_flags(const std::string& flags) {
   std::vector<std::string> out;

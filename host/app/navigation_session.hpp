@@ -27,6 +27,7 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -307,5 +308,8 @@ std::string format_swab_summary(const nlohmann::json& swab);
 
 // Splits "a|b" flags.
 std::vector<std::string> split_flags(const std::string& flags);
+
+// Appends `flag` to "a|b" flags.
+void add_flag(std::string& flags, std::string_view flag);
 
 }  // namespace arnav::host

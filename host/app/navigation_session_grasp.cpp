@@ -38,7 +38,7 @@ void NavigationSession::grasp_frame(std::string& flags, std::vector<std::string>
   // `unregistered` and the registration banner why; the grasper is not stale for that.
   if (s.stale && (s.stale_releases > 0 || (grasp_cmd_.requested && X_RefModel_))) {
     // Never a silently frozen grasp: the organ is released and the banner says why.
-    flags += (flags.empty() ? "" : "|") + std::string("grasper_stale");
+    add_flag(flags, "grasper_stale");
     ++grasper_stale_frames_;
     char text[200];
     if (s.stale_releases > 0)
@@ -48,7 +48,7 @@ void NavigationSession::grasp_frame(std::string& flags, std::vector<std::string>
       std::snprintf(text, sizeof text, "GRASPER STALE: '%s' - no fresh pose in Model, not grasping", g.name.c_str());
     banners.emplace_back(text);
   } else if (s.grasping) {
-    flags += (flags.empty() ? "" : "|") + std::string("grasping");
+    add_flag(flags, "grasping");
   }
 }
 

@@ -60,8 +60,8 @@ void NavigationSession::security_frame(std::int64_t now_us, std::string& flags, 
   security_check_over(now_us);
   std::lock_guard lock(security_mutex_);
   const SecurityWindow w = security_alarm_.window_at(now_us);
-  if (w.sealed_rejected() > 0) flags += (flags.empty() ? "" : "|") + std::string("security_rejected");
-  if (w.dropped.unsealed > 0) flags += (flags.empty() ? "" : "|") + std::string("security_unsealed");
+  if (w.sealed_rejected() > 0) add_flag(flags, "security_rejected");
+  if (w.dropped.unsealed > 0) add_flag(flags, "security_unsealed");
   banners = security_alarm_.banners_at(now_us);
 }
 

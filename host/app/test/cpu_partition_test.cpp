@@ -5,6 +5,7 @@
 
 #include <sched.h>
 
+#include <sstream>
 #include <thread>
 
 #include "host/app/cpu_partition.hpp"
@@ -119,7 +120,9 @@ TEST(CpuPartition, OnWithOneCpuIsASessionError) {
   std::string text;
   {
     std::ifstream in(path);
-    text.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    std::stringstream read;
+    read << in.rdbuf();
+    text = read.str();
   }
   const std::string from = "model: {rate_hz: 60, gravity: false}";
   text.replace(text.find(from), from.size(), "model: {rate_hz: 60, gravity: false, cpu_partition: on}");

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <sstream>
 #include <thread>
 
 
@@ -150,7 +151,9 @@ TEST_F(DisplayWindow, NoDisplayIsAClearErrorAndExit2) {
   ASSERT_TRUE(WIFEXITED(rc));
   EXPECT_EQ(WEXITSTATUS(rc), 2);
   std::ifstream in(log);
-  const std::string out((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::stringstream read;
+  read << in.rdbuf();
+  const std::string out = read.str();
   EXPECT_NE(out.find("key 'display.window': no display"), std::string::npos) << out;
   if (!saved_display.empty()) ::setenv("DISPLAY", saved_display.c_str(), 1);
   if (!saved_wayland.empty()) ::setenv("WAYLAND_DISPLAY", saved_wayland.c_str(), 1);

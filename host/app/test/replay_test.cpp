@@ -123,8 +123,11 @@ TEST(Replay, DeterministicOverlayWithBannersFromAnLcmLoggerLog) {
     ASSERT_EQ(a[i].size(), csv_columns().size());
     // Identical except the measured times (render done, latency, decode done, shown);
     // published and received are the log's.
-    for (std::size_t col = 0; col < a[i].size(); ++col)
-      if (!measured_column(col)) EXPECT_EQ(a[i][col], b[i][col]) << "row " << i << " column " << csv_columns()[col];
+    for (std::size_t col = 0; col < a[i].size(); ++col) {
+      if (!measured_column(col)) {
+        EXPECT_EQ(a[i][col], b[i][col]) << "row " << i << " column " << csv_columns()[col];
+      }
+    }
     const auto k = static_cast<std::int64_t>(i);
     EXPECT_EQ(std::stoll(a[i][0]), k);
     const bool has_pose = k < 20 || k >= 40;
@@ -213,8 +216,11 @@ TEST(Replay, DeterministicWithCuttingAndThePedal) {
   int cutting = 0;
   for (std::size_t i = 0; i < a.size(); ++i) {
     ASSERT_EQ(a[i].size(), csv_columns().size());
-    for (std::size_t col = 0; col < a[i].size(); ++col)
-      if (!measured_column(col)) EXPECT_EQ(a[i][col], b[i][col]) << "row " << i << " column " << csv_columns()[col];
+    for (std::size_t col = 0; col < a[i].size(); ++col) {
+      if (!measured_column(col)) {
+        EXPECT_EQ(a[i][col], b[i][col]) << "row " << i << " column " << csv_columns()[col];
+      }
+    }
     cutting += a[i][10] == "1";
   }
   EXPECT_GE(cutting, 40);
