@@ -8,7 +8,9 @@
 // (budget_factor(dt)).
 // The factor that held is kept for the following steps while they need it and halved after
 // kCalmSteps healthy steps at it (the tissue has calmed): a relaxed step that fails is redone
-// at the finer factor again. Only a step no factor within the budget holds stays unhealthy.
+// at the finer factor again. A healthy step that spends most of the energy ledger's margin is
+// redone finer too (kStrainedMarginShare). Only a step no factor within the budget holds
+// stays unhealthy.
 // Counted (redone steps, steps that no factor held, steps that ended at each factor) and
 // named in the step's warning.
 #include <algorithm>
