@@ -325,7 +325,9 @@ TEST(ArDemoSession, LiveRegistrationRingCutFaultAndRecording) {
         n.ring_reached = n.ring_reached || on_ring;
         if (check_ring) {
           EXPECT_GT(d, 1.0 - displacement) << line;
-          if (n.ring_reached) EXPECT_LT(d, 40.0) << line;
+          if (n.ring_reached) {
+            EXPECT_LT(d, 40.0) << line;
+          }
         }
         n.on_ring_rows += on_ring ? 1 : 0;
       }
