@@ -9,7 +9,7 @@
 
 #include "appliance/ndi/command.hpp"
 #include "appliance/ndi/rom.hpp"
-#include "appliance/yaml/yaml_reader.hpp"
+#include "protocol/yaml/yaml_reader.hpp"
 
 namespace arnav::app {
 namespace {
@@ -67,7 +67,7 @@ AppConfig parse_config(const std::string& text, const std::string& source, const
   } catch (const seal::SecurityError& e) {
     throw ConfigError(e.what());
   }
-  // camera: and frames: are read by appliance/markers/camera_config (docs/camera.md),
+  // camera: and frames: are read by appliance/camera/camera_config (docs/camera.md),
   // can: by appliance/can/can_config (docs/can.md), swab: by appliance/app/swab (docs/register.md).
   if (!root["port"] && !root["ndi"] && (root["camera"] || root["can"]) && !root["tools"]) {  // camera and/or CAN, no NDI
     c.ndi_enabled = false;

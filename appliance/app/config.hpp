@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "appliance/app/realtime.hpp"
+#include "appliance/realtime/realtime.hpp"
 #include "appliance/ndi/session.hpp"
 #include "protocol/seal/security_config.hpp"
 

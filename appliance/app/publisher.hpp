@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "appliance/app/latency_stats.hpp"
+#include "appliance/realtime/latency_stats.hpp"
 #include "appliance/frames/reference_frames.hpp"
 #include "appliance/ndi/session.hpp"
 #include "arnav/appliance_event_t.hpp"

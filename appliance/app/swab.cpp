@@ -7,7 +7,7 @@
 #include <utility>
 
 #include "appliance/app/config.hpp"
-#include "appliance/yaml/yaml_reader.hpp"
+#include "protocol/yaml/yaml_reader.hpp"
 #include "protocol/channels.hpp"
 #include "protocol/clock.hpp"
 

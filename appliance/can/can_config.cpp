@@ -9,7 +9,7 @@
 #include <sstream>
 
 #include "appliance/can/slcan.hpp"
-#include "appliance/yaml/yaml_reader.hpp"
+#include "protocol/yaml/yaml_reader.hpp"
 
 namespace arnav::can {
 namespace {

@@ -5,11 +5,11 @@
 #include <cstdio>
 #include <iostream>
 
-#include "appliance/app/realtime.hpp"
+#include "appliance/realtime/realtime.hpp"
 #include "appliance/can/slcan_transport.hpp"
 #include "appliance/can/socketcan_transport.hpp"
-#include "appliance/ndi/posix_transport.hpp"
-#include "appliance/ndi/serial_transport.hpp"
+#include "appliance/serial/posix_transport.hpp"
+#include "appliance/serial/serial_transport.hpp"
 #include "protocol/channels.hpp"
 #include "protocol/clock.hpp"
 

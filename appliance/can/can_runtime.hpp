@@ -20,7 +20,7 @@
 
 #include "protocol/seal/sealed_lcm.hpp"
 
-#include "appliance/app/latency_stats.hpp"
+#include "appliance/realtime/latency_stats.hpp"
 #include "appliance/can/can_config.hpp"
 #include "appliance/can/can_transport.hpp"
 #include "appliance/can/input_decoder.hpp"

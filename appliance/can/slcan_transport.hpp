@@ -12,7 +12,7 @@
 
 #include "appliance/can/can_transport.hpp"
 #include "appliance/can/slcan.hpp"
-#include "appliance/ndi/transport.hpp"
+#include "appliance/serial/transport.hpp"
 
 namespace arnav::can {
 

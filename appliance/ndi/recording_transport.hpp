@@ -8,7 +8,7 @@
 #include <string>
 
 #include "appliance/ndi/transcript.hpp"
-#include "appliance/ndi/transport.hpp"
+#include "appliance/serial/transport.hpp"
 
 namespace arnav::ndi {
 

@@ -21,7 +21,7 @@
 #include "appliance/ndi/reply.hpp"
 #include "appliance/ndi/rom.hpp"
 #include "appliance/ndi/tracking.hpp"
-#include "appliance/ndi/transport.hpp"
+#include "appliance/serial/transport.hpp"
 
 namespace arnav::ndi {
 

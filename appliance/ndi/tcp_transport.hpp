@@ -8,7 +8,7 @@
 #include <optional>
 #include <string>
 
-#include "appliance/ndi/transport.hpp"
+#include "appliance/serial/transport.hpp"
 
 namespace arnav::ndi {
 

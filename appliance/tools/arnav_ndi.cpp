@@ -17,9 +17,9 @@
 #include <sys/stat.h>
 
 #include "appliance/ndi/command.hpp"
-#include "appliance/ndi/posix_transport.hpp"
+#include "appliance/serial/posix_transport.hpp"
 #include "appliance/ndi/recording_transport.hpp"
-#include "appliance/ndi/serial_transport.hpp"
+#include "appliance/serial/serial_transport.hpp"
 #include "appliance/ndi/session.hpp"
 #include "appliance/ndi/tcp_transport.hpp"
 #include "appliance/tools/decode.hpp"

@@ -8,7 +8,7 @@
 #include <cstddef>
 #include <vector>
 
-#include "host/scene/tet_mesh.hpp"
+#include "host/mesh/tet_mesh.hpp"
 
 namespace arnav::host {
 

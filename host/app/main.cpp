@@ -22,7 +22,7 @@
 #include "host/app/navigation_session.hpp"
 #include "host/app/status_report.hpp"
 #include "host/app/surface_publisher.hpp"
-#include "host/scene/load_error.hpp"
+#include "host/mesh/load_error.hpp"
 #include "host/scene/scene.hpp"
 #include "host/overlay/egl_context.hpp"
 #include "protocol/channels.hpp"

@@ -9,7 +9,7 @@
 
 #include "arnav/point_cloud_t.hpp"
 #include "host/app/navigation_session.hpp"
-#include "host/scene/load_error.hpp"
+#include "host/mesh/load_error.hpp"
 #include "protocol/pose_convert.hpp"
 
 namespace arnav::host {

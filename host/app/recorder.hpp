@@ -40,7 +40,7 @@
 #include <vector>
 
 #include "host/app/session_config.hpp"
-#include "host/scene/tet_mesh.hpp"
+#include "host/mesh/tet_mesh.hpp"
 
 namespace arnav::host {
 

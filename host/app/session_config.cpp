@@ -5,11 +5,11 @@
 #include <fstream>
 #include <sstream>
 
-#include "appliance/yaml/yaml_reader.hpp"
+#include "protocol/yaml/yaml_reader.hpp"
 #include "calibration/lib/calib_error.hpp"
 #include "calibration/lib/rigid_transform_file.hpp"
 #include "host/register/point_files.hpp"
-#include "host/scene/load_error.hpp"
+#include "host/mesh/load_error.hpp"
 
 namespace arnav::host {
 namespace {

@@ -13,7 +13,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "host/scene/tet_mesh.hpp"
+#include "host/mesh/tet_mesh.hpp"
 
 namespace arnav::host {
 

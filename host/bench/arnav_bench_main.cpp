@@ -22,7 +22,7 @@
 #include "host/bench/register_bench.hpp"
 #include "host/bench/register_hard_bench.hpp"
 #include "host/bench/transection_bench.hpp"
-#include "host/scene/load_error.hpp"
+#include "host/mesh/load_error.hpp"
 #include "protocol/guarded_main.hpp"
 
 // Runs one subcommand: a bad input file exits 2, any other failure 1, each with its message.

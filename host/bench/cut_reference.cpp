@@ -10,7 +10,7 @@
 #include "host/cut/bvh.hpp"
 #include "host/cut/scalpel_path.hpp"
 #include "host/scene/scene.hpp"
-#include "host/scene/surface_shapes.hpp"
+#include "host/mesh/surface_shapes.hpp"
 
 namespace arnav::host {
 

@@ -9,7 +9,7 @@
 #include <iostream>
 #include <memory>
 
-#include "host/scene/load_error.hpp"
+#include "host/mesh/load_error.hpp"
 #include "host/scene/scene.hpp"
 #include "host/sim/model_factory.hpp"
 

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "host/cut/blade.hpp"
-#include "host/scene/tet_mesh.hpp"
+#include "host/mesh/tet_mesh.hpp"
 
 namespace arnav::host::cut {
 

@@ -7,7 +7,7 @@
 #include <numeric>
 #include <sstream>
 
-#include "host/scene/mesh_quality.hpp"
+#include "host/mesh/mesh_quality.hpp"
 
 namespace arnav::host::cut {
 

@@ -26,7 +26,7 @@
 
 #include "host/cut/blade.hpp"
 #include "host/cut/scalpel_path.hpp"
-#include "host/scene/tet_mesh.hpp"
+#include "host/mesh/tet_mesh.hpp"
 
 namespace arnav::host::cut {
 

@@ -6,7 +6,7 @@
 #include <fstream>
 #include <sstream>
 
-#include "host/scene/load_error.hpp"
+#include "host/mesh/load_error.hpp"
 
 namespace arnav::host::cut {
 

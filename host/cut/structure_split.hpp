@@ -29,7 +29,7 @@
 #include "host/cut/blade.hpp"
 #include "host/cut/bvh.hpp"
 #include "host/scene/embedding.hpp"
-#include "host/scene/tet_mesh.hpp"
+#include "host/mesh/tet_mesh.hpp"
 
 namespace arnav::host::cut {
 

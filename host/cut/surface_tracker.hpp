@@ -19,7 +19,7 @@
 #include <vector>
 
 #include "host/cut/bvh.hpp"
-#include "host/scene/tet_mesh.hpp"
+#include "host/mesh/tet_mesh.hpp"
 
 namespace arnav::host::cut {
 

@@ -13,7 +13,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "host/scene/box_mesh.hpp"
+#include "host/mesh/box_mesh.hpp"
 
 namespace arnav::host::cut {
 

@@ -8,7 +8,7 @@
 
 #include <Eigen/Geometry>
 
-#include "host/scene/surface_shapes.hpp"
+#include "host/mesh/surface_shapes.hpp"
 
 namespace arnav::host::overlay {
 

@@ -25,7 +25,7 @@
 #include <vector>
 
 #include "host/overlay/camera_projection.hpp"
-#include "host/scene/tet_mesh.hpp"
+#include "host/mesh/tet_mesh.hpp"
 
 namespace arnav::host::overlay {
 

@@ -12,7 +12,7 @@
 #include <unistd.h>
 
 #include "host/register/basis_cache_file.hpp"
-#include "host/scene/load_error.hpp"
+#include "host/mesh/load_error.hpp"
 
 namespace arnav::host {
 namespace {

@@ -13,9 +13,9 @@
 #include <optional>
 
 #include "arnav/point_cloud_t.hpp"
-#include "host/scene/load_error.hpp"
-#include "host/scene/mesh_formats.hpp"
-#include "host/scene/mesh_io.hpp"
+#include "host/mesh/load_error.hpp"
+#include "host/mesh/mesh_formats.hpp"
+#include "host/mesh/mesh_io.hpp"
 
 namespace arnav::host {
 namespace {

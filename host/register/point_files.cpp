@@ -6,8 +6,8 @@
 #include <fstream>
 #include <set>
 
-#include "host/scene/load_error.hpp"
-#include "host/scene/mesh_io.hpp"
+#include "host/mesh/load_error.hpp"
+#include "host/mesh/mesh_io.hpp"
 
 namespace arnav::host {
 namespace {

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <sstream>
 
-#include "host/scene/load_error.hpp"
+#include "host/mesh/load_error.hpp"
 
 namespace arnav::host {
 namespace {

@@ -7,7 +7,7 @@
 
 #include <vector>
 
-#include "host/scene/tet_mesh.hpp"
+#include "host/mesh/tet_mesh.hpp"
 #include "host/sim/tissue_model.hpp"
 
 namespace arnav::host {

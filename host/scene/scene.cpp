@@ -6,12 +6,12 @@
 #include <set>
 #include <sstream>
 
-#include "host/scene/load_error.hpp"
-#include "host/scene/mesh_io.hpp"
+#include "host/mesh/load_error.hpp"
+#include "host/mesh/mesh_io.hpp"
 #include "host/scene/scene_spec.hpp"
-#include "host/scene/surface_decimate.hpp"
-#include "host/scene/surface_shapes.hpp"
-#include "host/scene/tetgen_mesher.hpp"
+#include "host/mesh/surface_decimate.hpp"
+#include "host/mesh/surface_shapes.hpp"
+#include "host/mesh/tetgen_mesher.hpp"
 
 namespace arnav::host {
 namespace {

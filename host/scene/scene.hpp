@@ -9,9 +9,9 @@
 #include <vector>
 
 #include "host/scene/embedding.hpp"
-#include "host/scene/mesh_quality.hpp"
+#include "host/mesh/mesh_quality.hpp"
 #include "host/scene/scene_spec.hpp"
-#include "host/scene/tet_mesh.hpp"
+#include "host/mesh/tet_mesh.hpp"
 #include "host/sim/model_config.hpp"
 #include "host/sim/tissue_model.hpp"
 

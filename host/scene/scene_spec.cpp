@@ -6,7 +6,7 @@
 #include <initializer_list>
 #include <set>
 
-#include "host/scene/load_error.hpp"
+#include "host/mesh/load_error.hpp"
 
 namespace arnav::host {
 namespace {

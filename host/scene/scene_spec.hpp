@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "host/scene/tetgen_mesher.hpp"
+#include "host/mesh/tetgen_mesher.hpp"
 #include "host/sim/model_config.hpp"
 #include "host/sim/tissue_model.hpp"
 

@@ -1,6 +1,6 @@
 #include "host/sim/embedded_elements.hpp"
 
-#include "host/scene/mesh_quality.hpp"
+#include "host/mesh/mesh_quality.hpp"
 #include "host/sim/tissue_model.hpp"
 
 #include <Eigen/Geometry>

@@ -16,7 +16,7 @@
 #include <initializer_list>
 #include <vector>
 
-#include "host/scene/tet_mesh.hpp"
+#include "host/mesh/tet_mesh.hpp"
 
 namespace arnav::host {
 

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "host/scene/tet_mesh.hpp"
+#include "host/mesh/tet_mesh.hpp"
 #include "host/sim/embedded_elements.hpp"
 
 namespace arnav::host {

@@ -9,7 +9,7 @@
 #include <iostream>
 #include <sstream>
 
-#include "host/scene/load_error.hpp"
+#include "host/mesh/load_error.hpp"
 #include "host/scene/scene.hpp"
 #include "host/sim/model_factory.hpp"
 #include "host/tools/sim_run.hpp"

@@ -9,8 +9,8 @@
 
 #include "host/cut/cut_session.hpp"
 #include "host/cut/mesh_checks.hpp"
-#include "host/scene/mesh_io.hpp"
-#include "host/scene/surface_shapes.hpp"
+#include "host/mesh/mesh_io.hpp"
+#include "host/mesh/surface_shapes.hpp"
 #include "host/sim/model_factory.hpp"
 
 namespace arnav::host {

@@ -9,7 +9,7 @@
 #include <unistd.h>
 
 #include "appliance/app/config.hpp"
-#include "appliance/app/realtime.hpp"
+#include "appliance/realtime/realtime.hpp"
 #include "protocol/testing/error_of.hpp"
 
 namespace arnav::app {

@@ -9,7 +9,7 @@
 
 #include "appliance/can/can_transport.hpp"
 #include "appliance/can/slcan.hpp"
-#include "appliance/ndi/transport.hpp"
+#include "appliance/serial/transport.hpp"
 #include "protocol/clock.hpp"
 
 namespace arnav::can::test {

@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "appliance/ndi/transport.hpp"
+#include "appliance/serial/transport.hpp"
 
 namespace arnav::ndi::test {
 

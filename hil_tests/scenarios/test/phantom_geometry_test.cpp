@@ -11,7 +11,7 @@
 #include <sstream>
 #include <unistd.h>
 
-#include "appliance/markers/camera_config.hpp"
+#include "appliance/camera/camera_config.hpp"
 #include "appliance/synthetic_camera/phantom_recording.hpp"
 #include "calibration/lib/rigid_transform_file.hpp"
 #include "hil_tests/polaris_sim/scenario.hpp"

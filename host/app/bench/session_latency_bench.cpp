@@ -25,7 +25,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "host/app/navigation_session.hpp"
-#include "host/scene/load_error.hpp"
+#include "host/mesh/load_error.hpp"
 #include "host/scene/scene.hpp"
 #include "protocol/clock.hpp"
 #include "protocol/pose_convert.hpp"

@@ -7,7 +7,7 @@
 #include <string>
 
 #include "host/cut/scalpel_path.hpp"
-#include "host/scene/load_error.hpp"
+#include "host/mesh/load_error.hpp"
 
 using namespace arnav::host;
 

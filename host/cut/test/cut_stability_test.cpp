@@ -11,7 +11,7 @@
 
 #include "host/cut/cut_session.hpp"
 #include "host/cut/mesh_checks.hpp"
-#include "host/scene/box_mesh.hpp"
+#include "host/mesh/box_mesh.hpp"
 #include "host/sim/model_factory.hpp"
 
 using namespace arnav::host;

@@ -2,7 +2,7 @@
 #include <gtest/gtest.h>
 
 #include "host/cut/cut_session.hpp"
-#include "host/scene/load_error.hpp"
+#include "host/mesh/load_error.hpp"
 #include "host/scene/scene.hpp"
 #include "host/scene/scene_spec.hpp"
 #include "protocol/testing/error_of.hpp"

@@ -7,7 +7,7 @@
 
 #include "host/cut/blade.hpp"
 #include "host/cut/bvh.hpp"
-#include "host/scene/box_mesh.hpp"
+#include "host/mesh/box_mesh.hpp"
 
 using namespace arnav::host;
 using namespace arnav::host::cut;

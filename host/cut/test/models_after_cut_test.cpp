@@ -14,7 +14,7 @@
 
 #include "host/cut/cut_session.hpp"
 #include "host/cut/mesh_checks.hpp"
-#include "host/scene/box_mesh.hpp"
+#include "host/mesh/box_mesh.hpp"
 #include "host/sim/test/box_problem.hpp"
 #include "host/sim/fem/corotational_fem.hpp"
 #include "host/sim/mass_spring/mass_spring_model.hpp"

@@ -2,7 +2,7 @@
 #include <gtest/gtest.h>
 
 #include "host/cut/scalpel_path.hpp"
-#include "host/scene/load_error.hpp"
+#include "host/mesh/load_error.hpp"
 
 using namespace arnav::host;
 using namespace arnav::host::cut;

@@ -15,10 +15,10 @@
 #include "host/cut/cut_session.hpp"
 #include "host/cut/mesh_checks.hpp"
 #include "host/cut/structure_split.hpp"
-#include "host/scene/box_mesh.hpp"
+#include "host/mesh/box_mesh.hpp"
 #include "host/sim/test/box_problem.hpp"
 #include "host/scene/scene.hpp"
-#include "host/scene/surface_shapes.hpp"
+#include "host/mesh/surface_shapes.hpp"
 #include "host/sim/model_factory.hpp"
 
 using namespace arnav::host;

@@ -8,7 +8,7 @@
 
 #include "host/cut/surface_tracker.hpp"
 #include "host/cut/tet_cutter.hpp"
-#include "host/scene/box_mesh.hpp"
+#include "host/mesh/box_mesh.hpp"
 
 using namespace arnav::host;
 using namespace arnav::host::cut;

@@ -6,7 +6,7 @@
 #include <map>
 #include <vector>
 
-#include "host/scene/tet_mesh.hpp"
+#include "host/mesh/tet_mesh.hpp"
 
 namespace arnav::host::cut::test {
 

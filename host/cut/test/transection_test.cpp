@@ -24,9 +24,9 @@
 #include "host/cut/cut_session.hpp"
 #include "host/cut/mesh_checks.hpp"
 #include "host/cut/transection.hpp"
-#include "host/scene/mesh_io.hpp"
+#include "host/mesh/mesh_io.hpp"
 #include "host/scene/scene.hpp"
-#include "host/scene/test/test_paths.hpp"
+#include "host/mesh/test/test_paths.hpp"
 #include "host/sim/model_factory.hpp"
 
 using namespace arnav::host;

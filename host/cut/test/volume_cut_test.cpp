@@ -9,8 +9,8 @@
 
 #include "host/cut/mesh_checks.hpp"
 #include "host/cut/tet_cutter.hpp"
-#include "host/scene/box_mesh.hpp"
-#include "host/scene/mesh_quality.hpp"
+#include "host/mesh/box_mesh.hpp"
+#include "host/mesh/mesh_quality.hpp"
 
 using namespace arnav::host;
 using namespace arnav::host::cut;

@@ -16,7 +16,7 @@
 #include "host/overlay/egl_context.hpp"
 #include "host/overlay/overlay_geometry.hpp"
 #include "host/overlay/overlay_renderer.hpp"
-#include "host/scene/load_error.hpp"
+#include "host/mesh/load_error.hpp"
 #include "host/scene/scene.hpp"
 #include "protocol/guarded_main.hpp"
 

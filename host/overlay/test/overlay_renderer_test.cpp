@@ -15,7 +15,7 @@
 #include "host/overlay/egl_context.hpp"
 #include "host/overlay/overlay_geometry.hpp"
 #include "host/overlay/overlay_renderer.hpp"
-#include "host/scene/surface_shapes.hpp"
+#include "host/mesh/surface_shapes.hpp"
 
 namespace arnav::host::overlay {
 namespace {

@@ -7,7 +7,7 @@
 #include <string>
 
 #include "host/register/basis_cache_file.hpp"
-#include "host/scene/load_error.hpp"
+#include "host/mesh/load_error.hpp"
 
 using namespace arnav::host;
 

@@ -7,7 +7,7 @@
 
 #include "host/register/point_cloud.hpp"
 #include "host/register/point_files.hpp"
-#include "host/scene/load_error.hpp"
+#include "host/mesh/load_error.hpp"
 
 using namespace arnav::host;
 

@@ -19,8 +19,8 @@
 
 #include "host/register/basis_cache.hpp"
 #include "host/register/basis_cache_file.hpp"
-#include "host/scene/box_mesh.hpp"
-#include "host/scene/load_error.hpp"
+#include "host/mesh/box_mesh.hpp"
+#include "host/mesh/load_error.hpp"
 
 using namespace arnav::host;
 namespace fs = std::filesystem;

@@ -17,7 +17,7 @@
 #include "arnav/point_cloud_t.hpp"
 #include "host/register/cloud_collector.hpp"
 #include "host/register/synthetic_data.hpp"
-#include "host/scene/load_error.hpp"
+#include "host/mesh/load_error.hpp"
 #include "host/scene/scene.hpp"
 
 using namespace arnav::host;

@@ -17,7 +17,7 @@
 
 #include "host/register/load_basis.hpp"
 #include "host/register/registration.hpp"
-#include "host/scene/box_mesh.hpp"
+#include "host/mesh/box_mesh.hpp"
 
 using namespace arnav::host;
 

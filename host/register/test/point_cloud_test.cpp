@@ -10,7 +10,7 @@
 
 #include "arnav/point_cloud_t.hpp"
 #include "host/register/point_cloud.hpp"
-#include "host/scene/load_error.hpp"
+#include "host/mesh/load_error.hpp"
 #include "protocol/testing/error_of.hpp"
 
 using namespace arnav::host;

@@ -2,7 +2,7 @@
 #include <gtest/gtest.h>
 
 #include "host/register/point_files.hpp"
-#include "host/scene/load_error.hpp"
+#include "host/mesh/load_error.hpp"
 
 using namespace arnav::host;
 

@@ -9,7 +9,7 @@
 #include "host/register/rigid_registration.hpp"
 #include "host/register/surface_index.hpp"
 #include "host/register/synthetic_data.hpp"
-#include "host/scene/mesh_io.hpp"
+#include "host/mesh/mesh_io.hpp"
 
 using namespace arnav::host;
 

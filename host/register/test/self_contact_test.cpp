@@ -10,7 +10,7 @@
 
 #include "host/register/nonrigid_registration.hpp"
 #include "host/register/self_contact.hpp"
-#include "host/scene/box_mesh.hpp"
+#include "host/mesh/box_mesh.hpp"
 
 using namespace arnav::host;
 

@@ -3,7 +3,7 @@
 #include <cstdint>
 #include <string>
 
-#include "host/scene/load_error.hpp"
+#include "host/mesh/load_error.hpp"
 #include "host/scene/scene_spec.hpp"
 
 using namespace arnav::host;

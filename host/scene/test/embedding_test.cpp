@@ -5,9 +5,9 @@
 #include <Eigen/Geometry>
 #include <random>
 
-#include "host/scene/box_mesh.hpp"
+#include "host/mesh/box_mesh.hpp"
 #include "host/scene/embedding.hpp"
-#include "host/scene/load_error.hpp"
+#include "host/mesh/load_error.hpp"
 
 namespace arnav::host {
 namespace {

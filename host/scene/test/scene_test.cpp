@@ -6,13 +6,13 @@
 #include <filesystem>
 
 
-#include "host/scene/box_mesh.hpp"
-#include "host/scene/load_error.hpp"
-#include "host/scene/mesh_io.hpp"
+#include "host/mesh/box_mesh.hpp"
+#include "host/mesh/load_error.hpp"
+#include "host/mesh/mesh_io.hpp"
 #include "host/scene/scene.hpp"
 #include "host/scene/scene_spec.hpp"
-#include "host/scene/surface_shapes.hpp"
-#include "host/scene/test/test_paths.hpp"
+#include "host/mesh/surface_shapes.hpp"
+#include "host/mesh/test/test_paths.hpp"
 #include "protocol/testing/error_of.hpp"
 
 namespace arnav::host {

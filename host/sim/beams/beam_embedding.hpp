@@ -13,7 +13,7 @@
 #include <array>
 #include <vector>
 
-#include "host/scene/tet_mesh.hpp"
+#include "host/mesh/tet_mesh.hpp"
 #include "host/sim/beams/beam_element.hpp"
 #include "host/sim/tissue_model.hpp"
 

@@ -13,8 +13,8 @@
 #include <iostream>
 #include <optional>
 
-#include "host/scene/box_mesh.hpp"
-#include "host/scene/load_error.hpp"
+#include "host/mesh/box_mesh.hpp"
+#include "host/mesh/load_error.hpp"
 #include "host/scene/reshape.hpp"
 #include "host/scene/scene.hpp"
 #include "host/sim/bench/stress_matrix.hpp"

@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "host/scene/tet_mesh.hpp"
+#include "host/mesh/tet_mesh.hpp"
 #include "host/sim/tissue_model.hpp"
 
 namespace arnav::host {

@@ -3,7 +3,7 @@
 
 #include <Eigen/Core>
 
-#include "host/scene/box_mesh.hpp"
+#include "host/mesh/box_mesh.hpp"
 #include "host/sim/tissue_model.hpp"
 
 namespace arnav::host::test {

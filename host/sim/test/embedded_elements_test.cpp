@@ -9,7 +9,7 @@
 #include <vector>
 #include <cmath>
 
-#include "host/scene/box_mesh.hpp"
+#include "host/mesh/box_mesh.hpp"
 #include "host/sim/embedded_elements.hpp"
 #include "host/sim/model_factory.hpp"
 #include "host/sim/tet_geometry.hpp"

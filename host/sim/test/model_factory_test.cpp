@@ -2,7 +2,7 @@
 
 #include <algorithm>
 
-#include "host/scene/box_mesh.hpp"
+#include "host/mesh/box_mesh.hpp"
 #include "host/sim/model_factory.hpp"
 
 namespace arnav::host {

@@ -34,10 +34,10 @@
 #include <string>
 #include <vector>
 
-#include "host/scene/mesh_io.hpp"
+#include "host/mesh/mesh_io.hpp"
 #include "host/scene/reshape.hpp"
 #include "host/scene/scene.hpp"
-#include "host/scene/test/test_paths.hpp"
+#include "host/mesh/test/test_paths.hpp"
 #include "host/sim/mass_spring/mass_spring_model.hpp"
 #include "host/sim/model_factory.hpp"
 #include "host/sim/xpbd/xpbd_model.hpp"

@@ -14,7 +14,7 @@
 #include <map>
 #include <string>
 
-#include "host/scene/box_mesh.hpp"
+#include "host/mesh/box_mesh.hpp"
 #include "host/sim/model_factory.hpp"
 #include "host/sim/mass_spring/mass_spring_model.hpp"
 #include "host/sim/xpbd/xpbd_model.hpp"

@@ -8,7 +8,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "host/scene/box_mesh.hpp"
+#include "host/mesh/box_mesh.hpp"
 #include "host/sim/model_factory.hpp"
 
 namespace arnav::host {

@@ -6,7 +6,7 @@
 #include <Eigen/Geometry>
 #include <numbers>
 
-#include "host/scene/box_mesh.hpp"
+#include "host/mesh/box_mesh.hpp"
 #include "host/sim/beams/beam_element.hpp"
 #include "host/sim/beams/beam_embedding.hpp"
 

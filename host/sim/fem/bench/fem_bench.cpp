@@ -23,7 +23,7 @@
 #include <string>
 #include <vector>
 
-#include "host/scene/box_mesh.hpp"
+#include "host/mesh/box_mesh.hpp"
 #include "host/scene/scene.hpp"
 #include "host/sim/fem/blas_threads.hpp"
 #include "host/sim/fem/corotational_fem.hpp"

@@ -11,7 +11,7 @@
 #include "host/cut/cut_session.hpp"
 #include "host/cut/mesh_checks.hpp"
 #include "host/cut/tet_cutter.hpp"
-#include "host/scene/box_mesh.hpp"
+#include "host/mesh/box_mesh.hpp"
 #include "host/sim/test/box_problem.hpp"
 #include "host/sim/fem/corotational_fem.hpp"
 #include "host/sim/fem/stable_neo_hookean_fem.hpp"

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <vector>
 
-#include "host/scene/box_mesh.hpp"
+#include "host/mesh/box_mesh.hpp"
 #include "host/sim/fem/corotational_fem.hpp"
 
 namespace arnav::host::fem_test {

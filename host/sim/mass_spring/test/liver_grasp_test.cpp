@@ -9,7 +9,7 @@
 #include <algorithm>
 
 #include "host/scene/scene.hpp"
-#include "host/scene/test/test_paths.hpp"
+#include "host/mesh/test/test_paths.hpp"
 #include "host/sim/mass_spring/mass_spring_model.hpp"
 
 namespace arnav::host {

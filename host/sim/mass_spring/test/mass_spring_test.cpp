@@ -7,7 +7,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "host/scene/box_mesh.hpp"
+#include "host/mesh/box_mesh.hpp"
 #include "host/sim/test/box_problem.hpp"
 #include "host/sim/mass_spring/mass_spring_model.hpp"
 

@@ -10,7 +10,7 @@
 #include <iostream>
 #include <random>
 
-#include "host/scene/box_mesh.hpp"
+#include "host/mesh/box_mesh.hpp"
 #include "host/sim/test/box_problem.hpp"
 #include "host/sim/embedded_elements.hpp"
 #include "host/sim/tet_geometry.hpp"
