@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <optional>
 #include <queue>
 #include <set>
 #include <sstream>
@@ -1339,77 +1340,66 @@ void TetCutter::complete_left_tets(const std::vector<int>& candidates, int old_t
   split_completed(completed, cut_piece, x, v, r);
 }
 
-CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v) {
-  const auto start = std::chrono::steady_clock::now();
-  CutStepReport r;
-  const int first_new_vertex = mesh_.num_vertices();
-  if (x.cols() != mesh_.num_vertices()) throw std::invalid_argument("cut: positions do not match the mesh");
-  if (v.cols() != 0 && v.cols() != mesh_.num_vertices()) throw std::invalid_argument("cut: velocities do not match the mesh");
+namespace {
+
+// The sweep's triangles with an area: those of a blade moving (almost) along its own axis
+// are (nearly) collinear, their normal is round-off and would give vertices arbitrary
+// sides. Kept only when the area is not negligible against the longest edge (height > 1e-9
+// of it).
+std::vector<Triangle> triangles_with_area(const SweptSurface& sweep) {
   std::vector<Triangle> tris;
-  // Triangles of a blade moving (almost) along its own axis are (nearly) collinear: their
-  // normal is round-off and would give vertices arbitrary sides. Kept only when the area is
-  // not negligible against the longest edge (height > 1e-9 of it).
   for (const auto& t : sweep.triangles()) {
     const double longest2 = std::max({(t.b - t.a).squaredNorm(), (t.c - t.b).squaredNorm(), (t.a - t.c).squaredNorm()});
     if ((t.b - t.a).cross(t.c - t.a).norm() > 1e-9 * longest2) tris.push_back(t);
   }
-  auto finish = [&]() {
-    r.update_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-    return r;
-  };
-  if ((tris.empty() && !finishing_) || mesh_.tets.empty()) return finish();
-  const double f = settings_.snap_fraction, vtol = settings_.vertex_tolerance_mm;
+  return tris;
+}
+
+void sort_unique(std::vector<int>& ids) {
+  std::sort(ids.begin(), ids.end());
+  ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+}
+
+}  // namespace
+
+std::vector<int> TetCutter::sweep_candidates(const std::vector<Triangle>& tris, const Eigen::Matrix3Xd& x) {
+  std::vector<int> candidates;
+  if (tris.empty()) return candidates;
   Aabb sweep_box;
   for (const auto& t : tris) {
     sweep_box.extend(t.a);
     sweep_box.extend(t.b);
     sweep_box.extend(t.c);
   }
-  sweep_box = sweep_box.inflated(vtol);
-
-  // Candidates: tets whose current box meets the swept surface's box.
-  std::vector<int> candidates;
-  if (!tris.empty()) bvh_.refit(family_boxes(x));
-  if (!tris.empty()) bvh_.query(sweep_box, [&](int fam) {
+  sweep_box = sweep_box.inflated(settings_.vertex_tolerance_mm);
+  bvh_.refit(family_boxes(x));
+  bvh_.query(sweep_box, [&](int fam) {
     for (int t : family_[static_cast<std::size_t>(fam)]) {
       Aabb b;
       for (int w : mesh_.tets[static_cast<std::size_t>(t)]) b.extend(Eigen::Vector3d(x.col(w)));
       if (b.overlaps(sweep_box)) candidates.push_back(t);
     }
   });
-  r.candidate_tets = static_cast<int>(candidates.size());
-  if (candidates.empty() && pending_.empty() && undecided_faces_.empty()) return finish();
-  const int old_tets = mesh_.num_tets();
-  // Tets a blade end (tip or heel path) passes through hold the crack front.
-  if (!tris.empty()) {
-    mark_tip_tets(sweep, candidates, x);
-    const Triangle& t0 = tris.front();
-    last_normal_ = (t0.b - t0.a).cross(t0.c - t0.a).normalized();
-  }
+  return candidates;
+}
 
+void TetCutter::record_stroke_surface(const SweptSurface& sweep, const std::vector<Triangle>& tris, const Eigen::Matrix3Xd& x) {
+  append_chunk(tris, stroke_tris_, stroke_chunks_);
+  // The same surface in the material, while the tissue is where the blade met it (the
+  // hierarchy holds x since the candidates' query): crossings completed later, when the
+  // tissue has moved, are taken from it.
+  const std::vector<Triangle> in_material = sweep_in_material(sweep, x, false);
+  if (!in_material.empty()) append_chunk(in_material, stroke_tris_rest_, stroke_chunks_rest_);
+}
 
-  refine_ahead(tris, candidates, x, v, r);
-  if (r.edges_refined > 0) {  // the bisected tets' children were appended (their parents' ids are kept)
-    std::sort(candidates.begin(), candidates.end());
-    candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
-  }
-
-  if (!tris.empty()) {
-    append_chunk(tris, stroke_tris_, stroke_chunks_);
-    // The same surface in the material, while the tissue is where the blade met it (the
-    // hierarchy holds x since the candidates' query): crossings completed later, when the
-    // tissue has moved, are taken from it.
-    const std::vector<Triangle> in_material = sweep_in_material(sweep, x, false);
-    if (!in_material.empty()) append_chunk(in_material, stroke_tris_rest_, stroke_chunks_rest_);
-  }
-  // 1. Vertices on the swept surface.
-  std::unordered_set<int> seen_vertices;
+void TetCutter::snap_vertices_on_sweep(const std::vector<Triangle>& tris, const std::vector<int>& candidates,
+                                       const Eigen::Matrix3Xd& x, std::unordered_set<int>& seen_vertices, CutStepReport& r) {
   for (int t : candidates)
     for (int w : mesh_.tets[static_cast<std::size_t>(t)])
       if (seen_vertices.insert(w).second && !on_stroke(w)) {
         int nearest = 0;
         const double d = sweep_distance(tris, x.col(w), &nearest);
-        if (d <= vtol) {
+        if (d <= settings_.vertex_tolerance_mm) {
           on_cut_[static_cast<std::size_t>(w)] = stroke_;
           cut_normal_[static_cast<std::size_t>(w)] = unit_normal(tris[static_cast<std::size_t>(nearest)]);
           ++r.vertices_snapped;
@@ -1417,16 +1407,69 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
           r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, d);
         }
       }
-  // 2. Edge crossings: snapped to an end within f of it, recorded otherwise.
-  // An edge with one end already on this stroke's cut that the sweep crosses again farther
-  // along (a curved cut, a ring, on tets larger than its curvature) is split there below:
-  // its other end lies beyond the second crossing, and a side taken from the first one
-  // would be wrong.
-  struct SecondCrossing {
-    int on_cut, free;
-    double s;  // from on_cut to free
-    Triangle tri;
-  };
+}
+
+bool TetCutter::snap_to_crossing(int w, int o, double t_w, double edge_mm, const Triangle& tri, Eigen::Matrix3Xd& x,
+                                 Eigen::Matrix3Xd& v, CutStepReport& r) {
+  if (t_w > settings_.snap_fraction) return false;
+  // Near an end. An interior vertex not on any cut yet is moved onto the swept surface
+  // (paper 000's moving vertex: no split, no sliver, the cut stays on the path). Any other
+  // vertex snaps (the cut passes through it) only when it lies within path_tolerance_mm of
+  // the crossing; farther, the edge is split at the crossing (a thinner piece: path fidelity
+  // over quality, docs/cut.md).
+  const double off_mm = t_w * edge_mm;  // the vertex's distance along the edge from the crossing
+  const bool fresh = on_cut_[static_cast<std::size_t>(w)] == 0;
+  if (fresh && settings_.move_snapped_vertices && move_vertex(w, o, t_w, x, v, r)) {
+    r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, point_triangle_distance(x.col(w), tri));
+  } else if (off_mm <= settings_.path_tolerance_mm || t_w < kMinSplitFraction) {
+    r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, off_mm);
+  } else {
+    return false;
+  }
+  on_cut_[static_cast<std::size_t>(w)] = stroke_;
+  cut_normal_[static_cast<std::size_t>(w)] = unit_normal(tri);
+  ++r.vertices_snapped;
+  ++r.cut_points;
+  return true;
+}
+
+std::optional<TetCutter::SecondCrossing> TetCutter::second_crossing(int p, int o, const std::vector<Triangle>& tris,
+                                                                    const Eigen::Matrix3Xd& x) const {
+  const double f = settings_.snap_fraction, len = (x.col(o) - x.col(p)).norm();
+  const Eigen::Vector3d& n_p = cut_normal_[static_cast<std::size_t>(p)];
+  for (const auto& tri : tris) {
+    double s = 0.0;
+    // Crossings within snap_fraction of the edge or path_tolerance_mm of the end on the cut
+    // are that end's own (the sweep passing by it again, or by where the tissue carried it
+    // since). Nor are crossings where the sweep's normal is within 20 degrees of the cut's
+    // normal at the end on the cut, or grazing ones (the edge within 15 degrees of the
+    // sweep's plane): a cut bent a little by the tissue's motion between frames, not a
+    // curved cut coming back.
+    if (segment_triangle_intersection(x.col(p), x.col(o), tri, s) && s > f &&
+        s * len > settings_.path_tolerance_mm + settings_.vertex_tolerance_mm &&
+        std::abs(unit_normal(tri).dot(x.col(o) - x.col(p))) > 0.26 * len && n_p.squaredNorm() > 0.5 && n_p.dot(unit_normal(tri)) < 0.94)
+      return SecondCrossing{p, o, s, tri};
+  }
+  return std::nullopt;
+}
+
+void TetCutter::record_crossing(int a, int b, double s, const Triangle& tri, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v,
+                                CutStepReport& r) {
+  const int w = s <= 0.5 ? a : b, o = s <= 0.5 ? b : a;
+  if (snap_to_crossing(w, o, s <= 0.5 ? s : 1.0 - s, (x.col(b) - x.col(a)).norm(), tri, x, v, r)) return;
+  const EdgeKey key = edge_key(a, b);
+  pending_[key] = s;
+  pending_normal_[key] = unit_normal(tri);
+  ++r.edges_crossed;
+  ++r.cut_points;
+  // The recorded point, against the swept surface (round-off only).
+  const Eigen::Vector3d p = x.col(a) + s * (x.col(b) - x.col(a));
+  r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, point_triangle_distance(p, tri));
+}
+
+std::vector<TetCutter::SecondCrossing> TetCutter::record_edge_crossings(const std::vector<Triangle>& tris,
+                                                                        const std::vector<int>& candidates, Eigen::Matrix3Xd& x,
+                                                                        Eigen::Matrix3Xd& v, CutStepReport& r) {
   std::vector<SecondCrossing> second_crossings;
   std::unordered_set<EdgeKey> seen_edges;
   for (int t : candidates) {
@@ -1437,91 +1480,25 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       const EdgeKey key = edge_key(a, b);
       if (!seen_edges.insert(key).second || pending_.count(key) || (on_stroke(a) && on_stroke(b))) continue;
       if (on_stroke(a) || on_stroke(b)) {
-        const int p = on_stroke(a) ? a : b, o = on_stroke(a) ? b : a;
-        const double len = (x.col(o) - x.col(p)).norm();
-        for (const auto& tri : tris) {
-          double s = 0.0;
-          // Crossings within snap_fraction of the edge or path_tolerance_mm of the end on the
-          // cut are that end's own (the sweep passing by it again, or by where the tissue
-          // carried it since).
-          // Nor are crossings where the sweep's normal is within 20 degrees of the cut's
-          // normal at the end on the cut, or grazing ones (the edge within 15 degrees of the
-          // sweep's plane): a cut bent a little by the tissue's motion between frames, not a
-          // curved cut coming back.
-          if (segment_triangle_intersection(x.col(p), x.col(o), tri, s) && s > f && s * len > settings_.path_tolerance_mm + vtol &&
-              std::abs(unit_normal(tri).dot(x.col(o) - x.col(p))) > 0.26 * len &&
-              cut_normal_[static_cast<std::size_t>(p)].squaredNorm() > 0.5 && cut_normal_[static_cast<std::size_t>(p)].dot(unit_normal(tri)) < 0.94) {
-            second_crossings.push_back({p, o, s, tri});
-            break;
-          }
-        }
+        if (auto c = on_stroke(a) ? second_crossing(a, b, tris, x) : second_crossing(b, a, tris, x)) second_crossings.push_back(*c);
         continue;
       }
       for (const auto& tri : tris) {
         double s = 0.0;
         if (!segment_triangle_intersection(x.col(a), x.col(b), tri, s)) continue;
-        const int w = s <= 0.5 ? a : b, o = s <= 0.5 ? b : a;
-        const double t_w = s <= 0.5 ? s : 1.0 - s;
-        const double off_mm = t_w * (x.col(b) - x.col(a)).norm();  // the vertex's distance along the edge from the crossing
-        bool snapped = false;
-        if (t_w <= f) {
-          // Near an end. An interior vertex not on any cut yet is moved onto the swept
-          // surface (paper 000's moving vertex: no split, no sliver, the cut stays on the
-          // path). Any other vertex snaps (the cut passes through it) only when it lies
-          // within path_tolerance_mm of the crossing; farther, the edge is split at the
-          // crossing (a thinner piece: path fidelity over quality, docs/cut.md).
-          const bool fresh = on_cut_[static_cast<std::size_t>(w)] == 0;
-          if (fresh && settings_.move_snapped_vertices && move_vertex(w, o, t_w, x, v, r)) {
-            snapped = true;
-            r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, point_triangle_distance(x.col(w), tri));
-          } else if (off_mm <= settings_.path_tolerance_mm || t_w < kMinSplitFraction) {
-            snapped = true;
-            r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, off_mm);
-          }
-          if (snapped) {
-            on_cut_[static_cast<std::size_t>(w)] = stroke_;
-            cut_normal_[static_cast<std::size_t>(w)] = unit_normal(tri);
-            ++r.vertices_snapped;
-            ++r.cut_points;
-          }
-        }
-        if (!snapped) {
-          pending_[key] = s;
-          pending_normal_[key] = unit_normal(tri);
-          ++r.edges_crossed;
-          ++r.cut_points;
-          // The recorded point, against the swept surface (round-off only).
-          const Eigen::Vector3d p = x.col(a) + s * (x.col(b) - x.col(a));
-          r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, point_triangle_distance(p, tri));
-        }
+        record_crossing(a, b, s, tri, x, v, r);
         break;
       }
     }
   }
-  // 2b. Second crossings: the free end goes onto the cut when it is near (moved or snapped,
-  // as above), otherwise the edge is split at the crossing (every tet around it bisected:
-  // conforming, volumes exact).
-  for (const auto& c : second_crossings) {
+  return second_crossings;
+}
+
+void TetCutter::split_second_crossings(const std::vector<SecondCrossing>& crossings, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v,
+                                       std::vector<int>& candidates, std::unordered_set<int>& seen_vertices, CutStepReport& r) {
+  for (const auto& c : crossings) {
     if (on_stroke(c.free) || tets_with_edge(c.on_cut, c.free).empty()) continue;
-    const double len = (x.col(c.free) - x.col(c.on_cut)).norm();
-    const double t_free = 1.0 - c.s;
-    if (t_free <= f) {
-      bool snapped = false;
-      if (on_cut_[static_cast<std::size_t>(c.free)] == 0 && settings_.move_snapped_vertices && move_vertex(c.free, c.on_cut, t_free, x, v, r)) {
-        snapped = true;
-        r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, point_triangle_distance(x.col(c.free), c.tri));
-      } else if (t_free * len <= settings_.path_tolerance_mm || t_free < kMinSplitFraction) {
-        snapped = true;
-        r.max_path_deviation_mm = std::max(r.max_path_deviation_mm, t_free * len);
-      }
-      if (snapped) {
-        on_cut_[static_cast<std::size_t>(c.free)] = stroke_;
-        cut_normal_[static_cast<std::size_t>(c.free)] = unit_normal(c.tri);
-        ++r.vertices_snapped;
-        ++r.cut_points;
-        continue;
-      }
-    }
+    if (snap_to_crossing(c.free, c.on_cut, 1.0 - c.s, (x.col(c.free) - x.col(c.on_cut)).norm(), c.tri, x, v, r)) continue;
     const Eigen::Vector3d n = unit_normal(c.tri);
     std::vector<int> touched;
     split_edge(c.on_cut, c.free, std::clamp(c.s, kMinSplitFraction, 1.0 - kMinSplitFraction), x, v, r, touched);
@@ -1533,16 +1510,10 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
     for (int tt : touched) candidates.push_back(tt);
     for (int w : mesh_.tets[static_cast<std::size_t>(touched.empty() ? 0 : touched.back())]) seen_vertices.insert(w);
   }
-  std::sort(candidates.begin(), candidates.end());
-  candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
-  // 3. Sides of the vertices near the sweep (kept for the stroke: a material property): from
-  // the nearest point of the stroke's whole swept surface so far (stroke_side). Neither a
-  // crossing of one of its edges nor this frame's strip alone is enough on a curved cut over
-  // tets larger than its curvature: an edge can cross a ring twice, and a ring's first strip
-  // lies across from vertices on its far side. Here, while the sweep passes, only a vertex
-  // right across from the surface (within 27 degrees of the normal: the sweep's front is
-  // oblique to vertices ahead of it) takes a side; a vertex a cut face needs later takes it
-  // then, from the surface swept by that time, within 45 degrees (tet_side below).
+}
+
+void TetCutter::side_vertices_near_sweep(const std::vector<Triangle>& tris, const std::unordered_set<int>& seen_vertices,
+                                         const Eigen::Matrix3Xd& x) {
   for (int w : seen_vertices) {
     if (on_stroke(w) || side_[static_cast<std::size_t>(w)] != 0) continue;
     // Mostly this frame's triangles change the answer an earlier frame gave: when they lie
@@ -1558,17 +1529,9 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       sided_.push_back(w);
     }
   }
-  // 4. Tets the recorded crossings separate completely: split their crossed edges (every
-  // tet around such an edge is bisected: conforming). Repeated while splits complete more.
-  std::vector<char> cut_piece(static_cast<std::size_t>(mesh_.num_tets()), 0);
-  split_completed(candidates, cut_piece, x, v, r);
-  // 4b. Tets the blade has left (no longer near the sweep) whose crossings stay incomplete
-  // because the tissue moved between frames, and that no blade end passed through (those are
-  // the crack tip): the missing crossings are put on the plane of the recorded ones.
-  complete_left_tets(candidates, old_tets, cut_piece, x, v, r);
-  // Cut faces: faces of the separated pieces with their three vertices on this stroke (the
-  // cut polygons), and faces with their three vertices on this stroke between two tets on
-  // opposite sides (a cut through existing vertices and faces).
+}
+
+std::vector<std::array<int, 3>> TetCutter::separated_piece_faces(const std::vector<char>& cut_piece) {
   std::vector<std::array<int, 3>> new_cut_faces;
   for (std::size_t t = 0; t < cut_piece.size(); ++t) {
     if (!cut_piece[t]) continue;
@@ -1580,95 +1543,100 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
         new_cut_faces.push_back(key);
     }
   }
-  // Side of a tet from its free vertices (0 when it has none or they are not all known).
-  auto free_side = [&](int t) {
-    int side = 0;
-    for (int w : mesh_.tets[static_cast<std::size_t>(t)]) {
-      if (on_stroke(w)) continue;
-      const int sw = side_[static_cast<std::size_t>(w)];
-      if (sw == 0 || (side != 0 && sw != side)) return 0;
-      side = sw;
-    }
-    return side;
-  };
-  // A flat tet (all four vertices on the cut) nothing else decides joins the side most of its
-  // face neighbours are on: either side keeps the cut closed, as long as it is one.
-  auto neighbours_side = [&](int t) {
-    const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
-    int sum = 0, first = 0;
-    for (const auto& fc : kFaces) {
-      int pair[2] = {-1, -1};
-      if (tets_with_face(face_key(tet[static_cast<std::size_t>(fc[0])], tet[static_cast<std::size_t>(fc[1])], tet[static_cast<std::size_t>(fc[2])]), pair) != 2)
-        continue;
-      const int other = pair[0] == t ? pair[1] : pair[0];
-      // A flat neighbour counts with the side it was given (a chain of flat tets in the cut
-      // takes its sides link by link).
-      int sd = free_side(other);
-      if (sd == 0 && other < static_cast<int>(flat_side_.size())) sd = flat_side_[static_cast<std::size_t>(other)];
-      sum += sd;
-      if (first == 0) first = sd;
-    }
-    return sum > 0 ? 1 : (sum < 0 ? -1 : first);
-  };
-  auto tet_side = [&](int t) {
-    int side = 0;
-    bool any_free = false;
-    for (int w : mesh_.tets[static_cast<std::size_t>(t)]) {
-      if (on_stroke(w)) continue;
-      any_free = true;
-      if (side_[static_cast<std::size_t>(w)] == 0) {
-        // A vertex next to the cut that no sweep gave a side yet (its neighbours were put
-        // on the cut later): from the cut beside it.
-        // At the stroke's end (finish_stroke) the surface is complete: the side of the plane
-        // of its nearest triangle, wherever that lies (a face left undecided would stay a
-        // hole in the cut).
-        if (const int sd = finishing_ ? stroke_side(w, x, 1e300, false) : stroke_side(w, x, kLazyCone); sd != 0) {
-          side_[static_cast<std::size_t>(w)] = static_cast<signed char>(sd);
-          sided_.push_back(w);
-        }
+  return new_cut_faces;
+}
+
+int TetCutter::free_side(int t) const {
+  int side = 0;
+  for (int w : mesh_.tets[static_cast<std::size_t>(t)]) {
+    if (on_stroke(w)) continue;
+    const int sw = side_[static_cast<std::size_t>(w)];
+    if (sw == 0 || (side != 0 && sw != side)) return 0;
+    side = sw;
+  }
+  return side;
+}
+
+int TetCutter::neighbours_side(int t) const {
+  const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+  int sum = 0, first = 0;
+  for (const auto& fc : kFaces) {
+    int pair[2] = {-1, -1};
+    if (tets_with_face(face_key(tet[static_cast<std::size_t>(fc[0])], tet[static_cast<std::size_t>(fc[1])], tet[static_cast<std::size_t>(fc[2])]), pair) != 2)
+      continue;
+    const int other = pair[0] == t ? pair[1] : pair[0];
+    // A flat neighbour counts with the side it was given (a chain of flat tets in the cut
+    // takes its sides link by link).
+    int sd = free_side(other);
+    if (sd == 0 && other < static_cast<int>(flat_side_.size())) sd = flat_side_[static_cast<std::size_t>(other)];
+    sum += sd;
+    if (first == 0) first = sd;
+  }
+  return sum > 0 ? 1 : (sum < 0 ? -1 : first);
+}
+
+int TetCutter::tet_side(int t, const Eigen::Matrix3Xd& x) {
+  int side = 0;
+  bool any_free = false;
+  for (int w : mesh_.tets[static_cast<std::size_t>(t)]) {
+    if (on_stroke(w)) continue;
+    any_free = true;
+    if (side_[static_cast<std::size_t>(w)] == 0) {
+      // A vertex next to the cut that no sweep gave a side yet (its neighbours were put
+      // on the cut later): from the cut beside it.
+      // At the stroke's end (finish_stroke) the surface is complete: the side of the plane
+      // of its nearest triangle, wherever that lies (a face left undecided would stay a
+      // hole in the cut).
+      if (const int sd = finishing_ ? stroke_side(w, x, 1e300, false) : stroke_side(w, x, kLazyCone); sd != 0) {
+        side_[static_cast<std::size_t>(w)] = static_cast<signed char>(sd);
+        sided_.push_back(w);
       }
-      const int sw = side_[static_cast<std::size_t>(w)];
-      if (sw == 0 || (side != 0 && sw != side)) return 0;
-      side = sw;
     }
-    if (!any_free) {
-      // All four vertices on the cut (a flat tet in the cut surface): the side of its
-      // centroid, taken while the sweep passes it (kept for the stroke); unknown otherwise.
-      signed char& cached = flat_side_[static_cast<std::size_t>(t)];
-      if (cached != 0) return static_cast<int>(cached);
-      const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
-      // The sides its vertices had before they were put on the cut, when they agree.
-      int before = 0;
-      for (int w : tet) before += side_[static_cast<std::size_t>(w)];
-      Eigen::Vector3d c = Eigen::Vector3d::Zero();
-      double longest = 0.0;
-      for (int i = 0; i < 4; ++i) {
-        c += x.col(tet[static_cast<std::size_t>(i)]) / 4.0;
-        for (int j = i + 1; j < 4; ++j)
-          longest = std::max(longest, (x.col(tet[static_cast<std::size_t>(i)]) - x.col(tet[static_cast<std::size_t>(j)])).norm());
-      }
-      // Against the whole stroke's surface (on a curved cut a tet spanning a chord lies on
-      // the inner side; one frame's strip can be far from it). A sliver lying in the surface
-      // (centroid within 1e-3 of its size) has no side of its own: it joins its neighbours
-      // (deciding it by the sign of round-off cut it out as a piece of its own).
-      if (!stroke_tris_.empty()) {
-        int nearest = 0;
-        const double best = sweep_distance(stroke_tris_, c, &nearest);
-        const double d = unit_normal(stroke_tris_[static_cast<std::size_t>(nearest)]).dot(c - stroke_tris_[static_cast<std::size_t>(nearest)].a);
-        if (best <= f * longest + vtol && std::abs(d) > 1e-3 * longest) {
-          cached = static_cast<signed char>(d > 0 ? 1 : -1);
-          return static_cast<int>(cached);
-        }
-      }
-      if (before != 0) return before > 0 ? 1 : -1;
-      cached = static_cast<signed char>(neighbours_side(t));
+    const int sw = side_[static_cast<std::size_t>(w)];
+    if (sw == 0 || (side != 0 && sw != side)) return 0;
+    side = sw;
+  }
+  return any_free ? side : flat_tet_side(t, x);
+}
+
+int TetCutter::flat_tet_side(int t, const Eigen::Matrix3Xd& x) {
+  signed char& cached = flat_side_[static_cast<std::size_t>(t)];
+  if (cached != 0) return static_cast<int>(cached);
+  const auto& tet = mesh_.tets[static_cast<std::size_t>(t)];
+  // The sides its vertices had before they were put on the cut, when they agree.
+  int before = 0;
+  for (int w : tet) before += side_[static_cast<std::size_t>(w)];
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  double longest = 0.0;
+  for (int i = 0; i < 4; ++i) {
+    c += x.col(tet[static_cast<std::size_t>(i)]) / 4.0;
+    for (int j = i + 1; j < 4; ++j)
+      longest = std::max(longest, (x.col(tet[static_cast<std::size_t>(i)]) - x.col(tet[static_cast<std::size_t>(j)])).norm());
+  }
+  // Against the whole stroke's surface (on a curved cut a tet spanning a chord lies on the
+  // inner side; one frame's strip can be far from it). A sliver lying in the surface
+  // (centroid within 1e-3 of its size) has no side of its own: it joins its neighbours
+  // (deciding it by the sign of round-off cut it out as a piece of its own).
+  if (!stroke_tris_.empty()) {
+    int nearest = 0;
+    const double best = sweep_distance(stroke_tris_, c, &nearest);
+    const Triangle& tri = stroke_tris_[static_cast<std::size_t>(nearest)];
+    const double d = unit_normal(tri).dot(c - tri.a);
+    if (best <= settings_.snap_fraction * longest + settings_.vertex_tolerance_mm && std::abs(d) > 1e-3 * longest) {
+      cached = static_cast<signed char>(d > 0 ? 1 : -1);
       return static_cast<int>(cached);
     }
-    return side;
-  };
+  }
+  if (before != 0) return before > 0 ? 1 : -1;
+  cached = static_cast<signed char>(neighbours_side(t));
+  return static_cast<int>(cached);
+}
+
+void TetCutter::decide_cut_faces(const std::vector<int>& candidates, const std::vector<int>& changed_tets,
+                                 const Eigen::Matrix3Xd& x, std::vector<std::array<int, 3>>& new_cut_faces) {
   std::vector<int> face_tets = candidates;
-  face_tets.insert(face_tets.end(), r.changed_tets.begin(), r.changed_tets.end());
-  std::unordered_set<std::array<int, 3>, FaceHash> seen_faces;
+  face_tets.insert(face_tets.end(), changed_tets.begin(), changed_tets.end());
+  FaceSet seen_faces;
   // Faces on the cut whose tets' sides were not known yet are looked at again every frame
   // (the blade reaches their vertices later).
   std::vector<std::array<int, 3>> faces = std::move(undecided_faces_);
@@ -1687,14 +1655,13 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
       undecided_faces_.clear();
       seen_faces.clear();
     }
-    const std::size_t before = undecided_faces_.size() + faces.size();
     int decided = 0;
     for (const auto& key : faces) {
       if (!on_stroke(key[0]) || !on_stroke(key[1]) || !on_stroke(key[2])) continue;
       if (cut_faces_.count(key) || !seen_faces.insert(key).second) continue;
       int pair[2] = {-1, -1};
       if (tets_with_face(key, pair) != 2) continue;
-      const int s0 = tet_side(pair[0]), s1 = tet_side(pair[1]);
+      const int s0 = tet_side(pair[0], x), s1 = tet_side(pair[1], x);
       if (s0 * s1 < 0) {
         cut_faces_.insert(key);
         new_cut_faces.push_back(key);
@@ -1705,66 +1672,137 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
         ++decided;
       }
     }
-    (void)before;
     if (decided == 0 || undecided_faces_.empty()) break;
   }
+}
+
+bool TetCutter::all_on_stroke(int t) const {
+  for (int w : mesh_.tets[static_cast<std::size_t>(t)])
+    if (!on_stroke(w)) return false;
+  return true;
+}
+
+void TetCutter::join_walled_off_slivers(const std::vector<std::array<int, 3>>& new_cut_faces) {
+  std::set<int> done;
+  for (const auto& key : new_cut_faces) {
+    int pair[2] = {-1, -1};
+    if (tets_with_face(key, pair) != 2) continue;
+    for (int seed : pair) {
+      if (done.count(seed) || !all_on_stroke(seed)) continue;
+      join_sliver_group(seed, done);
+    }
+  }
+}
+
+void TetCutter::join_sliver_group(int seed, std::set<int>& done) {
+  constexpr std::size_t kMaxGroup = 64;
+  std::vector<int> group{seed};
+  std::set<int> in_group{seed};
+  std::vector<std::pair<std::array<int, 3>, int>> walls;  // cut face, tet beyond it
+  bool attached = false;
+  for (std::size_t i = 0; i < group.size() && !attached && group.size() <= kMaxGroup; ++i) {
+    const auto& tet = mesh_.tets[static_cast<std::size_t>(group[i])];
+    for (const auto& fc : kFaces) {
+      const auto face = face_key(tet[static_cast<std::size_t>(fc[0])], tet[static_cast<std::size_t>(fc[1])], tet[static_cast<std::size_t>(fc[2])]);
+      int across[2] = {-1, -1};
+      if (tets_with_face(face, across) != 2) continue;
+      const int other = across[0] == group[i] ? across[1] : across[0];
+      if (in_group.count(other)) continue;
+      if (cut_faces_.count(face)) {
+        walls.emplace_back(face, other);
+      } else if (all_on_stroke(other)) {
+        group.push_back(other);
+        in_group.insert(other);
+      } else {
+        attached = true;
+        break;
+      }
+    }
+  }
+  done.insert(group.begin(), group.end());
+  if (attached || group.size() > kMaxGroup || walls.empty()) return;
+  int sum = 0;
+  for (const auto& wall : walls) sum += free_side(wall.second);
+  const int join = sum > 0 ? 1 : (sum < 0 ? -1 : free_side(walls.front().second));
+  bool opened = false;
+  for (const auto& wall : walls) {
+    if (join != 0 && free_side(wall.second) != join) continue;
+    cut_faces_.erase(wall.first);
+    opened = true;
+  }
+  if (!opened) cut_faces_.erase(walls.front().first);
+  for (int t : group) flat_side_[static_cast<std::size_t>(t)] = static_cast<signed char>(join);
+}
+
+CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v) {
+  const auto start = std::chrono::steady_clock::now();
+  CutStepReport r;
+  const int first_new_vertex = mesh_.num_vertices();
+  if (x.cols() != mesh_.num_vertices()) throw std::invalid_argument("cut: positions do not match the mesh");
+  if (v.cols() != 0 && v.cols() != mesh_.num_vertices()) throw std::invalid_argument("cut: velocities do not match the mesh");
+  const std::vector<Triangle> tris = triangles_with_area(sweep);
+  auto finish = [&]() {
+    r.update_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    return r;
+  };
+  if ((tris.empty() && !finishing_) || mesh_.tets.empty()) return finish();
+  // Candidates: tets whose current box meets the swept surface's box.
+  std::vector<int> candidates = sweep_candidates(tris, x);
+  r.candidate_tets = static_cast<int>(candidates.size());
+  if (candidates.empty() && pending_.empty() && undecided_faces_.empty()) return finish();
+  const int old_tets = mesh_.num_tets();
+  // Tets a blade end (tip or heel path) passes through hold the crack front.
+  if (!tris.empty()) {
+    mark_tip_tets(sweep, candidates, x);
+    const Triangle& t0 = tris.front();
+    last_normal_ = (t0.b - t0.a).cross(t0.c - t0.a).normalized();
+  }
+  refine_ahead(tris, candidates, x, v, r);
+  // The bisected tets' children were appended (their parents' ids are kept).
+  if (r.edges_refined > 0) sort_unique(candidates);
+  if (!tris.empty()) record_stroke_surface(sweep, tris, x);
+  // 1. Vertices on the swept surface.
+  std::unordered_set<int> seen_vertices;
+  snap_vertices_on_sweep(tris, candidates, x, seen_vertices, r);
+  // 2. Edge crossings: snapped to an end within snap_fraction of it, recorded otherwise.
+  // An edge with one end already on this stroke's cut that the sweep crosses again farther
+  // along (a curved cut, a ring, on tets larger than its curvature) is split there (2b):
+  // its other end lies beyond the second crossing, and a side taken from the first one
+  // would be wrong.
+  const std::vector<SecondCrossing> second_crossings = record_edge_crossings(tris, candidates, x, v, r);
+  // 2b. Second crossings: the free end goes onto the cut when it is near (moved or snapped,
+  // as above), otherwise the edge is split at the crossing (every tet around it bisected:
+  // conforming, volumes exact).
+  split_second_crossings(second_crossings, x, v, candidates, seen_vertices, r);
+  sort_unique(candidates);
+  // 3. Sides of the vertices near the sweep (kept for the stroke: a material property): from
+  // the nearest point of the stroke's whole swept surface so far (stroke_side). Neither a
+  // crossing of one of its edges nor this frame's strip alone is enough on a curved cut over
+  // tets larger than its curvature: an edge can cross a ring twice, and a ring's first strip
+  // lies across from vertices on its far side. Here, while the sweep passes, only a vertex
+  // right across from the surface (within 27 degrees of the normal: the sweep's front is
+  // oblique to vertices ahead of it) takes a side; a vertex a cut face needs later takes it
+  // then, from the surface swept by that time, within 45 degrees (tet_side).
+  side_vertices_near_sweep(tris, seen_vertices, x);
+  // 4. Tets the recorded crossings separate completely: split their crossed edges (every
+  // tet around such an edge is bisected: conforming). Repeated while splits complete more.
+  std::vector<char> cut_piece(static_cast<std::size_t>(mesh_.num_tets()), 0);
+  split_completed(candidates, cut_piece, x, v, r);
+  // 4b. Tets the blade has left (no longer near the sweep) whose crossings stay incomplete
+  // because the tissue moved between frames, and that no blade end passed through (those are
+  // the crack tip): the missing crossings are put on the plane of the recorded ones.
+  complete_left_tets(candidates, old_tets, cut_piece, x, v, r);
+  // Cut faces: faces of the separated pieces with their three vertices on this stroke (the
+  // cut polygons), and faces with their three vertices on this stroke between two tets on
+  // opposite sides (a cut through existing vertices and faces).
+  std::vector<std::array<int, 3>> new_cut_faces = separated_piece_faces(cut_piece);
+  decide_cut_faces(candidates, r.changed_tets, x, new_cut_faces);
   // 4c. Slivers in the cut surface: a group of tets with every vertex on this stroke's cut
   // (no material of their own beyond the discretised surface) that the new cut faces would
   // wall off from every tet with a free vertex would come out as a fragment of its own (the
   // sides of such slivers are decided by the sign of a distance near round-off). The group
   // joins the side most of its walled-off neighbours are on: the faces to those are not cut.
-  {
-    auto all_on_cut = [&](int t) {
-      for (int w : mesh_.tets[static_cast<std::size_t>(t)])
-        if (!on_stroke(w)) return false;
-      return true;
-    };
-    constexpr std::size_t kMaxGroup = 64;
-    std::set<int> done;
-    for (const auto& key : new_cut_faces) {
-      int pair[2] = {-1, -1};
-      if (tets_with_face(key, pair) != 2) continue;
-      for (int seed : pair) {
-        if (done.count(seed) || !all_on_cut(seed)) continue;
-        std::vector<int> group{seed};
-        std::set<int> in_group{seed};
-        std::vector<std::pair<std::array<int, 3>, int>> walls;  // cut face, tet beyond it
-        bool attached = false;
-        for (std::size_t i = 0; i < group.size() && !attached && group.size() <= kMaxGroup; ++i) {
-          const auto& tet = mesh_.tets[static_cast<std::size_t>(group[i])];
-          for (const auto& fc : kFaces) {
-            const auto face = face_key(tet[static_cast<std::size_t>(fc[0])], tet[static_cast<std::size_t>(fc[1])], tet[static_cast<std::size_t>(fc[2])]);
-            int across[2] = {-1, -1};
-            if (tets_with_face(face, across) != 2) continue;
-            const int other = across[0] == group[i] ? across[1] : across[0];
-            if (in_group.count(other)) continue;
-            if (cut_faces_.count(face)) {
-              walls.emplace_back(face, other);
-            } else if (all_on_cut(other)) {
-              group.push_back(other);
-              in_group.insert(other);
-            } else {
-              attached = true;
-              break;
-            }
-          }
-        }
-        done.insert(group.begin(), group.end());
-        if (attached || group.size() > kMaxGroup || walls.empty()) continue;
-        int sum = 0;
-        for (const auto& wall : walls) sum += free_side(wall.second);
-        const int join = sum > 0 ? 1 : (sum < 0 ? -1 : free_side(walls.front().second));
-        bool opened = false;
-        for (const auto& wall : walls) {
-          if (join != 0 && free_side(wall.second) != join) continue;
-          cut_faces_.erase(wall.first);
-          opened = true;
-        }
-        if (!opened) cut_faces_.erase(walls.front().first);
-        for (int t : group) flat_side_[static_cast<std::size_t>(t)] = static_cast<signed char>(join);
-      }
-    }
-  }
+  join_walled_off_slivers(new_cut_faces);
   // 5. Separate: duplicate each vertex of a cut face whose tets fall apart into groups.
   separate_along_cut(x, v, r);
   // 6. Points put on the cut off the path in the material go onto it (docs/cut.md, step 8).
@@ -1774,8 +1812,7 @@ CutStepReport TetCutter::step(const SweptSurface& sweep, Eigen::Matrix3Xd& x, Ei
   // already have left them, and a tet never watched is never completed.
   for (int t : r.changed_tets) watch_tet(t);
   r.topology_changed = r.vertices_added > 0 || r.vertices_moved > 0;
-  std::sort(r.changed_tets.begin(), r.changed_tets.end());
-  r.changed_tets.erase(std::unique(r.changed_tets.begin(), r.changed_tets.end()), r.changed_tets.end());
+  sort_unique(r.changed_tets);
   return finish();
 }
 

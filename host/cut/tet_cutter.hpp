@@ -22,6 +22,8 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
+#include <set>
 #include <string>
 #include <unordered_map>
 #include <unordered_set>
@@ -272,6 +274,52 @@ class TetCutter {
   int separate_vertex(int vertex, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
   std::vector<Aabb> family_boxes(const Eigen::Matrix3Xd& x) const;
 
+  // The phases of step(), in order (numbered as in tet_cutter.cpp).
+  // An edge with one end on this stroke's cut that the sweep crosses again farther along.
+  struct SecondCrossing {
+    int on_cut, free;
+    double s;  // from on_cut to free
+    Triangle tri;
+  };
+  std::vector<int> sweep_candidates(const std::vector<Triangle>& tris, const Eigen::Matrix3Xd& x);
+  void record_stroke_surface(const SweptSurface& sweep, const std::vector<Triangle>& tris, const Eigen::Matrix3Xd& x);
+  // 1. Vertices within vertex_tolerance_mm of the sweep go onto the cut.
+  void snap_vertices_on_sweep(const std::vector<Triangle>& tris, const std::vector<int>& candidates, const Eigen::Matrix3Xd& x,
+                              std::unordered_set<int>& seen_vertices, CutStepReport& r);
+  // 2. Edge crossings: snapped or recorded; the second crossings are returned for 2b.
+  std::vector<SecondCrossing> record_edge_crossings(const std::vector<Triangle>& tris, const std::vector<int>& candidates,
+                                                    Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
+  void record_crossing(int a, int b, double s, const Triangle& tri, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, CutStepReport& r);
+  std::optional<SecondCrossing> second_crossing(int p, int o, const std::vector<Triangle>& tris, const Eigen::Matrix3Xd& x) const;
+  // Vertex w, at fraction t_w of its edge (edge_mm long, other end o) from a crossing of
+  // `tri`, goes onto the cut when within snap_fraction: moved onto the sweep, or snapped when
+  // within path_tolerance_mm. False: the edge is to be split at the crossing.
+  bool snap_to_crossing(int w, int o, double t_w, double edge_mm, const Triangle& tri, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v,
+                        CutStepReport& r);
+  // 2b. Second crossings: the free end snapped, or the edge split there.
+  void split_second_crossings(const std::vector<SecondCrossing>& crossings, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v,
+                              std::vector<int>& candidates, std::unordered_set<int>& seen_vertices, CutStepReport& r);
+  // 3. Sides of the vertices right across from the sweep.
+  void side_vertices_near_sweep(const std::vector<Triangle>& tris, const std::unordered_set<int>& seen_vertices, const Eigen::Matrix3Xd& x);
+  // Cut faces of the pieces split_completed separated.
+  std::vector<std::array<int, 3>> separated_piece_faces(const std::vector<char>& cut_piece);
+  // Faces on the cut between tets on opposite sides (appended to new_cut_faces; those not
+  // decidable yet wait in undecided_faces_).
+  void decide_cut_faces(const std::vector<int>& candidates, const std::vector<int>& changed_tets, const Eigen::Matrix3Xd& x,
+                        std::vector<std::array<int, 3>>& new_cut_faces);
+  // Side of a tet from its free vertices (0 when it has none or they are not all known).
+  int free_side(int t) const;
+  // The side most of a tet's face neighbours are on (flat ones with the side they were given).
+  int neighbours_side(int t) const;
+  // Side of a tet: from its free vertices, sided from the stroke when needed; a flat tet (all
+  // four vertices on the cut) by flat_tet_side.
+  int tet_side(int t, const Eigen::Matrix3Xd& x);
+  int flat_tet_side(int t, const Eigen::Matrix3Xd& x);
+  bool all_on_stroke(int t) const;
+  // 4c. Groups of flat tets the new cut faces would wall off join their neighbours' side.
+  void join_walled_off_slivers(const std::vector<std::array<int, 3>>& new_cut_faces);
+  void join_sliver_group(int seed, std::set<int>& done);
+
   TetMesh mesh_;
   CutSettings settings_;
   std::vector<std::vector<int>> vertex_tets_;
@@ -304,8 +352,8 @@ class TetCutter {
   std::vector<Triangle> stroke_tris_rest_;        // this stroke's swept surface in the material (rest configuration)
   std::vector<StrokeChunk> stroke_chunks_rest_;  // stroke_tris_rest_ by frame, with their box
   std::vector<Eigen::Vector3d> cut_normal_;      // per vertex on this stroke's cut: the sweep's unit normal there (0: unknown)
-  std::vector<int> sided_;
-  std::vector<std::array<int, 3>> undecided_faces_;  // on the cut, sides of their tets not known yet                       // vertices with a side (reset at the next stroke)
+  std::vector<int> sided_;                       // vertices with a side (reset at the next stroke)
+  std::vector<std::array<int, 3>> undecided_faces_;  // on the cut, sides of their tets not known yet
   FaceSet cut_faces_;                            // interior faces to separate
   std::vector<signed char> flat_side_;           // per tet with all vertices on the cut: its side (this stroke)
   std::vector<char> tip_tet_;                    // per tet: a blade end passed through it this stroke
