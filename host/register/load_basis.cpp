@@ -10,6 +10,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <string>
 
 #include "host/register/robust_stats.hpp"
 #include "host/register/self_contact.hpp"
@@ -254,381 +255,435 @@ LoadBasis build_load_basis(const Scene& scene, const LoadBasisOptions& o) {
   return b;
 }
 
-LoadFitResult fit_load_basis(const Scene& scene, const LoadBasis& basis, const Eigen::Matrix3Xd& data, const std::vector<LandmarkPair>& landmarks,
-                             const LoadFitOptions& o) {
-  const auto t0 = Clock::now();
-  const TetMesh& mesh = scene.problem.mesh;
-  const Eigen::Matrix3Xd& rest = mesh.rest_positions_World_mm;
-  const int nv = mesh.num_vertices();
-  if (basis.U.rows() != 3 * nv) throw std::invalid_argument("load basis: built for another mesh (" + std::to_string(basis.U.rows() / 3) + " vertices, scene has " + std::to_string(nv) + ")");
-  const int m = basis.modes();
-  const int np = o.estimate_pose ? 6 : 0;
-  LoadFitResult res;
-  res.x_Model_mm = rest;
-  res.alpha = Eigen::VectorXd::Zero(m);
-  constexpr int kMinPoints = 20;
-  double rigid_chi = 0.0;
-  // Landmarks: each bound to the closest point of the volume's surface at rest (its
-  // displacement interpolated there), the offset of the landmark from that point kept.
-  struct LandmarkBinding {
-    std::array<int, 3> v{};
-    Eigen::Vector3d bary = Eigen::Vector3d::Zero();
-    Eigen::Vector3d p_rest = Eigen::Vector3d::Zero();
-    Eigen::Vector3d target = Eigen::Vector3d::Zero();
-  };
-  std::vector<LandmarkBinding> lms;
-  if (o.landmark_error_mm > 0) {
-    const SurfaceIndex idx(rest, mesh.surface_tris);
-    for (const LandmarkPair& l : landmarks) {
-      const SurfaceHit h = idx.closest(l.p_Model_mm);
-      if (h.tri < 0 || !l.target_Model_mm.allFinite()) continue;
-      LandmarkBinding b;
-      const auto& f = mesh.surface_tris[static_cast<std::size_t>(h.tri)];
-      for (int a = 0; a < 3; ++a) b.v[static_cast<std::size_t>(a)] = f[static_cast<std::size_t>(a)];
-      b.bary = Eigen::Vector3d(h.barycentric[0], h.barycentric[1], h.barycentric[2]);
-      b.p_rest = l.p_Model_mm;
-      b.target = l.target_Model_mm;
-      lms.push_back(b);
-    }
+namespace {
+
+constexpr int kMinPoints = 20;  // fewer usable points than this cannot support a deformation
+
+// Landmark bound to the closest point of the volume's surface at rest (its displacement
+// interpolated there), the offset of the landmark from that point kept.
+struct LandmarkBinding {
+  std::array<int, 3> v{};
+  Eigen::Vector3d bary = Eigen::Vector3d::Zero();
+  Eigen::Vector3d p_rest = Eigen::Vector3d::Zero();
+  Eigen::Vector3d target = Eigen::Vector3d::Zero();
+  Eigen::MatrixXd U;  // 3 x modes: the basis interpolated at the bound point
+};
+
+// Point-to-plane rows of the kept correspondences: residuals, robust (Huber) weights and
+// the Jacobian [pose | basis weights].
+struct DataRows {
+  Eigen::VectorXd r, w;
+  Eigen::MatrixXd J;
+  double sigma = 0.0;                               // robust scale of the residuals, mm
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // of the data: the pose step's centre
+};
+
+// The load-basis fit's state and steps: pose D, basis weights alpha and positions x, fitted
+// by regularised Gauss-Newton level by level (fit_load_basis).
+class LoadFit {
+ public:
+  LoadFit(const TetMesh& mesh, const LoadBasis& basis, const Eigen::Matrix3Xd& data, const std::vector<LandmarkPair>& landmarks,
+          const LoadFitOptions& o)
+      : mesh_(mesh), basis_(basis), data_(data), o_(o), rest_(mesh.rest_positions_World_mm), m_(basis.modes()),
+        np_(o.estimate_pose ? 6 : 0), noise_(std::max(o.noise_mm, 1e-6)), s_axis_(o.landmark_error_mm / std::sqrt(3.0)),
+        map_prior_(o.prior_strain > 0 && basis.stiffness_volume > 0), alpha_(Eigen::VectorXd::Zero(m_)), x_(rest_) {
+    if (o.landmark_error_mm > 0) bind_landmarks(landmarks);
+    // Held supports: the support modes (prescribed translations of support clusters, 1 mm
+    // each) get a Gaussian prior of support_sigma_mm.
+    if (o.support_sigma_mm > 0)
+      for (int j = 0; j < m_; ++j)
+        if (basis.mode_kind[static_cast<std::size_t>(j)].rfind("support", 0) == 0) support_modes_.push_back(j);
   }
-  const int nl = static_cast<int>(lms.size());
-  auto landmark_rows = [&](const LandmarkBinding& b) {
-    Eigen::MatrixXd Ul = Eigen::MatrixXd::Zero(3, m);
-    for (int a = 0; a < 3; ++a) Ul.noalias() += b.bary[a] * basis.U.middleRows(3 * b.v[static_cast<std::size_t>(a)], 3);
-    return Ul;
-  };
-  std::vector<Eigen::MatrixXd> lm_U;
-  for (const auto& b : lms) lm_U.push_back(landmark_rows(b));
-  auto landmark_rms = [&](const Eigen::Isometry3d& Dc, const Eigen::VectorXd& a) {
-    if (nl == 0) return 0.0;
+
+  int landmarks() const { return static_cast<int>(lms_.size()); }
+
+  double landmark_rms(const Eigen::Isometry3d& D, const Eigen::VectorXd& a) const {
+    if (lms_.empty()) return 0.0;
     double ss = 0.0;
-    for (int l = 0; l < nl; ++l) ss += (Dc * lms[static_cast<std::size_t>(l)].target - lms[static_cast<std::size_t>(l)].p_rest - lm_U[static_cast<std::size_t>(l)] * a).squaredNorm();
-    return std::sqrt(ss / nl);
-  };
-  res.landmarks_used = nl;
-  res.landmark_rigid_rms_mm = res.landmark_final_rms_mm = landmark_rms(Eigen::Isometry3d::Identity(), Eigen::VectorXd::Zero(m));
+    for (const auto& b : lms_) ss += (D * b.target - b.p_rest - b.U * a).squaredNorm();
+    return std::sqrt(ss / static_cast<double>(lms_.size()));
+  }
+
   // The schedule's misfit (discrepancy, plateau, acceptance): the normalised chi of all
   // measurements, sqrt((sum d^2 / noise^2 + sum |e|^2 / s_l^2) / (points + 3 landmarks)),
   // s_l the landmark error per coordinate (Morozov's principle on the whole measurement
   // vector). Without landmarks it is the data RMS over the noise, so the rules read as on
   // the data RMS alone. (Counting the two groups alike, which lets three landmarks weigh
   // as much as a thousand points, made the benchmark worse: 2.90 against 2.60 mm.)
-  const double noise = std::max(o.noise_mm, 1e-6);
-  const double s_axis = o.landmark_error_mm / std::sqrt(3.0);
-  auto chi = [&](const Pairs& pr, double lm_rms) {
+  double chi(const Pairs& pr, double lm_rms) const {
     const double nd = static_cast<double>(pr.kept.size());
-    double num = nd * (pr.rms / noise) * (pr.rms / noise), den = nd;
-    if (nl > 0) {
-      num += nl * (lm_rms / s_axis) * (lm_rms / s_axis);
+    double num = nd * (pr.rms / noise_) * (pr.rms / noise_), den = nd;
+    if (!lms_.empty()) {
+      const double nl = static_cast<double>(lms_.size());
+      num += nl * (lm_rms / s_axis_) * (lm_rms / s_axis_);
       den += 3.0 * nl;
     }
     return den > 0 ? std::sqrt(num / den) : 0.0;
-  };
-  auto at_noise = [&](const Pairs& pr, double lm_rms) { return chi(pr, lm_rms) <= o.discrepancy_factor; };
-  {
-    const SurfaceIndex idx(rest, mesh.surface_tris);
-    const Pairs p0 = correspond(idx, data, o.keep_fraction, o.max_distance_mm);
+  }
+  bool at_noise(const Pairs& pr, double lm_rms) const { return chi(pr, lm_rms) <= o_.discrepancy_factor; }
+
+  // Fills the rigid fit's residual; returns why the rigid result is kept when the data do
+  // not call for a deformation (too few points, already at the noise), empty otherwise.
+  std::string rigid_fit_suffices(LoadFitResult& res) {
+    const SurfaceIndex idx(rest_, mesh_.surface_tris);
+    const Pairs p0 = correspond(idx, data_, o_.keep_fraction, o_.max_distance_mm);
     res.rigid_rms_mm = p0.rms;
     res.final_rms_mm = p0.rms;
-    if (static_cast<int>(p0.kept.size()) < kMinPoints) {
-      res.message = "data does not support a non-rigid fit: " + std::to_string(p0.kept.size()) + " usable points (of " + std::to_string(data.cols()) +
-                    ") within " + std::to_string(o.max_distance_mm) + " mm of the rigidly registered model; the rigid result is kept";
-      res.wall_time_s = seconds_since(t0);
-      return res;
-    }
-    rigid_chi = chi(p0, res.landmark_rigid_rms_mm);
-    if (at_noise(p0, res.landmark_rigid_rms_mm)) {
-      res.message = "the rigid fit already reaches the expected noise (" + std::to_string(p0.rms) + " mm RMS <= " + std::to_string(o.noise_mm) +
-                    " mm" + (nl > 0 ? ", landmarks " + std::to_string(res.landmark_rigid_rms_mm) + " mm RMS" : std::string()) +
-                    "): no deformation needed; the rigid result is kept";
-      res.wall_time_s = seconds_since(t0);
-      return res;
-    }
+    if (static_cast<int>(p0.kept.size()) < kMinPoints)
+      return "data does not support a non-rigid fit: " + std::to_string(p0.kept.size()) + " usable points (of " + std::to_string(data_.cols()) +
+             ") within " + std::to_string(o_.max_distance_mm) + " mm of the rigidly registered model; the rigid result is kept";
+    rigid_chi_ = chi(p0, res.landmark_rigid_rms_mm);
+    if (at_noise(p0, res.landmark_rigid_rms_mm))
+      return "the rigid fit already reaches the expected noise (" + std::to_string(p0.rms) + " mm RMS <= " + std::to_string(o_.noise_mm) + " mm" +
+             (lms_.empty() ? std::string() : ", landmarks " + std::to_string(res.landmark_rigid_rms_mm) + " mm RMS") +
+             "): no deformation needed; the rigid result is kept";
+    return {};
   }
-  // Held supports: the support modes (prescribed translations of support clusters, 1 mm
-  // each) get a Gaussian prior of support_sigma_mm.
-  std::vector<int> support_modes;
-  if (o.support_sigma_mm > 0)
-    for (int j = 0; j < m; ++j)
-      if (basis.mode_kind[static_cast<std::size_t>(j)].rfind("support", 0) == 0) support_modes.push_back(j);
-  const bool map_strain = o.prior_strain > 0 && basis.stiffness_volume > 0;
+
   // The MAP objective in units of noise^2 (docs/register.md, "Never worse, judged against
-  // the prior"): robust data term over all points (capped), strain prior, pose prior, held supports.
-  auto objective = [&](const Eigen::Isometry3d& Dc, const Eigen::VectorXd& a, const Eigen::Matrix3Xd& xc) {
-    const SurfaceIndex idx(xc, mesh.surface_tris);
-    const Eigen::Matrix3Xd q = Dc * data;
+  // the prior"): robust data term over all points (capped), strain prior, pose prior, held
+  // supports, landmarks.
+  double objective(const Eigen::Isometry3d& D, const Eigen::VectorXd& a, const Eigen::Matrix3Xd& x) const {
+    const SurfaceIndex idx(x, mesh_.surface_tris);
+    const Eigen::Matrix3Xd q = D * data_;
     const int n = static_cast<int>(q.cols());
     std::vector<double> d(static_cast<std::size_t>(n));
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; ++i) {
-      const SurfaceHit h = idx.closest(q.col(i), o.max_distance_mm);
-      d[static_cast<std::size_t>(i)] = h.tri >= 0 ? std::min(h.distance_mm, o.max_distance_mm) : o.max_distance_mm;
+      const SurfaceHit h = idx.closest(q.col(i), o_.max_distance_mm);
+      d[static_cast<std::size_t>(i)] = h.tri >= 0 ? std::min(h.distance_mm, o_.max_distance_mm) : o_.max_distance_mm;
     }
-    const double c = o.huber_sigmas * noise;
+    const double c = o_.huber_sigmas * noise_;
     double sum = 0.0;
     for (double r : d) sum += r <= c ? r * r : 2.0 * c * r - c * c;
-    sum /= noise * noise;
-    if (map_strain) sum += a.dot(basis.G * a) / (basis.stiffness_volume * o.prior_strain * o.prior_strain);
-    if (o.pose_prior) {
-      const Vector6d xi = pose_deviation(*o.pose_prior, Dc);
-      sum += xi.dot(o.pose_prior->information() * xi);
+    sum /= noise_ * noise_;
+    if (map_prior_) sum += a.dot(basis_.G * a) / (basis_.stiffness_volume * o_.prior_strain * o_.prior_strain);
+    if (o_.pose_prior) {
+      const Vector6d xi = pose_deviation(*o_.pose_prior, D);
+      sum += xi.dot(o_.pose_prior->information() * xi);
     }
-    for (int j : support_modes) sum += a[j] * a[j] / (o.support_sigma_mm * o.support_sigma_mm);
-    for (int l = 0; l < nl; ++l) {
-      const Eigen::Vector3d e = Dc * lms[static_cast<std::size_t>(l)].target - lms[static_cast<std::size_t>(l)].p_rest - lm_U[static_cast<std::size_t>(l)] * a;
-      sum += e.squaredNorm() / (s_axis * s_axis);
-    }
+    for (int j : support_modes_) sum += a[j] * a[j] / (o_.support_sigma_mm * o_.support_sigma_mm);
+    for (const auto& b : lms_) sum += (D * b.target - b.p_rest - b.U * a).squaredNorm() / (s_axis_ * s_axis_);
     return sum;
+  }
+
+  // Stiff to flexible: lambda falls level by level; each level iterates to convergence
+  // (correspondences recomputed every iteration). Discrepancy principle: the first level
+  // whose residual reaches the expected noise ends the schedule; a level that lowers the
+  // residual by less than min_improvement is a plateau (the basis explains no more of the
+  // data: model error, not noise) and the previous, stiffer level is kept. With the MAP
+  // prior every level is kept and the prior's weight is the last.
+  void run_schedule(Clock::time_point t0, LoadFitResult& res) {
+    Kept kept{rigid_chi_, alpha_, D_, x_};
+    bool moved = false;
+    // MAP prior: the absolute weight noise^2 / (sum(E V) strain^2); in relative units once
+    // the data term's scale is known (first iteration).
+    const double prior_abs = map_prior_ ? noise_ * noise_ / (basis_.stiffness_volume * o_.prior_strain * o_.prior_strain) : 0.0;
+    bool last_level = false;
+    for (double level_lambda : o_.lambda_schedule) {
+      if (last_level) break;
+      double lambda = level_lambda;
+      if (map_prior_ && hscale_ > 0 && lambda <= prior_abs / hscale_) {
+        lambda = prior_abs / hscale_;  // the prior's level: the last
+        last_level = true;
+      }
+      if (o_.time_budget_s > 0 && seconds_since(t0) > o_.time_budget_s) {
+        stop_ = "time budget reached";
+        break;
+      }
+      if (!run_level(lambda, res)) break;
+      const SurfaceIndex idx(x_, mesh_.surface_tris);
+      const Pairs pl = correspond(idx, D_ * data_, o_.keep_fraction, o_.max_distance_mm);
+      const double lm_level = landmark_rms(D_, alpha_);
+      const double level_chi = chi(pl, lm_level);
+      res.level_rms_mm.push_back(pl.rms);
+      res.level_lambda.push_back(lambda);
+      const bool gain = map_prior_ || level_chi <= kept.chi * (1.0 - o_.plateau_improvement);
+      if (!gain && moved) {
+        stop_ = "residual stopped improving (plateau above the noise: model error)";
+        break;  // keep the previous level
+      }
+      if (!gain) continue;  // still too stiff to move: next level
+      moved = true;
+      kept = Kept{level_chi, alpha_, D_, x_};
+      res.lambda = lambda;
+      if (map_prior_) {
+        res.prior_lambda = prior_abs / hscale_;
+        if (last_level) stop_ = "reached the prior's regularisation";
+      } else if (at_noise(pl, lm_level)) {
+        stop_ = "reached the expected noise level";
+        break;
+      }
+      if (total_ >= o_.max_iterations) {
+        stop_ = "max_iterations";
+        break;
+      }
+    }
+    alpha_ = kept.alpha;
+    D_ = kept.D;
+    x_ = kept.x;
+  }
+
+  // The result: accepted when it lowers the rigid misfit by min_improvement and the MAP
+  // objective (never worse than rigid, judged against the priors).
+  void conclude(Clock::time_point t0, LoadFitResult& res) const {
+    const SurfaceIndex idx(x_, mesh_.surface_tris);
+    const Pairs pf = correspond(idx, D_ * data_, o_.keep_fraction, o_.max_distance_mm);
+    res.final_rms_mm = pf.rms;
+    res.wall_time_s = seconds_since(t0);
+    const double final_chi = chi(pf, landmark_rms(D_, alpha_));
+    res.objective_fit = objective(D_, alpha_, x_);
+    if (np_ && scale_pose_ > 0)
+      res.posterior = pose_posterior(o_.pose_prior ? &*o_.pose_prior : nullptr, D_, centre_pose_, H_pose_, scale_pose_ * scale_pose_);
+    const bool objective_lower = res.objective_fit < res.objective_rigid;
+    if (static_cast<int>(pf.kept.size()) >= kMinPoints && final_chi < rigid_chi_ * (1.0 - o_.min_improvement) && x_.allFinite() && objective_lower) {
+      accept(res);
+    } else {
+      res.message = "data does not support a non-rigid fit (surface residual " + std::to_string(res.rigid_rms_mm) + " mm rigid, " +
+                    std::to_string(pf.rms) + " mm with the load basis; MAP objective " + std::to_string(res.objective_rigid) + " rigid, " +
+                    std::to_string(res.objective_fit) + " fitted" + (objective_lower ? "" : " (not lower against the priors)") + "; " + stop_ +
+                    "); the rigid result is kept";
+      res.final_rms_mm = res.rigid_rms_mm;
+    }
+  }
+
+ private:
+  struct Kept {  // the level kept: its misfit, weights, pose and shape
+    double chi;
+    Eigen::VectorXd alpha;
+    Eigen::Isometry3d D;
+    Eigen::Matrix3Xd x;
   };
-  res.objective_rigid = objective(Eigen::Isometry3d::Identity(), Eigen::VectorXd::Zero(m), rest);
-  Matrix6d H_pose = Matrix6d::Zero();
-  Eigen::Vector3d centre_pose = Eigen::Vector3d::Zero();
-  double scale_pose = 0.0;
-  const double gtrace = basis.G.trace();
-  Eigen::VectorXd alpha = Eigen::VectorXd::Zero(m);
-  Eigen::Isometry3d D = Eigen::Isometry3d::Identity();
-  Eigen::Matrix3Xd x = rest;
-  std::string stop = "schedule completed";
-  double hscale = -1.0;  // lambda's unit: trace of the data term's weight block over trace(G), fixed at the start
-  int total = 0;
-  // One Gauss-Newton iteration at regularisation weight lambda: correspondences at the
-  // current state, then the regularised step. Returns false when too few points remain.
-  Eigen::VectorXd prev_step;
-  double beta = 1.0;
-  auto iterate = [&](double lambda, LoadFitIteration& rec) -> bool {
-    const Eigen::Matrix3Xd q = D * data;
-    const SurfaceIndex idx(x, mesh.surface_tris);
-    const Pairs pr = correspond(idx, q, o.keep_fraction, o.max_distance_mm);
+
+  void bind_landmarks(const std::vector<LandmarkPair>& landmarks) {
+    const SurfaceIndex idx(rest_, mesh_.surface_tris);
+    for (const LandmarkPair& l : landmarks) {
+      const SurfaceHit h = idx.closest(l.p_Model_mm);
+      if (h.tri < 0 || !l.target_Model_mm.allFinite()) continue;
+      LandmarkBinding b;
+      const auto& f = mesh_.surface_tris[static_cast<std::size_t>(h.tri)];
+      for (int a = 0; a < 3; ++a) b.v[static_cast<std::size_t>(a)] = f[static_cast<std::size_t>(a)];
+      b.bary = Eigen::Vector3d(h.barycentric[0], h.barycentric[1], h.barycentric[2]);
+      b.p_rest = l.p_Model_mm;
+      b.target = l.target_Model_mm;
+      b.U = Eigen::MatrixXd::Zero(3, m_);
+      for (int a = 0; a < 3; ++a) b.U.noalias() += b.bary[a] * basis_.U.middleRows(3 * b.v[static_cast<std::size_t>(a)], 3);
+      lms_.push_back(std::move(b));
+    }
+  }
+
+  // One level: Gauss-Newton iterations until the step is below converged_step_mm. False
+  // when the schedule must end (too few points, a numerical failure: stop_ says which).
+  bool run_level(double lambda, LoadFitResult& res) {
+    beta_ = 1.0;
+    prev_step_.resize(0);
+    for (int it = 0; it < o_.iterations_per_level && total_ < o_.max_iterations; ++it, ++total_) {
+      LoadFitIteration rec;
+      if (!iterate(lambda, rec)) {
+        if (stop_ != "numerical failure") stop_ = "too few points";
+        return false;
+      }
+      res.iterations.push_back(rec);
+      if (rec.step_pose_mm < o_.converged_step_mm && rec.step_shape_mm < o_.converged_step_mm) break;
+    }
+    return true;
+  }
+
+  DataRows data_rows(const Pairs& pr, const Eigen::Matrix3Xd& q) const {
     const int n = static_cast<int>(pr.kept.size());
-    if (n < kMinPoints) return false;
-    // Residuals, robust weights and the Jacobian [pose | weights].
-    Eigen::VectorXd r(n), w(n);
+    DataRows d;
+    d.r.resize(n);
+    d.w.resize(n);
     std::vector<double> absr(static_cast<std::size_t>(n));
     for (int k = 0; k < n; ++k) {
       const int i = pr.kept[static_cast<std::size_t>(k)];
       const SurfaceHit& h = pr.hit[static_cast<std::size_t>(i)];
-      r[k] = h.normal.dot(q.col(i) - h.point);
-      absr[static_cast<std::size_t>(k)] = std::abs(r[k]);
+      d.r[k] = h.normal.dot(q.col(i) - h.point);
+      absr[static_cast<std::size_t>(k)] = std::abs(d.r[k]);
     }
-    const double sigma = std::max(o.min_sigma_mm, 1.4826 * kth_value(absr, 0.5));
-    const double hub = o.huber_sigmas * sigma;
-    for (int k = 0; k < n; ++k) w[k] = std::abs(r[k]) <= hub ? 1.0 : hub / std::abs(r[k]);
-    const Eigen::Vector3d centre = q.rowwise().mean();
-    Eigen::MatrixXd J(n, np + m);
+    d.sigma = std::max(o_.min_sigma_mm, 1.4826 * kth_value(absr, 0.5));
+    const double hub = o_.huber_sigmas * d.sigma;
+    for (int k = 0; k < n; ++k) d.w[k] = std::abs(d.r[k]) <= hub ? 1.0 : hub / std::abs(d.r[k]);
+    d.centre = q.rowwise().mean();
+    d.J.resize(n, np_ + m_);
     for (int k = 0; k < n; ++k) {
       const int i = pr.kept[static_cast<std::size_t>(k)];
       const SurfaceHit& h = pr.hit[static_cast<std::size_t>(i)];
-      if (np) {
-        J.block<1, 3>(k, 0) = (q.col(i) - centre).cross(h.normal).transpose();
-        J.block<1, 3>(k, 3) = h.normal.transpose();
+      if (np_) {
+        d.J.block<1, 3>(k, 0) = (q.col(i) - d.centre).cross(h.normal).transpose();
+        d.J.block<1, 3>(k, 3) = h.normal.transpose();
       }
-      const auto& f = mesh.surface_tris[static_cast<std::size_t>(h.tri)];
-      Eigen::RowVectorXd row = Eigen::RowVectorXd::Zero(m);
-      for (int a = 0; a < 3; ++a) row.noalias() += h.barycentric[a] * (h.normal.transpose() * basis.U.middleRows(3 * f[static_cast<std::size_t>(a)], 3));
-      J.block(k, np, 1, m) = -row;
+      const auto& f = mesh_.surface_tris[static_cast<std::size_t>(h.tri)];
+      Eigen::RowVectorXd row = Eigen::RowVectorXd::Zero(m_);
+      for (int a = 0; a < 3; ++a) row.noalias() += h.barycentric[a] * (h.normal.transpose() * basis_.U.middleRows(3 * f[static_cast<std::size_t>(a)], 3));
+      d.J.block(k, np_, 1, m_) = -row;
     }
-    const Eigen::MatrixXd Jw = w.cwiseSqrt().asDiagonal() * J;
-    const Eigen::VectorXd rw = w.cwiseSqrt().cwiseProduct(r);
-    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(np + m, np + m);
+    return d;
+  }
+
+  // Landmark term, residual e = D q - (p + U_l alpha); weight from the data's robust scale
+  // (s_data) against the landmark error per coordinate, Huber on |e|.
+  void add_landmark_terms(double s_data, const Eigen::Vector3d& centre, Eigen::MatrixXd& A, Eigen::VectorXd& rhs) const {
+    const double wl0 = (s_data * s_data) / (s_axis_ * s_axis_);
+    for (const LandmarkBinding& b : lms_) {
+      const Eigen::Vector3d ql = D_ * b.target;
+      const Eigen::Vector3d e = ql - b.p_rest - b.U * alpha_;
+      const double en = e.norm(), hl = 2.0 * o_.landmark_error_mm;
+      const double wl = wl0 * (en <= hl ? 1.0 : hl / en);
+      Eigen::MatrixXd Jl = Eigen::MatrixXd::Zero(3, np_ + m_);
+      if (np_) {
+        const Eigen::Vector3d a = ql - centre;
+        Eigen::Matrix3d skew;
+        skew << 0, -a.z(), a.y(), a.z(), 0, -a.x(), -a.y(), a.x(), 0;  // skew * b = a x b
+        Jl.block<3, 3>(0, 0) = -skew;  // d(omega x a)/d omega
+        Jl.block<3, 3>(0, 3).setIdentity();
+      }
+      Jl.rightCols(m_) = -b.U;
+      A.noalias() += wl * Jl.transpose() * Jl;
+      rhs.noalias() -= wl * Jl.transpose() * e;
+    }
+  }
+
+  // One Gauss-Newton iteration at regularisation weight lambda: correspondences at the
+  // current state, then the regularised step. Returns false when too few points remain or
+  // the step is not finite.
+  bool iterate(double lambda, LoadFitIteration& rec) {
+    const Eigen::Matrix3Xd q = D_ * data_;
+    const SurfaceIndex idx(x_, mesh_.surface_tris);
+    const Pairs pr = correspond(idx, q, o_.keep_fraction, o_.max_distance_mm);
+    if (static_cast<int>(pr.kept.size()) < kMinPoints) return false;
+    const DataRows d = data_rows(pr, q);
+    const Eigen::MatrixXd Jw = d.w.cwiseSqrt().asDiagonal() * d.J;
+    const Eigen::VectorXd rw = d.w.cwiseSqrt().cwiseProduct(d.r);
+    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(np_ + m_, np_ + m_);
     H.selfadjointView<Eigen::Lower>().rankUpdate(Jw.transpose());
     H.triangularView<Eigen::StrictlyUpper>() = H.transpose();
     const Eigen::VectorXd g = Jw.transpose() * rw;
-    const double rr = rw.squaredNorm(), wsum = w.sum();
-    if (hscale < 0) hscale = H.bottomRightCorner(m, m).trace() / std::max(gtrace, 1e-300);
+    const double rr = rw.squaredNorm(), wsum = d.w.sum();
+    // lambda's unit: trace of the data term's weight block over trace(G), fixed at the start.
+    if (hscale_ < 0) hscale_ = H.bottomRightCorner(m_, m_).trace() / std::max(basis_.G.trace(), 1e-300);
     Eigen::MatrixXd A = H;
     Eigen::VectorXd rhs = -g;
-    if (nl > 0) {
-      // Landmark term, residual e = D q - (p + U_l alpha); weight from the data's robust
-      // scale against the landmark error per coordinate, Huber on |e|.
-      const double s_data = std::max(sigma, o.noise_mm);
-      const double wl0 = (s_data * s_data) / (s_axis * s_axis);
-      for (int l = 0; l < nl; ++l) {
-        const LandmarkBinding& b = lms[static_cast<std::size_t>(l)];
-        const Eigen::Vector3d ql = D * b.target;
-        const Eigen::Vector3d e = ql - b.p_rest - lm_U[static_cast<std::size_t>(l)] * alpha;
-        const double en = e.norm(), hl = 2.0 * o.landmark_error_mm;
-        const double wl = wl0 * (en <= hl ? 1.0 : hl / en);
-        Eigen::MatrixXd Jl = Eigen::MatrixXd::Zero(3, np + m);
-        if (np) {
-          const Eigen::Vector3d a = ql - centre;
-          Eigen::Matrix3d skew;
-          skew << 0, -a.z(), a.y(), a.z(), 0, -a.x(), -a.y(), a.x(), 0;  // skew * b = a x b
-          Jl.block<3, 3>(0, 0) = -skew;  // d(omega x a)/d omega
-          Jl.block<3, 3>(0, 3).setIdentity();
-        }
-        Jl.rightCols(m) = -lm_U[static_cast<std::size_t>(l)];
-        A.noalias() += wl * Jl.transpose() * Jl;
-        rhs.noalias() -= wl * Jl.transpose() * e;
-      }
+    const double s_data = std::max(d.sigma, o_.noise_mm);
+    if (!lms_.empty()) add_landmark_terms(s_data, d.centre, A, rhs);
+    if (np_) {
+      H_pose_ = H.topLeftCorner(6, 6);
+      centre_pose_ = d.centre;
+      scale_pose_ = s_data;
     }
-    if (np) {
-      H_pose = H.topLeftCorner(6, 6);
-      centre_pose = centre;
-      scale_pose = std::max(sigma, o.noise_mm);
+    // MAP: the pose prior weighted by the data's scale squared (as the landmark term).
+    if (np_ && o_.pose_prior) add_pose_prior(*o_.pose_prior, D_, d.centre, s_data * s_data, A.topLeftCorner(6, 6), rhs.head(6));
+    for (int j : support_modes_) {
+      const double ws = s_data * s_data / (o_.support_sigma_mm * o_.support_sigma_mm);
+      A(np_ + j, np_ + j) += ws;
+      rhs[np_ + j] -= ws * alpha_[j];
     }
-    if (np && o.pose_prior) {
-      // MAP: the pose prior weighted by the data's scale squared (as the landmark term).
-      const double s_data = std::max(sigma, o.noise_mm);
-      add_pose_prior(*o.pose_prior, D, centre, s_data * s_data, A.topLeftCorner(6, 6), rhs.head(6));
-    }
-    for (int j : support_modes) {
-      const double s_data = std::max(sigma, o.noise_mm);
-      const double ws = s_data * s_data / (o.support_sigma_mm * o.support_sigma_mm);
-      A(np + j, np + j) += ws;
-      rhs[np + j] -= ws * alpha[j];
-    }
-    A.bottomRightCorner(m, m) += lambda * hscale * basis.G;
+    A.bottomRightCorner(m_, m_) += lambda * hscale_ * basis_.G;
     A.diagonal().array() += 1e-10 * A.diagonal().maxCoeff();
-    rhs.tail(m) -= lambda * hscale * (basis.G * alpha);
+    rhs.tail(m_) -= lambda * hscale_ * (basis_.G * alpha_);
     Eigen::VectorXd delta = A.ldlt().solve(rhs);
     if (!delta.allFinite()) {
-      stop = "numerical failure";
+      stop_ = "numerical failure";
       return false;
     }
     rec.rms_mm = pr.rms;
     rec.predicted_rms_mm = std::sqrt(std::max(0.0, rr + 2.0 * g.dot(delta) + delta.dot(H * delta)) / wsum);
     rec.lambda = lambda;
-    rec.points_used = n;
-    // Damping: a weight step that reverses the previous one (in the energy metric) is an
-    // oscillation between two sets of correspondences: halve the step factor.
-    if (prev_step.size() == m && delta.tail(m).dot(basis.G * prev_step) < 0) beta = std::max(0.125, 0.5 * beta);
-    else beta = std::min(1.0, 2.0 * beta);
-    delta *= beta;
-    prev_step = delta.tail(m);
-    if (np) {
+    rec.points_used = static_cast<int>(pr.kept.size());
+    apply_step(delta, d.centre, q, rec);
+    return true;
+  }
+
+  // Damped step: a weight step that reverses the previous one (in the energy metric) is an
+  // oscillation between two sets of correspondences: the step factor is halved.
+  void apply_step(Eigen::VectorXd delta, const Eigen::Vector3d& centre, const Eigen::Matrix3Xd& q, LoadFitIteration& rec) {
+    if (prev_step_.size() == m_ && delta.tail(m_).dot(basis_.G * prev_step_) < 0) beta_ = std::max(0.125, 0.5 * beta_);
+    else beta_ = std::min(1.0, 2.0 * beta_);
+    delta *= beta_;
+    prev_step_ = delta.tail(m_);
+    if (np_) {
       const Eigen::Vector3d om = delta.head<3>();
       Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
       if (om.norm() > 0) step.linear() = Eigen::AngleAxisd(om.norm(), om.normalized()).toRotationMatrix();
       step.translation() = centre - step.linear() * centre + delta.segment<3>(3);
-      D = step * D;
+      D_ = step * D_;
       rec.step_pose_mm = ((step * q) - q).colwise().norm().maxCoeff();
     }
-    const Eigen::VectorXd da = delta.tail(m);
-    alpha += da;
-    const Eigen::VectorXd du = basis.U * da;
+    const Eigen::VectorXd da = delta.tail(m_);
+    alpha_ += da;
+    const int nv = mesh_.num_vertices();
+    const Eigen::VectorXd du = basis_.U * da;
     rec.step_shape_mm = Eigen::Map<const Eigen::Matrix3Xd>(du.data(), 3, nv).colwise().norm().maxCoeff();
-    const Eigen::VectorXd u = basis.U * alpha;
-    x = rest + Eigen::Map<const Eigen::Matrix3Xd>(u.data(), 3, nv);
-    rec.strain_energy = 0.5 * alpha.dot(basis.G * alpha);
-    return true;
-  };
-  // Stiff to flexible: lambda falls level by level; each level iterates to convergence
-  // (correspondences recomputed every iteration). Discrepancy principle: the first level
-  // whose residual reaches the expected noise ends the schedule; a level that lowers the
-  // residual by less than min_improvement is a plateau (the basis explains no more of the
-  // data: model error, not noise) and the previous, stiffer level is kept.
-  double level_chi = rigid_chi;
-  Eigen::VectorXd kept_alpha = alpha;
-  Eigen::Isometry3d kept_D = D;
-  Eigen::Matrix3Xd kept_x = x;
-  bool done = false, moved = false;
-  // The level just run becomes the result (its weight, pose, shape and misfit).
-  auto keep_level = [&](double level, double lambda) {
-    moved = true;
-    level_chi = level;
-    kept_alpha = alpha;
-    kept_D = D;
-    kept_x = x;
-    res.lambda = lambda;
-  };
-  // MAP prior: the absolute weight noise^2 / (sum(E V) strain^2); in relative units once
-  // the data term's scale is known (first iteration).
-  const bool map_prior = o.prior_strain > 0 && basis.stiffness_volume > 0;
-  const double prior_abs = map_prior ? noise * noise / (basis.stiffness_volume * o.prior_strain * o.prior_strain) : 0.0;
-  bool last_level = false;
-  for (double level_lambda : o.lambda_schedule) {
-    if (done || last_level) break;
-    double lambda = level_lambda;
-    if (map_prior && hscale > 0 && lambda <= prior_abs / hscale) {
-      lambda = prior_abs / hscale;  // the prior's level: the last
-      last_level = true;
-    }
-    if (o.time_budget_s > 0 && seconds_since(t0) > o.time_budget_s) {
-      stop = "time budget reached";
-      break;
-    }
-    beta = 1.0;
-    prev_step.resize(0);
-    for (int it = 0; it < o.iterations_per_level && total < o.max_iterations; ++it, ++total) {
-      LoadFitIteration rec;
-      if (!iterate(lambda, rec)) {
-        if (stop != "numerical failure") stop = "too few points";
-        done = true;
-        break;
-      }
-      res.iterations.push_back(rec);
-      if (rec.step_pose_mm < o.converged_step_mm && rec.step_shape_mm < o.converged_step_mm) break;
-    }
-    if (done) break;
-    const SurfaceIndex idx(x, mesh.surface_tris);
-    const Pairs pl = correspond(idx, D * data, o.keep_fraction, o.max_distance_mm);
-    const double rms = pl.rms;
-    const double lm_level = landmark_rms(D, alpha);
-    const double level = chi(pl, lm_level);
-    res.level_rms_mm.push_back(rms);
-    res.level_lambda.push_back(lambda);
-    if (map_prior) {
-      // the prior fixes the regularisation: every level is kept, the prior's is the last
-      keep_level(level, lambda);
-      res.prior_lambda = prior_abs / hscale;
-      if (last_level) stop = "reached the prior's regularisation";
-      if (total >= o.max_iterations) {
-        stop = "max_iterations";
-        break;
-      }
-      continue;
-    }
-    const bool gain = level <= level_chi * (1.0 - o.plateau_improvement);
-    if (!gain && moved) {
-      stop = "residual stopped improving (plateau above the noise: model error)";
-      break;  // keep the previous level
-    }
-    if (!gain) continue;  // still too stiff to move: next level
-    keep_level(level, lambda);
-    if (at_noise(pl, lm_level)) {
-      stop = "reached the expected noise level";
-      break;
-    }
-    if (total >= o.max_iterations) {
-      stop = "max_iterations";
-      break;
-    }
+    const Eigen::VectorXd u = basis_.U * alpha_;
+    x_ = rest_ + Eigen::Map<const Eigen::Matrix3Xd>(u.data(), 3, nv);
+    rec.strain_energy = 0.5 * alpha_.dot(basis_.G * alpha_);
   }
-  alpha = kept_alpha;
-  D = kept_D;
-  x = kept_x;
-  const Eigen::Matrix3Xd q = D * data;
-  const SurfaceIndex idx(x, mesh.surface_tris);
-  const Pairs pf = correspond(idx, q, o.keep_fraction, o.max_distance_mm);
-  res.final_rms_mm = pf.rms;
-  res.wall_time_s = seconds_since(t0);
-  const double final_chi = chi(pf, landmark_rms(D, alpha));
-  res.objective_fit = objective(D, alpha, x);
-  if (np && scale_pose > 0) res.posterior = pose_posterior(o.pose_prior ? &*o.pose_prior : nullptr, D, centre_pose, H_pose, scale_pose * scale_pose);
-  const bool objective_lower = res.objective_fit < res.objective_rigid;
-  if (static_cast<int>(pf.kept.size()) >= kMinPoints && final_chi < rigid_chi * (1.0 - o.min_improvement) && x.allFinite() && objective_lower) {
+
+  void accept(LoadFitResult& res) const {
     res.accepted = true;
-    res.x_Model_mm = x;
-    res.D = D;
-    res.alpha = alpha;
-    res.max_displacement_mm = (x - rest).colwise().norm().maxCoeff();
-    res.strain_energy = 0.5 * alpha.dot(basis.G * alpha);
-    if (basis.gravity > 0 && res.strain_energy > 0) {
-      const int g0 = 3 * basis.patches;
-      const Eigen::VectorXd ag = alpha.segment(g0, basis.gravity);
-      res.gravity_fraction = 0.5 * ag.dot(basis.G.block(g0, g0, basis.gravity, basis.gravity) * ag) / res.strain_energy;
+    res.x_Model_mm = x_;
+    res.D = D_;
+    res.alpha = alpha_;
+    res.max_displacement_mm = (x_ - rest_).colwise().norm().maxCoeff();
+    res.strain_energy = 0.5 * alpha_.dot(basis_.G * alpha_);
+    if (basis_.gravity > 0 && res.strain_energy > 0) {
+      const int g0 = 3 * basis_.patches;
+      const Eigen::VectorXd ag = alpha_.segment(g0, basis_.gravity);
+      res.gravity_fraction = 0.5 * ag.dot(basis_.G.block(g0, g0, basis_.gravity, basis_.gravity) * ag) / res.strain_energy;
     }
-    const SelfContactDetector check(rest, mesh.surface_tris);
-    res.crossed_vertices = check.count_crossed(x, 0.5 * check.exclusion_mm());
-    res.landmark_final_rms_mm = landmark_rms(D, alpha);
-    res.message = stop;
-  } else {
-    res.message = "data does not support a non-rigid fit (surface residual " + std::to_string(res.rigid_rms_mm) + " mm rigid, " +
-                  std::to_string(pf.rms) + " mm with the load basis; MAP objective " + std::to_string(res.objective_rigid) + " rigid, " +
-                  std::to_string(res.objective_fit) + " fitted" + (objective_lower ? "" : " (not lower against the priors)") + "; " + stop +
-                  "); the rigid result is kept";
-    res.final_rms_mm = res.rigid_rms_mm;
+    const SelfContactDetector check(rest_, mesh_.surface_tris);
+    res.crossed_vertices = check.count_crossed(x_, 0.5 * check.exclusion_mm());
+    res.landmark_final_rms_mm = landmark_rms(D_, alpha_);
+    res.message = stop_;
   }
+
+  const TetMesh& mesh_;
+  const LoadBasis& basis_;
+  const Eigen::Matrix3Xd& data_;
+  const LoadFitOptions& o_;
+  const Eigen::Matrix3Xd& rest_;
+  const int m_, np_;       // basis modes; pose parameters (6, or 0 without estimate_pose)
+  const double noise_;     // mm, at least 1e-6
+  const double s_axis_;    // landmark error per coordinate, mm
+  const bool map_prior_;   // the strain prior sets the regularisation (else the discrepancy principle)
+  std::vector<LandmarkBinding> lms_;
+  std::vector<int> support_modes_;
+  double rigid_chi_ = 0.0;
+  Eigen::VectorXd alpha_;
+  Eigen::Isometry3d D_ = Eigen::Isometry3d::Identity();
+  Eigen::Matrix3Xd x_;
+  double hscale_ = -1.0;  // lambda's unit, fixed at the first iteration
+  Eigen::VectorXd prev_step_;
+  double beta_ = 1.0;
+  int total_ = 0;  // iterations over all levels
+  std::string stop_ = "schedule completed";
+  Matrix6d H_pose_ = Matrix6d::Zero();  // the data's pose information at the last step
+  Eigen::Vector3d centre_pose_ = Eigen::Vector3d::Zero();
+  double scale_pose_ = 0.0;
+};
+
+}  // namespace
+
+LoadFitResult fit_load_basis(const Scene& scene, const LoadBasis& basis, const Eigen::Matrix3Xd& data, const std::vector<LandmarkPair>& landmarks,
+                             const LoadFitOptions& o) {
+  const auto t0 = Clock::now();
+  const TetMesh& mesh = scene.problem.mesh;
+  const int nv = mesh.num_vertices();
+  if (basis.U.rows() != 3 * nv) throw std::invalid_argument("load basis: built for another mesh (" + std::to_string(basis.U.rows() / 3) + " vertices, scene has " + std::to_string(nv) + ")");
+  LoadFitResult res;
+  res.x_Model_mm = mesh.rest_positions_World_mm;
+  res.alpha = Eigen::VectorXd::Zero(basis.modes());
+  LoadFit fit(mesh, basis, data, landmarks, o);
+  res.landmarks_used = fit.landmarks();
+  res.landmark_rigid_rms_mm = res.landmark_final_rms_mm = fit.landmark_rms(Eigen::Isometry3d::Identity(), res.alpha);
+  if (std::string why = fit.rigid_fit_suffices(res); !why.empty()) {
+    res.message = std::move(why);
+    res.wall_time_s = seconds_since(t0);
+    return res;
+  }
+  res.objective_rigid = fit.objective(Eigen::Isometry3d::Identity(), res.alpha, mesh.rest_positions_World_mm);
+  fit.run_schedule(t0, res);
+  fit.conclude(t0, res);
   return res;
 }
 
