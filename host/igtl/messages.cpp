@@ -167,4 +167,18 @@ Packet pack_empty(const std::string& type, const std::string& device_name, std::
   return bytes;
 }
 
+Packet pack_rts(const std::string& type, const std::string& device_name, std::uint8_t status, std::int64_t wall_us) {
+  Header h;
+  h.version = 1;
+  h.type = type;
+  h.device_name = device_name;
+  h.timestamp = igtl_time_from_wall_us(wall_us);
+  h.body_size = 1;
+  h.crc = body_crc(std::span<const std::uint8_t>(&status, 1));
+  auto bytes = std::make_shared<std::vector<std::uint8_t>>(kHeaderSize + 1);
+  write_header(h, bytes->data());
+  (*bytes)[kHeaderSize] = status;
+  return bytes;
+}
+
 }  // namespace arnav::igtl

@@ -51,5 +51,8 @@ Packet pack_polydata(const std::string& device_name, const std::vector<std::arra
 // A message of `type` with an empty body (body size 0): OpenIGTLink's answer to a GET_<type>
 // query for data that is not available (the protocol's "Query Message" section).
 Packet pack_empty(const std::string& type, const std::string& device_name, std::int64_t wall_us);
+// The answer to a start or stop request (e.g. RTS_POLYDATA): a one-byte body, the status
+// (0 success, 1 error; OpenIGTLink v2).
+Packet pack_rts(const std::string& type, const std::string& device_name, std::uint8_t status, std::int64_t wall_us);
 
 }  // namespace arnav::igtl

@@ -11,6 +11,7 @@
 #include <cerrno>
 #include <chrono>
 #include <cstring>
+#include <map>
 #include <utility>
 
 #include <igtlStatusMessage.h>
@@ -26,6 +27,14 @@ struct Server::Client {
   std::condition_variable wake;
   std::vector<std::pair<std::string, Packet>> pending;  // latest per stream, oldest stream first
   bool tdata = false;
+  // POLYDATA pushed to this client: per name (STT_/STP_POLYDATA with a name), else the
+  // default (STT_/STP_POLYDATA without one; every surface until the client says otherwise).
+  bool polydata_default = true;
+  std::map<std::string, bool> polydata_by_name;
+  bool wants_polydata(const std::string& name) const {
+    const auto it = polydata_by_name.find(name);
+    return it != polydata_by_name.end() ? it->second : polydata_default;
+  }
   bool closing = false;
   bool sending = false;                // the sender thread has a batch on the way (not under the lock)
   std::int64_t last_sent_mono_us = 0;  // guarded by mutex
@@ -175,7 +184,7 @@ void Server::close_client(Client& c, const std::string& why, bool dropped) {
 }
 
 void Server::reader_loop(Client& c) {
-  StreamReader reader({"STT_TDATA", "STP_TDATA", "GET_STATUS", "GET_POLYDATA"}, 4096, options_.max_body_bytes);
+  StreamReader reader({"STT_TDATA", "STP_TDATA", "GET_STATUS", "GET_POLYDATA", "STT_POLYDATA", "STP_POLYDATA"}, 4096, options_.max_body_bytes);
   std::vector<std::uint8_t> buffer(64 * 1024);
   for (;;) {
     {
@@ -231,6 +240,8 @@ void Server::handle_request(Client& c, const Message& m) {
     queue(c, "STATUS", pack_status(options_.status_device_name, ::igtl::StatusMessage::STATUS_OK, "", wall_us()));
   } else if (m.header.type == "GET_POLYDATA") {
     answer_get_polydata(c, m.header.device_name);
+  } else if (m.header.type == "STT_POLYDATA" || m.header.type == "STP_POLYDATA") {
+    set_polydata_stream(c, m.header.device_name, m.header.type == "STT_POLYDATA");
   }
   std::lock_guard lock(stats_mutex_);
   ++stats_.requests_handled;
@@ -258,12 +269,51 @@ void Server::answer_get_polydata(Client& c, const std::string& device_name) {
   for (const auto& [name, packet] : answers) queue(c, "POLYDATA:" + name, packet);
 }
 
+// STT_POLYDATA / STP_POLYDATA (OpenIGTLink v2): start or stop pushing the surface of that
+// name to this client (every surface without a name), answered with RTS_POLYDATA (status 0).
+// A start sends the latest of the surfaces it turns on at once.
+void Server::set_polydata_stream(Client& c, const std::string& device_name, bool start) {
+  {
+    std::lock_guard lock(c.mutex);
+    if (device_name.empty()) {
+      c.polydata_default = start;
+      c.polydata_by_name.clear();
+    } else {
+      c.polydata_by_name[device_name] = start;
+    }
+    if (!start)  // nothing of a stopped surface after the answer: drop one still queued
+      c.pending.erase(std::remove_if(c.pending.begin(), c.pending.end(),
+                                     [&](const auto& p) {
+                                       return p.first.rfind("POLYDATA:", 0) == 0 && (device_name.empty() || p.first == "POLYDATA:" + device_name);
+                                     }),
+                      c.pending.end());
+  }
+  log_("client " + c.peer + (start ? " started" : " stopped") + " surfaces (" + (device_name.empty() ? "all" : device_name) + ")");
+  queue(c, "RTS_POLYDATA", pack_rts("RTS_POLYDATA", device_name, 0, wall_us()));
+  if (!start) return;
+  std::vector<std::pair<std::string, Packet>> latest;
+  {
+    std::lock_guard lock(polydata_mutex_);
+    for (const auto& [name, packet] : polydata_)
+      if (device_name.empty() || name == device_name) latest.emplace_back(name, packet);
+  }
+  for (const auto& [name, packet] : latest) queue(c, "POLYDATA:" + name, packet);
+}
+
 void Server::publish_polydata(const std::string& device_name, const Packet& packet) {
   {
     std::lock_guard lock(polydata_mutex_);
     polydata_[device_name] = packet;
   }
-  publish("POLYDATA:" + device_name, packet);
+  std::lock_guard lock(clients_mutex_);
+  for (auto& c : clients_) {
+    bool wants = false;
+    {
+      std::lock_guard client_lock(c->mutex);
+      wants = c->wants_polydata(device_name);
+    }
+    if (wants) queue(*c, "POLYDATA:" + device_name, packet);
+  }
 }
 
 // Fast path: with nothing queued and the sender idle, the caller (the LCM thread) sends at

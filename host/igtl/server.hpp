@@ -1,7 +1,7 @@
 #pragma once
 // The OpenIGTLink TCP server of arnav-igtl (docs/igtl.md). Any number of clients; each has
 // a reader thread (frames what the client sends with igtl::StreamReader, answers
-// STT_TDATA/STP_TDATA/GET_STATUS/GET_POLYDATA, skips the rest, v1 or v2 headers) and a sender thread
+// STT_TDATA/STP_TDATA/GET_STATUS/GET_POLYDATA/STT_POLYDATA/STP_POLYDATA, skips the rest, v1 or v2 headers) and a sender thread
 // that keeps only the latest message of each stream (a client slower than the tracker
 // misses poses, never delays them for others), sends a STATUS_OK keep-alive when nothing
 // else went out for keepalive_s, and drops the client when a send fails or does not
@@ -46,7 +46,7 @@ struct ServerStats {
   std::uint64_t messages_sent = 0;
   std::uint64_t messages_replaced = 0;   // a newer message of the same stream replaced it before it was sent
   std::uint64_t keepalives_sent = 0;
-  std::uint64_t requests_handled = 0;    // STT_TDATA, STP_TDATA, GET_STATUS, GET_POLYDATA
+  std::uint64_t requests_handled = 0;    // STT_TDATA, STP_TDATA, GET_STATUS, GET_POLYDATA, STT_POLYDATA, STP_POLYDATA
   std::uint64_t polydata_unknown = 0;    // GET_POLYDATA for a name with no surface: answered with an empty POLYDATA
   std::uint64_t messages_skipped = 0;    // received messages of types arnav-igtl does not handle
 };
@@ -65,8 +65,9 @@ class Server {
   void publish(const std::string& stream, const Packet& packet);
   // Queues `packet` for the clients that asked for tracking data (STT_TDATA).
   void publish_tdata(const std::string& stream, const Packet& packet);
-  // A POLYDATA named `device_name`: queued for every client (the latest per name, like
-  // publish) and kept as the answer to GET_POLYDATA for that name.
+  // A POLYDATA named `device_name`: queued for every client that has not stopped it with
+  // STP_POLYDATA (the latest per name, like publish) and kept as the answer to GET_POLYDATA
+  // and STT_POLYDATA for that name.
   void publish_polydata(const std::string& device_name, const Packet& packet);
   ServerStats stats() const;
   std::size_t clients() const;
@@ -81,6 +82,7 @@ class Server {
   void sender_loop(Client& c);
   void handle_request(Client& c, const Message& m);
   void answer_get_polydata(Client& c, const std::string& device_name);
+  void set_polydata_stream(Client& c, const std::string& device_name, bool start);
   void queue(Client& c, const std::string& stream, const Packet& packet);
   bool send_all(Client& c, const Packet& packet);
   void close_client(Client& c, const std::string& why, bool dropped);

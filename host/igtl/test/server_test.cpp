@@ -75,7 +75,8 @@ TEST(IgtlServer, SlicerV2StatusFirstThenKeepsReceiving) {
   ASSERT_TRUE(client.send(test::slicer_v2_status()));
   ASSERT_TRUE(wait_until([&] { return server.stats().messages_skipped == 1; })) << logged.all();
   for (int i = 0; i < 5; ++i) {
-    server.publish("T" + std::to_string(i), transform_packet("T" + std::to_string(i), i));
+    const std::string name = std::string("T").append(std::to_string(i));
+    server.publish(name, transform_packet(name, i));
   }
   const auto& got = client.receive_until(5, 10.0);
   EXPECT_EQ(count_type(got, "TRANSFORM"), 5u) << logged.all();
@@ -400,6 +401,74 @@ TEST(IgtlServer, GetPolydataForAnUnknownNameGetsAnEmptyPolydata) {
   EXPECT_EQ(count_type(got, "POLYDATA", "Organ"), 1u);
   EXPECT_EQ(count_type(got, "POLYDATA", "Tumour"), 1u);
   EXPECT_EQ(server.stats().polydata_unknown, 2u);
+  EXPECT_EQ(server.stats().clients_dropped, 0u);
+}
+
+// Receives until a message of `type` named `name` arrives (or 10 s pass); returns all received.
+std::vector<Message> receive_through(TestClient& client, const std::string& type, const std::string& name) {
+  std::vector<Message> got;
+  for (int i = 0; i < 200 && count_type(got, type, name) == 0 && !client.closed_by_server(); ++i) {
+    client.receive_until(1, 0.05);
+    for (auto& m : client.take()) got.push_back(std::move(m));
+  }
+  return got;
+}
+
+TEST(IgtlServer, StopAndStartPolydataPerNameAnsweredWithRts) {
+  Logged logged;
+  Server server(test_options(), logged.log());
+  server.publish_polydata("Organ", organ_packet(0.0));
+  server.publish_polydata("Tumour", organ_packet(0.1, "tumour"));
+  TestClient client(server.port());
+  ASSERT_TRUE(client.connected()) << client.why();
+  ASSERT_TRUE(wait_until([&] { return server.clients() == 1; }));
+  auto expect_rts = [&](const std::vector<Message>& got, const std::string& name) {
+    ASSERT_EQ(count_type(got, "RTS_POLYDATA", name), 1u) << logged.all();
+    for (const auto& m : got)
+      if (m.header.type == "RTS_POLYDATA") {
+        const auto u = test::unpack(m);
+        EXPECT_TRUE(u.crc_ok);
+        EXPECT_EQ(u.status_code, 0);  // success
+      }
+  };
+  // Stop the organ only: answered, then only the tumour is pushed.
+  ASSERT_TRUE(client.send(test::named_request("STP_POLYDATA", "Organ")));
+  expect_rts(receive_through(client, "RTS_POLYDATA", "Organ"), "Organ");
+  server.publish_polydata("Organ", organ_packet(0.2));
+  server.publish_polydata("Tumour", organ_packet(0.3, "tumour"));
+  server.publish("T", transform_packet("T", 1.0));  // a marker after both surfaces
+  auto got = receive_through(client, "TRANSFORM", "T");
+  EXPECT_EQ(count_type(got, "POLYDATA", "Organ"), 0u);
+  EXPECT_EQ(count_type(got, "POLYDATA", "Tumour"), 1u);
+  // GET_POLYDATA is still answered for a stopped surface.
+  ASSERT_TRUE(client.send(test::named_request("GET_POLYDATA", "Organ")));
+  EXPECT_EQ(count_type(receive_through(client, "POLYDATA", "Organ"), "POLYDATA", "Organ"), 1u);
+  // Stop every surface (no name), then start them all: the start sends the latest at once.
+  ASSERT_TRUE(client.send(test::named_request("STP_POLYDATA", "", 2)));
+  expect_rts(receive_through(client, "RTS_POLYDATA", ""), "");
+  server.publish_polydata("Organ", organ_packet(0.4));
+  server.publish_polydata("Tumour", organ_packet(0.5, "tumour"));
+  server.publish("T", transform_packet("T", 2.0));
+  got = receive_through(client, "TRANSFORM", "T");
+  EXPECT_EQ(count_type(got, "POLYDATA"), 0u);
+  ASSERT_TRUE(client.send(test::named_request("STT_POLYDATA", "")));
+  got = receive_through(client, "RTS_POLYDATA", "");
+  expect_rts(got, "");
+  for (int i = 0; i < 2 && (count_type(got, "POLYDATA", "Organ") == 0 || count_type(got, "POLYDATA", "Tumour") == 0); ++i)
+    for (auto& m : receive_through(client, "POLYDATA", count_type(got, "POLYDATA", "Organ") == 0 ? "Organ" : "Tumour")) got.push_back(std::move(m));
+  EXPECT_EQ(count_type(got, "POLYDATA", "Organ"), 1u);
+  EXPECT_EQ(count_type(got, "POLYDATA", "Tumour"), 1u);
+  for (const auto& m : got)
+    if (m.header.type == "POLYDATA" && m.header.device_name == "Organ") {  // the latest published, not the one before the stop
+      const auto u = test::unpack(m);
+      const surface_mesh_t latest = test::sphere_surface("organ", 4, 6, 0.4, 0);
+      ASSERT_EQ(u.points_mm.size(), latest.positions_mm.size());
+      EXPECT_EQ(u.points_mm[1][0], latest.positions_mm[1][0]);
+    }
+  server.publish_polydata("Organ", organ_packet(0.6));  // pushed again
+  EXPECT_EQ(count_type(receive_through(client, "POLYDATA", "Organ"), "POLYDATA", "Organ"), 1u);
+  EXPECT_NE(logged.all().find("stopped surfaces (Organ)"), std::string::npos) << logged.all();
+  EXPECT_EQ(server.stats().requests_handled, 4u);
   EXPECT_EQ(server.stats().clients_dropped, 0u);
 }
 

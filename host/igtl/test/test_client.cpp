@@ -22,7 +22,7 @@
 
 namespace arnav::igtl::test {
 
-TestClient::TestClient(int port) : reader_({"TRANSFORM", "TDATA", "STATUS", "IMAGE", "POLYDATA"}, 1ull << 28, 1ull << 28) {
+TestClient::TestClient(int port) : reader_({"TRANSFORM", "TDATA", "STATUS", "IMAGE", "POLYDATA", "RTS_POLYDATA"}, 1ull << 28, 1ull << 28) {
   fd_ = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
   sockaddr_in addr{};
   addr.sin_family = AF_INET;
@@ -205,6 +205,10 @@ Unpacked unpack(const Message& m) {
       const auto* p = static_cast<const std::uint8_t*>(msg->GetScalarPointer());
       u.pixels.assign(p, p + static_cast<std::size_t>(msg->GetImageSize()));
     }
+  } else if (type.rfind("RTS_", 0) == 0) {  // one status byte (0 success)
+    u.crc_ok = m.body_kept && body_crc(m.body) == m.header.crc;
+    if (u.crc_ok && m.body.size() == 1) u.status_code = m.body[0];
+    else u.crc_ok = false;
   } else if (type == "POLYDATA") {
     u.empty_body = m.header.body_size == 0;
     auto msg = ::igtl::PolyDataMessage::New();

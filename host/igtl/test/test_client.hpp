@@ -59,7 +59,7 @@ struct Unpacked {
   std::int64_t wall_us = 0;
   Eigen::Matrix4d matrix = Eigen::Matrix4d::Zero();          // TRANSFORM
   std::vector<std::pair<std::string, Eigen::Matrix4d>> tdata; // TDATA elements
-  int status_code = 0;                                         // STATUS
+  int status_code = 0;                                         // STATUS; RTS_* (0 success)
   int width = 0, height = 0, components = 0, scalar_type = 0;  // IMAGE
   std::vector<std::uint8_t> pixels;                            // IMAGE
   bool empty_body = false;                                     // POLYDATA: the "not available" answer
@@ -67,7 +67,8 @@ struct Unpacked {
   std::vector<std::vector<std::uint32_t>> polygons;            // POLYDATA
   std::size_t other_cells = 0;                                 // POLYDATA vertices, lines, strips
 };
-// Unpacks a TRANSFORM, TDATA, STATUS, IMAGE or POLYDATA with libopenigtlink (CRC checked).
+// Unpacks a TRANSFORM, TDATA, STATUS, IMAGE or POLYDATA with libopenigtlink, an RTS_* by hand
+// (CRC checked).
 Unpacked unpack(const Message& message);
 
 // A closed surface as arnav-host publishes it (ARNAV_SURFACE_<name>, frame "Ref"): a UV
