@@ -83,7 +83,7 @@ RenderResult SyntheticRenderer::render(const std::vector<BoardInScene>& scene, c
   cv::Mat surface_z;
   if (!surfaces.empty()) {
     constexpr int kShift = 4;  // sub-pixel vertex positions for fillConvexPoly
-    surface_z = cv::Mat(H, W, CV_32F, cv::Scalar(std::numeric_limits<float>::infinity()));
+    surface_z = cv::Mat(H, W, CV_32F, cv::Scalar(static_cast<double>(std::numeric_limits<float>::infinity())));
     result.surface_mask = cv::Mat::zeros(H, W, CV_8U);
     struct Tri {
       double depth;
@@ -124,7 +124,7 @@ RenderResult SyntheticRenderer::render(const std::vector<BoardInScene>& scene, c
     std::sort(tris.begin(), tris.end(), [](const Tri& x, const Tri& y) { return x.depth > y.depth; });
     for (const auto& t : tris) {
       cv::fillConvexPoly(refl, t.px.data(), 3, cv::Scalar(t.shade), cv::LINE_8, kShift);
-      cv::fillConvexPoly(surface_z, t.px.data(), 3, cv::Scalar(t.depth), cv::LINE_8, kShift);
+      cv::fillConvexPoly(surface_z, t.px.data(), 3, cv::Scalar(static_cast<double>(t.depth)), cv::LINE_8, kShift);
       cv::fillConvexPoly(result.surface_mask, t.px.data(), 3, cv::Scalar(255), cv::LINE_8, kShift);
     }
   }

@@ -111,7 +111,7 @@ class PlyBody {
       case PlyType::kUInt16: { std::uint16_t v; std::memcpy(&v, b, 2); return v; }
       case PlyType::kInt32: { std::int32_t v; std::memcpy(&v, b, 4); return v; }
       case PlyType::kUInt32: { std::uint32_t v; std::memcpy(&v, b, 4); return v; }
-      case PlyType::kFloat32: { float v; std::memcpy(&v, b, 4); return v; }
+      case PlyType::kFloat32: { float v; std::memcpy(&v, b, 4); return static_cast<double>(v); }
       case PlyType::kFloat64: { double v; std::memcpy(&v, b, 8); return v; }
       case PlyType::kNone: break;
     }

@@ -3,6 +3,7 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 #include "host/mesh/load_error.hpp"
@@ -13,7 +14,7 @@ namespace {
 // Uniform grid over the tets' bounding boxes: each cell lists the tets overlapping it.
 class TetGrid {
  public:
-  explicit TetGrid(const TetMesh& mesh) : mesh_(mesh) {
+  explicit TetGrid(const TetMesh& mesh) {
     const auto& x = mesh.rest_positions_World_mm;
     lo_ = x.rowwise().minCoeff();
     const Eigen::Vector3d hi = x.rowwise().maxCoeff();
@@ -49,7 +50,6 @@ class TetGrid {
   double cell_size() const { return cell_; }
 
  private:
-  const TetMesh& mesh_;
   Eigen::Vector3d lo_;
   double cell_ = 1.0;
   std::array<int, 3> n_{};
@@ -69,7 +69,7 @@ Eigen::Vector4d barycentric(const TetMesh& mesh, int t, const Eigen::Vector3d& p
 double distance_to_tet(const TetMesh& mesh, int t, const Eigen::Vector3d& p, const Eigen::Vector4d& w) {
   if (w.minCoeff() >= 0) return 0.0;
   const auto& x = mesh.rest_positions_World_mm;
-  double best = INFINITY;
+  double best = std::numeric_limits<double>::infinity();
   for (const auto& f : kTetFaces) {
     // Closest point on triangle (Ericson, Real-Time Collision Detection 5.1.5).
     const Eigen::Vector3d a = x.col(mesh.tets[t][f[0]]), b = x.col(mesh.tets[t][f[1]]), c = x.col(mesh.tets[t][f[2]]);
@@ -131,7 +131,7 @@ Embedding embed_points(const TetMesh& mesh, const Eigen::Matrix3Xd& points, doub
     if (!p.allFinite()) throw_load_error(what, 0, "point " + std::to_string(i) + " is not finite", "fix its coordinates");
     const auto c = grid.cell_of(p);
     int best = -1;
-    double best_dist = INFINITY;
+    double best_dist = std::numeric_limits<double>::infinity();
     Eigen::Vector4d best_w;
     // Search rings of cells outward until a containing tet is found; for points outside
     // the mesh, stop once the ring is beyond the best distance found.

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <functional>
 #include <random>
 
@@ -499,7 +500,7 @@ TEST(CutSettingsCheck, EverySettingOutOfRangeIsRefusedWithItsValue) {
   EXPECT_NE(message(CutSettings{.snap_fraction = 0.7}).find("snap_fraction must lie in (0, 0.5), got 0.7"), std::string::npos);
   EXPECT_NE(message(CutSettings{.path_tolerance_mm = -1.0}).find("path_tolerance_mm must be finite and >= 0, got -1"), std::string::npos);
   EXPECT_NE(message(CutSettings{.path_tolerance_mm = std::nan("")}).find("path_tolerance_mm must be finite"), std::string::npos);
-  EXPECT_NE(message(CutSettings{.vertex_tolerance_mm = INFINITY}).find("vertex_tolerance_mm must be finite and >= 0"), std::string::npos);
+  EXPECT_NE(message(CutSettings{.vertex_tolerance_mm = std::numeric_limits<double>::infinity()}).find("vertex_tolerance_mm must be finite and >= 0"), std::string::npos);
   EXPECT_NE(message(CutSettings{.chord_sagitta_mm = -0.5}).find("chord_sagitta_mm must be finite and >= 0, got -0.5"), std::string::npos);
   EXPECT_NE(message(CutSettings{.min_refined_edge_mm = 0.0}).find("min_refined_edge_mm must be finite and > 0"), std::string::npos);
 }
