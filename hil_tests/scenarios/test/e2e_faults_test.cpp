@@ -56,6 +56,13 @@ struct FaultCase {
 
 std::string need(bool ok, const std::string& what) { return ok ? std::string() : what; }
 
+// The health counters, for a failure message: "crc 4 timeouts 7 ...".
+std::string to_string(const Counters& c) {
+  return "crc " + std::to_string(c.crc) + " timeouts " + std::to_string(c.timeouts) + " resyncs " + std::to_string(c.resyncs) +
+         " garbage " + std::to_string(c.garbage) + " errors " + std::to_string(c.errors) + " resets " + std::to_string(c.resets) +
+         " reconnects " + std::to_string(c.reconnects);
+}
+
 TEST(HilFaults, EachFaultIsNoticedAndRecovered) {
   HilRun run;
   const std::int64_t t0 = monotonic_us();
@@ -152,15 +159,17 @@ TEST(HilFaults, EachFaultIsNoticedAndRecovered) {
     // the poses of the frames before the fault in a burst. Wait for a health message that
     // shows it, within the recovery bound; a fault never noticed still fails.
     std::string missed = "no health message after recovery";
+    std::string counts;
     run.lcm().wait_for(
         [&](const LcmCapture&) {
           const auto after = health_after(run.lcm(), back, 1.0);
           if (!after) return false;
           missed = fc.noticed(*before, *after, run, t_inject);
+          counts = "health before: " + to_string(*before) + "\nhealth after:  " + to_string(*after);
           return missed.empty();
         },
         kRecoveryBoundS);
-    EXPECT_TRUE(missed.empty()) << "'" << fc.command << "': " << missed << "\n" << run.lcm().event_log();
+    EXPECT_TRUE(missed.empty()) << "'" << fc.command << "': " << missed << "\n" << counts << "\n" << run.lcm().event_log();
   }
 
   EXPECT_EQ(run.stop_appliance(), 0) << run.logs();
