@@ -250,15 +250,8 @@ void Server::handle_request(Client& c, const Message& m) {
 // GET_POLYDATA (OpenIGTLink "Query Message"): the latest POLYDATA of that name; without a
 // name every surface there is; data not available: a POLYDATA of that name with an empty body.
 void Server::answer_get_polydata(Client& c, const std::string& device_name) {
-  std::vector<std::pair<std::string, Packet>> answers;
   std::string known;
-  {
-    std::lock_guard lock(polydata_mutex_);
-    for (const auto& [name, packet] : polydata_) {
-      if (device_name.empty() || name == device_name) answers.emplace_back(name, packet);
-      known += (known.empty() ? "" : ", ") + name;
-    }
-  }
+  std::vector<std::pair<std::string, Packet>> answers = latest_polydata(device_name, &known);
   if (answers.empty()) {
     log_("client " + c.peer + ": GET_POLYDATA '" + device_name + "': no such surface (" + (known.empty() ? "none yet" : "have " + known) +
          "): answered with an empty POLYDATA");
@@ -291,13 +284,17 @@ void Server::set_polydata_stream(Client& c, const std::string& device_name, bool
   log_("client " + c.peer + (start ? " started" : " stopped") + " surfaces (" + (device_name.empty() ? "all" : device_name) + ")");
   queue(c, "RTS_POLYDATA", pack_rts("RTS_POLYDATA", device_name, 0, wall_us()));
   if (!start) return;
+  for (const auto& [name, packet] : latest_polydata(device_name)) queue(c, "POLYDATA:" + name, packet);
+}
+
+std::vector<std::pair<std::string, Packet>> Server::latest_polydata(const std::string& device_name, std::string* known) {
   std::vector<std::pair<std::string, Packet>> latest;
-  {
-    std::lock_guard lock(polydata_mutex_);
-    for (const auto& [name, packet] : polydata_)
-      if (device_name.empty() || name == device_name) latest.emplace_back(name, packet);
+  std::lock_guard lock(polydata_mutex_);
+  for (const auto& [name, packet] : polydata_) {
+    if (device_name.empty() || name == device_name) latest.emplace_back(name, packet);
+    if (known) *known += (known->empty() ? "" : ", ") + name;
   }
-  for (const auto& [name, packet] : latest) queue(c, "POLYDATA:" + name, packet);
+  return latest;
 }
 
 void Server::publish_polydata(const std::string& device_name, const Packet& packet) {
@@ -305,15 +302,7 @@ void Server::publish_polydata(const std::string& device_name, const Packet& pack
     std::lock_guard lock(polydata_mutex_);
     polydata_[device_name] = packet;
   }
-  std::lock_guard lock(clients_mutex_);
-  for (auto& c : clients_) {
-    bool wants = false;
-    {
-      std::lock_guard client_lock(c->mutex);
-      wants = c->wants_polydata(device_name);
-    }
-    if (wants) queue(*c, "POLYDATA:" + device_name, packet);
-  }
+  publish_where("POLYDATA:" + device_name, packet, [&](const Client& c) { return c.wants_polydata(device_name); });
 }
 
 // Fast path: with nothing queued and the sender idle, the caller (the LCM thread) sends at
@@ -364,14 +353,18 @@ void Server::publish(const std::string& stream, const Packet& packet) {
 }
 
 void Server::publish_tdata(const std::string& stream, const Packet& packet) {
+  publish_where("TDATA:" + stream, packet, [](const Client& c) { return c.tdata; });
+}
+
+void Server::publish_where(const std::string& stream, const Packet& packet, const std::function<bool(const Client&)>& wants) {
   std::lock_guard lock(clients_mutex_);
   for (auto& c : clients_) {
-    bool wants = false;
+    bool wanted = false;
     {
       std::lock_guard client_lock(c->mutex);
-      wants = c->tdata;
+      wanted = wants(*c);
     }
-    if (wants) queue(*c, "TDATA:" + stream, packet);
+    if (wanted) queue(*c, stream, packet);
   }
 }
 

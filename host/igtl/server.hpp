@@ -83,6 +83,11 @@ class Server {
   void handle_request(Client& c, const Message& m);
   void answer_get_polydata(Client& c, const std::string& device_name);
   void set_polydata_stream(Client& c, const std::string& device_name, bool start);
+  // The latest POLYDATA of that name (every name when empty); `known` gets all names there are.
+  std::vector<std::pair<std::string, Packet>> latest_polydata(const std::string& device_name, std::string* known = nullptr);
+  // Queues `packet` as the latest of `stream` for each client for which `wants` holds
+  // (evaluated under the client's lock).
+  void publish_where(const std::string& stream, const Packet& packet, const std::function<bool(const Client&)>& wants);
   void queue(Client& c, const std::string& stream, const Packet& packet);
   bool send_all(Client& c, const Packet& packet);
   void close_client(Client& c, const std::string& why, bool dropped);
