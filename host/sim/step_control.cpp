@@ -35,16 +35,20 @@ bool SubstepControl::retry_allowed(const StepSummary& s) {
   return s.termination != "refused_unstable_dt" && s.termination != "factorization_failed";
 }
 
+SubstepControl::LedgerStep SubstepControl::ledger_step(const StepSummary& s) const {
+  return {std::max(s.energy_allowance_mN_mm - created_before_mN_mm_, 0.0), s.energy_created_mN_mm - created_before_mN_mm_};
+}
+
 bool SubstepControl::strained(const StepSummary& s) const {
   if (!(s.energy_allowance_mN_mm > 0.0)) return false;  // no ledger (the implicit FEMs)
-  const double margin = s.energy_allowance_mN_mm - created_before_mN_mm_;
-  return s.energy_created_mN_mm - created_before_mN_mm_ > kStrainedMarginShare * std::max(margin, 0.0);
+  const LedgerStep l = ledger_step(s);
+  return l.spent_mN_mm > kStrainedMarginShare * l.margin_mN_mm;
 }
 
 std::string SubstepControl::strain_note(const StepSummary& s) const {
-  const double margin = std::max(s.energy_allowance_mN_mm - created_before_mN_mm_, 0.0);
-  const double spent = s.energy_created_mN_mm - created_before_mN_mm_;
-  const std::string share = margin > 0.0 ? std::to_string(std::lround(100.0 * spent / margin)) + " %" : "more than all";
+  const LedgerStep l = ledger_step(s);
+  const std::string share =
+      l.margin_mN_mm > 0.0 ? std::to_string(std::lround(100.0 * l.spent_mN_mm / l.margin_mN_mm)) + " %" : "more than all";
   return "energy ledger: the step created " + share + " of the margin left";
 }
 

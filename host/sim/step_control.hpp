@@ -92,6 +92,12 @@ class SubstepControl {
   int start_factor();
   static bool retry_allowed(const StepSummary& s);
   std::string strain_note(const StepSummary& s) const;
+  // The ledger's margin left at the step's start (allowance minus energy created before it,
+  // at least 0) and the energy the step created.
+  struct LedgerStep {
+    double margin_mN_mm, spent_mN_mm;
+  };
+  LedgerStep ledger_step(const StepSummary& s) const;
   void finish(StepSummary& s, int factor, const std::string& first_warning);
 
   int factor_ = 1;
